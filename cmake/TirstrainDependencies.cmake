@@ -1,0 +1,33 @@
+# Every dependency is a Debian 12 package installed by scripts/install-deps; nothing is downloaded here.
+find_package(PkgConfig REQUIRED)
+find_package(Threads REQUIRED)
+find_package(Eigen3 3.4 REQUIRED NO_MODULE)
+find_package(OpenCV REQUIRED COMPONENTS core imgproc imgcodecs videoio video highgui)
+find_package(HDF5 REQUIRED COMPONENTS C CXX)
+find_package(yaml-cpp REQUIRED)
+find_package(nlohmann_json 3.10 REQUIRED)
+find_package(CLI11 REQUIRED)
+set(CGAL_DO_NOT_WARN_ABOUT_CMAKE_BUILD_TYPE TRUE)
+find_package(CGAL REQUIRED)
+find_package(Ceres REQUIRED)
+pkg_check_modules(ARAVIS REQUIRED IMPORTED_TARGET aravis-0.8)
+pkg_check_modules(LIBV4L2 REQUIRED IMPORTED_TARGET libv4l2)
+pkg_check_modules(LIBCAMERA REQUIRED IMPORTED_TARGET libcamera)
+
+# HDF5's CMake variables, wrapped as one target.
+add_library(tirstrain_hdf5 INTERFACE)
+target_include_directories(tirstrain_hdf5 SYSTEM INTERFACE ${HDF5_INCLUDE_DIRS})
+target_link_libraries(tirstrain_hdf5 INTERFACE ${HDF5_CXX_LIBRARIES} ${HDF5_LIBRARIES})
+target_compile_definitions(tirstrain_hdf5 INTERFACE ${HDF5_DEFINITIONS})
+
+add_library(tirstrain_opencv INTERFACE)
+target_include_directories(tirstrain_opencv SYSTEM INTERFACE ${OpenCV_INCLUDE_DIRS})
+target_link_libraries(tirstrain_opencv INTERFACE ${OpenCV_LIBS})
+
+if(TIRSTRAIN_BUILD_TESTS)
+  find_package(GTest REQUIRED)
+  include(GoogleTest)
+endif()
+if(TIRSTRAIN_BUILD_BENCH)
+  find_package(benchmark REQUIRED)
+endif()

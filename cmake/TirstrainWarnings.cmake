@@ -1,0 +1,28 @@
+# Compile flags shared by every tirstrain target: applied through tirstrain_target_defaults().
+add_library(tirstrain_flags INTERFACE)
+# GCC 12 warns on designated initializers that leave defaulted members out (ErrorContext{.file = f}),
+# which is the intended use; every other -Wextra warning stays on.
+target_compile_options(tirstrain_flags INTERFACE -Wall -Wextra -Wpedantic -Wno-missing-field-initializers)
+if(TIRSTRAIN_WERROR)
+  target_compile_options(tirstrain_flags INTERFACE -Werror)
+endif()
+if(TIRSTRAIN_SANITIZE)
+  target_compile_options(tirstrain_flags INTERFACE -fsanitize=address,undefined -fno-omit-frame-pointer
+                                                   -fno-sanitize-recover=undefined)
+  target_link_options(tirstrain_flags INTERFACE -fsanitize=address,undefined)
+endif()
+
+# Declares a library for one top-level folder: sources given, public headers at <folder>/*.hpp,
+# included as "folder/header.hpp" from the repository root.
+function(tirstrain_add_library name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
+  if(ARG_SOURCES)
+    add_library(${name} STATIC ${ARG_SOURCES})
+    target_include_directories(${name} PUBLIC ${PROJECT_SOURCE_DIR})
+    target_link_libraries(${name} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS} tirstrain_flags)
+  else()
+    add_library(${name} INTERFACE)
+    target_include_directories(${name} INTERFACE ${PROJECT_SOURCE_DIR})
+    target_link_libraries(${name} INTERFACE ${ARG_PUBLIC_DEPS})
+  endif()
+endfunction()

@@ -1,0 +1,53 @@
+#pragma once
+// Numeric CSV tables with a header row of names (units in the name, e.g. "tangential_N").
+// Reading reports the exact file, row and column of anything wrong; writing goes to a temporary name and is
+// renamed on commit().
+#include <cstddef>
+#include <fstream>
+#include <string>
+#include <vector>
+
+namespace tirstrain {
+
+struct CsvTable {
+  std::string path;
+  std::vector<std::string> names;             // header, in file order
+  std::vector<std::vector<double>> columns;   // columns[j][i] = value of column j in data row i
+
+  std::size_t rows() const { return columns.empty() ? 0 : columns.front().size(); }
+  bool has(const std::string& name) const;
+  // Throws Error naming the file and the missing column (and listing the ones present).
+  std::size_t index_of(const std::string& name) const;
+  const std::vector<double>& column(const std::string& name) const { return columns[index_of(name)]; }
+};
+
+// Reads a CSV whose first row is a header and whose cells are all numbers. Empty cells, "nan", text and
+// ragged rows are errors naming file, row (1-based, header = row 1) and column.
+CsvTable read_numeric_csv(const std::string& path);
+
+// Writes a CSV with full double precision (round-trips exactly) to "<path>.partial" and renames it to
+// <path> on commit(); destroyed uncommitted, it removes the partial file.
+class CsvWriter {
+ public:
+  CsvWriter(const std::string& path, const std::vector<std::string>& names);
+  ~CsvWriter();
+  CsvWriter(const CsvWriter&) = delete;
+  CsvWriter& operator=(const CsvWriter&) = delete;
+
+  void row(const std::vector<double>& values);
+  // For mixed rows (e.g. integer ids next to doubles) the caller formats the cells.
+  void row_text(const std::vector<std::string>& cells);
+  void commit();
+
+ private:
+  std::string path_;
+  std::string partial_path_;
+  std::size_t width_;
+  std::ofstream out_;
+  bool committed_ = false;
+};
+
+// Shortest text that reads back to the same double ("%.17g" trimmed).
+std::string format_double(double value);
+
+}  // namespace tirstrain

@@ -1,0 +1,250 @@
+#include "core/h5_file.hpp"
+
+#include <filesystem>
+#include <numeric>
+
+#include "core/error.hpp"
+
+namespace tirstrain {
+namespace {
+
+std::size_t element_count(const H5Shape& shape) {
+  return std::accumulate(shape.begin(), shape.end(), std::size_t{1}, std::multiplies<>());
+}
+
+// Chunks of about 256 KiB along the first axis keep per-frame appends and partial reads cheap.
+std::vector<hsize_t> chunk_shape(const H5Shape& shape, std::size_t element_size) {
+  std::vector<hsize_t> chunk(shape.begin(), shape.end());
+  std::size_t row_elements = 1;
+  for (std::size_t i = 1; i < shape.size(); ++i) row_elements *= shape[i];
+  const std::size_t target_rows = std::max<std::size_t>(1, (256 * 1024) / std::max<std::size_t>(1, row_elements * element_size));
+  chunk[0] = std::max<hsize_t>(1, std::min<hsize_t>(shape[0], target_rows));
+  return chunk;
+}
+
+struct SilenceHdf5 {
+  SilenceHdf5() { H5::Exception::dontPrint(); }
+};
+
+}  // namespace
+
+H5Writer::H5Writer(const std::string& path) : path_(path), partial_path_(path + ".partial") {
+  SilenceHdf5 silence;
+  try {
+    file_ = H5::H5File(partial_path_, H5F_ACC_TRUNC);
+  } catch (const H5::Exception& e) {
+    throw Error("cannot create HDF5 file: " + e.getDetailMsg(), {.file = partial_path_});
+  }
+}
+
+H5Writer::~H5Writer() {
+  if (!committed_) {
+    try {
+      file_.close();
+    } catch (...) {
+    }
+    std::error_code ec;
+    std::filesystem::remove(partial_path_, ec);
+  }
+}
+
+void H5Writer::ensure_parent_groups(const std::string& name) {
+  std::size_t pos = 1;
+  while ((pos = name.find('/', pos)) != std::string::npos) {
+    const std::string group = name.substr(0, pos);
+    if (!file_.nameExists(group)) file_.createGroup(group);
+    ++pos;
+  }
+}
+
+template <typename T>
+void H5Writer::write_impl(const std::string& name, std::span<const T> data, const H5Shape& shape,
+                          const H5::PredType& type) {
+  if (element_count(shape) != data.size())
+    throw Error("internal: dataset size does not match its shape", {.file = path_, .column = name});
+  try {
+    ensure_parent_groups(name);
+    std::vector<hsize_t> dims(shape.begin(), shape.end());
+    H5::DataSpace space(static_cast<int>(dims.size()), dims.data());
+    H5::DSetCreatPropList properties;
+    if (!shape.empty() && data.size() * sizeof(T) > 16 * 1024 && shape[0] > 0) {
+      const auto chunk = chunk_shape(shape, sizeof(T));
+      properties.setChunk(static_cast<int>(chunk.size()), chunk.data());
+      properties.setShuffle();
+      properties.setDeflate(4);
+    }
+    H5::DataSet set = file_.createDataSet(name, type, space, properties);
+    if (!data.empty()) set.write(data.data(), type);
+  } catch (const H5::Exception& e) {
+    throw Error("cannot write dataset: " + e.getDetailMsg(), {.file = partial_path_, .column = name});
+  }
+}
+
+void H5Writer::write(const std::string& name, std::span<const double> data, const H5Shape& shape) {
+  write_impl(name, data, shape, H5::PredType::NATIVE_DOUBLE);
+}
+void H5Writer::write(const std::string& name, std::span<const float> data, const H5Shape& shape) {
+  write_impl(name, data, shape, H5::PredType::NATIVE_FLOAT);
+}
+void H5Writer::write(const std::string& name, std::span<const std::int32_t> data, const H5Shape& shape) {
+  write_impl(name, data, shape, H5::PredType::NATIVE_INT32);
+}
+void H5Writer::write(const std::string& name, std::span<const std::int64_t> data, const H5Shape& shape) {
+  write_impl(name, data, shape, H5::PredType::NATIVE_INT64);
+}
+void H5Writer::write(const std::string& name, std::span<const std::uint8_t> data, const H5Shape& shape) {
+  write_impl(name, data, shape, H5::PredType::NATIVE_UINT8);
+}
+
+H5::H5Object& H5Writer::object(const std::string& name, H5::Group& group_holder, H5::DataSet& set_holder) {
+  if (name == "/" || name.empty()) {
+    group_holder = file_.openGroup("/");
+    return group_holder;
+  }
+  if (!file_.nameExists(name)) {
+    ensure_parent_groups(name + "/");
+  }
+  if (file_.childObjType(name) == H5O_TYPE_DATASET) {
+    set_holder = file_.openDataSet(name);
+    return set_holder;
+  }
+  group_holder = file_.openGroup(name);
+  return group_holder;
+}
+
+void H5Writer::attribute(const std::string& object_name, const std::string& name, const std::string& value) {
+  try {
+    H5::Group group;
+    H5::DataSet set;
+    H5::H5Object& target = object(object_name, group, set);
+    H5::StrType type(H5::PredType::C_S1, std::max<std::size_t>(1, value.size()));
+    H5::Attribute attr = target.createAttribute(name, type, H5::DataSpace(H5S_SCALAR));
+    attr.write(type, value.empty() ? std::string(" ") : value);
+  } catch (const H5::Exception& e) {
+    throw Error("cannot write attribute '" + name + "': " + e.getDetailMsg(), {.file = partial_path_, .column = object_name});
+  }
+}
+
+void H5Writer::attribute(const std::string& object_name, const std::string& name, double value) {
+  try {
+    H5::Group group;
+    H5::DataSet set;
+    H5::H5Object& target = object(object_name, group, set);
+    H5::Attribute attr = target.createAttribute(name, H5::PredType::NATIVE_DOUBLE, H5::DataSpace(H5S_SCALAR));
+    attr.write(H5::PredType::NATIVE_DOUBLE, &value);
+  } catch (const H5::Exception& e) {
+    throw Error("cannot write attribute '" + name + "': " + e.getDetailMsg(), {.file = partial_path_, .column = object_name});
+  }
+}
+
+void H5Writer::commit() {
+  try {
+    file_.flush(H5F_SCOPE_GLOBAL);
+    file_.close();
+  } catch (const H5::Exception& e) {
+    throw Error("cannot finish HDF5 file: " + e.getDetailMsg(), {.file = partial_path_});
+  }
+  std::error_code ec;
+  std::filesystem::rename(partial_path_, path_, ec);
+  if (ec) throw Error("cannot rename finished file into place: " + ec.message(), {.file = path_});
+  committed_ = true;
+}
+
+H5Reader::H5Reader(const std::string& path) : path_(path) {
+  SilenceHdf5 silence;
+  if (!std::filesystem::is_regular_file(path)) throw Error("file not found", {.file = path});
+  try {
+    file_ = H5::H5File(path, H5F_ACC_RDONLY);
+  } catch (const H5::Exception& e) {
+    throw Error("not a readable HDF5 file: " + e.getDetailMsg(), {.file = path});
+  }
+}
+
+bool H5Reader::has(const std::string& name) const {
+  try {
+    // nameExists fails on a missing intermediate group, so check each level.
+    std::size_t pos = 1;
+    while ((pos = name.find('/', pos)) != std::string::npos) {
+      if (!file_.nameExists(name.substr(0, pos))) return false;
+      ++pos;
+    }
+    return file_.nameExists(name);
+  } catch (const H5::Exception&) {
+    return false;
+  }
+}
+
+H5Shape H5Reader::shape(const std::string& name) const {
+  if (!has(name)) throw Error("no such dataset", {.file = path_, .column = name});
+  const H5::DataSpace space = file_.openDataSet(name).getSpace();
+  std::vector<hsize_t> dims(static_cast<std::size_t>(space.getSimpleExtentNdims()));
+  space.getSimpleExtentDims(dims.data());
+  return H5Shape(dims.begin(), dims.end());
+}
+
+std::vector<double> H5Reader::read_doubles(const std::string& name, H5Shape* shape_out) const {
+  const H5Shape dims = shape(name);
+  std::vector<double> data(element_count(dims));
+  try {
+    if (!data.empty()) file_.openDataSet(name).read(data.data(), H5::PredType::NATIVE_DOUBLE);
+  } catch (const H5::Exception& e) {
+    throw Error("cannot read dataset as numbers: " + e.getDetailMsg(), {.file = path_, .column = name});
+  }
+  if (shape_out) *shape_out = dims;
+  return data;
+}
+
+std::vector<std::int64_t> H5Reader::read_integers(const std::string& name, H5Shape* shape_out) const {
+  const H5Shape dims = shape(name);
+  std::vector<std::int64_t> data(element_count(dims));
+  try {
+    if (!data.empty()) file_.openDataSet(name).read(data.data(), H5::PredType::NATIVE_INT64);
+  } catch (const H5::Exception& e) {
+    throw Error("cannot read dataset as integers: " + e.getDetailMsg(), {.file = path_, .column = name});
+  }
+  if (shape_out) *shape_out = dims;
+  return data;
+}
+
+namespace {
+H5::Attribute open_attribute(const H5::H5File& file, const std::string& object, const std::string& name) {
+  if (object == "/" || object.empty()) return file.openGroup("/").openAttribute(name);
+  if (file.childObjType(object) == H5O_TYPE_DATASET) return file.openDataSet(object).openAttribute(name);
+  return file.openGroup(object).openAttribute(name);
+}
+}  // namespace
+
+std::string H5Reader::attribute_text(const std::string& object, const std::string& name) const {
+  try {
+    H5::Attribute attr = open_attribute(file_, object, name);
+    std::string value;
+    attr.read(attr.getStrType(), value);
+    return value;
+  } catch (const H5::Exception& e) {
+    throw Error("cannot read text attribute '" + name + "': " + e.getDetailMsg(), {.file = path_, .column = object});
+  }
+}
+
+double H5Reader::attribute_number(const std::string& object, const std::string& name) const {
+  try {
+    H5::Attribute attr = open_attribute(file_, object, name);
+    double value = 0.0;
+    attr.read(H5::PredType::NATIVE_DOUBLE, &value);
+    return value;
+  } catch (const H5::Exception& e) {
+    throw Error("cannot read number attribute '" + name + "': " + e.getDetailMsg(), {.file = path_, .column = object});
+  }
+}
+
+std::vector<std::string> H5Reader::members(const std::string& group) const {
+  std::vector<std::string> names;
+  try {
+    H5::Group g = file_.openGroup(group);
+    for (hsize_t i = 0; i < g.getNumObjs(); ++i) names.push_back(g.getObjnameByIdx(i));
+  } catch (const H5::Exception& e) {
+    throw Error("cannot list group: " + e.getDetailMsg(), {.file = path_, .column = group});
+  }
+  return names;
+}
+
+}  // namespace tirstrain

@@ -1,0 +1,113 @@
+#include "core/scene.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+
+#include "core/error.hpp"
+#include "core/yaml_reader.hpp"
+
+namespace tirstrain {
+
+const std::vector<std::string>& known_stages() {
+  static const std::vector<std::string> stages = {"contact", "tracking", "strain", "channels"};
+  return stages;
+}
+
+Scene parse_scene(const YAML::Node& root, const std::string& file) {
+  Scene scene;
+  scene.file = file;
+  YamlSection top(root, file);
+
+  YamlSection calibration = top.section("calibration");
+  scene.px_per_mm = calibration.number("px_per_mm", 52.0, 1e-3, 1e5);
+  if (calibration.has("ridge_period_mm")) scene.ridge_period_mm = calibration.number("ridge_period_mm", 0.45, 0.05, 5.0);
+  scene.ridge_polarity = calibration.choice("ridge_polarity", "auto", {"auto", "dark", "bright"});
+  calibration.finish();
+
+  YamlSection tissue = top.section("tissue");
+  scene.tissue.young_Pa = tissue.number("E_Pa", 1.0e6, 1.0, 1.0e12);
+  scene.tissue.poisson = tissue.number("nu", 0.4, -0.999, 0.4999);
+  scene.tissue.depth_m = tissue.number("depth_m", 0.002, 1e-6, 1.0);
+  tissue.finish();
+
+  YamlSection pattern = top.section("reference_pattern");
+  if (pattern.has("roi_px")) {
+    const auto roi = pattern.numbers("roi_px", {});
+    if (roi.size() != 4 || roi[2] <= 0 || roi[3] <= 0 || roi[0] < 0 || roi[1] < 0)
+      throw Error("expected [x, y, width, height] in pixels with positive width and height",
+                  {.file = file, .key = "reference_pattern.roi_px"});
+    scene.reference_pattern_roi = RoiPx{static_cast<int>(roi[0]), static_cast<int>(roi[1]),
+                                        static_cast<int>(roi[2]), static_cast<int>(roi[3])};
+  }
+  pattern.finish();
+
+  if (top.has("compute")) {
+    const YAML::Node stages = top.raw("compute");
+    if (!stages.IsSequence()) throw Error("expected a list of stage names", {.file = file, .key = "compute"});
+    scene.compute.clear();
+    for (const auto& s : stages) {
+      const std::string name = s.as<std::string>();
+      const auto& known = known_stages();
+      if (std::find(known.begin(), known.end(), name) == known.end())
+        throw Error("unknown stage '" + name + "' (known: contact, tracking, strain, channels)",
+                    {.file = file, .key = "compute"});
+      scene.compute.push_back(name);
+    }
+  }
+  scene.synthesis = top.raw("synthesis");
+  scene.tracking = top.raw("tracking");
+  scene.strain = top.raw("strain");
+  scene.channels = top.raw("channels");
+  top.finish();
+  return scene;
+}
+
+Scene load_scene(const std::string& path) { return parse_scene(load_yaml_file(path), path); }
+
+YAML::Node scene_to_yaml(const Scene& scene) {
+  YAML::Node root;
+  root["calibration"]["px_per_mm"] = scene.px_per_mm;
+  if (scene.ridge_period_mm) root["calibration"]["ridge_period_mm"] = *scene.ridge_period_mm;
+  root["calibration"]["ridge_polarity"] = scene.ridge_polarity;
+  root["tissue"]["E_Pa"] = scene.tissue.young_Pa;
+  root["tissue"]["nu"] = scene.tissue.poisson;
+  root["tissue"]["depth_m"] = scene.tissue.depth_m;
+  if (scene.reference_pattern_roi) {
+    const RoiPx& r = *scene.reference_pattern_roi;
+    YAML::Node roi;
+    roi.push_back(r.x);
+    roi.push_back(r.y);
+    roi.push_back(r.width);
+    roi.push_back(r.height);
+    roi.SetStyle(YAML::EmitterStyle::Flow);
+    root["reference_pattern"]["roi_px"] = roi;
+  }
+  YAML::Node compute;
+  for (const auto& s : scene.compute) compute.push_back(s);
+  compute.SetStyle(YAML::EmitterStyle::Flow);
+  root["compute"] = compute;
+  if (scene.synthesis && !scene.synthesis.IsNull()) root["synthesis"] = scene.synthesis;
+  if (scene.tracking && !scene.tracking.IsNull()) root["tracking"] = scene.tracking;
+  if (scene.strain && !scene.strain.IsNull()) root["strain"] = scene.strain;
+  if (scene.channels && !scene.channels.IsNull()) root["channels"] = scene.channels;
+  return root;
+}
+
+void save_scene(const Scene& scene, const std::string& path) {
+  const std::string partial = path + ".partial";
+  {
+    std::ofstream out(partial, std::ios::trunc);
+    if (!out) throw Error("cannot open file for writing", {.file = partial});
+    YAML::Emitter emitter;
+    emitter.SetDoublePrecision(17);
+    emitter << scene_to_yaml(scene);
+    out << "# tirstrain scene file\n" << emitter.c_str() << '\n';
+    if (!out) throw Error("write failed", {.file = partial});
+  }
+  std::error_code ec;
+  std::filesystem::rename(partial, path, ec);
+  if (ec) throw Error("cannot rename finished file into place: " + ec.message(), {.file = path});
+}
+
+}  // namespace tirstrain

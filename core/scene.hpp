@@ -1,0 +1,51 @@
+#pragma once
+// The scene file (YAML): one trial or one rig. Core parses what every stage shares (calibration, tissue,
+// reference pattern, what to compute); sections owned by one module (synthesis, tracking, strain, channels)
+// are kept as raw YAML nodes and parsed strictly by that module with YamlSection.
+#include <yaml-cpp/yaml.h>
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace tirstrain {
+
+struct RoiPx {
+  int x = 0, y = 0, width = 0, height = 0;
+};
+
+struct Tissue {
+  double young_Pa = 1.0e6;
+  double poisson = 0.4;
+  double depth_m = 0.002;  // thickness used for plane-strain energy U = depth * sum(u_i A_i)
+};
+
+struct Scene {
+  std::string file;  // where it was read from; empty for defaults
+  double px_per_mm = 52.0;
+  std::optional<double> ridge_period_mm;  // fixed ridge period; absent: measured from the images
+  std::string ridge_polarity = "auto";    // "dark", "bright" or "auto" (ridges in contact dark/bright)
+  Tissue tissue;
+  std::optional<RoiPx> reference_pattern_roi;  // band of the image showing the pattern printed on the glass
+  std::vector<std::string> compute = {"contact"};  // stages requested, in pipeline order
+  // Module-owned sections, parsed by their modules.
+  YAML::Node synthesis;
+  YAML::Node tracking;
+  YAML::Node strain;
+  YAML::Node channels;
+};
+
+// Known stage names for `compute`.
+const std::vector<std::string>& known_stages();
+
+// Reads and validates a scene file; throws Error naming the file and key of anything wrong.
+Scene load_scene(const std::string& path);
+// Validates a YAML tree as a scene; `file` is used in messages.
+Scene parse_scene(const YAML::Node& root, const std::string& file);
+// The scene as YAML, readable back by parse_scene.
+YAML::Node scene_to_yaml(const Scene& scene);
+// Writes scene_to_yaml to a file (temporary name, then rename).
+void save_scene(const Scene& scene, const std::string& path);
+
+}  // namespace tirstrain

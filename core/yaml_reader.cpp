@@ -1,0 +1,134 @@
+#include "core/yaml_reader.hpp"
+
+#include <cmath>
+#include <filesystem>
+
+#include "core/csv.hpp"
+#include "core/error.hpp"
+
+namespace tirstrain {
+
+YamlSection::YamlSection(YAML::Node node, std::string file, std::string prefix)
+    : node_(std::move(node)), file_(std::move(file)), prefix_(std::move(prefix)) {
+  if (node_ && !node_.IsNull() && !node_.IsMap())
+    throw Error("expected a mapping of keys to values", {.file = file_, .key = prefix_.empty() ? "(top)" : prefix_});
+}
+
+void YamlSection::fail(const std::string& key, const std::string& message) const {
+  throw Error(message, {.file = file_, .key = path_of(key)});
+}
+
+bool YamlSection::has(const std::string& key) const { return node_ && node_.IsMap() && node_[key]; }
+
+YAML::Node YamlSection::get(const std::string& key) {
+  read_.insert(key);
+  if (!has(key)) return YAML::Node();
+  return node_[key];
+}
+
+double YamlSection::number(const std::string& key, double fallback, double min, double max) {
+  const YAML::Node value = get(key);
+  if (!value) return fallback;
+  double result = 0.0;
+  if (!value.IsScalar() || !YAML::convert<double>::decode(value, result))
+    fail(key, "expected a number");
+  if (!std::isfinite(result)) fail(key, "expected a finite number");
+  if (result < min || result > max)
+    fail(key, "value " + format_double(result) + " is outside the allowed range [" + format_double(min) + ", " +
+                  format_double(max) + "]");
+  return result;
+}
+
+double YamlSection::required_number(const std::string& key, double min, double max) {
+  if (!has(key)) fail(key, "required key is missing");
+  return number(key, 0.0, min, max);
+}
+
+long YamlSection::integer(const std::string& key, long fallback, long min, long max) {
+  const YAML::Node value = get(key);
+  if (!value) return fallback;
+  long result = 0;
+  if (!value.IsScalar() || !YAML::convert<long>::decode(value, result)) fail(key, "expected a whole number");
+  if (result < min || result > max)
+    fail(key, "value " + std::to_string(result) + " is outside the allowed range [" + std::to_string(min) + ", " +
+                  std::to_string(max) + "]");
+  return result;
+}
+
+bool YamlSection::boolean(const std::string& key, bool fallback) {
+  const YAML::Node value = get(key);
+  if (!value) return fallback;
+  bool result = false;
+  if (!value.IsScalar() || !YAML::convert<bool>::decode(value, result)) fail(key, "expected true or false");
+  return result;
+}
+
+std::string YamlSection::text(const std::string& key, const std::string& fallback) {
+  const YAML::Node value = get(key);
+  if (!value) return fallback;
+  if (!value.IsScalar()) fail(key, "expected a text value");
+  return value.as<std::string>();
+}
+
+std::string YamlSection::required_text(const std::string& key) {
+  if (!has(key)) fail(key, "required key is missing");
+  return text(key, "");
+}
+
+std::string YamlSection::choice(const std::string& key, const std::string& fallback,
+                                const std::vector<std::string>& choices) {
+  const std::string value = text(key, fallback);
+  std::string listed;
+  for (const auto& c : choices) {
+    if (c == value) return value;
+    listed += (listed.empty() ? "" : ", ") + c;
+  }
+  fail(key, "'" + value + "' is not one of: " + listed);
+}
+
+std::vector<double> YamlSection::numbers(const std::string& key, const std::vector<double>& fallback) {
+  const YAML::Node value = get(key);
+  if (!value) return fallback;
+  if (!value.IsSequence()) fail(key, "expected a list of numbers");
+  std::vector<double> out;
+  for (const auto& item : value) {
+    double x = 0.0;
+    if (!item.IsScalar() || !YAML::convert<double>::decode(item, x) || !std::isfinite(x))
+      fail(key, "expected a list of finite numbers");
+    out.push_back(x);
+  }
+  return out;
+}
+
+YamlSection YamlSection::section(const std::string& key) {
+  const YAML::Node value = get(key);
+  if (value && !value.IsNull() && !value.IsMap()) fail(key, "expected a mapping of keys to values");
+  return YamlSection(value ? value : YAML::Node(), file_, path_of(key));
+}
+
+YAML::Node YamlSection::raw(const std::string& key) { return get(key); }
+
+void YamlSection::finish() const {
+  if (!node_ || !node_.IsMap()) return;
+  for (const auto& item : node_) {
+    const std::string key = item.first.as<std::string>();
+    if (!read_.count(key)) {
+      std::string known;
+      for (const auto& k : read_) known += (known.empty() ? "" : ", ") + k;
+      fail(key, "unknown key (known keys here: " + known + ")");
+    }
+  }
+}
+
+YAML::Node load_yaml_file(const std::string& path) {
+  if (!std::filesystem::is_regular_file(path)) throw Error("file not found or not a regular file", {.file = path});
+  try {
+    return YAML::LoadFile(path);
+  } catch (const YAML::Exception& e) {
+    ErrorContext context{.file = path};
+    if (e.mark.line >= 0) context.row = e.mark.line + 1;
+    throw Error("not valid YAML: " + e.msg, context);
+  }
+}
+
+}  // namespace tirstrain
