@@ -10,7 +10,7 @@ namespace tirstrain {
 
 YamlSection::YamlSection(YAML::Node node, std::string file, std::string prefix)
     : node_(std::move(node)), file_(std::move(file)), prefix_(std::move(prefix)) {
-  if (node_ && !node_.IsNull() && !node_.IsMap())
+  if (node_.IsDefined() && !node_.IsNull() && !node_.IsMap())
     throw Error("expected a mapping of keys to values", {.file = file_, .key = prefix_.empty() ? "(top)" : prefix_});
 }
 
@@ -18,17 +18,23 @@ void YamlSection::fail(const std::string& key, const std::string& message) const
   throw Error(message, {.file = file_, .key = path_of(key)});
 }
 
-bool YamlSection::has(const std::string& key) const { return node_ && node_.IsMap() && node_[key]; }
+bool YamlSection::has(const std::string& key) const {
+  if (!node_.IsDefined() || !node_.IsMap()) return false;
+  const YAML::Node& map = node_;
+  return map[key].IsDefined();
+}
 
-YAML::Node YamlSection::get(const std::string& key) {
+std::optional<YAML::Node> YamlSection::get(const std::string& key) {
   read_.insert(key);
-  if (!has(key)) return YAML::Node();
-  return node_[key];
+  if (!has(key)) return std::nullopt;
+  const YAML::Node& map = node_;  // const access: operator[] on a non-const node would insert the key
+  return map[key];
 }
 
 double YamlSection::number(const std::string& key, double fallback, double min, double max) {
-  const YAML::Node value = get(key);
-  if (!value) return fallback;
+  const auto found = get(key);
+  if (!found) return fallback;
+  const YAML::Node& value = *found;
   double result = 0.0;
   if (!value.IsScalar() || !YAML::convert<double>::decode(value, result))
     fail(key, "expected a number");
@@ -45,8 +51,9 @@ double YamlSection::required_number(const std::string& key, double min, double m
 }
 
 long YamlSection::integer(const std::string& key, long fallback, long min, long max) {
-  const YAML::Node value = get(key);
-  if (!value) return fallback;
+  const auto found = get(key);
+  if (!found) return fallback;
+  const YAML::Node& value = *found;
   long result = 0;
   if (!value.IsScalar() || !YAML::convert<long>::decode(value, result)) fail(key, "expected a whole number");
   if (result < min || result > max)
@@ -56,16 +63,18 @@ long YamlSection::integer(const std::string& key, long fallback, long min, long 
 }
 
 bool YamlSection::boolean(const std::string& key, bool fallback) {
-  const YAML::Node value = get(key);
-  if (!value) return fallback;
+  const auto found = get(key);
+  if (!found) return fallback;
+  const YAML::Node& value = *found;
   bool result = false;
   if (!value.IsScalar() || !YAML::convert<bool>::decode(value, result)) fail(key, "expected true or false");
   return result;
 }
 
 std::string YamlSection::text(const std::string& key, const std::string& fallback) {
-  const YAML::Node value = get(key);
-  if (!value) return fallback;
+  const auto found = get(key);
+  if (!found) return fallback;
+  const YAML::Node& value = *found;
   if (!value.IsScalar()) fail(key, "expected a text value");
   return value.as<std::string>();
 }
@@ -87,8 +96,9 @@ std::string YamlSection::choice(const std::string& key, const std::string& fallb
 }
 
 std::vector<double> YamlSection::numbers(const std::string& key, const std::vector<double>& fallback) {
-  const YAML::Node value = get(key);
-  if (!value) return fallback;
+  const auto found = get(key);
+  if (!found) return fallback;
+  const YAML::Node& value = *found;
   if (!value.IsSequence()) fail(key, "expected a list of numbers");
   std::vector<double> out;
   for (const auto& item : value) {
@@ -101,15 +111,18 @@ std::vector<double> YamlSection::numbers(const std::string& key, const std::vect
 }
 
 YamlSection YamlSection::section(const std::string& key) {
-  const YAML::Node value = get(key);
-  if (value && !value.IsNull() && !value.IsMap()) fail(key, "expected a mapping of keys to values");
-  return YamlSection(value ? value : YAML::Node(), file_, path_of(key));
+  const auto found = get(key);
+  if (found && !found->IsNull() && !found->IsMap()) fail(key, "expected a mapping of keys to values");
+  return YamlSection(found ? *found : YAML::Node(YAML::NodeType::Undefined), file_, path_of(key));
 }
 
-YAML::Node YamlSection::raw(const std::string& key) { return get(key); }
+YAML::Node YamlSection::raw(const std::string& key) {
+  const auto found = get(key);
+  return found ? *found : YAML::Node(YAML::NodeType::Undefined);
+}
 
 void YamlSection::finish() const {
-  if (!node_ || !node_.IsMap()) return;
+  if (!node_.IsDefined() || !node_.IsMap()) return;
   for (const auto& item : node_) {
     const std::string key = item.first.as<std::string>();
     if (!read_.count(key)) {

@@ -44,7 +44,7 @@ class YamlSection {
 
  private:
   [[noreturn]] void fail(const std::string& key, const std::string& message) const;
-  YAML::Node get(const std::string& key);
+  std::optional<YAML::Node> get(const std::string& key);
 
   YAML::Node node_;
   std::string file_;

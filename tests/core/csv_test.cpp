@@ -1,0 +1,73 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "core/csv.hpp"
+#include "core/error.hpp"
+
+namespace tirstrain {
+namespace {
+
+std::string write_file(const std::string& name, const std::string& text) {
+  const std::string path = std::string(TIRSTRAIN_TEST_TMP) + "/" + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+std::string error_of(const std::string& path) {
+  try {
+    read_numeric_csv(path);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Csv, ReadsColumnsByName) {
+  const auto path = write_file("ok.csv", "t_s,normal_N\n0,1.5\n0.001,-2e-3\n\n");
+  const CsvTable t = read_numeric_csv(path);
+  ASSERT_EQ(t.rows(), 2u);
+  EXPECT_DOUBLE_EQ(t.column("normal_N")[1], -2e-3);
+  EXPECT_DOUBLE_EQ(t.column("t_s")[1], 0.001);
+}
+
+TEST(Csv, ErrorsNameFileRowAndColumn) {
+  EXPECT_NE(error_of(write_file("text.csv", "a,b\n1,2\n3,x\n")).find("row 3: column 'b': not a number"),
+            std::string::npos);
+  EXPECT_NE(error_of(write_file("empty.csv", "a,b\n1,\n")).find("row 2: column 'b': empty cell"), std::string::npos);
+  EXPECT_NE(error_of(write_file("nan.csv", "a,b\n1,nan\n")).find("column 'b': non-finite"), std::string::npos);
+  EXPECT_NE(error_of(write_file("ragged.csv", "a,b\n1,2,3\n")).find("row 2: expected 2 cells, found 3"),
+            std::string::npos);
+  EXPECT_NE(error_of(write_file("dup.csv", "a,a\n1,2\n")).find("duplicate column"), std::string::npos);
+  EXPECT_NE(error_of(std::string(TIRSTRAIN_TEST_TMP) + "/missing.csv").find("cannot open"), std::string::npos);
+  const auto path = write_file("cols.csv", "a,b\n1,2\n");
+  try {
+    read_numeric_csv(path).column("c");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("column 'c': no such column (columns present: a, b)"), std::string::npos);
+    EXPECT_EQ(e.context().file, path);
+  }
+}
+
+TEST(Csv, WriterRoundTripsFullPrecisionAndIsAtomic) {
+  const std::string path = std::string(TIRSTRAIN_TEST_TMP) + "/written.csv";
+  std::filesystem::remove(path);
+  {
+    CsvWriter w(path, {"x", "y"});
+    w.row({0.1, 1.0 / 3.0});
+    EXPECT_FALSE(std::filesystem::exists(path));  // only the partial file exists until commit
+  }
+  EXPECT_FALSE(std::filesystem::exists(path));
+  EXPECT_FALSE(std::filesystem::exists(path + ".partial"));
+  CsvWriter w(path, {"x", "y"});
+  w.row({0.1, 1.0 / 3.0});
+  w.commit();
+  const CsvTable t = read_numeric_csv(path);
+  EXPECT_EQ(t.column("y")[0], 1.0 / 3.0);
+  EXPECT_EQ(t.column("x")[0], 0.1);
+}
+
+}  // namespace
+}  // namespace tirstrain

@@ -1,0 +1,96 @@
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "core/error.hpp"
+#include "core/scene.hpp"
+#include "core/yaml_reader.hpp"
+
+namespace tirstrain {
+namespace {
+
+std::string write_scene(const std::string& name, const std::string& text) {
+  const std::string path = std::string(TIRSTRAIN_TEST_TMP) + "/" + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+std::string error_of(const std::string& path) {
+  try {
+    load_scene(path);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Scene, DefaultsWhenSectionsAreAbsent) {
+  const Scene s = load_scene(write_scene("empty.yaml", "{}\n"));
+  EXPECT_DOUBLE_EQ(s.px_per_mm, 52.0);
+  EXPECT_DOUBLE_EQ(s.tissue.young_Pa, 1.0e6);
+  EXPECT_DOUBLE_EQ(s.tissue.poisson, 0.4);
+  EXPECT_DOUBLE_EQ(s.tissue.depth_m, 0.002);
+  EXPECT_FALSE(s.ridge_period_mm.has_value());
+  EXPECT_EQ(s.compute, std::vector<std::string>{"contact"});
+}
+
+TEST(Scene, ReadsValuesAndRoundTrips) {
+  const std::string path = write_scene("full.yaml",
+                                       "calibration: {px_per_mm: 40.5, ridge_period_mm: 0.5, ridge_polarity: dark}\n"
+                                       "tissue: {E_Pa: 2.0e5, nu: 0.45, depth_m: 0.003}\n"
+                                       "reference_pattern: {roi_px: [0, 400, 640, 100]}\n"
+                                       "compute: [contact, tracking]\n"
+                                       "synthesis: {frames: 10}\n");
+  const Scene s = load_scene(path);
+  EXPECT_DOUBLE_EQ(s.px_per_mm, 40.5);
+  EXPECT_DOUBLE_EQ(*s.ridge_period_mm, 0.5);
+  EXPECT_EQ(s.ridge_polarity, "dark");
+  EXPECT_DOUBLE_EQ(s.tissue.poisson, 0.45);
+  ASSERT_TRUE(s.reference_pattern_roi);
+  EXPECT_EQ(s.reference_pattern_roi->y, 400);
+  EXPECT_EQ(s.compute.size(), 2u);
+  EXPECT_EQ(s.synthesis["frames"].as<int>(), 10);
+
+  const std::string copy = std::string(TIRSTRAIN_TEST_TMP) + "/copy.yaml";
+  save_scene(s, copy);
+  const Scene t = load_scene(copy);
+  EXPECT_DOUBLE_EQ(t.px_per_mm, 40.5);
+  EXPECT_DOUBLE_EQ(t.tissue.young_Pa, 2.0e5);
+  EXPECT_EQ(t.reference_pattern_roi->height, 100);
+  EXPECT_EQ(t.compute, s.compute);
+}
+
+TEST(Scene, BadFilesNameTheKeyAndFile) {
+  const auto unknown = write_scene("unknown.yaml", "tissue: {E_Pa: 1e6, poisson: 0.3}\n");
+  const std::string m1 = error_of(unknown);
+  EXPECT_NE(m1.find(unknown), std::string::npos);
+  EXPECT_NE(m1.find("'tissue.poisson': unknown key"), std::string::npos) << m1;
+  EXPECT_NE(error_of(write_scene("type.yaml", "tissue: {E_Pa: soft}\n")).find("'tissue.E_Pa': expected a number"),
+            std::string::npos);
+  EXPECT_NE(error_of(write_scene("range.yaml", "tissue: {nu: 0.7}\n")).find("'tissue.nu': value 0.7 is outside"),
+            std::string::npos);
+  EXPECT_NE(error_of(write_scene("top.yaml", "calibraton: {}\n")).find("'calibraton': unknown key"),
+            std::string::npos);
+  EXPECT_NE(error_of(write_scene("stage.yaml", "compute: [contact, magic]\n")).find("unknown stage 'magic'"),
+            std::string::npos);
+  EXPECT_NE(error_of(write_scene("syntax.yaml", "tissue: {E_Pa: [1, 2\n")).find("not valid YAML"), std::string::npos);
+  EXPECT_NE(error_of(write_scene("choice.yaml", "calibration: {ridge_polarity: grey}\n"))
+                .find("'grey' is not one of: auto, dark, bright"),
+            std::string::npos);
+  EXPECT_NE(error_of(std::string(TIRSTRAIN_TEST_TMP) + "/nope.yaml").find("file not found"), std::string::npos);
+}
+
+TEST(YamlSection, RequiredAndIntegerChecks) {
+  YamlSection s(YAML::Load("{n: 2.5, k: 3}"), "f.yaml", "sec");
+  EXPECT_THROW(s.integer("n", 0), Error);
+  EXPECT_EQ(s.integer("k", 0, 1, 5), 3);
+  try {
+    s.required_number("missing");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "f.yaml: 'sec.missing': required key is missing");
+  }
+}
+
+}  // namespace
+}  // namespace tirstrain
