@@ -75,9 +75,9 @@ CsvTable read_numeric_csv(const std::string& path) {
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
     const auto cells = split_line(line);
     if (cells.size() != table.names.size())
-      throw Error("expected " + std::to_string(table.names.size()) + " cells, found " +
-                      std::to_string(cells.size()),
-                  {.file = path, .row = row});
+      throw Error(
+          "expected " + std::to_string(table.names.size()) + " cells, found " + std::to_string(cells.size()),
+          {.file = path, .row = row});
     for (std::size_t j = 0; j < cells.size(); ++j) {
       const std::string& cell = cells[j];
       if (cell.empty()) throw Error("empty cell", {.file = path, .row = row, .column = table.names[j]});

@@ -11,8 +11,8 @@ namespace tirstrain {
 
 struct CsvTable {
   std::string path;
-  std::vector<std::string> names;             // header, in file order
-  std::vector<std::vector<double>> columns;   // columns[j][i] = value of column j in data row i
+  std::vector<std::string> names;            // header, in file order
+  std::vector<std::vector<double>> columns;  // columns[j][i] = value of column j in data row i
 
   std::size_t rows() const { return columns.empty() ? 0 : columns.front().size(); }
   bool has(const std::string& name) const;

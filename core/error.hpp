@@ -7,11 +7,11 @@
 namespace tirstrain {
 
 struct ErrorContext {
-  std::string file;              // path of the offending input, if any
-  std::optional<long> frame;     // frame index (0-based) in a sequence
-  std::optional<long> row;       // 1-based line number in a text file (header is row 1)
-  std::string column;            // column / dataset / channel name
-  std::string key;               // configuration key or command-line option, e.g. "tissue.E_Pa" or "--poisson"
+  std::string file;           // path of the offending input, if any
+  std::optional<long> frame;  // frame index (0-based) in a sequence
+  std::optional<long> row;    // 1-based line number in a text file (header is row 1)
+  std::string column;         // column / dataset / channel name
+  std::string key;            // configuration key or command-line option, e.g. "tissue.E_Pa" or "--poisson"
 };
 
 class Error : public std::runtime_error {

@@ -17,7 +17,8 @@ std::vector<hsize_t> chunk_shape(const H5Shape& shape, std::size_t element_size)
   std::vector<hsize_t> chunk(shape.begin(), shape.end());
   std::size_t row_elements = 1;
   for (std::size_t i = 1; i < shape.size(); ++i) row_elements *= shape[i];
-  const std::size_t target_rows = std::max<std::size_t>(1, (256 * 1024) / std::max<std::size_t>(1, row_elements * element_size));
+  const std::size_t target_rows =
+      std::max<std::size_t>(1, (256 * 1024) / std::max<std::size_t>(1, row_elements * element_size));
   chunk[0] = std::max<hsize_t>(1, std::min<hsize_t>(shape[0], target_rows));
   return chunk;
 }
@@ -121,7 +122,8 @@ void H5Writer::attribute(const std::string& object_name, const std::string& name
     H5::Attribute attr = target.createAttribute(name, type, H5::DataSpace(H5S_SCALAR));
     attr.write(type, value.empty() ? std::string(" ") : value);
   } catch (const H5::Exception& e) {
-    throw Error("cannot write attribute '" + name + "': " + e.getDetailMsg(), {.file = partial_path_, .column = object_name});
+    throw Error("cannot write attribute '" + name + "': " + e.getDetailMsg(),
+                {.file = partial_path_, .column = object_name});
   }
 }
 
@@ -133,7 +135,8 @@ void H5Writer::attribute(const std::string& object_name, const std::string& name
     H5::Attribute attr = target.createAttribute(name, H5::PredType::NATIVE_DOUBLE, H5::DataSpace(H5S_SCALAR));
     attr.write(H5::PredType::NATIVE_DOUBLE, &value);
   } catch (const H5::Exception& e) {
-    throw Error("cannot write attribute '" + name + "': " + e.getDetailMsg(), {.file = partial_path_, .column = object_name});
+    throw Error("cannot write attribute '" + name + "': " + e.getDetailMsg(),
+                {.file = partial_path_, .column = object_name});
   }
 }
 
@@ -221,7 +224,8 @@ std::string H5Reader::attribute_text(const std::string& object, const std::strin
     attr.read(attr.getStrType(), value);
     return value;
   } catch (const H5::Exception& e) {
-    throw Error("cannot read text attribute '" + name + "': " + e.getDetailMsg(), {.file = path_, .column = object});
+    throw Error("cannot read text attribute '" + name + "': " + e.getDetailMsg(),
+                {.file = path_, .column = object});
   }
 }
 
@@ -232,7 +236,8 @@ double H5Reader::attribute_number(const std::string& object, const std::string& 
     attr.read(H5::PredType::NATIVE_DOUBLE, &value);
     return value;
   } catch (const H5::Exception& e) {
-    throw Error("cannot read number attribute '" + name + "': " + e.getDetailMsg(), {.file = path_, .column = object});
+    throw Error("cannot read number attribute '" + name + "': " + e.getDetailMsg(),
+                {.file = path_, .column = object});
   }
 }
 

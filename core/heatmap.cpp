@@ -58,8 +58,8 @@ cv::Mat render_heatmap(const cv::Mat& values, const HeatmapOptions& options) {
                                                : std::max(1, 480 / std::max(values.cols, values.rows));
   const int map_w = values.cols * cell, map_h = values.rows * cell;
   const int margin_left = 70, margin_top = 40, margin_bottom = 45, bar_w = 20, bar_gap = 20, bar_labels = 90;
-  cv::Mat canvas(map_h + margin_top + margin_bottom, margin_left + map_w + bar_gap + bar_w + bar_labels, CV_8UC3,
-                 cv::Scalar(255, 255, 255));
+  cv::Mat canvas(map_h + margin_top + margin_bottom, margin_left + map_w + bar_gap + bar_w + bar_labels,
+                 CV_8UC3, cv::Scalar(255, 255, 255));
   auto colour_of = [&](double v) {
     const double t = (v - lo) / (hi - lo);
     return options.diverging ? diverging_colour(t) : sequential_colour(t);
@@ -93,14 +93,15 @@ cv::Mat render_heatmap(const cv::Mat& values, const HeatmapOptions& options) {
   const std::string unit = options.axis_unit.empty() ? "" : " " + options.axis_unit;
   cv::putText(canvas, tick_text(options.x_min) + unit, cv::Point(margin_left, margin_top + map_h + 18),
               cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
-  cv::putText(canvas, tick_text(options.x_max) + unit, cv::Point(margin_left + map_w - 60, margin_top + map_h + 18),
-              cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  cv::putText(canvas, tick_text(options.x_max) + unit,
+              cv::Point(margin_left + map_w - 60, margin_top + map_h + 18), cv::FONT_HERSHEY_SIMPLEX, 0.4,
+              cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
   cv::putText(canvas, "x right, y down", cv::Point(margin_left + map_w / 2 - 50, margin_top + map_h + 36),
               cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
   cv::putText(canvas, tick_text(options.y_min), cv::Point(5, margin_top + 10), cv::FONT_HERSHEY_SIMPLEX, 0.4,
               cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
-  cv::putText(canvas, tick_text(options.y_max), cv::Point(5, margin_top + map_h), cv::FONT_HERSHEY_SIMPLEX, 0.4,
-              cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  cv::putText(canvas, tick_text(options.y_max), cv::Point(5, margin_top + map_h), cv::FONT_HERSHEY_SIMPLEX,
+              0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
   // Colour bar with five ticks.
   const int bar_x = margin_left + map_w + bar_gap;
   for (int y = 0; y < map_h; ++y) {

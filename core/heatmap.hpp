@@ -16,15 +16,15 @@ struct HeatmapCircle {
 
 struct HeatmapOptions {
   std::string title;
-  std::string unit;          // shown beside the colour bar
-  bool diverging = true;     // blue-white-red, symmetric about zero; otherwise a sequential map
-  std::optional<double> min; // colour range; defaults from the data
+  std::string unit;           // shown beside the colour bar
+  bool diverging = true;      // blue-white-red, symmetric about zero; otherwise a sequential map
+  std::optional<double> min;  // colour range; defaults from the data
   std::optional<double> max;
   // Data extent of the grid: column 0 is at x_min, the last column at x_max; row 0 at y_min (drawn at top).
   double x_min = 0.0, x_max = 1.0, y_min = 0.0, y_max = 1.0;
-  std::string axis_unit;     // e.g. "mm"
+  std::string axis_unit;  // e.g. "mm"
   std::vector<HeatmapCircle> circles;
-  int pixels_per_cell = 0;   // 0: chosen so the map is about 480 px wide
+  int pixels_per_cell = 0;  // 0: chosen so the map is about 480 px wide
 };
 
 // values: CV_64FC1, rows = y, cols = x. Returns a BGR 8-bit image.

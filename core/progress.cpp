@@ -33,7 +33,8 @@ void Progress::update(long done) {
     const long decile = static_cast<long>(fraction * 10.0);
     if (decile == last_decile_) return;
     last_decile_ = decile;
-    std::fprintf(stream_, "%s: %ld/%ld (%ld%%) after %.1f s\n", label_.c_str(), done, total_, decile * 10, elapsed_s);
+    std::fprintf(stream_, "%s: %ld/%ld (%ld%%) after %.1f s\n", label_.c_str(), done, total_, decile * 10,
+                 elapsed_s);
   }
 }
 

@@ -21,7 +21,8 @@ Scene parse_scene(const YAML::Node& root, const std::string& file) {
 
   YamlSection calibration = top.section("calibration");
   scene.px_per_mm = calibration.number("px_per_mm", 52.0, 1e-3, 1e5);
-  if (calibration.has("ridge_period_mm")) scene.ridge_period_mm = calibration.number("ridge_period_mm", 0.45, 0.05, 5.0);
+  if (calibration.has("ridge_period_mm"))
+    scene.ridge_period_mm = calibration.number("ridge_period_mm", 0.45, 0.05, 5.0);
   scene.ridge_polarity = calibration.choice("ridge_polarity", "auto", {"auto", "dark", "bright"});
   calibration.finish();
 
@@ -63,7 +64,9 @@ Scene parse_scene(const YAML::Node& root, const std::string& file) {
   return scene;
 }
 
-Scene load_scene(const std::string& path) { return parse_scene(load_yaml_file(path), path); }
+Scene load_scene(const std::string& path) {
+  return parse_scene(load_yaml_file(path), path);
+}
 
 YAML::Node scene_to_yaml(const Scene& scene) {
   YAML::Node root;

@@ -32,10 +32,14 @@ inline Strain2 green_lagrange(const Gradient2& h) {
 }
 
 // Small-strain (infinitesimal) tensor ½(H + Hᵀ).
-inline Strain2 infinitesimal_strain(const Gradient2& h) { return {h.xx, h.yy, 0.5 * (h.xy + h.yx)}; }
+inline Strain2 infinitesimal_strain(const Gradient2& h) {
+  return {h.xx, h.yy, 0.5 * (h.xy + h.yx)};
+}
 
 // Infinitesimal rotation ω = ½(∂v/∂X − ∂u/∂Y), radians, positive from +x towards +y.
-inline double infinitesimal_rotation_rad(const Gradient2& h) { return 0.5 * (h.yx - h.xy); }
+inline double infinitesimal_rotation_rad(const Gradient2& h) {
+  return 0.5 * (h.yx - h.xy);
+}
 
 // Closed-form eigen decomposition of a symmetric 2×2 tensor; the radius uses hypot, which neither
 // overflows nor loses the small difference of nearly equal principal values.
@@ -51,7 +55,9 @@ inline Principal2 principal_strains(const Strain2& e) {
 inline double lame_lambda_Pa(double young_Pa, double poisson) {
   return young_Pa * poisson / ((1.0 + poisson) * (1.0 - 2.0 * poisson));
 }
-inline double shear_modulus_Pa(double young_Pa, double poisson) { return young_Pa / (2.0 * (1.0 + poisson)); }
+inline double shear_modulus_Pa(double young_Pa, double poisson) {
+  return young_Pa / (2.0 * (1.0 + poisson));
+}
 
 // Plane-strain (St Venant–Kirchhoff) energy density W = (λ/2)(E_xx + E_yy)² + G(E_xx² + E_yy² + 2E_xy²),
 // J/m³. Algebraically identical to DESIGN.md's form in E and ν.

@@ -11,7 +11,8 @@ namespace tirstrain {
 YamlSection::YamlSection(YAML::Node node, std::string file, std::string prefix)
     : node_(std::move(node)), file_(std::move(file)), prefix_(std::move(prefix)) {
   if (node_.IsDefined() && !node_.IsNull() && !node_.IsMap())
-    throw Error("expected a mapping of keys to values", {.file = file_, .key = prefix_.empty() ? "(top)" : prefix_});
+    throw Error("expected a mapping of keys to values",
+                {.file = file_, .key = prefix_.empty() ? "(top)" : prefix_});
 }
 
 void YamlSection::fail(const std::string& key, const std::string& message) const {
@@ -36,12 +37,11 @@ double YamlSection::number(const std::string& key, double fallback, double min, 
   if (!found) return fallback;
   const YAML::Node& value = *found;
   double result = 0.0;
-  if (!value.IsScalar() || !YAML::convert<double>::decode(value, result))
-    fail(key, "expected a number");
+  if (!value.IsScalar() || !YAML::convert<double>::decode(value, result)) fail(key, "expected a number");
   if (!std::isfinite(result)) fail(key, "expected a finite number");
   if (result < min || result > max)
-    fail(key, "value " + format_double(result) + " is outside the allowed range [" + format_double(min) + ", " +
-                  format_double(max) + "]");
+    fail(key, "value " + format_double(result) + " is outside the allowed range [" + format_double(min) +
+                  ", " + format_double(max) + "]");
   return result;
 }
 
@@ -57,8 +57,8 @@ long YamlSection::integer(const std::string& key, long fallback, long min, long 
   long result = 0;
   if (!value.IsScalar() || !YAML::convert<long>::decode(value, result)) fail(key, "expected a whole number");
   if (result < min || result > max)
-    fail(key, "value " + std::to_string(result) + " is outside the allowed range [" + std::to_string(min) + ", " +
-                  std::to_string(max) + "]");
+    fail(key, "value " + std::to_string(result) + " is outside the allowed range [" + std::to_string(min) +
+                  ", " + std::to_string(max) + "]");
   return result;
 }
 
@@ -134,7 +134,8 @@ void YamlSection::finish() const {
 }
 
 YAML::Node load_yaml_file(const std::string& path) {
-  if (!std::filesystem::is_regular_file(path)) throw Error("file not found or not a regular file", {.file = path});
+  if (!std::filesystem::is_regular_file(path))
+    throw Error("file not found or not a regular file", {.file = path});
   try {
     return YAML::LoadFile(path);
   } catch (const YAML::Exception& e) {

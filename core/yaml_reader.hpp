@@ -19,7 +19,8 @@ class YamlSection {
 
   bool has(const std::string& key) const;
 
-  double number(const std::string& key, double fallback, double min = -std::numeric_limits<double>::infinity(),
+  double number(const std::string& key, double fallback,
+                double min = -std::numeric_limits<double>::infinity(),
                 double max = std::numeric_limits<double>::infinity());
   double required_number(const std::string& key, double min = -std::numeric_limits<double>::infinity(),
                          double max = std::numeric_limits<double>::infinity());
@@ -29,7 +30,8 @@ class YamlSection {
   std::string text(const std::string& key, const std::string& fallback);
   std::string required_text(const std::string& key);
   // A text value restricted to a set of choices.
-  std::string choice(const std::string& key, const std::string& fallback, const std::vector<std::string>& choices);
+  std::string choice(const std::string& key, const std::string& fallback,
+                     const std::vector<std::string>& choices);
   std::vector<double> numbers(const std::string& key, const std::vector<double>& fallback);
   // A nested map; absent gives an empty section.
   YamlSection section(const std::string& key);

@@ -32,8 +32,8 @@ struct ModelOptions {
 // The model names its parameters by field; the user typed options.
 std::string option_of(const std::string& parameter) {
   static const std::map<std::string, std::string> options = {
-      {"normal_N", "--normal-N"},     {"tangential_N", "--tangential-N"}, {"radius_m", "--radius-m"},
-      {"young_Pa", "--young-Pa"},     {"poisson", "--poisson"},           {"friction", "--friction"},
+      {"normal_N", "--normal-N"},          {"tangential_N", "--tangential-N"}, {"radius_m", "--radius-m"},
+      {"young_Pa", "--young-Pa"},          {"poisson", "--poisson"},           {"friction", "--friction"},
       {"direction_rad", "--direction-deg"}};
   const auto it = options.find(parameter);
   return it == options.end() ? parameter : it->second;
@@ -50,13 +50,13 @@ model::CattaneoMindlin build_model(const ModelOptions& options) {
 }
 
 void check_finite(const model::FieldSample& s, double x_m, double y_m) {
-  const double values[] = {s.displacement_m.x, s.displacement_m.y, s.gradient.xx, s.gradient.xy,
-                           s.gradient.yx,      s.gradient.yy,      s.strain.xx,   s.strain.yy,
+  const double values[] = {s.displacement_m.x, s.displacement_m.y,   s.gradient.xx, s.gradient.xy,
+                           s.gradient.yx,      s.gradient.yy,        s.strain.xx,   s.strain.yy,
                            s.strain.xy,        s.energy_density_J_m3};
   for (double v : values)
     if (!std::isfinite(v))
-      throw Error("model produced a non-finite value at x_m=" + format_double(x_m) + ", y_m=" + format_double(y_m) +
-                  " (please report this as a bug)");
+      throw Error("model produced a non-finite value at x_m=" + format_double(x_m) +
+                  ", y_m=" + format_double(y_m) + " (please report this as a bug)");
 }
 
 void run_points(const ModelOptions& options, const model::CattaneoMindlin& cm) {
@@ -68,8 +68,8 @@ void run_points(const ModelOptions& options, const model::CattaneoMindlin& cm) {
   for (std::size_t i = 0; i < xs.size(); ++i) {
     const model::FieldSample s = cm.evaluate(xs[i], ys[i]);
     check_finite(s, xs[i], ys[i]);
-    out.row({xs[i], ys[i], s.displacement_m.x, s.displacement_m.y, s.gradient.xx, s.gradient.xy, s.gradient.yx,
-             s.gradient.yy, s.strain.xx, s.strain.yy, s.strain.xy, s.energy_density_J_m3});
+    out.row({xs[i], ys[i], s.displacement_m.x, s.displacement_m.y, s.gradient.xx, s.gradient.xy,
+             s.gradient.yx, s.gradient.yy, s.strain.xx, s.strain.yy, s.strain.xy, s.energy_density_J_m3});
   }
   out.commit();
   std::cout << "wrote " << xs.size() << " points to " << options.out << '\n';
@@ -81,12 +81,13 @@ void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
   const double a = cm.hertz().contact_radius_m;
   const double half = options.extent_a * a;
   std::vector<double> axis(n);
-  for (std::size_t i = 0; i < n; ++i) axis[i] = n == 1 ? 0.0 : -half + 2.0 * half * static_cast<double>(i) / (n - 1);
+  for (std::size_t i = 0; i < n; ++i)
+    axis[i] = n == 1 ? 0.0 : -half + 2.0 * half * static_cast<double>(i) / (n - 1);
 
   std::vector<double> displacement(n * n * 2), gradient(n * n * 4), strain(n * n * 3), principal(n * n * 3),
       energy(n * n);
   cv::Mat exx(static_cast<int>(n), static_cast<int>(n), CV_64F), eyy = exx.clone(), exy = exx.clone(),
-                                                             w = exx.clone();
+                                                                 w = exx.clone();
   double peak_abs[3] = {0, 0, 0};
   double e1_max = -INFINITY, e2_min = INFINITY, energy_max = 0.0;
   for (std::size_t r = 0; r < n; ++r) {
@@ -170,9 +171,14 @@ void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
 
   nlohmann::ordered_json summary;
   summary["software"] = std::string("tirstrain ") + kVersion;
-  summary["inputs"] = {{"normal_N", p.normal_N},   {"tangential_N", p.tangential_N}, {"radius_m", p.radius_m},
-                       {"young_Pa", p.young_Pa},   {"poisson", p.poisson},           {"friction", p.friction},
-                       {"direction_deg", options.direction_deg}, {"hertz_radial", p.hertz_radial}};
+  summary["inputs"] = {{"normal_N", p.normal_N},
+                       {"tangential_N", p.tangential_N},
+                       {"radius_m", p.radius_m},
+                       {"young_Pa", p.young_Pa},
+                       {"poisson", p.poisson},
+                       {"friction", p.friction},
+                       {"direction_deg", options.direction_deg},
+                       {"hertz_radial", p.hertz_radial}};
   summary["contact_radius_m"] = a;
   summary["peak_pressure_Pa"] = cm.hertz().peak_pressure_Pa;
   summary["approach_m"] = cm.hertz().approach_m;
@@ -186,7 +192,8 @@ void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
   write_text_file(options.out + "/summary.json", summary.dump(2) + "\n");
   std::cout << "contact radius a = " << a_mm << " mm, stick radius c = " << cm.stick_radius_m() * 1e3
             << " mm, rigid shift = " << cm.rigid_shift_m() * 1e6 << " um\n"
-            << "wrote " << h5_path << ", strain_Exx.png, strain_Eyy.png, strain_Exy.png, energy_density.png and "
+            << "wrote " << h5_path
+            << ", strain_Exx.png, strain_Eyy.png, strain_Exy.png, energy_density.png and "
             << "summary.json in " << options.out << '\n';
 }
 
@@ -202,24 +209,28 @@ void add_model_command(CLI::App& app) {
       "displacement gradient, Green-Lagrange strain and plane-strain energy density.\n"
       "Either --grid N --out DIR (model.h5, heat maps, summary.json) or --points IN.csv --out OUT.csv.");
   cm->add_option("--normal-N", options->params.normal_N, "Normal load P (N), > 0")->required();
-  cm->add_option("--tangential-N", options->params.tangential_N, "Tangential load Q (N), 0 <= Q <= friction*P")
+  cm->add_option("--tangential-N", options->params.tangential_N,
+                 "Tangential load Q (N), 0 <= Q <= friction*P")
       ->required();
   cm->add_option("--radius-m", options->params.radius_m, "Sphere (fingertip) radius R (m), > 0")->required();
   cm->add_option("--young-Pa", options->params.young_Pa, "Young's modulus E (Pa), > 0")->required();
   cm->add_option("--poisson", options->params.poisson, "Poisson's ratio, -1 < nu < 0.5")->required();
   cm->add_option("--friction", options->params.friction, "Friction coefficient mu, > 0")->required();
-  cm->add_option("--direction-deg", options->direction_deg,
-                 "Direction of the tangential traction on the skin, degrees from +x towards +y (image y down)")
+  cm->add_option(
+        "--direction-deg", options->direction_deg,
+        "Direction of the tangential traction on the skin, degrees from +x towards +y (image y down)")
       ->capture_default_str();
-  cm->add_flag("--hertz-radial", options->params.hertz_radial,
-               "Include the radial displacement from the Hertz pressure (reference image before normal loading)");
+  cm->add_flag(
+      "--hertz-radial", options->params.hertz_radial,
+      "Include the radial displacement from the Hertz pressure (reference image before normal loading)");
   CLI::Option* grid = cm->add_option("--grid", options->grid, "Grid points per side for the maps (>= 2)")
                           ->check(CLI::Range(2, 4001));
   cm->add_option("--extent-a", options->extent_a, "Grid half-width in units of the contact radius a")
       ->capture_default_str()
       ->check(CLI::Range(0.01, 100.0));
   CLI::Option* points = cm->add_option("--points", options->points_csv, "CSV of points with columns x_m,y_m");
-  cm->add_option("--out", options->out, "Output directory (with --grid) or CSV file (with --points)")->required();
+  cm->add_option("--out", options->out, "Output directory (with --grid) or CSV file (with --points)")
+      ->required();
   grid->excludes(points);
   cm->callback([options, grid, points] {
     if (!*grid && !*points) throw Error("give either --grid N (maps) or --points IN.csv", {.key = "--grid"});

@@ -14,8 +14,8 @@ void add_version_command(CLI::App& app) {
   sub->callback([] {
     unsigned major = 0, minor = 0, release = 0;
     H5::H5Library::getLibVersion(major, minor, release);
-    std::cout << "tirstrain " << kVersion << "\nOpenCV " << CV_VERSION << "\nHDF5 " << major << '.' << minor << '.'
-              << release << '\n';
+    std::cout << "tirstrain " << kVersion << "\nOpenCV " << CV_VERSION << "\nHDF5 " << major << '.' << minor
+              << '.' << release << '\n';
   });
 }
 

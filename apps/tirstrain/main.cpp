@@ -28,10 +28,9 @@ bool report_unknown_subcommand(const CLI::App& app, int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{
-      "tirstrain " + std::string(tirstrain::kVersion) +
-      " - fingertip skin deformation from total-internal-reflection contact images.\n"
-      "Physical quantities are SI (m, N, Pa, J, s) unless a name says otherwise (_px, _mm, _deg)."};
+  CLI::App app{"tirstrain " + std::string(tirstrain::kVersion) +
+               " - fingertip skin deformation from total-internal-reflection contact images.\n"
+               "Physical quantities are SI (m, N, Pa, J, s) unless a name says otherwise (_px, _mm, _deg)."};
   app.set_version_flag("--version", std::string("tirstrain ") + tirstrain::kVersion);
   app.require_subcommand(1);
   app.fallthrough(false);

@@ -1,10 +1,10 @@
 #pragma once
 // Runs the real tirstrain binary and captures its exit code and combined output.
+#include <sys/wait.h>
 #include <array>
 #include <cstdio>
 #include <filesystem>
 #include <string>
-#include <sys/wait.h>
 
 namespace tirstrain::testing {
 

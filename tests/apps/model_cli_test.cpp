@@ -25,12 +25,16 @@ TEST(ModelCli, GridModeWritesH5MapsAndSummary) {
   const std::string out = fresh_dir("model_grid");
   const auto r = run_cli(kLoads + " --grid 41 --out " + out);
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  for (const char* f : {"model.h5", "strain_Exx.png", "strain_Eyy.png", "strain_Exy.png", "energy_density.png",
-                        "summary.json"})
+  for (const char* f : {"model.h5", "strain_Exx.png", "strain_Eyy.png", "strain_Exy.png",
+                        "energy_density.png", "summary.json"})
     EXPECT_TRUE(std::filesystem::exists(out + "/" + f)) << f;
 
-  const model::CattaneoMindlin cm({.normal_N = 2, .tangential_N = 1.2, .radius_m = 0.01, .young_Pa = 1e6,
-                                   .poisson = 0.4, .friction = 1.0});
+  const model::CattaneoMindlin cm({.normal_N = 2,
+                                   .tangential_N = 1.2,
+                                   .radius_m = 0.01,
+                                   .young_Pa = 1e6,
+                                   .poisson = 0.4,
+                                   .friction = 1.0});
   std::ifstream in(out + "/summary.json");
   const auto summary = nlohmann::json::parse(in);
   EXPECT_DOUBLE_EQ(summary["contact_radius_m"].get<double>(), cm.hertz().contact_radius_m);
@@ -53,15 +57,21 @@ TEST(ModelCli, PointsModeWritesFullPrecisionColumns) {
   const std::string dir = fresh_dir("model_points");
   std::filesystem::create_directories(dir);
   std::ofstream(dir + "/in.csv") << "x_m,y_m\n0,0\n0.001,-0.0005\n0.004,0.002\n";
-  const auto r = run_cli(kLoads + " --direction-deg 30 --points " + dir + "/in.csv --out " + dir + "/out.csv");
+  const auto r =
+      run_cli(kLoads + " --direction-deg 30 --points " + dir + "/in.csv --out " + dir + "/out.csv");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const CsvTable t = read_numeric_csv(dir + "/out.csv");
-  const std::vector<std::string> expected = {"x_m", "y_m", "ux_m", "uy_m", "Hxx", "Hxy", "Hyx", "Hyy",
-                                             "Exx", "Eyy", "Exy", "energy_J_m3"};
+  const std::vector<std::string> expected = {"x_m", "y_m", "ux_m", "uy_m", "Hxx", "Hxy",
+                                             "Hyx", "Hyy", "Exx",  "Eyy",  "Exy", "energy_J_m3"};
   EXPECT_EQ(t.names, expected);
   ASSERT_EQ(t.rows(), 3u);
-  const model::CattaneoMindlin cm({.normal_N = 2, .tangential_N = 1.2, .radius_m = 0.01, .young_Pa = 1e6,
-                                   .poisson = 0.4, .friction = 1.0, .direction_rad = M_PI / 6});
+  const model::CattaneoMindlin cm({.normal_N = 2,
+                                   .tangential_N = 1.2,
+                                   .radius_m = 0.01,
+                                   .young_Pa = 1e6,
+                                   .poisson = 0.4,
+                                   .friction = 1.0,
+                                   .direction_rad = M_PI / 6});
   for (std::size_t i = 0; i < 3; ++i) {
     const auto s = cm.evaluate(t.column("x_m")[i], t.column("y_m")[i]);
     EXPECT_EQ(t.column("ux_m")[i], s.displacement_m.x);  // exact: written with round-trip precision
@@ -76,23 +86,28 @@ struct Refusal {
 };
 
 TEST(ModelCli, RefusedInputsNameTheOption) {
-  const std::string base = "model cattaneo-mindlin --radius-m 0.01 --young-Pa 1e6 --poisson 0.4 --friction 1 ";
+  const std::string base =
+      "model cattaneo-mindlin --radius-m 0.01 --young-Pa 1e6 --poisson 0.4 --friction 1 ";
   const std::string out = " --grid 5 --out " + fresh_dir("model_refused");
   const std::vector<Refusal> cases = {
       {base + "--normal-N 2 --tangential-N 2.5" + out, "--tangential-N"},
       {base + "--normal-N -1 --tangential-N 0" + out, "--normal-N"},
       {base + "--normal-N 2 --tangential-N -0.1" + out, "--tangential-N"},
       {"model cattaneo-mindlin --radius-m 0.01 --young-Pa 1e6 --poisson 0.5 --friction 1 --normal-N 2 "
-       "--tangential-N 1" + out,
+       "--tangential-N 1" +
+           out,
        "--poisson"},
       {"model cattaneo-mindlin --radius-m 0 --young-Pa 1e6 --poisson 0.4 --friction 1 --normal-N 2 "
-       "--tangential-N 1" + out,
+       "--tangential-N 1" +
+           out,
        "--radius-m"},
       {"model cattaneo-mindlin --radius-m 0.01 --young-Pa -5 --poisson 0.4 --friction 1 --normal-N 2 "
-       "--tangential-N 1" + out,
+       "--tangential-N 1" +
+           out,
        "--young-Pa"},
       {"model cattaneo-mindlin --radius-m 0.01 --young-Pa 1e6 --poisson 0.4 --friction 0 --normal-N 2 "
-       "--tangential-N 0" + out,
+       "--tangential-N 0" +
+           out,
        "--friction"},
       {base + "--normal-N 2 --tangential-N 1 --out x", "--grid"},
       {base + "--normal-N 2 --tangential-N 1 --grid 1 --out x", "--grid"},

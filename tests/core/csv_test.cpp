@@ -35,18 +35,22 @@ TEST(Csv, ReadsColumnsByName) {
 TEST(Csv, ErrorsNameFileRowAndColumn) {
   EXPECT_NE(error_of(write_file("text.csv", "a,b\n1,2\n3,x\n")).find("row 3: column 'b': not a number"),
             std::string::npos);
-  EXPECT_NE(error_of(write_file("empty.csv", "a,b\n1,\n")).find("row 2: column 'b': empty cell"), std::string::npos);
-  EXPECT_NE(error_of(write_file("nan.csv", "a,b\n1,nan\n")).find("column 'b': non-finite"), std::string::npos);
+  EXPECT_NE(error_of(write_file("empty.csv", "a,b\n1,\n")).find("row 2: column 'b': empty cell"),
+            std::string::npos);
+  EXPECT_NE(error_of(write_file("nan.csv", "a,b\n1,nan\n")).find("column 'b': non-finite"),
+            std::string::npos);
   EXPECT_NE(error_of(write_file("ragged.csv", "a,b\n1,2,3\n")).find("row 2: expected 2 cells, found 3"),
             std::string::npos);
   EXPECT_NE(error_of(write_file("dup.csv", "a,a\n1,2\n")).find("duplicate column"), std::string::npos);
-  EXPECT_NE(error_of(std::string(TIRSTRAIN_TEST_TMP) + "/missing.csv").find("cannot open"), std::string::npos);
+  EXPECT_NE(error_of(std::string(TIRSTRAIN_TEST_TMP) + "/missing.csv").find("cannot open"),
+            std::string::npos);
   const auto path = write_file("cols.csv", "a,b\n1,2\n");
   try {
     read_numeric_csv(path).column("c");
     FAIL();
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("column 'c': no such column (columns present: a, b)"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("column 'c': no such column (columns present: a, b)"),
+              std::string::npos);
     EXPECT_EQ(e.context().file, path);
   }
 }

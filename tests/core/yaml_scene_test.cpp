@@ -35,12 +35,13 @@ TEST(Scene, DefaultsWhenSectionsAreAbsent) {
 }
 
 TEST(Scene, ReadsValuesAndRoundTrips) {
-  const std::string path = write_scene("full.yaml",
-                                       "calibration: {px_per_mm: 40.5, ridge_period_mm: 0.5, ridge_polarity: dark}\n"
-                                       "tissue: {E_Pa: 2.0e5, nu: 0.45, depth_m: 0.003}\n"
-                                       "reference_pattern: {roi_px: [0, 400, 640, 100]}\n"
-                                       "compute: [contact, tracking]\n"
-                                       "synthesis: {frames: 10}\n");
+  const std::string path =
+      write_scene("full.yaml",
+                  "calibration: {px_per_mm: 40.5, ridge_period_mm: 0.5, ridge_polarity: dark}\n"
+                  "tissue: {E_Pa: 2.0e5, nu: 0.45, depth_m: 0.003}\n"
+                  "reference_pattern: {roi_px: [0, 400, 640, 100]}\n"
+                  "compute: [contact, tracking]\n"
+                  "synthesis: {frames: 10}\n");
   const Scene s = load_scene(path);
   EXPECT_DOUBLE_EQ(s.px_per_mm, 40.5);
   EXPECT_DOUBLE_EQ(*s.ridge_period_mm, 0.5);
@@ -65,19 +66,23 @@ TEST(Scene, BadFilesNameTheKeyAndFile) {
   const std::string m1 = error_of(unknown);
   EXPECT_NE(m1.find(unknown), std::string::npos);
   EXPECT_NE(m1.find("'tissue.poisson': unknown key"), std::string::npos) << m1;
-  EXPECT_NE(error_of(write_scene("type.yaml", "tissue: {E_Pa: soft}\n")).find("'tissue.E_Pa': expected a number"),
-            std::string::npos);
-  EXPECT_NE(error_of(write_scene("range.yaml", "tissue: {nu: 0.7}\n")).find("'tissue.nu': value 0.7 is outside"),
-            std::string::npos);
+  EXPECT_NE(
+      error_of(write_scene("type.yaml", "tissue: {E_Pa: soft}\n")).find("'tissue.E_Pa': expected a number"),
+      std::string::npos);
+  EXPECT_NE(
+      error_of(write_scene("range.yaml", "tissue: {nu: 0.7}\n")).find("'tissue.nu': value 0.7 is outside"),
+      std::string::npos);
   EXPECT_NE(error_of(write_scene("top.yaml", "calibraton: {}\n")).find("'calibraton': unknown key"),
             std::string::npos);
   EXPECT_NE(error_of(write_scene("stage.yaml", "compute: [contact, magic]\n")).find("unknown stage 'magic'"),
             std::string::npos);
-  EXPECT_NE(error_of(write_scene("syntax.yaml", "tissue: {E_Pa: [1, 2\n")).find("not valid YAML"), std::string::npos);
+  EXPECT_NE(error_of(write_scene("syntax.yaml", "tissue: {E_Pa: [1, 2\n")).find("not valid YAML"),
+            std::string::npos);
   EXPECT_NE(error_of(write_scene("choice.yaml", "calibration: {ridge_polarity: grey}\n"))
                 .find("'grey' is not one of: auto, dark, bright"),
             std::string::npos);
-  EXPECT_NE(error_of(std::string(TIRSTRAIN_TEST_TMP) + "/nope.yaml").find("file not found"), std::string::npos);
+  EXPECT_NE(error_of(std::string(TIRSTRAIN_TEST_TMP) + "/nope.yaml").find("file not found"),
+            std::string::npos);
 }
 
 TEST(YamlSection, RequiredAndIntegerChecks) {
