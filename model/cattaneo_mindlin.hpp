@@ -35,18 +35,18 @@ struct CattaneoMindlinParams {
 };
 
 struct HertzContact {
-  double contact_radius_m = 0.0;  // a
-  double peak_pressure_Pa = 0.0;  // p0
-  double approach_m = 0.0;        // delta = a^2 / R
+  double contact_radius_m = 0.0;      // a
+  double peak_pressure_Pa = 0.0;      // p0
+  double approach_m = 0.0;            // delta = a^2 / R
   double effective_modulus_Pa = 0.0;  // E* = E / (1 - nu^2) against a rigid flat
 };
 
 // One evaluation of the surface field at a point (metres, contact centre at the origin).
 struct FieldSample {
   Vec2 displacement_m;
-  Gradient2 gradient;      // H_ij = du_i/dx_j, dimensionless
-  Strain2 strain;          // Green–Lagrange, from gradient
-  Principal2 principal;    // of strain
+  Gradient2 gradient;    // H_ij = du_i/dx_j, dimensionless
+  Strain2 strain;        // Green–Lagrange, from gradient
+  Principal2 principal;  // of strain
   double energy_density_J_m3 = 0.0;
 };
 
@@ -58,7 +58,7 @@ class CattaneoMindlin {
   const CattaneoMindlinParams& params() const noexcept { return params_; }
   const HertzContact& hertz() const noexcept { return hertz_; }
   double stick_radius_m() const noexcept { return stick_radius_m_; }  // c = a (1 - Q/(mu P))^(1/3)
-  double rigid_shift_m() const noexcept { return rigid_shift_m_; }     // delta_x (along the loading direction)
+  double rigid_shift_m() const noexcept { return rigid_shift_m_; }    // delta_x (along the loading direction)
   double shear_modulus_Pa() const noexcept;
 
   // Hertz pressure p(r) and partial-slip tangential traction magnitude q(r) (along the loading direction).
