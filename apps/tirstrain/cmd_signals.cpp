@@ -1,0 +1,767 @@
+// `tirstrain signals <verb>`: the signals/ library on channel files. Every verb reads a CSV (header row, time
+// column t_s, sample rate from it) or an HDF5/.mat file, validates it (see signals/channels.hpp) and writes
+// a CSV with a header row or a JSON file, each through a temporary name.
+#include <cmath>
+#include <memory>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/atomic_output.hpp"
+#include "core/csv.hpp"
+#include "core/error.hpp"
+#include "signals/channels.hpp"
+#include "signals/filter.hpp"
+#include "signals/friction.hpp"
+#include "signals/mechanics.hpp"
+#include "signals/rqa.hpp"
+#include "signals/spatial.hpp"
+#include "signals/spectral.hpp"
+#include "tirstrain/commands.hpp"
+
+namespace tirstrain::cli {
+namespace {
+
+namespace ts = tirstrain::signals;
+using nlohmann::json;
+
+constexpr const char* kInputHelp =
+    "channel file: CSV with a header row (units in the names) and a time column, or HDF5 / MATLAB v7.3 .mat "
+    "with one numeric vector per channel";
+
+constexpr const char* kWelchConventions =
+    "Spectra follow scipy.signal.welch/csd (MATLAB pwelch/cpsd/tfestimate/mscohere): periodic Hann window of "
+    "--segment samples, 50 % overlap, per-segment mean removal, one-sided density scaling (units^2/Hz), "
+    "segments "
+    "averaged; the last partial segment is dropped.";
+
+struct Common {
+  std::string input;
+  std::string out;
+  std::string time_column = "t_s";
+  double rate_tolerance = 0.01;
+  std::string group = "/";
+};
+
+void add_common(CLI::App* sub, Common& c, const std::string& out_help) {
+  sub->add_option("IN", c.input, kInputHelp)->required();
+  sub->add_option("--out", c.out, out_help)->required();
+  sub->add_option("--time-column", c.time_column, "name of the time column, seconds")->capture_default_str();
+  sub->add_option("--rate-tolerance", c.rate_tolerance,
+                  "largest allowed relative deviation of a sample interval from the median interval")
+      ->capture_default_str();
+  sub->add_option("--group", c.group, "HDF5 group holding the channel datasets")->capture_default_str();
+}
+
+ts::ChannelTable load(const Common& c, const std::string& path, std::vector<std::string> required) {
+  ts::ChannelReadOptions options;
+  options.time_column = c.time_column;
+  options.required = std::move(required);
+  options.rate_tolerance = c.rate_tolerance;
+  options.hdf5_group = c.group;
+  return ts::read_channels(path, options);
+}
+
+// Library errors know the parameter but not the file or option the user typed; add them.
+template <typename Fn>
+auto in_context(const std::string& file, const std::string& column, Fn fn) -> decltype(fn()) {
+  try {
+    return fn();
+  } catch (const Error& e) {
+    if (!e.context().file.empty()) throw;
+    ErrorContext ctx = e.context();
+    ctx.file = file;
+    if (ctx.column.empty()) ctx.column = column;
+    if (!ctx.key.empty() && ctx.key.rfind("--", 0) != 0) {
+      std::string key = ctx.key;
+      for (char& ch : key)
+        if (ch == '_') ch = '-';
+      ctx.key = "--" + key;
+    }
+    throw Error(e.message(), ctx);
+  }
+}
+
+// One-line description for `tirstrain signals --help`; the full contract goes into the verb's own --help.
+CLI::App* add_verb(CLI::App& signals, const std::string& name, const std::string& summary,
+                   const std::string& details) {
+  CLI::App* sub = signals.add_subcommand(name, summary);
+  sub->footer(details);
+  return sub;
+}
+
+void write_json(const std::string& path, const json& j) {
+  write_text_file(path, j.dump(2) + "\n");
+}
+
+ts::WelchOptions welch_options(long segment, long overlap) {
+  if (segment < 2) throw Error("segment must be at least 2 samples", {.key = "--segment"});
+  ts::WelchOptions w;
+  w.segment = static_cast<std::size_t>(segment);
+  if (overlap >= 0) w.overlap = static_cast<std::size_t>(overlap);
+  return w;
+}
+
+ts::RecurrenceNorm parse_norm(const std::string& name) {
+  if (name == "euclidean") return ts::RecurrenceNorm::euclidean;
+  if (name == "supremum" || name == "max") return ts::RecurrenceNorm::supremum;
+  throw Error("unknown norm '" + name + "' (use euclidean or supremum)", {.key = "--norm"});
+}
+
+json measures_json(const ts::RqaMeasures& m) {
+  return {{"recurrence_rate", m.recurrence_rate},
+          {"determinism", m.determinism},
+          {"mean_diagonal_length", m.mean_diagonal_length},
+          {"laminarity", m.laminarity},
+          {"trapping_time", m.trapping_time},
+          {"max_diagonal_length", m.max_diagonal_length}};
+}
+
+void add_filter(CLI::App& signals) {
+  struct Opts {
+    Common c;
+    std::string column;
+    int order = 4;
+    double lowpass_Hz = 0.0, highpass_Hz = 0.0;
+    std::vector<double> bandpass_Hz;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = add_verb(
+      signals, "filter",
+      "Zero-phase Butterworth filter of one channel (scipy.signal.butter + filtfilt semantics)",
+      "Output CSV: t_s,NAME_filtered. The filter runs forward and backward (zero phase, magnitude |H|^2, so "
+      "the -3 dB cutoff of one pass becomes -6 dB); the signal is extended at both ends by odd reflection of "
+      "padlen = 3*(filter order + 1) samples and each pass starts from the steady state of the first sample "
+      "(lfilter_zi), as SciPy does by default. Band-pass order N gives a 2N-pole filter, as in SciPy. "
+      "Designed "
+      "as second-order sections for numerical stability.");
+  add_common(sub, o->c, "output CSV: t_s,NAME_filtered");
+  sub->add_option("--column", o->column, "channel to filter")->required();
+  sub->add_option("--order", o->order, "Butterworth order N")->capture_default_str();
+  sub->add_option("--lowpass-Hz", o->lowpass_Hz, "low-pass -3 dB frequency, Hz (e.g. the paper's 80)");
+  sub->add_option("--highpass-Hz", o->highpass_Hz, "high-pass -3 dB frequency, Hz");
+  sub->add_option("--bandpass-Hz", o->bandpass_Hz, "band-pass edges F1,F2 in Hz (e.g. 15,500)")
+      ->delimiter(',');
+  sub->callback([o] {
+    const int given = (o->lowpass_Hz > 0.0) + (o->highpass_Hz > 0.0) + (!o->bandpass_Hz.empty());
+    if (given != 1)
+      throw Error("give exactly one of --lowpass-Hz, --highpass-Hz, --bandpass-Hz F1,F2",
+                  {.key = "--lowpass-Hz"});
+    if (!o->bandpass_Hz.empty() && o->bandpass_Hz.size() != 2)
+      throw Error("expects two frequencies F1,F2", {.key = "--bandpass-Hz"});
+    const auto table = load(o->c, o->c.input, {o->column});
+    ts::ButterworthSpec spec;
+    spec.order = o->order;
+    spec.sample_rate_Hz = table.sample_rate_Hz;
+    if (o->lowpass_Hz > 0.0) {
+      spec.type = ts::FilterType::lowpass;
+      spec.cutoff_Hz = o->lowpass_Hz;
+    } else if (o->highpass_Hz > 0.0) {
+      spec.type = ts::FilterType::highpass;
+      spec.cutoff_Hz = o->highpass_Hz;
+    } else {
+      spec.type = ts::FilterType::bandpass;
+      spec.cutoff_Hz = o->bandpass_Hz[0];
+      spec.cutoff2_Hz = o->bandpass_Hz[1];
+    }
+    const std::string option = o->lowpass_Hz > 0.0    ? "--lowpass-Hz"
+                               : o->highpass_Hz > 0.0 ? "--highpass-Hz"
+                                                      : "--bandpass-Hz";
+    const auto y = in_context(o->c.input, o->column, [&] {
+      try {
+        return ts::butterworth_filtfilt(table.column(o->column), spec);
+      } catch (const Error& e) {
+        // The design names its own parameters (cutoff_Hz, order); point at the option the user typed.
+        if (e.context().key != "cutoff_Hz" && e.context().key != "cutoff2_Hz" && e.context().key != "order")
+          throw;
+        throw Error(e.message(), {.key = e.context().key == "order" ? "--order" : option});
+      }
+    });
+    CsvWriter out(o->c.out, {o->c.time_column, o->column + "_filtered"});
+    for (std::size_t i = 0; i < y.size(); ++i) out.row({table.time_s[i], y[i]});
+    out.commit();
+  });
+}
+
+void add_psd(CLI::App& signals) {
+  struct Opts {
+    Common c;
+    std::string column;
+    long segment = 0, overlap = -1;
+    std::string peaks_out;
+    double min_prominence = 0.0;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = add_verb(
+      signals, "psd", "Welch power spectral density of one channel (SciPy conventions)",
+      std::string("Welch power spectral density of one channel. Output CSV: freq_Hz,psd (units^2/Hz).\n") +
+          kWelchConventions);
+  add_common(sub, o->c, "output CSV: freq_Hz,psd");
+  sub->add_option("--column", o->column, "channel")->required();
+  sub->add_option("--segment", o->segment, "segment length nperseg, samples (= nfft)")->required();
+  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)");
+  sub->add_option(
+      "--peaks-out", o->peaks_out,
+      "also write spectral peaks (scipy.signal.find_peaks semantics) as CSV: freq_Hz,psd,prominence");
+  sub->add_option("--min-prominence", o->min_prominence, "smallest peak prominence kept, units^2/Hz")
+      ->capture_default_str();
+  sub->callback([o] {
+    const auto table = load(o->c, o->c.input, {o->column});
+    const auto p = in_context(o->c.input, o->column, [&] {
+      return ts::welch(table.column(o->column), table.sample_rate_Hz, welch_options(o->segment, o->overlap));
+    });
+    CsvWriter out(o->c.out, {"freq_Hz", "psd"});
+    for (std::size_t k = 0; k < p.psd.size(); ++k) out.row({p.freq_Hz[k], p.psd[k]});
+    out.commit();
+    if (!o->peaks_out.empty()) {
+      CsvWriter peaks(o->peaks_out, {"freq_Hz", "psd", "prominence"});
+      for (const auto& pk : ts::find_peaks(p.psd, {.min_prominence = o->min_prominence}))
+        peaks.row({p.freq_Hz[pk.index], pk.value, pk.prominence});
+      peaks.commit();
+    }
+  });
+}
+
+void add_tf(CLI::App& signals) {
+  struct Opts {
+    Common c;
+    std::string input_column, output_column;
+    long segment = 0, overlap = -1;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = add_verb(
+      signals, "tf", "H1 transfer function and coherence from channel A to channel B",
+      std::string(
+          "H1 transfer-function estimate and magnitude-squared coherence from channel A to channel B.\n"
+          "Output CSV: freq_Hz,gain,phase_rad,coherence with H1 = Pxy/Pxx (Pxy = conj(X)*Y, SciPy's "
+          "order), gain = |H1| in units_B/units_A, phase = arg(H1) in (-pi, pi], coherence = "
+          "|Pxy|^2/(Pxx*Pyy).\n") +
+          kWelchConventions);
+  add_common(sub, o->c, "output CSV: freq_Hz,gain,phase_rad,coherence");
+  sub->add_option("--input", o->input_column, "input channel A (e.g. force)")->required();
+  sub->add_option("--output", o->output_column, "output channel B (e.g. acceleration)")->required();
+  sub->add_option("--segment", o->segment, "segment length nperseg, samples")->required();
+  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)");
+  sub->callback([o] {
+    const auto table = load(o->c, o->c.input, {o->input_column, o->output_column});
+    const auto t = in_context(o->c.input, o->input_column, [&] {
+      return ts::transfer_estimate(table.column(o->input_column), table.column(o->output_column),
+                                   table.sample_rate_Hz, welch_options(o->segment, o->overlap));
+    });
+    CsvWriter out(o->c.out, {"freq_Hz", "gain", "phase_rad", "coherence"});
+    for (std::size_t k = 0; k < t.freq_Hz.size(); ++k)
+      out.row({t.freq_Hz[k], std::abs(t.h1[k]), std::arg(t.h1[k]), t.coherence[k]});
+    out.commit();
+  });
+}
+
+void add_rqa(CLI::App& signals) {
+  struct Opts {
+    Common c;
+    std::vector<std::string> inputs;
+    std::string column, joint_column, norm = "euclidean";
+    long dim = 0, delay = 0, min_line = 2;
+    double threshold = -1.0, joint_threshold = -1.0, rate = -1.0;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = add_verb(
+      signals, "rqa", "Recurrence quantification analysis (RR, DET, L, LAM), joint or ensemble",
+      "Recurrence quantification analysis of one channel (several IN files: an ensemble over trials, "
+      "measures "
+      "from the pooled line histograms, plus each trial's).\n"
+      "Output JSON: recurrence_rate, determinism, mean_diagonal_length, laminarity (+ trapping_time, "
+      "max_diagonal_length, threshold, embedded_points).\n"
+      "Conventions: delay embedding y_i = (x_i, x_{i+tau}, ..., x_{i+(D-1)tau}); Euclidean distance (--norm "
+      "supremum for the max norm); recurrent when distance <= epsilon; the line of identity is excluded from "
+      "every measure (not a recurrence, not a diagonal line, and it splits vertical lines); rates over the "
+      "M(M-1) off-diagonal cells; minimum diagonal and vertical line length 2 (--min-line); DET = points on "
+      "diagonal lines / recurrent points, L = mean diagonal line length, LAM = points on vertical lines / "
+      "recurrent points; an empty ratio is reported as 0. With --recurrence-rate R, epsilon is the smallest "
+      "distance such that at least ceil(R * M(M-1)/2) pairs are within it. --joint-column adds joint "
+      "recurrence (both channels recur). Memory: an M x M bitset (12.5 MB for 10^4 points).");
+  sub->add_option("IN", o->inputs, kInputHelp)->required();
+  sub->add_option("--out", o->c.out, "output JSON")->required();
+  sub->add_option("--time-column", o->c.time_column, "name of the time column, seconds")
+      ->capture_default_str();
+  sub->add_option("--rate-tolerance", o->c.rate_tolerance, "largest relative sample-interval deviation")
+      ->capture_default_str();
+  sub->add_option("--group", o->c.group, "HDF5 group holding the channel datasets")->capture_default_str();
+  sub->add_option("--column", o->column, "channel")->required();
+  sub->add_option("--dim", o->dim, "embedding dimension D")->required();
+  sub->add_option("--delay", o->delay, "embedding delay tau, samples")->required();
+  sub->add_option("--threshold", o->threshold, "fixed recurrence threshold epsilon, in the channel's units");
+  sub->add_option("--recurrence-rate", o->rate,
+                  "fixed recurrence rate R in (0, 1]; epsilon chosen per series");
+  sub->add_option("--min-line", o->min_line, "minimum diagonal/vertical line length")->capture_default_str();
+  sub->add_option("--norm", o->norm, "euclidean or supremum")->capture_default_str();
+  sub->add_option("--joint-column", o->joint_column, "second channel for joint recurrence");
+  sub->add_option("--joint-threshold", o->joint_threshold,
+                  "threshold for the joint channel (default --threshold)");
+  sub->callback([o] {
+    if ((o->threshold >= 0.0) == (o->rate > 0.0))
+      throw Error("give exactly one of --threshold EPS or --recurrence-rate R", {.key = "--threshold"});
+    if (o->dim < 1) throw Error("must be at least 1", {.key = "--dim"});
+    if (o->delay < 1) throw Error("must be at least 1 sample", {.key = "--delay"});
+    if (o->min_line < 1) throw Error("must be at least 1", {.key = "--min-line"});
+    const auto norm = parse_norm(o->norm);
+    ts::LineHistograms pooled;
+    json trials = json::array();
+    for (const std::string& path : o->inputs) {
+      std::vector<std::string> required{o->column};
+      if (!o->joint_column.empty()) required.push_back(o->joint_column);
+      const auto table = load(o->c, path, required);
+      auto matrix_for = [&](const std::string& column, double fixed, double& eps_out) {
+        return in_context(path, column, [&] {
+          const auto e = ts::delay_embed(table.column(column), static_cast<std::size_t>(o->dim),
+                                         static_cast<std::size_t>(o->delay));
+          if (e.points > 40000)
+            throw Error(std::to_string(e.points) + " embedded points need a " +
+                        std::to_string(e.points * e.points / 8 / 1000000) +
+                        " MB recurrence bitset; decimate or split the series (limit 40000)");
+          eps_out = fixed >= 0.0 ? fixed : ts::threshold_for_recurrence_rate(e, o->rate, norm);
+          return ts::recurrence_matrix(e, eps_out, norm);
+        });
+      };
+      double eps = 0.0, eps_joint = 0.0;
+      auto r = matrix_for(o->column, o->threshold, eps);
+      json trial = {{"file", path}, {"threshold", eps}, {"embedded_points", r.size()}};
+      if (!o->joint_column.empty()) {
+        const double fixed =
+            o->rate > 0.0 ? -1.0 : (o->joint_threshold >= 0.0 ? o->joint_threshold : o->threshold);
+        r = in_context(path, o->joint_column,
+                       [&] { return r & matrix_for(o->joint_column, fixed, eps_joint); });
+        trial["joint_threshold"] = eps_joint;
+      }
+      const auto h = ts::line_histograms(r);
+      pooled += h;
+      trial.update(measures_json(ts::rqa_measures(h, static_cast<std::size_t>(o->min_line))));
+      trials.push_back(trial);
+    }
+    json out = measures_json(ts::rqa_measures(pooled, static_cast<std::size_t>(o->min_line)));
+    if (trials.size() == 1) {
+      out.update(trials[0]);
+    } else {
+      out["trials"] = trials;
+      out["ensemble"] = "measures pooled over the trials' line histograms";
+    }
+    out["conventions"] = {{"norm", o->norm},
+                          {"recurrent_when", "distance <= threshold"},
+                          {"line_of_identity", "excluded"},
+                          {"min_line", o->min_line},
+                          {"dim", o->dim},
+                          {"delay_samples", o->delay}};
+    if (o->rate > 0.0) out["target_recurrence_rate"] = o->rate;
+    write_json(o->c.out, out);
+  });
+}
+
+void add_impedance(CLI::App& signals) {
+  struct Opts {
+    Common c;
+    std::string force, accel, unloaded;
+    long segment = 0, overlap = -1;
+    std::vector<double> band_Hz;
+    double min_coherence = 0.9;
+    std::string fit_out;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = add_verb(
+      signals, "impedance", "Mechanical impedance of a finger on a vibrating plate; spring-mass-damper fit",
+      std::string(
+          "Mechanical impedance of a finger on a vibrating plate from force (N) and plate acceleration "
+          "(m/s^2).\nZ = F/V = j*omega*F/A from the H1 estimate of A given F; with --unloaded, the "
+          "finger's share Z_f = Z_loaded - Z_unloaded (same channel names, sample rate and segment). Per "
+          "frequency: m = Im(Z_f)/omega (kg), b = Re(Z_f) (N*s/m), damping ratio b/(2*m*omega).\n"
+          "Output CSV: freq_Hz,z_real_Ns_m,z_imag_Ns_m,mass_kg,damping_Ns_m,damping_ratio,coherence. "
+          "--fit-out fits a spring-mass-damper F/X = (k - m*omega^2) + j*omega*c by weighted linear least "
+          "squares over the bins with coherence >= --min-coherence in --band-Hz, written as JSON: m_kg, "
+          "c_Ns_m, k_N_m, natural_frequency_Hz, damping_ratio.\n") +
+          kWelchConventions);
+  add_common(sub, o->c, "output CSV (see above)");
+  sub->add_option("--force", o->force, "force channel, N")->required();
+  sub->add_option("--accel", o->accel, "acceleration channel, m/s^2")->required();
+  sub->add_option("--segment", o->segment, "segment length nperseg, samples")->required();
+  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)");
+  sub->add_option("--unloaded", o->unloaded, "recording of the plate without the finger");
+  sub->add_option("--band-Hz", o->band_Hz, "fit band LOW,HIGH in Hz (default: all bins)")->delimiter(',');
+  sub->add_option("--min-coherence", o->min_coherence, "bins below are not fitted")->capture_default_str();
+  sub->add_option("--fit-out", o->fit_out, "spring-mass-damper fit, JSON");
+  sub->callback([o] {
+    if (!o->band_Hz.empty() && o->band_Hz.size() != 2)
+      throw Error("expects LOW,HIGH in Hz", {.key = "--band-Hz"});
+    const auto w = welch_options(o->segment, o->overlap);
+    auto impedance_of = [&](const std::string& path) {
+      const auto table = load(o->c, path, {o->force, o->accel});
+      return std::make_pair(in_context(path, o->force,
+                                       [&] {
+                                         return ts::mechanical_impedance(table.column(o->force),
+                                                                         table.column(o->accel),
+                                                                         table.sample_rate_Hz, w);
+                                       }),
+                            table.sample_rate_Hz);
+    };
+    const auto [loaded, fs] = impedance_of(o->c.input);
+    std::optional<ts::ImpedanceSpectrum> unloaded;
+    if (!o->unloaded.empty()) {
+      const auto [u, fs_u] = impedance_of(o->unloaded);
+      if (std::abs(fs_u - fs) > 1e-6 * fs)
+        throw Error("sample rate " + std::to_string(fs_u) + " Hz differs from the loaded recording's " +
+                        std::to_string(fs) + " Hz",
+                    {.file = o->unloaded});
+      unloaded = u;
+    }
+    const auto finger = in_context(
+        o->c.input, "", [&] { return ts::finger_impedance(loaded, unloaded ? &*unloaded : nullptr); });
+    CsvWriter out(o->c.out, {"freq_Hz", "z_real_Ns_m", "z_imag_Ns_m", "mass_kg", "damping_Ns_m",
+                             "damping_ratio", "coherence"});
+    for (std::size_t k = 0; k < finger.freq_Hz.size(); ++k)
+      out.row({finger.freq_Hz[k], finger.z_Ns_m[k].real(), finger.z_Ns_m[k].imag(), finger.mass_kg[k],
+               finger.damping_Ns_m[k], finger.damping_ratio[k], finger.coherence[k]});
+    if (!o->fit_out.empty()) {
+      std::vector<std::complex<double>> dyn(finger.freq_Hz.size());
+      for (std::size_t k = 0; k < dyn.size(); ++k)
+        dyn[k] = std::complex<double>(0.0, 2.0 * std::numbers::pi * finger.freq_Hz[k]) * finger.z_Ns_m[k];
+      ts::MckFitOptions fo;
+      fo.min_coherence = o->min_coherence;
+      if (o->band_Hz.size() == 2) {
+        fo.band_low_Hz = o->band_Hz[0];
+        fo.band_high_Hz = o->band_Hz[1];
+      }
+      const auto fit = in_context(o->c.input, "", [&] {
+        return ts::fit_mass_spring_damper(finger.freq_Hz, dyn, finger.coherence, fo);
+      });
+      write_json(o->fit_out, {{"m_kg", fit.mck.m_kg},
+                              {"c_Ns_m", fit.mck.c_Ns_m},
+                              {"k_N_m", fit.mck.k_N_m},
+                              {"natural_frequency_Hz", fit.mck.natural_frequency_Hz()},
+                              {"damping_ratio", fit.mck.damping_ratio()},
+                              {"frequencies_used", fit.frequencies_used},
+                              {"band_low_Hz", fit.band_low_Hz},
+                              {"band_high_Hz", fit.band_high_Hz},
+                              {"relative_residual", fit.relative_residual}});
+    }
+    out.commit();
+  });
+}
+
+void add_friction(CLI::App& signals) {
+  struct Opts {
+    Common c;
+    std::string tangential, normal, position, summary;
+    double min_normal_N = 0.05;
+    ts::EventOptions events;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = add_verb(
+      signals, "friction",
+      "Friction coefficient mu(t), dynamic mu on the full-slip plateau, events and U_ext",
+      "Friction coefficient mu(t) = F_t/W, dynamic mu on the detected full-slip plateau, and loading "
+      "events.\n"
+      "Output CSV: t_s,mu (rows with W < --min-normal-N are left out and counted in the summary).\n"
+      "--summary JSON: mu_dynamic, mu_plateau_start_s/end_s/stddev, onset_s, t90_s (tangential force at "
+      "--fraction of its plateau), full_slip_s, plateau_tangential_N, external_work_J (= integral of F_t dx "
+      "from onset to t90; needs --position, in m), rows_below_min_normal.\n"
+      "Plateau: the flat stretch (linear trend over --plateau-window-s changing the value by at most "
+      "--plateau-tolerance of its mean) of at least --plateau-min-s with the largest |mean|. Onset: the "
+      "position (else the tangential force) leaves its baseline (first --baseline-s) by 5 % of its "
+      "excursion; "
+      "the onset is the last sample before that inside the baseline noise band (5 sigma).");
+  add_common(sub, o->c, "output CSV: t_s,mu");
+  sub->add_option("--tangential", o->tangential, "tangential force channel, N")->required();
+  sub->add_option("--normal", o->normal, "normal force channel, N")->required();
+  sub->add_option("--position", o->position, "plate position channel, m (onset and U_ext)");
+  sub->add_option("--summary", o->summary, "summary JSON (mu_dynamic, events, U_ext)");
+  sub->add_option("--min-normal-N", o->min_normal_N, "mu is undefined below this normal force, N")
+      ->capture_default_str();
+  sub->add_option("--plateau-window-s", o->events.plateau.window_s, "plateau slope window, s")
+      ->capture_default_str();
+  sub->add_option("--plateau-tolerance", o->events.plateau.max_relative_change,
+                  "allowed relative change over the window")
+      ->capture_default_str();
+  sub->add_option("--plateau-min-s", o->events.plateau.min_duration_s, "shortest plateau, s")
+      ->capture_default_str();
+  sub->add_option("--baseline-s", o->events.baseline_s, "quiet start used as the baseline, s")
+      ->capture_default_str();
+  sub->add_option("--fraction", o->events.plateau_fraction, "the 't90' fraction of the plateau")
+      ->capture_default_str();
+  sub->callback([o] {
+    std::vector<std::string> required{o->tangential, o->normal};
+    if (!o->position.empty()) required.push_back(o->position);
+    const auto table = load(o->c, o->c.input, required);
+    const auto& ft = table.column(o->tangential);
+    const auto& w = table.column(o->normal);
+    const auto mu =
+        in_context(o->c.input, o->normal, [&] { return ts::friction_coefficient(ft, w, o->min_normal_N); });
+    const auto plateau = ts::detect_plateau(table.time_s, mu.mu, mu.valid, o->events.plateau);
+    if (!plateau)
+      throw Error("no full-slip plateau of mu found (window " + std::to_string(o->events.plateau.window_s) +
+                      " s, tolerance " + std::to_string(o->events.plateau.max_relative_change) +
+                      ", minimum " + std::to_string(o->events.plateau.min_duration_s) +
+                      " s); adjust --plateau-window-s, --plateau-tolerance or --plateau-min-s",
+                  {.file = o->c.input, .column = o->tangential});
+    CsvWriter out(o->c.out, {o->c.time_column, "mu"});
+    for (std::size_t i = 0; i < mu.mu.size(); ++i)
+      if (mu.valid[i]) out.row({table.time_s[i], mu.mu[i]});
+    if (!o->summary.empty()) {
+      const auto ev = in_context(o->c.input, o->tangential, [&] {
+        return ts::detect_events(table.time_s, ft, o->position.empty() ? nullptr : &table.column(o->position),
+                                 o->events);
+      });
+      json j = {{"mu_dynamic", plateau->mean},
+                {"mu_plateau_start_s", plateau->start_s},
+                {"mu_plateau_end_s", plateau->end_s},
+                {"mu_plateau_stddev", plateau->stddev},
+                {"onset_s", ev.onset_s},
+                {"onset_index", ev.onset_index},
+                {"onset_source", ev.onset_source},
+                {"t90_s", ev.fraction_s},
+                {"t90_index", ev.fraction_index},
+                {"fraction", o->events.plateau_fraction},
+                {"full_slip_s", ev.full_slip_s},
+                {"full_slip_index", ev.full_slip_index},
+                {"plateau_tangential_N", ev.tangential_plateau.mean},
+                {"rows_below_min_normal", mu.invalid_count},
+                {"sample_rate_Hz", table.sample_rate_Hz}};
+      if (ev.external_work_J) j["external_work_J"] = *ev.external_work_J;
+      write_json(o->summary, j);
+    }
+    out.commit();
+  });
+}
+
+void add_power_law(CLI::App& signals) {
+  struct Opts {
+    std::string input, out, normal = "normal_N", mu = "mu";
+    double confidence = 0.95;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = add_verb(
+      signals, "power-law", "Fit mu = a * W^b across trials with confidence intervals",
+      "One row per trial (no time column needed); nonlinear least squares (Ceres), with confidence intervals "
+      "estimate +/- t(n-2) * sigma * sqrt(diag((J^T J)^-1)).\n"
+      "Output JSON: a, b, a_low, a_high, b_low, b_high, a_stderr, b_stderr, covariance_ab, confidence, "
+      "residual_rms, samples.");
+  sub->add_option("IN", o->input, "CSV with one row per trial")->required();
+  sub->add_option("--out", o->out, "output JSON")->required();
+  sub->add_option("--normal", o->normal, "normal force column W, N")->capture_default_str();
+  sub->add_option("--mu", o->mu, "friction coefficient column")->capture_default_str();
+  sub->add_option("--confidence", o->confidence, "confidence level of the intervals")->capture_default_str();
+  sub->callback([o] {
+    const auto table = read_numeric_csv(o->input);
+    const auto fit = in_context(o->input, o->mu, [&] {
+      return ts::fit_power_law(table.column(o->normal), table.column(o->mu), o->confidence);
+    });
+    write_json(o->out, {{"a", fit.a},
+                        {"b", fit.b},
+                        {"a_low", fit.a_low},
+                        {"a_high", fit.a_high},
+                        {"b_low", fit.b_low},
+                        {"b_high", fit.b_high},
+                        {"a_stderr", fit.a_stderr},
+                        {"b_stderr", fit.b_stderr},
+                        {"covariance_ab", fit.covariance_ab},
+                        {"confidence", fit.confidence},
+                        {"residual_rms", fit.residual_rms},
+                        {"samples", fit.samples}});
+  });
+}
+
+void add_spatial(CLI::App& signals) {
+  struct Opts {
+    Common c;
+    std::string force, position;
+    long segment = 0, overlap = -1;
+    double dx_m = 0.0, from_s = -1.0, to_s = -1.0;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = add_verb(
+      signals, "spatial", "Spatial spectrum of a force over plate position; predicted frequency v/lambda",
+      std::string(
+          "Spatial spectrum of a force recorded while the plate slides: the force is resampled uniformly "
+          "in plate position (linear interpolation; the stroke must move one way) and Welch-averaged "
+          "with 'sample rate' 1/dx.\nOutput CSV (DC row omitted): "
+          "spatial_freq_per_m,wavelength_m,psd,predicted_freq_Hz, with psd in N^2*m and "
+          "predicted_freq_Hz = mean speed / wavelength (v/lambda).\n") +
+          kWelchConventions);
+  add_common(sub, o->c, "output CSV (see above)");
+  sub->add_option("--force", o->force, "force channel, N")->required();
+  sub->add_option("--position", o->position, "plate position channel, m")->required();
+  sub->add_option("--segment", o->segment, "segment length, spatial samples")->required();
+  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)");
+  sub->add_option("--dx-m", o->dx_m, "spatial step, m (default: median |dx| of the stroke)");
+  sub->add_option("--from-s", o->from_s, "start of the stroke, s (default: record start)");
+  sub->add_option("--to-s", o->to_s, "end of the stroke, s (default: record end)");
+  sub->callback([o] {
+    const auto table = load(o->c, o->c.input, {o->force, o->position});
+    std::size_t begin = 0, end = table.samples();
+    if (o->from_s >= 0.0)
+      begin = static_cast<std::size_t>(std::lower_bound(table.time_s.begin(), table.time_s.end(), o->from_s) -
+                                       table.time_s.begin());
+    if (o->to_s >= 0.0)
+      end = static_cast<std::size_t>(std::upper_bound(table.time_s.begin(), table.time_s.end(), o->to_s) -
+                                     table.time_s.begin());
+    const auto spec = in_context(o->c.input, o->position, [&] {
+      const auto s = ts::to_spatial_domain(table.time_s, table.column(o->position), table.column(o->force),
+                                           o->dx_m, begin, end);
+      return ts::spatial_spectrum(s, welch_options(o->segment, o->overlap));
+    });
+    CsvWriter out(o->c.out, {"spatial_freq_per_m", "wavelength_m", "psd", "predicted_freq_Hz"});
+    for (std::size_t k = 1; k < spec.psd.size(); ++k)
+      out.row({spec.spatial_freq_per_m[k], 1.0 / spec.spatial_freq_per_m[k], spec.psd[k],
+               spec.mean_speed_m_s * spec.spatial_freq_per_m[k]});
+    out.commit();
+  });
+}
+
+void add_pad_deformation(CLI::App& signals) {
+  struct Opts {
+    Common c;
+    std::string calibration, cal_pad, cal_side, side, force, bands_out;
+    long segment = 0, overlap = -1;
+    double min_coherence = 0.9, m_kg = 0.0, c_Ns_m = 0.0, k_N_m = 0.0;
+    std::vector<double> bands_Hz;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = add_verb(
+      signals, "pad-deformation",
+      "Pad displacement from a finger-side accelerometer (and from force through G2)",
+      std::string(
+          "The pad-to-side transfer G1 = A_side/A_pad is "
+          "calibrated (H1) from a two-accelerometer sweep (--calibration with --cal-pad and --cal-side); "
+          "bins "
+          "with coherence >= --min-coherence are valid. Then X_p(omega) = A_side(omega)/(-omega^2 "
+          "G1(omega)), "
+          "reported as a PSD (m^2/Hz). With --force and --m-kg --c-Ns-m --k-N-m, also X_p = G2 F with "
+          "G2 = 1/(m s^2 + c s + k).\nOutput CSV: freq_Hz,g1_gain,g1_phase_rad,calibration_coherence,valid,"
+          "xp_psd_side_m2_Hz[,xp_psd_force_m2_Hz]. --bands-out: low_Hz,high_Hz,rms_side_m,rms_force_m,ratio "
+          "for consecutive edges in --bands-Hz.\n") +
+          kWelchConventions);
+  add_common(sub, o->c, "output CSV (see above)");
+  sub->add_option("--calibration", o->calibration, "two-accelerometer calibration recording")->required();
+  sub->add_option("--cal-pad", o->cal_pad, "pad accelerometer channel in the calibration, m/s^2")->required();
+  sub->add_option("--cal-side", o->cal_side, "side accelerometer channel in the calibration, m/s^2")
+      ->required();
+  sub->add_option("--side", o->side, "side accelerometer channel in IN, m/s^2")->required();
+  sub->add_option("--force", o->force, "tangential force channel in IN, N");
+  sub->add_option("--m-kg", o->m_kg, "G2 mass, kg");
+  sub->add_option("--c-Ns-m", o->c_Ns_m, "G2 damping, N*s/m");
+  sub->add_option("--k-N-m", o->k_N_m, "G2 stiffness, N/m");
+  sub->add_option("--segment", o->segment, "segment length nperseg, samples (same for both files)")
+      ->required();
+  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)");
+  sub->add_option("--min-coherence", o->min_coherence, "calibration bins below are invalid")
+      ->capture_default_str();
+  sub->add_option("--bands-Hz", o->bands_Hz, "band edges F0,F1,...,Fn in Hz")->delimiter(',');
+  sub->add_option("--bands-out", o->bands_out, "per-band RMS comparison CSV");
+  sub->callback([o] {
+    const bool with_force = !o->force.empty();
+    if (with_force && !(o->m_kg > 0.0 && o->k_N_m > 0.0 && o->c_Ns_m >= 0.0))
+      throw Error("--force needs --m-kg > 0, --c-Ns-m >= 0 and --k-N-m > 0", {.key = "--force"});
+    const auto w = welch_options(o->segment, o->overlap);
+    const auto cal_table = load(o->c, o->calibration, {o->cal_pad, o->cal_side});
+    std::vector<std::string> required{o->side};
+    if (with_force) required.push_back(o->force);
+    const auto table = load(o->c, o->c.input, required);
+    if (std::abs(cal_table.sample_rate_Hz - table.sample_rate_Hz) > 1e-6 * table.sample_rate_Hz)
+      throw Error("calibration sample rate " + std::to_string(cal_table.sample_rate_Hz) +
+                      " Hz differs from " + std::to_string(table.sample_rate_Hz) + " Hz of the trial",
+                  {.file = o->calibration});
+    const auto cal = in_context(o->calibration, o->cal_side, [&] {
+      return ts::calibrate_pad_transfer(cal_table.column(o->cal_pad), cal_table.column(o->cal_side),
+                                        cal_table.sample_rate_Hz, w, o->min_coherence);
+    });
+    const auto side_psd = in_context(
+        o->c.input, o->side, [&] { return ts::welch(table.column(o->side), table.sample_rate_Hz, w); });
+    const auto xp_side = ts::pad_displacement_psd_from_side(cal, side_psd.psd);
+    std::vector<double> xp_force;
+    const ts::MassSpringDamper mck{o->m_kg, o->c_Ns_m, o->k_N_m};
+    if (with_force) {
+      const auto fp = in_context(o->c.input, o->force,
+                                 [&] { return ts::welch(table.column(o->force), table.sample_rate_Hz, w); });
+      xp_force = ts::pad_displacement_psd_from_force(fp.freq_Hz, fp.psd, mck);
+    }
+    std::vector<std::string> names{"freq_Hz", "g1_gain",          "g1_phase_rad", "calibration_coherence",
+                                   "valid",   "xp_psd_side_m2_Hz"};
+    if (with_force) names.push_back("xp_psd_force_m2_Hz");
+    CsvWriter out(o->c.out, names);
+    for (std::size_t k = 0; k < cal.freq_Hz.size(); ++k) {
+      std::vector<double> row{cal.freq_Hz[k],   std::abs(cal.g1[k]),      std::arg(cal.g1[k]),
+                              cal.coherence[k], cal.valid[k] ? 1.0 : 0.0, xp_side[k]};
+      if (with_force) row.push_back(xp_force[k]);
+      out.row(row);
+    }
+    if (!o->bands_out.empty()) {
+      if (o->bands_Hz.size() < 2)
+        throw Error("--bands-out needs at least two edges in --bands-Hz", {.key = "--bands-Hz"});
+      CsvWriter bands(o->bands_out, {"low_Hz", "high_Hz", "rms_side_m", "rms_force_m", "ratio"});
+      for (std::size_t b = 0; b + 1 < o->bands_Hz.size(); ++b) {
+        const double lo = o->bands_Hz[b], hi = o->bands_Hz[b + 1];
+        const double rs = ts::band_rms(cal.freq_Hz, xp_side, lo, hi);
+        const double rf = with_force ? ts::band_rms(cal.freq_Hz, xp_force, lo, hi) : 0.0;
+        bands.row({lo, hi, rs, rf, rf > 0.0 ? rs / rf : 0.0});
+      }
+      bands.commit();
+    }
+    out.commit();
+  });
+}
+
+void add_resample(CLI::App& signals) {
+  struct Opts {
+    Common c;
+    std::string times, times_column = "t_s";
+    std::vector<std::string> columns;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = add_verb(
+      signals, "resample", "Resample channels to given times (e.g. frame timestamps)",
+      "Linear interpolation. Times outside the "
+      "channel record are an error (nothing is extrapolated).\nOutput CSV: t_s followed by the channels.");
+  add_common(sub, o->c, "output CSV: t_s,COLUMNS...");
+  sub->add_option("--times", o->times, "CSV holding the target times")->required();
+  sub->add_option("--times-column", o->times_column, "column of --times, s")->capture_default_str();
+  sub->add_option("--columns", o->columns, "channels to resample (default: all)")->delimiter(',');
+  sub->callback([o] {
+    const auto table = load(o->c, o->c.input, o->columns);
+    const auto times = read_numeric_csv(o->times);
+    const auto& query = times.column(o->times_column);
+    const auto columns = o->columns.empty() ? table.names : o->columns;
+    std::vector<std::vector<double>> values;
+    for (const auto& name : columns)
+      values.push_back(in_context(o->times, o->times_column, [&] {
+        return ts::resample_linear(table.time_s, table.column(name), query);
+      }));
+    std::vector<std::string> names{o->c.time_column};
+    names.insert(names.end(), columns.begin(), columns.end());
+    CsvWriter out(o->c.out, names);
+    for (std::size_t i = 0; i < query.size(); ++i) {
+      std::vector<double> row{query[i]};
+      for (const auto& v : values) row.push_back(v[i]);
+      out.row(row);
+    }
+    out.commit();
+  });
+}
+
+}  // namespace
+
+void add_signals_command(CLI::App& app) {
+  CLI::App* signals = app.add_subcommand("signals",
+                                         "Force, accelerometer and position channels: filter, spectra, "
+                                         "friction, impedance, recurrence analysis");
+  signals->require_subcommand(1);
+  add_filter(*signals);
+  add_psd(*signals);
+  add_tf(*signals);
+  add_rqa(*signals);
+  add_impedance(*signals);
+  add_friction(*signals);
+  add_power_law(*signals);
+  add_spatial(*signals);
+  add_pad_deformation(*signals);
+  add_resample(*signals);
+}
+
+}  // namespace tirstrain::cli

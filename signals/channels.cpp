@@ -1,0 +1,366 @@
+#include "signals/channels.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+
+#include <H5Cpp.h>
+
+#include "core/csv.hpp"
+#include "core/error.hpp"
+#include "signals/spectral.hpp"
+
+namespace tirstrain::signals {
+namespace {
+
+std::string lower_extension(const std::string& path) {
+  const auto dot = path.find_last_of('.');
+  if (dot == std::string::npos) return {};
+  std::string ext = path.substr(dot + 1);
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext;
+}
+
+std::string fmt(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.9g", v);
+  return buf;
+}
+
+// The core CSV reader skips blank lines, so the user-visible line of data row i is recovered by
+// re-scanning the file; only done when an error is about to be reported.
+long csv_line_of_data_row(const std::string& path, std::size_t data_index) {
+  std::ifstream in(path);
+  std::string line;
+  long line_no = 0;
+  bool header_seen = false;
+  std::size_t data_seen = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    if (!header_seen) {
+      header_seen = true;
+      continue;
+    }
+    if (data_seen == data_index) return line_no;
+    ++data_seen;
+  }
+  return static_cast<long>(data_index) + 2;
+}
+
+void check_unknown_and_required(const ChannelTable& table, const ChannelReadOptions& options) {
+  if (!options.expected.empty()) {
+    for (const std::string& name : table.names) {
+      if (std::find(options.expected.begin(), options.expected.end(), name) == options.expected.end()) {
+        std::string list;
+        for (const auto& e : options.expected) list += (list.empty() ? "" : ", ") + e;
+        throw Error("unknown column (expected only: " + list + ")", {.file = table.path, .column = name});
+      }
+    }
+  }
+  for (const std::string& name : options.required) (void)table.column(name);
+}
+
+struct ValidationFailure {
+  std::size_t index;
+  std::string message;
+};
+
+std::optional<ValidationFailure> find_time_problem(const std::vector<double>& t, double tolerance,
+                                                   double& rate_Hz) {
+  const std::size_t n = t.size();
+  if (n < 2)
+    return ValidationFailure{0,
+                             "need at least 2 samples to know the sample rate, found " + std::to_string(n)};
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(t[i])) return ValidationFailure{i, "timestamp is not a finite number"};
+    if (i == 0) continue;
+    if (t[i] == t[i - 1])
+      return ValidationFailure{i, "duplicate timestamp " + fmt(t[i]) + " s (same as the previous sample)"};
+    if (t[i] < t[i - 1])
+      return ValidationFailure{
+          i, "timestamps not increasing: " + fmt(t[i]) + " s follows " + fmt(t[i - 1]) + " s"};
+  }
+  std::vector<double> dt(n - 1);
+  for (std::size_t i = 1; i < n; ++i) dt[i - 1] = t[i] - t[i - 1];
+  std::vector<double> sorted = dt;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                   sorted.end());
+  const double median_dt = sorted[sorted.size() / 2];
+  for (std::size_t i = 0; i < dt.size(); ++i) {
+    if (std::abs(dt[i] - median_dt) > tolerance * median_dt)
+      return ValidationFailure{i + 1, "sample rate varies: interval " + fmt(dt[i]) +
+                                          " s before this sample differs from the median interval " +
+                                          fmt(median_dt) + " s by more than the tolerance of " +
+                                          fmt(100.0 * tolerance) + " % (a dropped or repeated sample?)"};
+  }
+  rate_Hz = 1.0 / median_dt;
+  return std::nullopt;
+}
+
+}  // namespace
+
+bool ChannelTable::has(const std::string& name) const {
+  return std::find(names.begin(), names.end(), name) != names.end();
+}
+
+const std::vector<double>& ChannelTable::column(const std::string& name) const {
+  for (std::size_t j = 0; j < names.size(); ++j)
+    if (names[j] == name) return columns[j];
+  std::string present = time_column;
+  for (const auto& n : names) present += ", " + n;
+  throw Error("no such column (columns present: " + present + ")", {.file = path, .column = name});
+}
+
+double validate_time_axis(const std::vector<double>& time_s, double rate_tolerance, const std::string& where,
+                          const std::string& column, long first_row) {
+  double rate_Hz = 0.0;
+  if (auto problem = find_time_problem(time_s, rate_tolerance, rate_Hz)) {
+    if (first_row >= 0)
+      throw Error(problem->message,
+                  {.file = where, .row = first_row + static_cast<long>(problem->index), .column = column});
+    throw Error("sample " + std::to_string(problem->index) + " (0-based): " + problem->message,
+                {.file = where, .column = column});
+  }
+  return rate_Hz;
+}
+
+ChannelTable read_channels_csv(const std::string& path, const ChannelReadOptions& options) {
+  const CsvTable csv = read_numeric_csv(path);
+  ChannelTable table;
+  table.path = path;
+  table.time_column = options.time_column;
+  if (!csv.has(options.time_column)) {
+    std::string present;
+    for (const auto& n : csv.names) present += (present.empty() ? "" : ", ") + n;
+    throw Error("no time column (columns present: " + present + ")",
+                {.file = path, .column = options.time_column});
+  }
+  for (std::size_t j = 0; j < csv.names.size(); ++j) {
+    if (csv.names[j] == options.time_column) {
+      table.time_s = csv.columns[j];
+    } else {
+      table.names.push_back(csv.names[j]);
+      table.columns.push_back(csv.columns[j]);
+    }
+  }
+  check_unknown_and_required(table, options);
+  double rate_Hz = 0.0;
+  if (auto problem = find_time_problem(table.time_s, options.rate_tolerance, rate_Hz)) {
+    const long row = table.time_s.size() < 2 ? 1 : csv_line_of_data_row(path, problem->index);
+    throw Error(problem->message, {.file = path, .row = row, .column = options.time_column});
+  }
+  table.sample_rate_Hz = rate_Hz;
+  return table;
+}
+
+ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOptions& options) {
+  H5::Exception::dontPrint();
+  ChannelTable table;
+  table.path = path;
+  table.time_column = options.time_column;
+  table.first_data_row = -1;
+  try {
+    H5::H5File file(path, H5F_ACC_RDONLY);
+    H5::Group group = file.openGroup(options.hdf5_group);
+    std::vector<std::string> wanted = options.required;
+    wanted.push_back(options.time_column);
+    bool have_time = false;
+    for (hsize_t i = 0; i < group.getNumObjs(); ++i) {
+      const std::string name = group.getObjnameByIdx(i);
+      const bool requested = std::find(wanted.begin(), wanted.end(), name) != wanted.end();
+      // MATLAB keeps cell/struct payloads in "#refs#" and "#subsystem#"; they are not channels.
+      if (!name.empty() && name[0] == '#') continue;
+      const H5O_type_t kind = group.childObjType(name);
+      if (kind != H5O_TYPE_DATASET) {
+        if (requested)
+          throw Error("is a group, not a numeric dataset (a MATLAB struct?)", {.file = path, .column = name});
+        continue;
+      }
+      H5::DataSet ds = group.openDataSet(name);
+      std::string matlab_class;
+      if (ds.attrExists("MATLAB_class")) {
+        H5::Attribute attr = ds.openAttribute("MATLAB_class");
+        attr.read(attr.getStrType(), matlab_class);
+        // Fixed-length HDF5 strings may carry trailing NULs.
+        if (const auto nul = matlab_class.find('\0'); nul != std::string::npos) matlab_class.resize(nul);
+      }
+      const H5T_class_t type_class = ds.getTypeClass();
+      const bool numeric = type_class == H5T_INTEGER || type_class == H5T_FLOAT;
+      std::string why_not;
+      if (matlab_class == "char")
+        why_not = "is a MATLAB char array (text stored as uint16), not a numeric channel";
+      else if (matlab_class == "cell" || matlab_class == "struct")
+        why_not = "is a MATLAB " + matlab_class + ", not a numeric channel";
+      else if (ds.attrExists("MATLAB_empty"))
+        why_not = "is an empty MATLAB array";
+      else if (!numeric)
+        why_not = "is not a numeric dataset";
+      H5::DataSpace space = ds.getSpace();
+      const int rank = space.getSimpleExtentNdims();
+      std::vector<hsize_t> dims(static_cast<std::size_t>(std::max(rank, 0)));
+      if (rank > 0) space.getSimpleExtentDims(dims.data());
+      std::size_t length = 1;
+      int non_singleton = 0;
+      for (hsize_t d : dims) {
+        length *= static_cast<std::size_t>(d);
+        non_singleton += d != 1;
+      }
+      if (why_not.empty() && (rank > 2 || non_singleton > 1)) {
+        std::string shape;
+        for (hsize_t d : dims) shape += (shape.empty() ? "" : "x") + std::to_string(d);
+        why_not = "has shape " + shape + "; a channel must be a vector (one non-singleton dimension)";
+      }
+      if (why_not.empty() && length == 0) why_not = "is empty";
+      if (!why_not.empty()) {
+        if (requested || !options.expected.empty()) throw Error(why_not, {.file = path, .column = name});
+        continue;
+      }
+      std::vector<double> values(length);
+      ds.read(values.data(), H5::PredType::NATIVE_DOUBLE);
+      for (std::size_t k = 0; k < values.size(); ++k)
+        if (!std::isfinite(values[k]))
+          throw Error("sample " + std::to_string(k) + " (0-based) is not a finite number",
+                      {.file = path, .column = name});
+      if (name == options.time_column) {
+        table.time_s = std::move(values);
+        have_time = true;
+      } else {
+        table.names.push_back(name);
+        table.columns.push_back(std::move(values));
+      }
+    }
+    if (!have_time) {
+      std::string present;
+      for (const auto& n : table.names) present += (present.empty() ? "" : ", ") + n;
+      throw Error(
+          "no time dataset in group '" + options.hdf5_group + "' (numeric datasets present: " + present + ")",
+          {.file = path, .column = options.time_column});
+    }
+  } catch (const H5::Exception& e) {
+    throw Error("cannot read HDF5 file: " + std::string(e.getCDetailMsg()), {.file = path});
+  }
+  for (std::size_t j = 0; j < table.names.size(); ++j)
+    if (table.columns[j].size() != table.time_s.size())
+      throw Error("has " + std::to_string(table.columns[j].size()) + " samples but the time dataset '" +
+                      options.time_column + "' has " + std::to_string(table.time_s.size()),
+                  {.file = path, .column = table.names[j]});
+  check_unknown_and_required(table, options);
+  table.sample_rate_Hz =
+      validate_time_axis(table.time_s, options.rate_tolerance, path, options.time_column, -1);
+  return table;
+}
+
+ChannelTable read_channels(const std::string& path, const ChannelReadOptions& options) {
+  const std::string ext = lower_extension(path);
+  if (ext == "h5" || ext == "hdf5" || ext == "mat") return read_channels_hdf5(path, options);
+  return read_channels_csv(path, options);
+}
+
+std::vector<double> resample_linear(const std::vector<double>& time_s, const std::vector<double>& values,
+                                    const std::vector<double>& query_s) {
+  if (time_s.size() != values.size() || time_s.size() < 2)
+    throw Error("internal: resample_linear needs matching time and value vectors of at least 2 samples");
+  std::vector<double> out(query_s.size());
+  std::size_t k = 0;
+  for (std::size_t q = 0; q < query_s.size(); ++q) {
+    const double t = query_s[q];
+    if (!(t >= time_s.front() && t <= time_s.back()))
+      throw Error("time " + fmt(t) + " s is outside the channel's span [" + fmt(time_s.front()) + ", " +
+                      fmt(time_s.back()) + "] s; channels are not extrapolated",
+                  {.frame = static_cast<long>(q)});
+    // Queries are usually increasing (frame times), so the search restarts from the last bracket.
+    if (k >= time_s.size() - 1 || time_s[k] > t) k = 0;
+    if (time_s[k + 1] < t)
+      k = static_cast<std::size_t>(
+              std::upper_bound(time_s.begin() + static_cast<std::ptrdiff_t>(k), time_s.end(), t) -
+              time_s.begin()) -
+          1;
+    if (k >= time_s.size() - 1) k = time_s.size() - 2;
+    const double w = (t - time_s[k]) / (time_s[k + 1] - time_s[k]);
+    out[q] = values[k] + w * (values[k + 1] - values[k]);
+  }
+  return out;
+}
+
+std::optional<double> first_crossing_s(const std::vector<double>& time_s, const std::vector<double>& values,
+                                       double threshold, bool rising, std::size_t start_index) {
+  for (std::size_t i = std::max<std::size_t>(start_index, 1); i < values.size(); ++i) {
+    const double a = values[i - 1], b = values[i];
+    const bool crossed = rising ? (a < threshold && b >= threshold) : (a > threshold && b <= threshold);
+    if (crossed) {
+      const double w = (threshold - a) / (b - a);
+      return time_s[i - 1] + w * (time_s[i] - time_s[i - 1]);
+    }
+  }
+  return std::nullopt;
+}
+
+ClockAlignment align_by_trigger(double trigger_channel_s, double trigger_camera_s) {
+  return {trigger_camera_s - trigger_channel_s, 1.0, "trigger"};
+}
+
+ClockAlignment align_by_cross_correlation(const std::vector<double>& channel_time_s,
+                                          const std::vector<double>& channel_position,
+                                          const std::vector<double>& camera_time_s,
+                                          const std::vector<double>& camera_displacement, double max_lag_s) {
+  if (channel_time_s.size() != channel_position.size() || camera_time_s.size() != camera_displacement.size())
+    throw Error("internal: time and value vectors differ in length");
+  if (channel_time_s.size() < 4 || camera_time_s.size() < 4)
+    throw Error("cross-correlation alignment needs at least 4 samples in each series");
+  if (!(max_lag_s >= 0.0)) throw Error("maximum lag must be non-negative", {.key = "max_lag_s"});
+  const double dt =
+      (channel_time_s.back() - channel_time_s.front()) / static_cast<double>(channel_time_s.size() - 1);
+  const long max_lag = static_cast<long>(std::ceil(max_lag_s / dt));
+  const std::size_t n = channel_time_s.size();
+  std::vector<double> corr(static_cast<std::size_t>(2 * max_lag + 1), -2.0);
+  std::vector<double> cam_at(n);
+  for (long lag = -max_lag; lag <= max_lag; ++lag) {
+    const double shift_s = static_cast<double>(lag) * dt;
+    std::size_t count = 0;
+    double sp = 0.0, sc = 0.0;
+    std::size_t k = 0;
+    std::size_t first = n, last = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double t = channel_time_s[i] + shift_s;
+      if (t < camera_time_s.front() || t > camera_time_s.back()) continue;
+      while (k + 2 < camera_time_s.size() && camera_time_s[k + 1] < t) ++k;
+      const double w = (t - camera_time_s[k]) / (camera_time_s[k + 1] - camera_time_s[k]);
+      cam_at[i] = camera_displacement[k] + w * (camera_displacement[k + 1] - camera_displacement[k]);
+      first = std::min(first, i);
+      last = i;
+      sp += channel_position[i];
+      sc += cam_at[i];
+      ++count;
+    }
+    if (count < 4) continue;
+    const double mp = sp / static_cast<double>(count), mc = sc / static_cast<double>(count);
+    double spp = 0.0, scc = 0.0, spc = 0.0;
+    for (std::size_t i = first; i <= last; ++i) {
+      const double dp = channel_position[i] - mp, dc = cam_at[i] - mc;
+      spp += dp * dp;
+      scc += dc * dc;
+      spc += dp * dc;
+    }
+    if (spp > 0.0 && scc > 0.0) corr[static_cast<std::size_t>(lag + max_lag)] = spc / std::sqrt(spp * scc);
+  }
+  const auto best = std::max_element(corr.begin(), corr.end());
+  if (*best < -1.5)
+    throw Error(
+        "cross-correlation alignment failed: the series do not overlap by at least 4 samples within the "
+        "lag range, or one of them is constant",
+        {.key = "max_lag_s"});
+  const std::size_t b = static_cast<std::size_t>(best - corr.begin());
+  double frac = static_cast<double>(b);
+  if (b > 0 && b + 1 < corr.size() && corr[b - 1] > -1.5 && corr[b + 1] > -1.5)
+    frac = parabolic_peak_index(corr, b);
+  ClockAlignment out;
+  out.offset_s = (frac - static_cast<double>(max_lag)) * dt;
+  out.correlation = *best;
+  out.method = "cross-correlation";
+  return out;
+}
+
+}  // namespace tirstrain::signals

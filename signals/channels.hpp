@@ -1,0 +1,90 @@
+#pragma once
+// Channel files (force, accelerometer, position, trigger ...) read, validated and put on one time axis.
+//
+// Formats:
+//   - CSV with a header row of names, units in the name ("tangential_N"); the time column (default "t_s").
+//   - HDF5 with one 1-D numeric dataset per channel inside a group (default "/"), including MATLAB v7.3
+//     .mat files, which are HDF5 with one root dataset per variable. MATLAB writes arrays transposed
+//     (column-major), so an N×1 column vector arrives as a 1×N dataset; any dataset whose shape has one
+//     non-singleton dimension is taken as a vector. Character arrays (MATLAB_class "char", stored as
+//     uint16), cells, structs and non-numeric types are rejected by name.
+//
+// Validation (every failure is a tirstrain::Error naming file, row (CSV line, header = row 1) or sample
+// index (HDF5), and column): missing requested columns, columns not in an `expected` list when one is
+// given, NaN/Inf/empty cells, channels of different lengths, duplicate or decreasing timestamps, and a
+// sample interval that deviates from the median interval by more than `rate_tolerance` (relative).
+// Nothing is interpolated or repaired.
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace tirstrain::signals {
+
+struct ChannelTable {
+  std::string path;
+  std::string time_column = "t_s";
+  std::vector<double> time_s;
+  std::vector<std::string> names;            // channel names (time column excluded), in file order
+  std::vector<std::vector<double>> columns;  // columns[j][i]
+  double sample_rate_Hz = 0.0;               // 1 / median interval
+  // Maps a sample index to the row number a user sees in the file (CSV line), or -1 for HDF5.
+  long first_data_row = 2;
+
+  std::size_t samples() const { return time_s.size(); }
+  bool has(const std::string& name) const;
+  // Throws Error naming the file and the missing column, listing the ones present.
+  const std::vector<double>& column(const std::string& name) const;
+};
+
+struct ChannelReadOptions {
+  std::string time_column = "t_s";
+  std::vector<std::string> required;  // must be present
+  std::vector<std::string> expected;  // when non-empty, any other column is an "unknown column" error
+  double rate_tolerance = 0.01;       // max |dt_i − median dt| / median dt
+  std::string hdf5_group = "/";
+};
+
+// Dispatches on the extension: .csv (and anything not HDF5) as CSV; .h5, .hdf5, .mat as HDF5.
+ChannelTable read_channels(const std::string& path, const ChannelReadOptions& options = {});
+ChannelTable read_channels_csv(const std::string& path, const ChannelReadOptions& options = {});
+ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOptions& options = {});
+
+// Checks the time axis as described above and returns the sample rate (1 / median interval).
+// `where` names the source for messages; `first_row` is the user-visible row of sample 0 (or -1 for
+// sample indices).
+double validate_time_axis(const std::vector<double>& time_s, double rate_tolerance, const std::string& where,
+                          const std::string& column, long first_row);
+
+// Linear interpolation of a channel at query times (e.g. frame timestamps). A query outside
+// [time_s.front(), time_s.back()] is an error naming the query index as a frame: nothing is extrapolated.
+std::vector<double> resample_linear(const std::vector<double>& time_s, const std::vector<double>& values,
+                                    const std::vector<double>& query_s);
+
+// Time of the first crossing of `threshold` (rising: from below to at-or-above; falling: the reverse),
+// linearly interpolated between samples; nullopt when the signal never crosses.
+std::optional<double> first_crossing_s(const std::vector<double>& time_s, const std::vector<double>& values,
+                                       double threshold, bool rising = true, std::size_t start_index = 0);
+
+// Clock offset between a channel clock and the camera clock: t_camera = t_channel + offset_s.
+struct ClockAlignment {
+  double offset_s = 0.0;
+  double correlation = 0.0;  // normalised cross-correlation at the optimum (1 = identical shapes)
+  std::string method;        // "explicit", "trigger", "cross-correlation"
+};
+
+// From a shared trigger: the same edge seen at trigger_channel_s on the channel clock and at
+// trigger_camera_s on the camera clock.
+ClockAlignment align_by_trigger(double trigger_channel_s, double trigger_camera_s);
+
+// Cross-correlates the channel's plate position p(t_channel) with the image-measured plate displacement
+// c(t_camera) over offsets in [-max_lag_s, max_lag_s] on the channel's sample grid, then refines the
+// optimum by a parabola through the three best lags (sub-sample resolution). Both series are mean-removed
+// over the overlap; their units need not match (correlation is normalised). Throws Error when the
+// overlap is too short or a series is constant.
+ClockAlignment align_by_cross_correlation(const std::vector<double>& channel_time_s,
+                                          const std::vector<double>& channel_position,
+                                          const std::vector<double>& camera_time_s,
+                                          const std::vector<double>& camera_displacement, double max_lag_s);
+
+}  // namespace tirstrain::signals

@@ -1,0 +1,61 @@
+#include "signals/spatial.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "core/error.hpp"
+
+namespace tirstrain::signals {
+
+SpatialSeries to_spatial_domain(const std::vector<double>& time_s, const std::vector<double>& position_m,
+                                const std::vector<double>& values, double dx_m, std::size_t begin,
+                                std::size_t end) {
+  if (time_s.size() != position_m.size() || time_s.size() != values.size())
+    throw Error("time, position and value channels have different lengths");
+  end = std::min(end, time_s.size());
+  if (end < begin + 3) throw Error("spatial resampling needs at least 3 samples in the stroke");
+  const double direction = position_m[begin + 1] > position_m[begin] ? 1.0 : -1.0;
+  std::vector<double> steps;
+  steps.reserve(end - begin);
+  for (std::size_t i = begin + 1; i < end; ++i) {
+    const double step = (position_m[i] - position_m[i - 1]) * direction;
+    if (!(step > 0.0))
+      throw Error(
+          "position " + std::string(step == 0.0 ? "stalls" : "reverses") + " at sample " + std::to_string(i) +
+              " (t = " + std::to_string(time_s[i]) +
+              " s): spatial resampling needs a stroke that moves one way; low-pass the position or restrict "
+              "the time range",
+          {.key = "position"});
+    steps.push_back(step);
+  }
+  if (!(dx_m > 0.0)) {
+    std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2),
+                     steps.end());
+    dx_m = steps[steps.size() / 2];
+  }
+  SpatialSeries out;
+  out.dx_m = dx_m;
+  const double x0 = position_m[begin], x1 = position_m[end - 1];
+  const double travel = std::abs(x1 - x0);
+  out.mean_speed_m_s = travel / (time_s[end - 1] - time_s[begin]);
+  const std::size_t count = static_cast<std::size_t>(std::floor(travel / dx_m + 1e-9)) + 1;
+  out.x_m.resize(count);
+  out.values.resize(count);
+  std::size_t k = begin;
+  for (std::size_t j = 0; j < count; ++j) {
+    const double x = x0 + direction * dx_m * static_cast<double>(j);
+    while (k + 2 < end && (position_m[k + 1] - x) * direction < 0.0) ++k;
+    const double w = (x - position_m[k]) / (position_m[k + 1] - position_m[k]);
+    out.x_m[j] = x;
+    out.values[j] = values[k] + std::clamp(w, 0.0, 1.0) * (values[k + 1] - values[k]);
+  }
+  return out;
+}
+
+SpatialSpectrum spatial_spectrum(const SpatialSeries& series, const WelchOptions& options) {
+  const PowerSpectrum p = welch(series.values, 1.0 / series.dx_m, options);
+  return {p.freq_Hz, p.psd, series.mean_speed_m_s};
+}
+
+}  // namespace tirstrain::signals

@@ -1,0 +1,35 @@
+#pragma once
+// Texture vibration in the spatial domain: a force recorded while the plate slides is a function of the
+// plate position, so resampling it uniformly in x (through the position channel) turns speed changes
+// into nothing and a texture of wavelength λ into a spatial-spectrum peak at 1/λ, whatever the speed.
+// The temporal frequency it produces at speed v is v/λ (model/texture_interaction.hpp predicts it).
+#include <cstddef>
+#include <vector>
+
+#include "signals/spectral.hpp"
+
+namespace tirstrain::signals {
+
+struct SpatialSeries {
+  std::vector<double> x_m;      // uniform grid, increasing or decreasing with the stroke
+  std::vector<double> values;   // the channel linearly interpolated at x_m
+  double dx_m = 0.0;            // grid step (positive)
+  double mean_speed_m_s = 0.0;  // |Δx| / Δt over the stroke
+};
+
+// Position must move strictly one way over [begin, end) (samples); a stall or reversal is an Error naming
+// the sample. dx_m <= 0 picks the median |Δx| of the stroke.
+SpatialSeries to_spatial_domain(const std::vector<double>& time_s, const std::vector<double>& position_m,
+                                const std::vector<double>& values, double dx_m = 0.0, std::size_t begin = 0,
+                                std::size_t end = static_cast<std::size_t>(-1));
+
+struct SpatialSpectrum {
+  std::vector<double> spatial_freq_per_m;  // cycles per metre
+  std::vector<double> psd;                 // units² · m (density per cycle/m)
+  double mean_speed_m_s = 0.0;
+};
+
+// Welch (SciPy conventions, see spectral.hpp) with "sample rate" 1/dx.
+SpatialSpectrum spatial_spectrum(const SpatialSeries& series, const WelchOptions& options);
+
+}  // namespace tirstrain::signals

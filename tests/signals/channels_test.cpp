@@ -1,0 +1,227 @@
+// Channel reading and validation: every bad-input case names file, row (or sample) and column; HDF5 files
+// (plain group layout and a MATLAB v7.3-like layout with a 512-byte user block, transposed 1×N variables,
+// MATLAB_class attributes and a char variable) are written here with the HDF5 C++ API.
+#include <gtest/gtest.h>
+
+#include <H5Cpp.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <numbers>
+
+#include "core/error.hpp"
+#include "signals/channels.hpp"
+
+namespace ts = tirstrain::signals;
+
+namespace {
+
+std::string tmp_path(const std::string& name) {
+  const std::string dir = std::string(TIRSTRAIN_TEST_TMP) + "/signals_channels";
+  std::filesystem::create_directories(dir);
+  return dir + "/" + name;
+}
+
+std::string write_text(const std::string& name, const std::string& text) {
+  const std::string path = tmp_path(name);
+  std::ofstream(path) << text;
+  return path;
+}
+
+tirstrain::Error expect_error(const std::function<void()>& fn) {
+  try {
+    fn();
+  } catch (const tirstrain::Error& e) {
+    return e;
+  }
+  ADD_FAILURE() << "expected tirstrain::Error";
+  return tirstrain::Error("none");
+}
+
+template <typename Where>
+void write_vector(Where& where, const std::string& name, const std::vector<double>& v,
+                  std::vector<hsize_t> dims, const char* matlab_class = nullptr) {
+  H5::DataSpace space(static_cast<int>(dims.size()), dims.data());
+  H5::DataSet ds = where.createDataSet(name, H5::PredType::NATIVE_DOUBLE, space);
+  ds.write(v.data(), H5::PredType::NATIVE_DOUBLE);
+  if (matlab_class) {
+    H5::StrType type(H5::PredType::C_S1, std::strlen(matlab_class));
+    H5::Attribute attr = ds.createAttribute("MATLAB_class", type, H5::DataSpace(H5S_SCALAR));
+    attr.write(type, std::string(matlab_class));
+  }
+}
+
+}  // namespace
+
+TEST(ChannelsCsv, ReadsColumnsAndSampleRate) {
+  const auto path = write_text(
+      "good.csv", "t_s,normal_N,tangential_N\n0,1,0.1\n0.001,1.1,0.2\n0.002,1.2,0.3\n0.003,1.3,0.4\n");
+  const auto table = ts::read_channels(path, {.required = {"normal_N"}});
+  EXPECT_NEAR(table.sample_rate_Hz, 1000.0, 1e-6);
+  ASSERT_EQ(table.names.size(), 2u);
+  EXPECT_EQ(table.column("tangential_N")[2], 0.3);
+  EXPECT_EQ(table.samples(), 4u);
+}
+
+TEST(ChannelsCsv, DuplicateTimestampNamesRowAndColumn) {
+  const auto path = write_text("dup.csv", "t_s,normal_N\n0,1\n0.001,1\n0.001,1\n0.003,1\n");
+  const auto e = expect_error([&] { ts::read_channels(path); });
+  EXPECT_EQ(e.context().file, path);
+  EXPECT_EQ(e.context().row, 4);  // header is row 1
+  EXPECT_EQ(e.context().column, "t_s");
+  EXPECT_NE(e.message().find("duplicate"), std::string::npos);
+}
+
+TEST(ChannelsCsv, DecreasingTimestampAndBlankLinesKeepTrueRowNumbers) {
+  const auto path = write_text("dec.csv", "t_s,normal_N\n\n0,1\n0.001,1\n\n0.0005,1\n");
+  const auto e = expect_error([&] { ts::read_channels(path); });
+  EXPECT_EQ(e.context().row, 6);
+  EXPECT_NE(e.message().find("not increasing"), std::string::npos);
+}
+
+TEST(ChannelsCsv, VaryingSampleRateIsReportedWithTolerance) {
+  // A dropped sample at 0.004 doubles one interval.
+  const auto path = write_text("drop.csv", "t_s,a\n0,1\n0.001,1\n0.002,1\n0.003,1\n0.005,1\n0.006,1\n");
+  const auto e = expect_error([&] { ts::read_channels(path); });
+  EXPECT_EQ(e.context().row, 6);
+  EXPECT_NE(e.message().find("sample rate varies"), std::string::npos);
+  EXPECT_NE(e.message().find("1 %"), std::string::npos);
+  // 0.5 % jitter passes the default 1 % tolerance.
+  const auto ok = write_text("jitter.csv", "t_s,a\n0,1\n0.001005,1\n0.002,1\n0.003,1\n");
+  EXPECT_NO_THROW(ts::read_channels(ok));
+}
+
+TEST(ChannelsCsv, NanEmptyMissingAndUnknownColumns) {
+  const auto nan_path = write_text("nan.csv", "t_s,a\n0,1\n0.001,nan\n");
+  auto e = expect_error([&] { ts::read_channels(nan_path); });
+  EXPECT_EQ(e.context().row, 3);
+  EXPECT_EQ(e.context().column, "a");
+  const auto empty_path = write_text("empty.csv", "t_s,a\n0,1\n0.001,\n");
+  e = expect_error([&] { ts::read_channels(empty_path); });
+  EXPECT_EQ(e.context().row, 3);
+  EXPECT_EQ(e.context().column, "a");
+  const auto path = write_text("cols.csv", "t_s,a,b\n0,1,2\n0.001,1,2\n");
+  e = expect_error([&] { ts::read_channels(path, {.required = {"force_N"}}); });
+  EXPECT_EQ(e.context().column, "force_N");
+  EXPECT_NE(e.message().find("a, b"), std::string::npos);
+  e = expect_error([&] { ts::read_channels(path, {.expected = {"a"}}); });
+  EXPECT_EQ(e.context().column, "b");
+  EXPECT_NE(e.message().find("unknown column"), std::string::npos);
+  const auto no_time = write_text("notime.csv", "time,a\n0,1\n1,2\n");
+  e = expect_error([&] { ts::read_channels(no_time); });
+  EXPECT_EQ(e.context().column, "t_s");
+}
+
+TEST(ChannelsHdf5, GroupLayout) {
+  const auto path = tmp_path("group.h5");
+  {
+    H5::H5File file(path, H5F_ACC_TRUNC);
+    H5::Group g = file.createGroup("/channels");
+    write_vector(g, "t_s", {0.0, 0.0005, 0.001, 0.0015}, {4});
+    write_vector(g, "accel_m_s2", {1, 2, 3, 4}, {4});
+  }
+  const auto table = ts::read_channels(path, {.required = {"accel_m_s2"}, .hdf5_group = "/channels"});
+  EXPECT_NEAR(table.sample_rate_Hz, 2000.0, 1e-6);
+  EXPECT_EQ(table.column("accel_m_s2")[3], 4.0);
+}
+
+TEST(ChannelsHdf5, MatlabV73Layout) {
+  const auto path = tmp_path("trial.mat");
+  {
+    H5::FileCreatPropList create;
+    create.setUserblock(512);  // MATLAB's text header lives in the user block
+    H5::H5File file(path, H5F_ACC_TRUNC, create);
+    // An N×1 MATLAB column vector is stored transposed, as a 1×N dataset.
+    write_vector(file, "t_s", {0.0, 0.001, 0.002, 0.003, 0.004}, {1, 5}, "double");
+    write_vector(file, "normal_N", {1.0, 1.5, 2.0, 2.5, 3.0}, {1, 5}, "double");
+    write_vector(file, "tangential_N", {0.1, 0.2, 0.3, 0.4, 0.5}, {5, 1}, "double");
+    // A char variable: uint16 codes with MATLAB_class "char".
+    const std::vector<std::uint16_t> text{'s', 'u', 'b', '1'};
+    hsize_t dims[2] = {4, 1};
+    H5::DataSpace space(2, dims);
+    H5::DataSet ds = file.createDataSet("subject", H5::PredType::NATIVE_UINT16, space);
+    ds.write(text.data(), H5::PredType::NATIVE_UINT16);
+    H5::StrType type(H5::PredType::C_S1, 4);
+    ds.createAttribute("MATLAB_class", type, H5::DataSpace(H5S_SCALAR)).write(type, std::string("char"));
+    file.createGroup("/#refs#");
+  }
+  const auto table = ts::read_channels(path, {.required = {"normal_N", "tangential_N"}});
+  EXPECT_NEAR(table.sample_rate_Hz, 1000.0, 1e-6);
+  EXPECT_EQ(table.column("normal_N")[4], 3.0);
+  EXPECT_EQ(table.column("tangential_N")[1], 0.2);
+  EXPECT_FALSE(table.has("subject"));  // text is skipped unless asked for
+  const auto e = expect_error([&] { ts::read_channels(path, {.required = {"subject"}}); });
+  EXPECT_EQ(e.context().column, "subject");
+  EXPECT_NE(e.message().find("char"), std::string::npos);
+}
+
+TEST(ChannelsHdf5, MismatchedLengthsNanAndBadTimeAreNamed) {
+  const auto path = tmp_path("bad.h5");
+  {
+    H5::H5File file(path, H5F_ACC_TRUNC);
+    write_vector(file, "t_s", {0.0, 0.001, 0.002}, {3});
+    write_vector(file, "short_N", {1.0, 2.0}, {2});
+  }
+  auto e = expect_error([&] { ts::read_channels(path); });
+  EXPECT_EQ(e.context().column, "short_N");
+  EXPECT_NE(e.message().find("2 samples"), std::string::npos);
+  {
+    H5::H5File file(path, H5F_ACC_TRUNC);
+    write_vector(file, "t_s", {0.0, 0.001, 0.002}, {3});
+    write_vector(file, "a", {1.0, std::nan(""), 2.0}, {3});
+  }
+  e = expect_error([&] { ts::read_channels(path); });
+  EXPECT_EQ(e.context().column, "a");
+  EXPECT_NE(e.message().find("sample 1"), std::string::npos);
+  {
+    H5::H5File file(path, H5F_ACC_TRUNC);
+    write_vector(file, "t_s", {0.0, 0.001, 0.001, 0.002}, {4});
+  }
+  e = expect_error([&] { ts::read_channels(path); });
+  EXPECT_EQ(e.context().column, "t_s");
+  EXPECT_NE(e.message().find("sample 2"), std::string::npos);
+  e = expect_error([&] { ts::read_channels(tmp_path("missing.h5")); });
+  EXPECT_NE(std::string(e.what()).find("missing.h5"), std::string::npos);
+}
+
+TEST(Resample, LinearAtFrameTimesAndNoExtrapolation) {
+  const std::vector<double> t{0.0, 0.001, 0.002, 0.003};
+  const std::vector<double> v{1.0, 3.0, 5.0, 7.0};  // 1 + 2000 t
+  const auto r = ts::resample_linear(t, v, {0.0, 0.00025, 0.0015, 0.003});
+  EXPECT_DOUBLE_EQ(r[0], 1.0);
+  EXPECT_NEAR(r[1], 1.5, 1e-12);
+  EXPECT_NEAR(r[2], 4.0, 1e-12);
+  EXPECT_DOUBLE_EQ(r[3], 7.0);
+  const auto e = expect_error([&] { ts::resample_linear(t, v, {0.001, 0.004}); });
+  EXPECT_EQ(e.context().frame, 1);
+}
+
+TEST(Alignment, TriggerAndCrossCorrelationRecoverKnownOffset) {
+  const auto crossing = ts::first_crossing_s({0.0, 0.1, 0.2, 0.3}, {0.0, 0.0, 1.0, 1.0}, 0.25);
+  ASSERT_TRUE(crossing);
+  EXPECT_NEAR(*crossing, 0.125, 1e-12);
+  EXPECT_NEAR(ts::align_by_trigger(0.125, 0.5).offset_s, 0.375, 1e-12);
+
+  // Plate position sampled at 1 kHz on the channel clock; the camera sees the same motion at 100 fps on a
+  // clock 12.34 ms ahead (t_camera = t_channel + offset). Recovered to well under a channel sample.
+  const double offset = 0.01234;
+  auto motion = [](double t) {
+    return 2e-3 * std::sin(2.1 * t) + 1e-3 * std::sin(5.3 * t + 0.4) + 4e-4 * t * t;
+  };
+  std::vector<double> tc, pc, tv, pv;
+  for (int i = 0; i < 3000; ++i) {
+    tc.push_back(i * 1e-3);
+    pc.push_back(motion(i * 1e-3));  // channel time t ↔ physical time t
+  }
+  for (int i = 0; i < 280; ++i) {
+    const double t_cam = 0.05 + i * 0.01;
+    tv.push_back(t_cam);
+    pv.push_back(1000.0 * motion(t_cam - offset));  // in mm: units differ on purpose
+  }
+  const auto a = ts::align_by_cross_correlation(tc, pc, tv, pv, 0.05);
+  EXPECT_NEAR(a.offset_s, offset, 1e-4);
+  EXPECT_GT(a.correlation, 0.999);
+}

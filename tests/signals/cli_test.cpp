@@ -1,0 +1,180 @@
+// `tirstrain signals <verb>` end to end: the real binary on files written here; outputs checked against
+// the library's numbers and the documented CSV/JSON contract; bad input gives exit 1 and a located message.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "core/csv.hpp"
+#include "signals/channels.hpp"
+#include "signals/filter.hpp"
+
+namespace ts = tirstrain::signals;
+
+namespace {
+
+std::string dir() {
+  const std::string d = std::string(TIRSTRAIN_TEST_TMP) + "/signals_cli";
+  std::filesystem::create_directories(d);
+  return d;
+}
+
+struct Run {
+  int code = 0;
+  std::string output;
+};
+
+Run run(const std::string& args) {
+  const std::string cmd = std::string(TIRSTRAIN_CLI) + " " + args + " 2>&1";
+  Run r;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  char buf[512];
+  while (pipe && fgets(buf, sizeof buf, pipe)) r.output += buf;
+  const int status = pipe ? pclose(pipe) : -1;
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+// 4 s at 1 kHz: force = 10 Hz + 200 Hz sines, accel = force through a 3-tap FIR.
+std::string write_trial() {
+  const std::string path = dir() + "/trial.csv";
+  std::ofstream out(path);
+  out << "t_s,force_N,accel_m_s2\n";
+  double f1 = 0.0, f2 = 0.0;
+  for (int i = 0; i < 4000; ++i) {
+    const double t = i / 1000.0;
+    const double f = std::sin(2 * std::numbers::pi * 10 * t) +
+                     0.5 * std::sin(2 * std::numbers::pi * 200 * t) +
+                     0.2 * std::sin(2 * std::numbers::pi * 77.7 * t * t);
+    out << tirstrain::format_double(t) << ',' << tirstrain::format_double(f) << ','
+        << tirstrain::format_double(0.5 * f + 0.3 * f1 - 0.2 * f2) << '\n';
+    f2 = f1;
+    f1 = f;
+  }
+  return path;
+}
+
+}  // namespace
+
+TEST(SignalsCli, FilterWritesZeroPhaseOutputMatchingTheLibrary) {
+  const std::string in = write_trial(), out = dir() + "/filtered.csv";
+  const auto r = run("signals filter " + in + " --column force_N --order 4 --lowpass-Hz 80 --out " + out);
+  ASSERT_EQ(r.code, 0) << r.output;
+  const auto table = tirstrain::read_numeric_csv(out);
+  ASSERT_EQ(table.names, (std::vector<std::string>{"t_s", "force_N_filtered"}));
+  const auto input = tirstrain::read_numeric_csv(in);
+  // The sample rate is 1/median interval of t_s, as the CLI derives it.
+  const double fs = ts::read_channels(in).sample_rate_Hz;
+  const auto expected =
+      ts::butterworth_filtfilt(input.column("force_N"), {ts::FilterType::lowpass, 4, 80.0, 0.0, fs});
+  for (std::size_t i = 0; i < expected.size(); ++i) ASSERT_DOUBLE_EQ(table.columns[1][i], expected[i]);
+  EXPECT_FALSE(std::filesystem::exists(out + ".partial"));
+}
+
+TEST(SignalsCli, PsdAndTfFollowTheContract) {
+  const std::string in = write_trial(), psd = dir() + "/psd.csv", tf = dir() + "/tf.csv";
+  auto r = run("signals psd " + in + " --column force_N --segment 500 --out " + psd);
+  ASSERT_EQ(r.code, 0) << r.output;
+  const auto p = tirstrain::read_numeric_csv(psd);
+  ASSERT_EQ(p.names, (std::vector<std::string>{"freq_Hz", "psd"}));
+  ASSERT_EQ(p.rows(), 251u);
+  // 10 Hz on bin 5 (2 Hz bins), amplitude 1: density A²·N/(3·fs) = 500/3000.
+  EXPECT_NEAR(p.columns[1][5], 500.0 / 3000.0, 1e-3);
+  r = run("signals tf " + in + " --input force_N --output accel_m_s2 --segment 500 --out " + tf);
+  ASSERT_EQ(r.code, 0) << r.output;
+  const auto t = tirstrain::read_numeric_csv(tf);
+  ASSERT_EQ(t.names, (std::vector<std::string>{"freq_Hz", "gain", "phase_rad", "coherence"}));
+  // At 10 Hz the FIR gain is |0.5 + 0.3 e^{-jω} − 0.2 e^{-2jω}|.
+  const double w = 2 * std::numbers::pi * 10.0 / 1000.0;
+  const double gain =
+      std::abs(std::complex<double>(0.5) + 0.3 * std::polar(1.0, -w) - 0.2 * std::polar(1.0, -2 * w));
+  EXPECT_NEAR(t.columns[1][5], gain, 0.01 * gain);
+  EXPECT_GT(t.columns[3][5], 0.99);
+}
+
+TEST(SignalsCli, RqaJsonHasTheFourMeasures) {
+  const std::string in = write_trial(), out = dir() + "/rqa.json";
+  const auto r =
+      run("signals rqa " + in + " --column force_N --dim 3 --delay 5 --recurrence-rate 0.05 --out " + out);
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream f(out);
+  const auto j = nlohmann::json::parse(f);
+  for (const char* key : {"recurrence_rate", "determinism", "mean_diagonal_length", "laminarity"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_NEAR(j["recurrence_rate"].get<double>(), 0.05, 0.001);
+  const auto bad = run("signals rqa " + in + " --column force_N --dim 3 --delay 5 --out " + out);
+  EXPECT_EQ(bad.code, 1);
+  EXPECT_NE(bad.output.find("--recurrence-rate"), std::string::npos);
+  const auto help = run("signals rqa --help");
+  EXPECT_NE(help.output.find("line of identity is excluded"), std::string::npos);
+  EXPECT_NE(help.output.find("Euclidean"), std::string::npos);
+}
+
+TEST(SignalsCli, BadInputIsLocated) {
+  const std::string bad = dir() + "/bad.csv";
+  std::ofstream(bad) << "t_s,force_N\n0,1\n0.001,2\n0.001,3\n0.003,4\n";
+  auto r = run("signals psd " + bad + " --column force_N --segment 2 --out " + dir() + "/x.csv");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("row 4"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("duplicate"), std::string::npos);
+  r = run("signals filter " + write_trial() + " --column nope --lowpass-Hz 80 --out " + dir() + "/x.csv");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("column 'nope'"), std::string::npos);
+  r = run("signals filter " + write_trial() + " --column force_N --lowpass-Hz 800 --out " + dir() + "/x.csv");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("--lowpass-Hz"), std::string::npos);
+  EXPECT_NE(r.output.find("Nyquist"), std::string::npos);
+  r = run("signals filter " + write_trial() + " --column force_N --lowpass-Hz 80 --highpass-Hz 5 --out " +
+          dir() + "/x.csv");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_FALSE(std::filesystem::exists(dir() + "/x.csv"));
+}
+
+TEST(SignalsCli, FrictionAndPowerLaw) {
+  // W = 2 N; plate still until 0.5 s, then 10 mm/s; F_t follows the Cattaneo–Mindlin curve to μW = 1.6 N.
+  const std::string in = dir() + "/friction.csv";
+  {
+    std::ofstream out(in);
+    out << "t_s,normal_N,tangential_N,position_m\n";
+    for (int i = 0; i <= 2000; ++i) {
+      const double t = i / 1000.0, d = std::max(0.0, 0.01 * (t - 0.5)), u = std::min(1.0, d / 0.002);
+      out << tirstrain::format_double(t) << ",2,"
+          << tirstrain::format_double(1.6 * (1 - std::pow(1 - u, 1.5))) << ',' << tirstrain::format_double(d)
+          << '\n';
+    }
+  }
+  const std::string mu = dir() + "/mu.csv", summary = dir() + "/friction.json";
+  auto r = run("signals friction " + in +
+               " --tangential tangential_N --normal normal_N --position position_m --out " + mu +
+               " --summary " + summary);
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream f(summary);
+  const auto j = nlohmann::json::parse(f);
+  EXPECT_NEAR(j["mu_dynamic"].get<double>(), 0.8, 1e-9);
+  EXPECT_NEAR(j["onset_s"].get<double>(), 0.5, 1e-3);
+  EXPECT_NEAR(j["t90_s"].get<double>(), 0.5 + (1 - std::pow(0.1, 2.0 / 3.0)) * 0.2, 1e-3);
+  EXPECT_TRUE(j.contains("external_work_J"));
+  const std::string trials = dir() + "/trials.csv", fit = dir() + "/fit.json";
+  {
+    std::ofstream out(trials);
+    out << "normal_N,mu\n";
+    for (int i = 0; i < 20; ++i) {
+      const double w = 0.2 + 0.25 * i;
+      out << w << ',' << tirstrain::format_double(1.63 * std::pow(w, -0.33) * (1 + 0.01 * ((i % 3) - 1)))
+          << '\n';
+    }
+  }
+  r = run("signals power-law " + trials + " --out " + fit);
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream g(fit);
+  const auto k = nlohmann::json::parse(g);
+  EXPECT_NEAR(k["a"].get<double>(), 1.63, 0.02 * 1.63);
+  EXPECT_NEAR(k["b"].get<double>(), -0.33, 0.02);
+  EXPECT_LT(k["b_low"].get<double>(), k["b"].get<double>());
+}
