@@ -1,0 +1,102 @@
+// `tirstrain record URI --out DIR [--frames N | --seconds S]`: lossless recording from a camera (or any
+// source) into a folder that `tirstrain process` reads directly.
+#include <cstdio>
+#include <iostream>
+#include <memory>
+
+#include "capture/frame_source.hpp"
+#include "capture/recorder.hpp"
+#include "core/error.hpp"
+#include "tirstrain/camera_options.hpp"
+#include "tirstrain/commands.hpp"
+
+namespace tirstrain::cli {
+namespace {
+
+void print_progress(const capture::RecordProgress& p) {
+  std::fprintf(
+      stderr,
+      "record: %6.1f s  %lld received (%.1f fps)  %lld saved  queue %lld  incomplete %lld  lost %lld%s\n",
+      p.elapsed_s, static_cast<long long>(p.frames_received), p.receive_rate_hz,
+      static_cast<long long>(p.frames_saved), static_cast<long long>(p.queue_frames),
+      static_cast<long long>(p.frames_incomplete),
+      static_cast<long long>(p.frames_lost_device + p.frames_dropped_host),
+      p.frames_dropped_host > 0 ? "  WARNING: the disk cannot keep up, frames are being dropped" : "");
+}
+
+}  // namespace
+
+void add_record_command(CLI::App& app) {
+  struct Args {
+    std::string uri, out, format = "tiff";
+    std::int64_t frames = -1;
+    double seconds = -1;
+    int png_level = 1, writers = 2;
+    std::size_t queue_MiB = 512;
+    bool overwrite = false, quiet = false;
+  };
+  auto args = std::make_shared<Args>();
+  auto camera = std::make_shared<CameraArgs>();
+  CLI::App* sub = app.add_subcommand(
+      "record",
+      "Record frames losslessly from a camera (aravis:<device id or IP>) or any other source.\n"
+      "Writes DIR/frames/NNNNNN.tif (numbered by the camera's frame counter, so lost frames are missing\n"
+      "numbers), DIR/frames.csv (index,t_s,device_frame_id,device_time_s,host_time_s,status,...) and\n"
+      "DIR/recording.json (settings read back from the device, counts, why it stopped). DIR is a valid\n"
+      "input for 'tirstrain process'. Ctrl-C stops cleanly. See docs/capture.md.");
+  sub->add_option("URI", args->uri, "Source: aravis:ID, aravis:IP, or a file source")->required();
+  sub->add_option("--out", args->out, "Output folder")->required();
+  auto* frames =
+      sub->add_option("--frames", args->frames, "Stop after N frames received")->check(CLI::PositiveNumber);
+  auto* seconds =
+      sub->add_option("--seconds", args->seconds, "Stop after S seconds")->check(CLI::PositiveNumber);
+  frames->excludes(seconds);
+  sub->add_option("--format", args->format,
+                  "Image format: tiff (default, uncompressed), pgm (raw), png (smaller, ~30x slower)")
+      ->check(CLI::IsMember({"png", "tiff", "pgm"}));
+  sub->add_option("--png-level", args->png_level, "PNG zlib level 0..9 (default 1: fast, lossless)");
+  sub->add_option("--writers", args->writers, "Writer threads (default 2)");
+  sub->add_option("--queue-MiB", args->queue_MiB,
+                  "Frames held for the writers before dropping (default 512)");
+  sub->add_flag("--overwrite", args->overwrite, "Replace a recording already in DIR");
+  sub->add_flag("--quiet", args->quiet, "Only errors and the final summary");
+  add_camera_options(sub, camera);
+  sub->callback([args, camera] {
+    const capture::CameraSettings settings = to_settings(*camera);
+    capture::RecordOptions options;
+    options.out_dir = args->out;
+    options.max_frames = args->frames;
+    options.max_seconds = args->seconds;
+    options.format = capture::parse_image_format(args->format, "--format");
+    options.png_level = args->png_level;
+    options.writer_threads = args->writers;
+    options.queue_bytes = args->queue_MiB * 1024u * 1024u;
+    options.overwrite = args->overwrite;
+    install_interrupt_handler();
+    options.stop = &interrupt_flag();
+    if (!args->quiet) options.on_progress = print_progress;
+    std::unique_ptr<capture::FrameSource> source = capture::open_source(args->uri, settings);
+    if (!args->quiet) std::cerr << "record: " << source->describe() << "\n";
+    const capture::RecordReport report = capture::record(*source, options);
+    const capture::RecordProgress& c = report.counts;
+    std::cerr << "record: " << c.frames_saved << " frames saved to " << args->out << " in "
+              << report.elapsed_s << " s (" << c.frames_received << " received, " << c.frames_incomplete
+              << " incomplete, " << c.frames_lost_device << " lost by the camera/network, "
+              << c.frames_dropped_host
+              << " dropped because the disk could not keep up); stopped: " << report.stop_reason << "\n";
+    if (c.frames_dropped_host > 0)
+      std::cerr
+          << "record: WARNING: " << c.frames_dropped_host
+          << " frames were dropped because writing could not keep up; try --format pgm, more --writers or "
+             "a faster disk\n";
+    if (c.frames_incomplete > 0 || c.frames_lost_device > 0)
+      std::cerr << "record: WARNING: " << c.frames_incomplete
+                << " incomplete frames (listed in frames.csv with "
+                << "status 1, no image) and " << c.frames_lost_device << " frames never received\n";
+    if (!report.ok())
+      throw Error("recording stopped early: " + report.error + " -- the " + std::to_string(c.frames_saved) +
+                  " frames before it are saved in " + args->out);
+  });
+}
+
+}  // namespace tirstrain::cli

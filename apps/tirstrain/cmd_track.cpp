@@ -1,0 +1,159 @@
+// `tirstrain track`: tracks given points (or a grid) through any image sequence with the flow/ tracker, no
+// contact segmentation involved — for textures that are not fingerprints (speckle) and for checking the
+// tracker alone. Output: frame,id,X_px,Y_px,x_px,y_px,status (reference and current position; a retired
+// track appears once more, in the frame it was retired, at its last good position with the reason).
+#include <cmath>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "capture/frame_source.hpp"
+#include "core/csv.hpp"
+#include "core/error.hpp"
+#include "core/scene.hpp"
+#include "flow/settings.hpp"
+#include "flow/tracker.hpp"
+#include "tirstrain/commands.hpp"
+
+namespace tirstrain::cli {
+namespace {
+
+struct TrackOptions {
+  std::string input;
+  std::string points_csv;
+  double grid_step_px = 0.0;
+  std::string roi;
+  std::string preset;
+  std::string scene;
+  std::string out;
+  bool quiet = false;
+};
+
+cv::Rect parse_roi(const std::string& text, const cv::Size& frame) {
+  std::vector<int> v;
+  std::stringstream in(text);
+  std::string cell;
+  while (std::getline(in, cell, ',')) {
+    try {
+      std::size_t used = 0;
+      v.push_back(std::stoi(cell, &used));
+      if (used != cell.size()) throw std::invalid_argument(cell);
+    } catch (const std::exception&) {
+      throw Error("expected x,y,w,h in pixels, got '" + text + "'", {.key = "--roi"});
+    }
+  }
+  if (v.size() != 4 || v[2] <= 0 || v[3] <= 0 || v[0] < 0 || v[1] < 0)
+    throw Error("expected x,y,w,h with w, h > 0, got '" + text + "'", {.key = "--roi"});
+  const cv::Rect r(v[0], v[1], v[2], v[3]);
+  if ((r & cv::Rect(0, 0, frame.width, frame.height)) != r)
+    throw Error("the ROI " + text + " does not fit in the " + std::to_string(frame.width) + "x" +
+                    std::to_string(frame.height) + " frame",
+                {.key = "--roi"});
+  return r;
+}
+
+void run_track(const TrackOptions& o) {
+  Scene scene;
+  if (!o.scene.empty()) scene = load_scene(o.scene);
+  flow::TrackerSettings settings = flow::parse_tracking_settings(scene, o.preset);
+  // Points given by the user are tracked as they are; nothing is born.
+  settings.births = false;
+
+  std::unique_ptr<capture::FrameSource> source = capture::open_source(o.input);
+  std::optional<capture::Frame> first = source->next();
+  if (!first) throw Error("the sequence has no frames", {.file = o.input});
+  const cv::Size size = first->image.size();
+
+  cv::Mat mask;
+  if (!o.roi.empty()) {
+    mask = cv::Mat::zeros(size, CV_8U);
+    mask(parse_roi(o.roi, size)).setTo(1);
+  }
+  std::vector<Vec2> points;
+  if (!o.points_csv.empty()) {
+    const CsvTable table = read_numeric_csv(o.points_csv);
+    const auto& xs = table.column("x_px");
+    const auto& ys = table.column("y_px");
+    for (std::size_t i = 0; i < xs.size(); ++i) points.push_back({xs[i], ys[i]});
+    if (points.empty()) throw Error("no points to track", {.file = o.points_csv});
+  } else {
+    const cv::Rect r = o.roi.empty() ? cv::Rect(0, 0, size.width, size.height) : parse_roi(o.roi, size);
+    // Keep a margin of the refinement subset so every grid point starts with a full subset.
+    const double margin = settings.refine ? settings.subset_radius_px + 2.0 : settings.window_px / 2.0;
+    for (double y = r.y + margin; y <= r.y + r.height - 1 - margin; y += o.grid_step_px)
+      for (double x = r.x + margin; x <= r.x + r.width - 1 - margin; x += o.grid_step_px)
+        points.push_back({x, y});
+    if (points.empty())
+      throw Error("the grid has no point at least " + std::to_string(static_cast<int>(margin)) +
+                      " px inside the tracked region",
+                  {.key = "--grid"});
+  }
+
+  flow::FeatureTracker tracker(settings);
+  CsvWriter out(o.out, {"frame", "id", "X_px", "Y_px", "x_px", "y_px", "status"});
+  const auto write = [&](int frame) {
+    for (const flow::Track& t : tracker.tracks()) {
+      if (!flow::is_alive(t.status) && t.retired_frame != frame) continue;
+      out.row_text({std::to_string(frame), std::to_string(t.id), format_double(t.reference_px.x),
+                    format_double(t.reference_px.y), format_double(t.position_px.x),
+                    format_double(t.position_px.y), std::to_string(static_cast<int>(t.status))});
+    }
+  };
+  try {
+    tracker.start(first->image, mask, first->device_time_s, points);
+  } catch (const Error& e) {
+    throw Error(e.message(), {.file = o.input, .frame = 0});
+  }
+  write(0);
+  int frames = 1;
+  while (std::optional<capture::Frame> f = source->next()) {
+    if (f->status == capture::FrameStatus::kCorrupt || f->status == capture::FrameStatus::kIncomplete) {
+      if (!o.quiet)
+        std::cerr << "tirstrain track: skipping frame " << f->index << " (" << capture::to_string(f->status)
+                  << ")\n";
+      continue;
+    }
+    try {
+      tracker.track(f->image, mask, f->device_time_s);
+    } catch (const Error& e) {
+      throw Error(e.message(), {.file = o.input, .frame = f->index});
+    }
+    write(tracker.frame_index());
+    ++frames;
+  }
+  out.commit();
+  long alive = 0;
+  for (const flow::Track& t : tracker.tracks()) alive += flow::is_alive(t.status) ? 1 : 0;
+  if (!o.quiet)
+    std::cout << "tracked " << tracker.tracks().size() << " points through " << frames << " frames (" << alive
+              << " alive at the end, preset " << settings.preset << "); wrote " << o.out << '\n';
+}
+
+}  // namespace
+
+void add_track_command(CLI::App& app) {
+  auto o = std::make_shared<TrackOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "track",
+      "Track points (or a grid) through an image sequence: pyramidal Lucas-Kanade between frames, refined\n"
+      "against the first frame by subset correlation. Writes frame,id,X_px,Y_px,x_px,y_px,status.");
+  cmd->add_option("input", o->input, "Image folder, printf/glob pattern or video file")->required();
+  CLI::Option* points =
+      cmd->add_option("--points", o->points_csv, "CSV with columns x_px,y_px (first frame)");
+  CLI::Option* grid = cmd->add_option("--grid", o->grid_step_px, "Track a grid with this spacing (px)")
+                          ->check(CLI::Range(1.0, 1e4));
+  points->excludes(grid);
+  cmd->add_option("--roi", o->roi, "Region to track in, x,y,w,h (px); the grid fills it");
+  cmd->add_option("--preset", o->preset, "Tracking preset: auto or delhaye2016 (overrides the scene's)");
+  cmd->add_option("--scene", o->scene, "Scene file (calibration and the tracking: section)");
+  cmd->add_option("--out", o->out, "Output CSV")->required();
+  cmd->add_flag("--quiet", o->quiet, "No summary line");
+  cmd->callback([o, points, grid] {
+    if (!*points && !*grid) throw Error("give either --points FILE.csv or --grid STEP", {.key = "--grid"});
+    run_track(*o);
+  });
+}
+
+}  // namespace tirstrain::cli

@@ -1,0 +1,155 @@
+// Speed against error of the feature tracker on one synthetic Cattaneo–Mindlin trial (640×512, elliptical
+// contact, pattern band on top, sensor noise): both presets and a sweep of LK window, pyramid levels, grid
+// spacing and refinement subset, one table in one run. Frames are rendered before timing starts; the time
+// is tracking only (pyramids, LK, refinement, checks, births, plate). Error is against the exact field.
+//
+//   flow_bench [--frames N] [--width W --height H] [--only NAME] [--threads T] [--yaml TRACKING]...
+// --yaml adds a configuration given as a scene `tracking:` section, e.g. --yaml "{subset_radius_px: 18}".
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "../tests/flow/flow_support.hpp"
+#include "flow/settings.hpp"
+
+namespace {
+
+using tirstrain::flow::ShapeFunction;
+using tirstrain::flow::TrackerSettings;
+
+struct Config {
+  std::string name;
+  TrackerSettings settings;
+};
+
+YAML::Node bench_scene(int width, int height, int frames) {
+  YAML::Node root = YAML::Load(R"(
+calibration: {px_per_mm: 52, ridge_period_mm: 0.45, ridge_polarity: dark}
+tissue: {E_Pa: 1.0e6, nu: 0.4, depth_m: 0.002}
+reference_pattern: {roi_px: [0, 0, 640, 48]}
+synthesis:
+  seed: 5
+  image: {bit_depth: 8}
+  timing: {frame_rate_hz: 50}
+  contact: {shape: ellipse, normal_N: 2.0, semi_axes_mm: [4.2, 3.5], angle_deg: 10}
+  loading: {field: cattaneo_mindlin, friction: 1.0, direction_deg: 15, plate_speed_mm_s: 1.0}
+  fingerprint: {core_offset_mm: [0.3, -0.5]}
+  sensor: {full_well_electrons: 20000, read_noise: 0.004, blur_sigma_px: 0.6}
+  channels: {}
+)");
+  root["reference_pattern"]["roi_px"][2] = width;
+  root["synthesis"]["image"]["width_px"] = width;
+  root["synthesis"]["image"]["height_px"] = height;
+  root["synthesis"]["timing"]["frames"] = frames;
+  const double scale = std::min(width / 640.0, (height - 48) / 464.0);
+  root["synthesis"]["contact"]["semi_axes_mm"][0] = 4.2 * scale;
+  root["synthesis"]["contact"]["semi_axes_mm"][1] = 3.5 * scale;
+  return root;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int frames = 30, width = 640, height = 512, threads = -1;
+  std::string only;
+  std::vector<std::string> custom;  // extra configurations: a scene `tracking:` section each
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    const auto next = [&] {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "flow_bench: %s needs a value\n", a.c_str());
+        std::exit(2);
+      }
+      return std::string(argv[++i]);
+    };
+    if (a == "--frames")
+      frames = std::stoi(next());
+    else if (a == "--width")
+      width = std::stoi(next());
+    else if (a == "--height")
+      height = std::stoi(next());
+    else if (a == "--only")
+      only = next();
+    else if (a == "--threads")
+      threads = std::stoi(next());
+    else if (a == "--yaml")
+      custom.push_back(next());
+    else {
+      std::fprintf(stderr,
+                   "usage: flow_bench [--frames N] [--width W --height H] [--only NAME] [--threads T] "
+                   "[--yaml TRACKING]...\n");
+      return 2;
+    }
+  }
+  if (threads >= 0) cv::setNumThreads(threads);
+  using namespace tirstrain;
+  const samples::Trial trial(flow::testing::config_of(bench_scene(width, height, frames)));
+  std::fprintf(stderr, "rendering %d frames of %dx%d...\n", frames, width, height);
+  const flow::testing::RenderedTrial rendered = flow::testing::render(trial, true);
+  if (std::getenv("FLOW_BENCH_DUMP")) cv::imwrite(std::getenv("FLOW_BENCH_DUMP"), rendered.frames.back());
+
+  flow::SceneHints hints;
+  const TrackerSettings automatic = flow::preset_settings("auto", hints);
+  const TrackerSettings paper = flow::preset_settings("delhaye2016", hints);
+  std::vector<Config> configs = {{"delhaye2016", paper}, {"auto", automatic}};
+  const auto variant = [&](const std::string& name, auto change) {
+    TrackerSettings s = automatic;
+    change(s);
+    configs.push_back({name, s});
+  };
+  // The paper's method with drift control, and the paper's window with our refinement.
+  {
+    TrackerSettings s = paper;
+    s.reanchor_interval_frames = 5;
+    configs.push_back({"delhaye2016+reanchor5", s});
+  }
+  for (int w : {11, 41})
+    variant("auto window=" + std::to_string(w), [w](TrackerSettings& s) { s.window_px = w; });
+  for (int l : {0, 1, 3})
+    variant("auto levels=" + std::to_string(l), [l](TrackerSettings& s) { s.pyramid_levels = l; });
+  for (double g : {6.0, 12.0})
+    variant("auto grid=" + std::to_string(static_cast<int>(g)),
+            [g](TrackerSettings& s) { s.grid_step_px = g; });
+  for (int r : {8, 18})
+    variant("auto subset_r=" + std::to_string(r), [r](TrackerSettings& s) { s.subset_radius_px = r; });
+  variant("auto stride=2", [](TrackerSettings& s) { s.subset_stride = 2; });
+  variant("auto affine", [](TrackerSettings& s) { s.shape = ShapeFunction::kAffine; });
+  variant("auto no-refine", [](TrackerSettings& s) {
+    s.refine = false;
+    s.neighbour_check = false;
+  });
+
+  // Given extra configurations, run only those (and the ones named by --only).
+  if (!custom.empty()) std::erase_if(configs, [&](const Config& c) { return c.name != only; });
+  for (const std::string& y : custom) {
+    Scene scene;
+    scene.tracking = YAML::Load(y);
+    configs.push_back({y, flow::parse_tracking_settings(scene)});
+  }
+  std::printf("%-24s %7s %8s %10s %8s %9s %9s %7s %7s %8s\n", "config", "tracks", "alive_end", "points/s",
+              "frames/s", "rms_px", "max_px", ">1px", "born", "plate_px");
+  for (const Config& c : configs) {
+    if (custom.empty() && !only.empty() && c.name != only) continue;
+    const flow::testing::Score s = flow::testing::run_and_score(trial, rendered, c.settings, true);
+    long tracked = 0;
+    for (std::size_t f = 1; f < s.frame_alive.size(); ++f) tracked += s.frame_alive[f];
+    const double fps = (frames - 1) / s.seconds;  // frame 0 (seeding) is included in the time
+    // Given extra configurations, run only those (and the ones named by --only).
+    if (!custom.empty()) std::erase_if(configs, [&](const Config& c) { return c.name != only; });
+    for (const std::string& y : custom) {
+      Scene scene;
+      scene.tracking = YAML::Load(y);
+      configs.push_back({y, flow::parse_tracking_settings(scene)});
+    }
+    std::printf("%-24s %7d %8d %10.0f %8.2f %9.4f %9.3f %7ld %7d %8.4f\n", c.name.c_str(), s.tracks_started,
+                s.frame_alive.back(), tracked / s.seconds, fps, s.rms_px, s.max_px, s.wrong, s.born,
+                s.plate_rms_px);
+    std::fflush(stdout);
+  }
+  return 0;
+}

@@ -1,0 +1,465 @@
+#include "capture/file_sources.hpp"
+
+#include <fnmatch.h>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <optional>
+
+#include "core/csv.hpp"
+#include "core/error.hpp"
+
+namespace tirstrain::capture {
+namespace {
+
+namespace fs = std::filesystem;
+
+double host_now_s() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::string lower(std::string text) {
+  std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return std::tolower(c); });
+  return text;
+}
+
+// The last run of digits in a file stem ("img_000042" -> 42), or -1: the file's own frame number, which
+// links it to its row in frames.csv and reveals frames missing from the sequence.
+std::int64_t trailing_number(const std::string& stem) {
+  std::size_t end = stem.size();
+  while (end > 0 && !std::isdigit(static_cast<unsigned char>(stem[end - 1]))) --end;
+  std::size_t begin = end;
+  while (begin > 0 && std::isdigit(static_cast<unsigned char>(stem[begin - 1]))) --begin;
+  if (begin == end || end - begin > 15) return -1;
+  return std::stoll(stem.substr(begin, end - begin));
+}
+
+bool has_glob_chars(const std::string& text) {
+  return text.find_first_of("*?[") != std::string::npos;
+}
+
+// A printf integer conversion in a file name ("img_%06d.png"): what surrounds it and how it pads.
+struct PrintfSpec {
+  std::string prefix, suffix;
+  bool zero_pad = false;
+  std::size_t width = 0;
+};
+
+std::optional<PrintfSpec> parse_printf(const std::string& text) {
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    if (text[i] != '%') continue;
+    std::size_t j = i + 1;
+    PrintfSpec spec;
+    if (j < text.size() && text[j] == '0') {
+      spec.zero_pad = true;
+      ++j;
+    }
+    const std::size_t digits = j;
+    while (j < text.size() && std::isdigit(static_cast<unsigned char>(text[j]))) ++j;
+    if (j > digits) spec.width = std::stoul(text.substr(digits, j - digits));
+    while (j < text.size() && text[j] == 'l') ++j;
+    if (j < text.size() && text[j] == 'd') {
+      spec.prefix = text.substr(0, i);
+      spec.suffix = text.substr(j + 1);
+      return spec;
+    }
+  }
+  return std::nullopt;
+}
+
+bool has_printf_spec(const std::string& text) {
+  return parse_printf(text).has_value();
+}
+
+// Exact inverse of printf: the digits between prefix and suffix, formatted back, must give the name.
+bool matches_printf(const PrintfSpec& spec, const std::string& name) {
+  if (name.size() <= spec.prefix.size() + spec.suffix.size()) return false;
+  if (name.compare(0, spec.prefix.size(), spec.prefix) != 0) return false;
+  if (name.compare(name.size() - spec.suffix.size(), spec.suffix.size(), spec.suffix) != 0) return false;
+  const std::string middle =
+      name.substr(spec.prefix.size(), name.size() - spec.prefix.size() - spec.suffix.size());
+  if (middle.size() > 15 ||
+      !std::all_of(middle.begin(), middle.end(), [](unsigned char c) { return std::isdigit(c); }))
+    return false;
+  std::string formatted = std::to_string(std::stoll(middle));
+  if (formatted.size() < spec.width)
+    formatted.insert(0, spec.width - formatted.size(), spec.zero_pad ? '0' : ' ');
+  return formatted == middle;
+}
+
+struct SequenceFile {
+  std::string path;
+  std::int64_t number = -1;  // from the file name; -1 when it has none
+};
+
+std::vector<SequenceFile> make_sequence(std::vector<std::string> paths) {
+  std::sort(paths.begin(), paths.end(), natural_less);
+  std::vector<SequenceFile> files;
+  files.reserve(paths.size());
+  for (auto& p : paths) {
+    const std::int64_t number = trailing_number(fs::path(p).stem().string());
+    files.push_back({std::move(p), number});
+  }
+  return files;
+}
+
+// Converts a decoded image to the grey 8/16-bit layout every consumer expects.
+cv::Mat to_grey(const cv::Mat& decoded, const std::string& path, std::int64_t index) {
+  if (decoded.depth() != CV_8U && decoded.depth() != CV_16U)
+    throw Error("unsupported pixel type (expected 8- or 16-bit grey or colour images)",
+                {.file = path, .frame = index});
+  switch (decoded.channels()) {
+    case 1:
+      return decoded;
+    case 3: {
+      cv::Mat grey;
+      cv::cvtColor(decoded, grey, cv::COLOR_BGR2GRAY);
+      return grey;
+    }
+    case 4: {
+      cv::Mat grey;
+      cv::cvtColor(decoded, grey, cv::COLOR_BGRA2GRAY);
+      return grey;
+    }
+    default:
+      throw Error(
+          "unsupported channel count " + std::to_string(decoded.channels()) + " (expected grey, BGR or BGRA)",
+          {.file = path, .frame = index});
+  }
+}
+
+std::string size_text(const cv::Size& size) {
+  return std::to_string(size.width) + "x" + std::to_string(size.height);
+}
+
+class ImageSequenceSource final : public FrameSource {
+ public:
+  ImageSequenceSource(std::vector<SequenceFile> files, std::string description,
+                      const std::optional<std::string>& times_csv)
+      : files_(std::move(files)), description_(std::move(description)) {
+    if (times_csv) {
+      load_times(*times_csv);
+    } else {
+      // No clock anywhere: the frame number is the only honest axis, and it is labelled as such.
+      time_source_ = "none (no frames.csv found): t_s is the frame number, not a measured time";
+      times_s_.resize(files_.size());
+      for (std::size_t i = 0; i < files_.size(); ++i) times_s_[i] = static_cast<double>(i);
+    }
+  }
+
+  std::optional<Frame> next() override {
+    if (next_ >= files_.size()) return std::nullopt;
+    const std::size_t i = next_++;
+    const SequenceFile& file = files_[i];
+    Frame frame;
+    frame.index = static_cast<std::int64_t>(i);
+    frame.device_frame_id = file.number >= 0 ? file.number : frame.index;
+    frame.device_time_s = times_s_[i];
+    frame.host_time_s = host_now_s();
+    frame.origin = file.path;
+    if (i > 0 && numbered_ && file.number > files_[i - 1].number + 1) {
+      frame.frames_lost_before = file.number - files_[i - 1].number - 1;
+      frame.status = FrameStatus::kGapBefore;
+    }
+    const cv::Mat decoded = cv::imread(file.path, cv::IMREAD_UNCHANGED);
+    if (decoded.empty()) {
+      frame.status = FrameStatus::kCorrupt;
+      return frame;
+    }
+    frame.image = to_grey(decoded, file.path, frame.index);
+    if (!size_) {
+      size_ = frame.image.size();
+      depth_ = frame.image.depth();
+    } else if (frame.image.size() != *size_) {
+      throw Error("frame is " + size_text(frame.image.size()) + " but the first frame was " +
+                      size_text(*size_) + "; all frames of a sequence must have the same size",
+                  {.file = file.path, .frame = frame.index});
+    } else if (frame.image.depth() != depth_) {
+      throw Error("frame bit depth differs from the first frame's; all frames must have the same depth",
+                  {.file = file.path, .frame = frame.index});
+    }
+    return frame;
+  }
+
+  std::int64_t frame_count() const override { return static_cast<std::int64_t>(files_.size()); }
+
+  std::string describe() const override {
+    return description_ + " (" + std::to_string(files_.size()) + " frames; time: " + time_source_ + ")";
+  }
+
+  std::map<std::string, std::string> settings() const override {
+    return {{"kind", "image_sequence"},
+            {"first_file", files_.front().path},
+            {"frames", std::to_string(files_.size())},
+            {"time_source", time_source_},
+            {"time_measured", times_csv_.empty() ? "false" : "true"}};
+  }
+
+ private:
+  void load_times(const std::string& csv) {
+    const CsvTable table = read_numeric_csv(csv);
+    const std::vector<double>& t_s = table.column("t_s");
+    numbered_ =
+        std::all_of(files_.begin(), files_.end(), [](const SequenceFile& f) { return f.number >= 0; });
+    std::vector<std::size_t> row_of(files_.size());
+    bool mapped = false;
+    if (table.has("index")) {
+      const std::vector<double>& index = table.column("index");
+      std::map<std::int64_t, std::size_t> rows;
+      for (std::size_t r = 0; r < index.size(); ++r) {
+        const auto key = static_cast<std::int64_t>(index[r]);
+        if (static_cast<double>(key) != index[r] || !rows.emplace(key, r).second)
+          throw Error("index must be distinct whole frame numbers",
+                      {.file = csv, .row = static_cast<long>(r) + 2, .column = "index"});
+      }
+      // Rows are matched to files by the number in the file name (so a missing file is a lost frame), or
+      // by position when the names carry no numbers or are numbered from another origin.
+      if (numbered_) {
+        mapped = std::all_of(files_.begin(), files_.end(),
+                             [&](const SequenceFile& f) { return rows.count(f.number); });
+        if (mapped)
+          for (std::size_t i = 0; i < files_.size(); ++i) row_of[i] = rows.at(files_[i].number);
+      }
+      if (!mapped) {
+        numbered_ = false;
+        for (std::size_t i = 0; i < files_.size(); ++i) {
+          const auto it = rows.find(static_cast<std::int64_t>(i));
+          if (it == rows.end())
+            throw Error("no row with index " + std::to_string(i) + " for image " + files_[i].path,
+                        {.file = csv, .frame = static_cast<long>(i), .column = "index"});
+          row_of[i] = it->second;
+        }
+      }
+    } else {
+      numbered_ = false;
+      if (t_s.size() != files_.size())
+        throw Error("has " + std::to_string(t_s.size()) + " rows but there are " +
+                        std::to_string(files_.size()) +
+                        " images (add an 'index' column to match rows to files)",
+                    {.file = csv, .column = "t_s"});
+      for (std::size_t i = 0; i < files_.size(); ++i) row_of[i] = i;
+    }
+    times_s_.resize(files_.size());
+    for (std::size_t i = 0; i < files_.size(); ++i) {
+      times_s_[i] = t_s[row_of[i]];
+      if (i > 0 && !(times_s_[i] > times_s_[i - 1]))
+        throw Error("timestamps go backwards: t_s = " + format_double(times_s_[i]) + " after " +
+                        format_double(times_s_[i - 1]) + " (image " + files_[i].path + ")",
+                    {.file = csv,
+                     .frame = static_cast<long>(i),
+                     .row = static_cast<long>(row_of[i]) + 2,
+                     .column = "t_s"});
+    }
+    times_csv_ = csv;
+    time_source_ = "t_s from " + csv;
+  }
+
+  std::vector<SequenceFile> files_;
+  std::string description_;
+  std::vector<double> times_s_;
+  std::string times_csv_;
+  std::string time_source_;
+  bool numbered_ = false;
+  std::size_t next_ = 0;
+  std::optional<cv::Size> size_;
+  int depth_ = -1;
+};
+
+class VideoFileSource final : public FrameSource {
+ public:
+  explicit VideoFileSource(std::string path) : path_(std::move(path)) {
+    if (!capture_.open(path_, cv::CAP_FFMPEG))
+      throw Error("cannot open as a video: FFmpeg could not read it (not a video, or an unsupported codec)",
+                  {.file = path_});
+    count_ = static_cast<std::int64_t>(capture_.get(cv::CAP_PROP_FRAME_COUNT));
+    fps_ = capture_.get(cv::CAP_PROP_FPS);
+    // Decoding the first frame now turns an undecodable stream into an error before any work starts.
+    pending_ = read_one();
+    if (!pending_) throw Error("the video contains no decodable frame", {.file = path_, .frame = 0});
+  }
+
+  std::optional<Frame> next() override {
+    if (pending_) {
+      std::optional<Frame> out = std::move(pending_);
+      pending_.reset();
+      return out;
+    }
+    return read_one();
+  }
+
+  std::int64_t frame_count() const override { return count_ > 0 ? count_ : -1; }
+
+  std::string describe() const override {
+    return "video file " + path_ + " (" + std::to_string(count_) +
+           " frames by its header; time: container timestamps)";
+  }
+
+  std::map<std::string, std::string> settings() const override {
+    return {{"kind", "video"},
+            {"file", path_},
+            {"frames_in_header", std::to_string(count_)},
+            {"nominal_fps", format_double(fps_)},
+            {"time_source", "container presentation timestamps (CAP_PROP_POS_MSEC)"},
+            {"time_measured", "true"}};
+  }
+
+ private:
+  std::optional<Frame> read_one() {
+    cv::Mat decoded;
+    if (!capture_.read(decoded) || decoded.empty()) return std::nullopt;
+    Frame frame;
+    frame.index = index_++;
+    frame.device_frame_id = frame.index;
+    frame.device_time_s = capture_.get(cv::CAP_PROP_POS_MSEC) * 1e-3;
+    frame.host_time_s = host_now_s();
+    frame.origin = path_;
+    frame.image = to_grey(decoded, path_, frame.index);
+    if (frame.index > 0 && !(frame.device_time_s > last_time_s_))
+      throw Error("timestamps go backwards: t_s = " + format_double(frame.device_time_s) + " after " +
+                      format_double(last_time_s_),
+                  {.file = path_, .frame = frame.index});
+    last_time_s_ = frame.device_time_s;
+    return frame;
+  }
+
+  std::string path_;
+  cv::VideoCapture capture_;
+  std::int64_t count_ = -1;
+  double fps_ = 0.0;
+  std::int64_t index_ = 0;
+  double last_time_s_ = 0.0;
+  std::optional<Frame> pending_;
+};
+
+std::vector<std::string> list_images(const fs::path& dir) {
+  std::vector<std::string> paths;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    if (entry.is_regular_file() && is_image_file_name(entry.path().filename().string()))
+      paths.push_back(entry.path().string());
+  }
+  if (ec) throw Error("cannot list folder: " + ec.message(), {.file = dir.string()});
+  return paths;
+}
+
+std::optional<std::string> existing(const fs::path& path) {
+  if (fs::is_regular_file(path)) return path.string();
+  return std::nullopt;
+}
+
+}  // namespace
+
+bool is_image_file_name(const std::string& name) {
+  static const std::vector<std::string> extensions = {".png", ".tif", ".tiff", ".bmp", ".pgm",
+                                                      ".ppm", ".jpg", ".jpeg", ".jp2"};
+  const std::string ext = lower(fs::path(name).extension().string());
+  return std::find(extensions.begin(), extensions.end(), ext) != extensions.end();
+}
+
+bool natural_less(const std::string& a, const std::string& b) {
+  std::size_t i = 0, j = 0;
+  while (i < a.size() && j < b.size()) {
+    const bool da = std::isdigit(static_cast<unsigned char>(a[i])) != 0;
+    const bool db = std::isdigit(static_cast<unsigned char>(b[j])) != 0;
+    if (da && db) {
+      std::size_t ie = i, je = j;
+      while (ie < a.size() && std::isdigit(static_cast<unsigned char>(a[ie]))) ++ie;
+      while (je < b.size() && std::isdigit(static_cast<unsigned char>(b[je]))) ++je;
+      std::string na = a.substr(i, ie - i), nb = b.substr(j, je - j);
+      na.erase(0, std::min(na.find_first_not_of('0'), na.size()));
+      nb.erase(0, std::min(nb.find_first_not_of('0'), nb.size()));
+      if (na.size() != nb.size()) return na.size() < nb.size();
+      if (na != nb) return na < nb;
+      i = ie;
+      j = je;
+    } else {
+      if (a[i] != b[j]) return a[i] < b[j];
+      ++i;
+      ++j;
+    }
+  }
+  if ((a.size() - i) != (b.size() - j)) return (a.size() - i) < (b.size() - j);
+  return a < b;
+}
+
+std::unique_ptr<FrameSource> open_image_folder(const std::string& dir) {
+  const fs::path root(dir);
+  if (!fs::is_directory(root)) throw Error("not a folder", {.file = dir});
+  fs::path images = root;
+  std::optional<std::string> csv;
+  if (fs::is_directory(root / "frames")) {
+    images = root / "frames";
+    csv = existing(root / "frames.csv");
+    if (!csv) csv = existing(images / "frames.csv");
+  } else {
+    csv = existing(root / "frames.csv");
+  }
+  auto paths = list_images(images);
+  if (paths.empty())
+    throw Error("no image files (.png, .tif, .bmp, .jpg, ...) in this folder", {.file = images.string()});
+  return std::make_unique<ImageSequenceSource>(make_sequence(std::move(paths)),
+                                               "image folder " + images.string(), csv);
+}
+
+std::unique_ptr<FrameSource> open_image_pattern(const std::string& pattern) {
+  const fs::path full(pattern);
+  const fs::path dir = full.has_parent_path() ? full.parent_path() : fs::path(".");
+  const std::string name = full.filename().string();
+  if (has_glob_chars(dir.string()) || has_printf_spec(dir.string()))
+    throw Error("wildcards and %d are only allowed in the file name, not in folder names", {.file = pattern});
+  if (!fs::is_directory(dir)) throw Error("the pattern's folder does not exist", {.file = pattern});
+
+  std::vector<std::string> paths;
+  std::error_code ec;
+  const std::optional<PrintfSpec> spec = parse_printf(name);
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    if (!entry.is_regular_file()) continue;
+    const std::string file = entry.path().filename().string();
+    const bool match = spec ? matches_printf(*spec, file) : fnmatch(name.c_str(), file.c_str(), 0) == 0;
+    if (match) paths.push_back(entry.path().string());
+  }
+  if (ec) throw Error("cannot list folder: " + ec.message(), {.file = dir.string()});
+  if (paths.empty()) throw Error("no files match this pattern", {.file = pattern});
+
+  std::optional<std::string> csv = existing(dir / "frames.csv");
+  if (!csv && dir.filename() == "frames" && dir.has_parent_path())
+    csv = existing(dir.parent_path() / "frames.csv");
+  return std::make_unique<ImageSequenceSource>(make_sequence(std::move(paths)), "image pattern " + pattern,
+                                               csv);
+}
+
+std::unique_ptr<FrameSource> open_video_file(const std::string& path) {
+  if (!fs::is_regular_file(path)) throw Error("no such video file", {.file = path});
+  return std::make_unique<VideoFileSource>(path);
+}
+
+std::unique_ptr<FrameSource> open_file_source(const std::string& path) {
+  if (path.empty()) throw Error("empty input path");
+  std::error_code ec;
+  const auto status = fs::status(path, ec);
+  if (fs::is_directory(status)) return open_image_folder(path);
+  if (fs::is_regular_file(status)) {
+    if (is_image_file_name(path)) {
+      // A single image is a one-frame sequence; its time comes from a frames.csv beside it, as for folders.
+      const fs::path file(path);
+      const fs::path dir = file.has_parent_path() ? file.parent_path() : fs::path(".");
+      return std::make_unique<ImageSequenceSource>(make_sequence({path}), "image " + path,
+                                                   existing(dir / "frames.csv"));
+    }
+    return open_video_file(path);
+  }
+  if (fs::exists(status)) throw Error("not a regular file or folder", {.file = path});
+  const std::string name = fs::path(path).filename().string();
+  if (has_glob_chars(name) || has_printf_spec(name)) return open_image_pattern(path);
+  throw Error("no such file or folder", {.file = path});
+}
+
+}  // namespace tirstrain::capture

@@ -1,0 +1,214 @@
+#include "capture/live.hpp"
+
+#include <opencv2/highgui.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdlib>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include "core/error.hpp"
+
+namespace tirstrain::capture {
+namespace {
+
+double steady_now_s() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+// Holds only the newest frame: the display takes what is there and never queues behind the camera.
+class Mailbox {
+ public:
+  void put(const Frame& frame) {
+    {
+      std::lock_guard lock(mutex_);
+      latest_ = frame;  // shares the pixels (cv::Mat refcount); nobody writes into a delivered frame
+    }
+    ready_.notify_one();
+  }
+  std::optional<Frame> take(double timeout_s) {
+    std::unique_lock lock(mutex_);
+    ready_.wait_for(lock, std::chrono::duration<double>(timeout_s),
+                    [this] { return latest_.has_value() || done_; });
+    std::optional<Frame> out = std::move(latest_);
+    latest_.reset();
+    return out;
+  }
+  void finish() {
+    {
+      std::lock_guard lock(mutex_);
+      done_ = true;
+    }
+    ready_.notify_all();
+  }
+  bool done() {
+    std::lock_guard lock(mutex_);
+    return done_;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable ready_;
+  std::optional<Frame> latest_;
+  bool done_ = false;
+};
+
+struct Counters {
+  std::atomic<std::int64_t> received{0};
+  std::atomic<std::int64_t> incomplete{0};
+  std::atomic<std::int64_t> lost{0};
+};
+
+}  // namespace
+
+void check_display() {
+  // OpenCV's Qt backend aborts the process without a display instead of throwing: check first.
+  const char* x11 = std::getenv("DISPLAY");
+  const char* wayland = std::getenv("WAYLAND_DISPLAY");
+  const char* qt = std::getenv("QT_QPA_PLATFORM");
+  if ((x11 == nullptr || *x11 == '\0') && (wayland == nullptr || *wayland == '\0') && qt == nullptr)
+    throw Error("no display (DISPLAY is not set); use --no-window on headless machines",
+                {.key = "--no-window"});
+}
+
+cv::Mat display_canvas(const cv::Mat& image) {
+  cv::Mat grey8;
+  if (image.depth() == CV_16U) {
+    double max_value = 0;
+    cv::minMaxLoc(image, nullptr, &max_value);
+    image.convertTo(grey8, CV_8U, max_value > 0 ? 255.0 / max_value : 1.0);
+  } else {
+    grey8 = image;
+  }
+  cv::Mat canvas;
+  cv::cvtColor(grey8, canvas, cv::COLOR_GRAY2BGR);
+  return canvas;
+}
+
+LiveReport run_live(FrameSource& source, const LiveOptions& options) {
+  const std::string window = "tirstrain live";
+  if (options.window) {
+    // Before the camera thread starts, so a missing display is a plain error and not a dangling thread.
+    check_display();
+    try {
+      cv::namedWindow(window, cv::WINDOW_NORMAL);
+    } catch (const cv::Exception& e) {
+      throw Error(std::string("cannot open a window (no display?); use --no-window on headless machines: ") +
+                      e.what(),
+                  {.key = "--no-window"});
+    }
+  }
+  LiveReport report;
+  Mailbox mailbox;
+  Counters counters;
+  std::atomic<bool> stop_capture{false};
+  std::string capture_error;
+  const bool recording = !options.record_dir.empty();
+
+  // The capture thread owns the source; with --record it is the recorder's capture thread itself.
+  std::thread capture([&] {
+    auto on_frame = [&](const Frame& frame) {
+      counters.received.fetch_add(1);
+      if (frame.status == FrameStatus::kIncomplete) counters.incomplete.fetch_add(1);
+      counters.lost.fetch_add(frame.frames_lost_before);
+      mailbox.put(frame);
+    };
+    try {
+      if (recording) {
+        RecordOptions record = options.record;
+        record.out_dir = options.record_dir;
+        record.max_frames = options.max_frames;
+        record.max_seconds = options.max_seconds;
+        record.stop = &stop_capture;
+        record.on_frame = on_frame;
+        report.record = tirstrain::capture::record(source, record);
+        report.recorded = true;
+        if (!report.record.error.empty()) capture_error = report.record.error;
+      } else {
+        const double start_s = steady_now_s();
+        Frame frame;
+        while (!stop_capture.load()) {
+          if (options.max_frames >= 0 && counters.received.load() >= options.max_frames) break;
+          if (options.max_seconds >= 0 && steady_now_s() - start_s >= options.max_seconds) break;
+          const FrameSource::Poll result = source.poll(frame, 0.1);
+          if (result == FrameSource::Poll::kEnd) break;
+          if (result == FrameSource::Poll::kFrame) on_frame(frame);
+        }
+      }
+    } catch (const Error& e) {
+      capture_error = e.what();
+    } catch (const std::exception& e) {
+      capture_error = e.what();
+    }
+    mailbox.finish();
+  });
+
+  const double start_s = steady_now_s();
+  double interval_start_s = start_s;
+  std::int64_t received_at_interval = 0;
+  std::int64_t shown_at_interval = 0;
+  double latency_sum_s = 0.0;
+  std::int64_t latency_count = 0;
+  LiveStatus& status = report.status;
+  auto fill_counts = [&] {
+    status.frames_received = counters.received.load();
+    status.frames_incomplete = counters.incomplete.load();
+    status.frames_lost = counters.lost.load();
+    status.elapsed_s = steady_now_s() - start_s;
+  };
+  for (;;) {
+    if (options.stop != nullptr && options.stop->load()) stop_capture.store(true);
+    std::optional<Frame> frame = mailbox.take(0.05);
+    if (!frame && mailbox.done()) break;
+    if (frame) {
+      cv::Mat canvas = display_canvas(frame->image);
+      if (options.overlay) options.overlay(*frame, canvas);
+      fill_counts();
+      if (options.window) {
+        const std::string text = cv::format(
+            "%.1f fps  shown %.1f fps  lost %lld  incomplete %lld  latency %.1f ms", status.receive_rate_hz,
+            status.show_rate_hz, static_cast<long long>(status.frames_lost),
+            static_cast<long long>(status.frames_incomplete), status.latency_ms);
+        const double scale = std::max(0.5, canvas.cols / 1280.0);
+        cv::putText(canvas, text, {10, static_cast<int>(30 * scale)}, cv::FONT_HERSHEY_SIMPLEX, 0.8 * scale,
+                    {0, 255, 0}, static_cast<int>(std::max(1.0, 2 * scale)));
+        cv::imshow(window, canvas);
+      }
+      ++status.frames_shown;
+      // Latency is measured after drawing, i.e. what the user sees lags the camera by this much.
+      latency_sum_s += steady_now_s() - frame->host_time_s;
+      ++latency_count;
+    }
+    if (options.window) {
+      const int key = cv::waitKey(1);
+      if (key == 'q' || key == 27) stop_capture.store(true);
+    }
+    const double now_s = steady_now_s();
+    if (now_s - interval_start_s >= 1.0) {
+      fill_counts();
+      status.receive_rate_hz =
+          static_cast<double>(status.frames_received - received_at_interval) / (now_s - interval_start_s);
+      status.show_rate_hz =
+          static_cast<double>(status.frames_shown - shown_at_interval) / (now_s - interval_start_s);
+      status.latency_ms = latency_count > 0 ? 1e3 * latency_sum_s / static_cast<double>(latency_count) : 0.0;
+      received_at_interval = status.frames_received;
+      shown_at_interval = status.frames_shown;
+      latency_sum_s = 0.0;
+      latency_count = 0;
+      interval_start_s = now_s;
+      if (options.on_status) options.on_status(status);
+    }
+  }
+  capture.join();
+  if (options.window) cv::destroyWindow(window);
+  fill_counts();
+  if (report.recorded)
+    status.frames_lost = report.record.counts.frames_lost_device + report.record.counts.frames_dropped_host;
+  report.error = capture_error;
+  return report;
+}
+
+}  // namespace tirstrain::capture

@@ -1,0 +1,58 @@
+#pragma once
+// Live view: a capture thread keeps only the newest frame for the display, so a slow display (or slow
+// analysis in the overlay hook) skips frames on screen but never slows acquisition or the optional
+// recording running on the same thread as the capture.
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "capture/frame_source.hpp"
+#include "capture/recorder.hpp"
+
+namespace tirstrain::capture {
+
+struct LiveStatus {
+  std::int64_t frames_received = 0;
+  std::int64_t frames_shown = 0;  // displayed (window) or analysed (--no-window)
+  std::int64_t frames_incomplete = 0;
+  std::int64_t frames_lost = 0;  // device gaps + host drops (recording queue full)
+  double receive_rate_hz = 0.0;
+  double show_rate_hz = 0.0;
+  double latency_ms = 0.0;  // frame arrival on the host -> drawn, mean over the last interval
+  double elapsed_s = 0.0;
+};
+
+struct LiveOptions {
+  bool window = true;
+  std::string record_dir;  // record at the same time when not empty (record options below)
+  RecordOptions record;    // out_dir is taken from record_dir
+  std::int64_t max_frames = -1;
+  double max_seconds = -1.0;
+  const std::atomic<bool>* stop = nullptr;
+  // Analysis and drawing for one displayed frame, on the display thread. `canvas` is the frame as 8-bit
+  // BGR at full size; draw contact hull, ellipse, tracks, strain heat map onto it as those stages exist.
+  // Without a window it still runs (headless analysis), on a canvas nobody sees.
+  std::function<void(const Frame& frame, cv::Mat& canvas)> overlay;
+  // Once per second with the current counts (prints status lines in the CLI).
+  std::function<void(const LiveStatus&)> on_status;
+};
+
+struct LiveReport {
+  LiveStatus status;
+  RecordReport record;  // when recording
+  bool recorded = false;
+  std::string error;  // source error (camera lost) or recording error
+};
+
+LiveReport run_live(FrameSource& source, const LiveOptions& options);
+
+// Throws Error (pointing at --no-window) when there is no display to open a window on.
+void check_display();
+
+// The frame as 8-bit BGR for drawing: 16-bit frames are scaled by their own maximum so dim images show.
+cv::Mat display_canvas(const cv::Mat& image);
+
+}  // namespace tirstrain::capture

@@ -1,0 +1,43 @@
+// URI dispatch for every frame source. File sources live in file_sources.cpp; camera backends add their
+// scheme here when they are built.
+#include <string>
+
+#include "capture/aravis_source.hpp"
+#include "capture/file_sources.hpp"
+#include "capture/frame_source.hpp"
+#include "core/error.hpp"
+
+namespace tirstrain::capture {
+
+const char* to_string(FrameStatus status) {
+  switch (status) {
+    case FrameStatus::kOk:
+      return "ok";
+    case FrameStatus::kIncomplete:
+      return "incomplete";
+    case FrameStatus::kCorrupt:
+      return "corrupt";
+    case FrameStatus::kGapBefore:
+      return "gap_before";
+    case FrameStatus::kOverrun:
+      return "overrun";
+  }
+  return "unknown";
+}
+
+std::unique_ptr<FrameSource> open_source(const std::string& uri) {
+  const auto colon = uri.find(':');
+  // A one-letter "scheme" would be a Windows drive; a slash before the colon means a path containing ':'.
+  if (colon != std::string::npos && colon > 1 && uri.find('/') > colon) {
+    const std::string scheme = uri.substr(0, colon);
+    const std::string rest = uri.substr(colon + 1);
+    if (scheme == "file") return open_file_source(rest);
+    if (scheme == "aravis") return open_aravis_source(rest, {});
+    if (scheme == "v4l2" || scheme == "libcamera")
+      throw Error("the '" + scheme + "' camera backend is not built yet; use a file, folder or video for now",
+                  {.file = uri});
+  }
+  return open_file_source(uri);
+}
+
+}  // namespace tirstrain::capture

@@ -1,0 +1,532 @@
+#include "contact/segmenter.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+
+#include "contact/geometry.hpp"
+#include "contact/orientation.hpp"
+#include "contact/ridge_period.hpp"
+#include "core/error.hpp"
+
+namespace tirstrain::contact {
+namespace {
+
+int odd_at_least(double size, int minimum) {
+  int k = std::max(minimum, static_cast<int>(std::lround(size)));
+  return k % 2 == 0 ? k + 1 : k;
+}
+
+// Otsu's threshold on a 256-bin histogram of a non-negative float image.
+struct OtsuSplit {
+  float threshold = 0.0f;
+  double mean_low = 0.0, mean_high = 0.0;
+};
+
+OtsuSplit otsu(const cv::Mat& values) {
+  double max_value = 0.0;
+  cv::minMaxLoc(values, nullptr, &max_value);
+  OtsuSplit split;
+  if (!(max_value > 0.0)) return split;
+  constexpr int kBins = 256;
+  std::array<double, kBins> hist{};
+  const double to_bin = (kBins - 1) / max_value;
+  for (int y = 0; y < values.rows; ++y) {
+    const float* row = values.ptr<float>(y);
+    for (int x = 0; x < values.cols; ++x) hist[static_cast<std::size_t>(row[x] * to_bin + 0.5)] += 1.0;
+  }
+  double total = 0.0, total_sum = 0.0;
+  for (int i = 0; i < kBins; ++i) {
+    total += hist[static_cast<std::size_t>(i)];
+    total_sum += i * hist[static_cast<std::size_t>(i)];
+  }
+  double w0 = 0.0, sum0 = 0.0, best = -1.0;
+  int best_bin = 0;
+  for (int i = 0; i < kBins - 1; ++i) {
+    w0 += hist[static_cast<std::size_t>(i)];
+    sum0 += i * hist[static_cast<std::size_t>(i)];
+    const double w1 = total - w0;
+    if (w0 <= 0.0 || w1 <= 0.0) continue;
+    const double m0 = sum0 / w0, m1 = (total_sum - sum0) / w1;
+    const double between = w0 * w1 * (m0 - m1) * (m0 - m1);
+    if (between > best) {
+      best = between;
+      best_bin = i;
+      split.mean_low = m0 / to_bin;
+      split.mean_high = m1 / to_bin;
+    }
+  }
+  split.threshold = static_cast<float>((best_bin + 0.5) / to_bin);
+  return split;
+}
+
+float bilinear(const cv::Mat& image, double x, double y) {
+  x = std::clamp(x, 0.0, image.cols - 1.0);
+  y = std::clamp(y, 0.0, image.rows - 1.0);
+  const int x0 = std::min(static_cast<int>(x), image.cols - 2),
+            y0 = std::min(static_cast<int>(y), image.rows - 2);
+  const double fx = x - x0, fy = y - y0;
+  const float* r0 = image.ptr<float>(y0);
+  const float* r1 = image.ptr<float>(y0 + 1);
+  return static_cast<float>((1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) +
+                            fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]));
+}
+
+template <typename T>
+void block_average(const cv::Mat& src, int factor, double gain, cv::Mat& dst, std::vector<float>& row_sum) {
+  const int out_w = src.cols / factor, out_h = src.rows / factor;
+  dst.create(out_h, out_w, CV_32FC1);
+  row_sum.assign(static_cast<std::size_t>(src.cols), 0.0f);
+  const auto g = static_cast<float>(gain / (factor * factor));
+  for (int y = 0; y < out_h; ++y) {
+    std::fill(row_sum.begin(), row_sum.end(), 0.0f);
+    for (int r = 0; r < factor; ++r) {
+      const T* in = src.ptr<T>(y * factor + r);
+      float* acc = row_sum.data();
+      for (int x = 0; x < src.cols; ++x) acc[x] += static_cast<float>(in[x]);
+    }
+    float* out = dst.ptr<float>(y);
+    for (int x = 0; x < out_w; ++x) {
+      float s = 0.0f;
+      for (int k = 0; k < factor; ++k) s += row_sum[static_cast<std::size_t>(x * factor + k)];
+      out[x] = s * g;
+    }
+  }
+}
+
+// Working pixel centre -> full-resolution pixel coordinates.
+cv::Point2d to_full(const cv::Point2d& p, int factor) {
+  return {(p.x + 0.5) * factor - 0.5, (p.y + 0.5) * factor - 0.5};
+}
+
+// Where a ridge valley lies along the border, the contact edge is invisible (a valley reflects like the
+// background), so the outline found there dips inward by up to half a ridge period. Such dips are one-sided,
+// which lets an outer-envelope ellipse find them: fit, drop points more than `gap_px` inside, refit (twice),
+// and move the dropped points onto the ellipse along their ray from its centre. Points on a cut (frame edge,
+// excluded band) neither take part nor move.
+void bridge_valleys(std::vector<cv::Point2d>& points, const std::vector<std::uint8_t>& cut, double gap_px) {
+  std::vector<cv::Point2d> free;
+  std::vector<std::size_t> index;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (cut[i] == 0) {
+      free.push_back(points[i]);
+      index.push_back(i);
+    }
+  if (free.size() < 20) return;
+  std::optional<Ellipse> ellipse = fit_ellipse_direct(free);
+  // Signed distance along the ray from the centre: negative inside.
+  const auto radial_gap = [](const Ellipse& e, const cv::Point2d& p, double* scale) {
+    const double rho = std::sqrt(std::max(0.0, ellipse_level(e, p) + 1.0));
+    *scale = rho;
+    return rho > 0.0 ? (rho - 1.0) * cv::norm(p - cv::Point2d(e.cx_px, e.cy_px)) / rho : 0.0;
+  };
+  for (int iteration = 0; iteration < 2 && ellipse; ++iteration) {
+    std::vector<cv::Point2d> outer;
+    for (const auto& p : free) {
+      double rho = 0.0;
+      if (radial_gap(*ellipse, p, &rho) >= -gap_px) outer.push_back(p);
+    }
+    if (outer.size() < 20 || outer.size() == free.size()) break;
+    ellipse = fit_ellipse_direct(outer);
+  }
+  if (!ellipse) return;
+  const cv::Point2d centre(ellipse->cx_px, ellipse->cy_px);
+  for (std::size_t k = 0; k < free.size(); ++k) {
+    double rho = 0.0;
+    if (radial_gap(*ellipse, free[k], &rho) < -gap_px && rho > 0.0)
+      points[index[k]] = centre + (free[k] - centre) * (1.0 / rho);
+  }
+}
+
+}  // namespace
+
+std::string contact_status_text(std::uint32_t status) {
+  if (status == kContactOk) return "ok";
+  static const std::array<const char*, 7> names = {"no_contact",   "touches_edge", "multiple_blobs",
+                                                   "saturated",    "low_contrast", "no_ellipse",
+                                                   "frame_skipped"};
+  std::string text;
+  for (std::size_t bit = 0; bit < names.size(); ++bit) {
+    if ((status & (1u << bit)) == 0) continue;
+    // Appended piecewise: GCC 12 at -O3 reports a false -Wrestrict on `"|" + std::string(...)`.
+    if (!text.empty()) text.push_back('|');
+    text.append(names[bit]);
+  }
+  return text.empty() ? "unknown" : text;
+}
+
+double full_scale_of(const cv::Mat& image) {
+  switch (image.depth()) {
+    case CV_8U:
+      return 255.0;
+    case CV_16U: {
+      double max_value = 0.0;
+      cv::minMaxLoc(image, nullptr, &max_value);
+      for (double scale : {1023.0, 4095.0, 16383.0})
+        if (max_value <= scale) return scale;
+      return 65535.0;
+    }
+    default:
+      return 1.0;
+  }
+}
+
+ContactSegmenter::ContactSegmenter(SegmenterOptions options) : options_(std::move(options)) {
+  if (options_.ridge_period_px) period_px_ = *options_.ridge_period_px;
+}
+
+void ContactSegmenter::to_working(const cv::Mat& image, int factor, double full_scale, cv::Mat& out) {
+  const double gain = 1.0 / full_scale;
+  if (factor == 1) {
+    image.convertTo(out, CV_32F, gain);
+    return;
+  }
+  switch (image.depth()) {
+    case CV_8U:
+      block_average<std::uint8_t>(image, factor, gain, out, buf_.row_sum);
+      break;
+    case CV_16U:
+      block_average<std::uint16_t>(image, factor, gain, out, buf_.row_sum);
+      break;
+    default:
+      block_average<float>(image, factor, gain, out, buf_.row_sum);
+      break;
+  }
+}
+
+double ContactSegmenter::period_for_frame(const cv::Mat& image, double full_scale) {
+  if (period_px_) return *period_px_;
+  const double ppmm = options_.px_per_mm;
+  // Measured at a resolution where the shortest plausible period still spans >= 3 pixels.
+  const int factor = std::max(1, static_cast<int>(std::floor(options_.min_period_mm * ppmm / 3.0)));
+  to_working(image, factor, full_scale, buf_.measure);
+  const auto estimate =
+      estimate_ridge_period(buf_.measure, std::max(2.0, options_.min_period_mm * ppmm / factor),
+                            options_.max_period_mm * ppmm / factor);
+  if (estimate && estimate->confidence >= options_.min_period_confidence) {
+    period_px_ = estimate->period_px * factor;
+    period_measured_ = true;
+    return *period_px_;
+  }
+  return options_.default_period_mm * ppmm;
+}
+
+ContactResult ContactSegmenter::segment(const cv::Mat& image) {
+  if (image.channels() != 1 || (image.depth() != CV_8U && image.depth() != CV_16U && image.depth() != CV_32F))
+    throw Error("contact segmentation needs a grey 8-bit, 16-bit or float image");
+  ContactResult result;
+  const cv::Size full_size = image.size();
+  const int block_px = std::max(1, options_.block_px);
+  const cv::Size blocks((full_size.width + block_px - 1) / block_px,
+                        (full_size.height + block_px - 1) / block_px);
+  result.orientation_rad = cv::Mat::zeros(blocks, CV_32FC1);
+  result.coherence = cv::Mat::zeros(blocks, CV_32FC1);
+  if (image.empty()) return result;
+
+  const double full_scale = full_scale_of(image);
+  if (image.depth() != CV_32F) {
+    cv::Mat at_full_scale;
+    cv::compare(image, full_scale, at_full_scale, cv::CMP_GE);
+    result.saturated_fraction = cv::countNonZero(at_full_scale) / static_cast<double>(image.total());
+  }
+  const bool saturated = result.saturated_fraction >= options_.saturated_fraction;
+  const std::uint32_t saturated_flag = saturated ? kSaturated : 0u;
+
+  const double period_px = period_for_frame(image, full_scale);
+  result.ridge_period_px = period_px;
+  factor_ = options_.downsample > 0 ? options_.downsample
+                                    : std::max(1, static_cast<int>(std::floor(period_px / 5.5)));
+  const int f = factor_;
+  if (full_size.width / f < 8 || full_size.height / f < 8) {
+    result.status = kNoContact | saturated_flag;
+    return result;
+  }
+  to_working(image, f, full_scale, buf_.work);
+  const double period_w = period_px / f;
+
+  // Difference of Gaussians centred on the ridge band: sigma_small passes the ridge period with gain
+  // exp(-2 pi^2 0.15^2) = 0.64 while cutting pixel noise; sigma_large removes illumination and the
+  // contact's mean step (gain 0.007 at the ridge period).
+  cv::GaussianBlur(buf_.work, buf_.blur_small, cv::Size(), 0.15 * period_w, 0.0, cv::BORDER_REFLECT);
+  cv::GaussianBlur(buf_.work, buf_.blur_large, cv::Size(), 0.5 * period_w, 0.0, cv::BORDER_REFLECT);
+  cv::subtract(buf_.blur_small, buf_.blur_large, buf_.band);
+  buf_.energy = cv::abs(buf_.band);
+  cv::Rect excluded_w;
+  if (options_.exclude_px) {
+    const cv::Rect& r = *options_.exclude_px;
+    excluded_w = cv::Rect(cv::Point(r.x / f, r.y / f),
+                          cv::Point((r.x + r.width + f - 1) / f, (r.y + r.height + f - 1) / f)) &
+                 cv::Rect(0, 0, buf_.work.cols, buf_.work.rows);
+    buf_.energy(excluded_w).setTo(0.0f);
+  }
+  // Closing spans half a period (the gap between the rectified peaks of a ridge and the next valley);
+  // opening with a full period removes noise specks smaller than a ridge.
+  const int close_k = odd_at_least(0.5 * period_w + 1.0, 3);
+  const int open_k = odd_at_least(period_w, 3);
+  cv::morphologyEx(buf_.energy, buf_.scratch, cv::MORPH_CLOSE,
+                   cv::getStructuringElement(cv::MORPH_RECT, cv::Size(close_k, close_k)), cv::Point(-1, -1),
+                   1, cv::BORDER_REPLICATE);
+  cv::morphologyEx(buf_.scratch, buf_.energy, cv::MORPH_OPEN,
+                   cv::getStructuringElement(cv::MORPH_RECT, cv::Size(open_k, open_k)), cv::Point(-1, -1), 1,
+                   cv::BORDER_REPLICATE);
+
+  const OtsuSplit split = otsu(buf_.energy);
+  result.texture_energy = split.mean_high;
+  result.energy_ratio =
+      split.mean_low > 0.0 ? split.mean_high / split.mean_low : (split.mean_high > 0.0 ? 1e9 : 0.0);
+  result.energy_ratio = std::min(result.energy_ratio, 1e9);
+  const auto no_contact = [&] {
+    ContactResult empty;
+    empty.status = kNoContact | saturated_flag;
+    empty.orientation_rad = result.orientation_rad;
+    empty.coherence = result.coherence;
+    empty.ridge_period_px = period_px;
+    empty.texture_energy = result.texture_energy;
+    empty.energy_ratio = result.energy_ratio;
+    empty.saturated_fraction = result.saturated_fraction;
+    return empty;
+  };
+  if (split.mean_high < options_.min_energy || result.energy_ratio < options_.min_energy_ratio)
+    return no_contact();
+
+  cv::compare(buf_.energy, split.threshold, buf_.mask, cv::CMP_GT);
+  const int labels =
+      cv::connectedComponentsWithStats(buf_.mask, buf_.labels, buf_.stats, buf_.centroids, 8, CV_32S);
+  const double mm2_per_working_px = (f * f) / (options_.px_per_mm * options_.px_per_mm);
+  int largest = 0, largest_area = 0;
+  for (int i = 1; i < labels; ++i) {
+    const int area = buf_.stats.at<int>(i, cv::CC_STAT_AREA);
+    if (area > largest_area) {
+      largest_area = area;
+      largest = i;
+    }
+  }
+  if (largest == 0 || largest_area * mm2_per_working_px < options_.min_area_mm2) return no_contact();
+
+  std::uint32_t status = saturated_flag;
+  std::vector<std::uint8_t> keep(static_cast<std::size_t>(labels), 0);
+  for (int i = 1; i < labels; ++i) {
+    const int area = buf_.stats.at<int>(i, cv::CC_STAT_AREA);
+    if (i != largest && area * mm2_per_working_px >= options_.min_area_mm2) status |= kMultipleBlobs;
+    if (i == largest || area >= options_.merge_fraction * largest_area) keep[static_cast<std::size_t>(i)] = 1;
+  }
+  // Outline points of the kept regions: their boundary pixels, found row by row (first and last kept pixel
+  // of each run is enough for a convex hull).
+  std::vector<cv::Point2d> boundary;
+  for (int y = 0; y < buf_.labels.rows; ++y) {
+    const int* row = buf_.labels.ptr<int>(y);
+    int first = -1, last = -1;
+    for (int x = 0; x < buf_.labels.cols; ++x) {
+      if (keep[static_cast<std::size_t>(row[x])] != 0) {
+        if (first < 0) first = x;
+        last = x;
+      }
+    }
+    if (first >= 0) {
+      boundary.emplace_back(first, y);
+      if (last != first) boundary.emplace_back(last, y);
+    }
+  }
+  const std::vector<cv::Point2d> hull_w = convex_hull(boundary);
+
+  cv::Point2d centroid(0.0, 0.0);
+  for (const auto& p : hull_w) centroid += p;
+  centroid *= 1.0 / static_cast<double>(std::max<std::size_t>(1, hull_w.size()));
+  const cv::Rect frame_w(0, 0, buf_.work.cols, buf_.work.rows);
+  const auto on_cut = [&](const cv::Point2d& p) {
+    // Within a pixel of the frame border or of the excluded band: the outline there is where the view ends,
+    // not where the contact ends.
+    if (p.x < 1.0 || p.y < 1.0 || p.x > frame_w.width - 2.0 || p.y > frame_w.height - 2.0) return true;
+    if (excluded_w.area() > 0) {
+      const cv::Rect grown(excluded_w.x - 2, excluded_w.y - 2, excluded_w.width + 4, excluded_w.height + 4);
+      return grown.contains(
+          cv::Point(static_cast<int>(std::lround(p.x)), static_cast<int>(std::lround(p.y))));
+    }
+    return false;
+  };
+
+  // Polarity: the scene's, or this frame's (mean level inside the coarse hull against outside it).
+  buf_.hull_mask = rasterize_polygon(hull_w, buf_.work.size());
+  {
+    const int inside_count = cv::countNonZero(buf_.hull_mask);
+    const auto outside_count = static_cast<int>(buf_.work.total()) - inside_count;
+    if (inside_count > 0 && outside_count > static_cast<int>(buf_.work.total() / 100)) {
+      const double inside_mean = cv::mean(buf_.work, buf_.hull_mask)[0];
+      const double outside_mean = (cv::sum(buf_.work)[0] - inside_mean * inside_count) / outside_count;
+      const double difference = inside_mean - outside_mean;
+      if (std::abs(difference) > 0.25 * split.mean_high) result.polarity = difference < 0.0 ? -1 : 1;
+    }
+  }
+  const int polarity = options_.polarity != 0 ? options_.polarity : result.polarity;
+
+  // Where the skin stops touching, the frustrated light stops: a step in the image's level, sharper than
+  // the fading ridge texture (ridge contrast drops towards the border, so the texture's half-maximum lies
+  // inside the contact). With ridges made bright, grey closing over one period merges ridges and valleys
+  // into a plateau at crest level (and keeps its outer edge), opening over half a period removes specks;
+  // the outline is then the steepest descent of that plateau along the outward ray.
+  bool use_level_edge = polarity != 0;
+  double level_drop_min = 0.0;
+  if (use_level_edge) {
+    if (polarity < 0) {
+      cv::subtract(1.0, buf_.work, buf_.scratch);
+    } else {
+      buf_.work.copyTo(buf_.scratch);
+    }
+    const int merge_k = odd_at_least(period_w + 1.0, 3);
+    const int speck_k = odd_at_least(0.5 * period_w, 3);
+    cv::morphologyEx(buf_.scratch, buf_.level, cv::MORPH_CLOSE,
+                     cv::getStructuringElement(cv::MORPH_RECT, cv::Size(merge_k, merge_k)), cv::Point(-1, -1),
+                     1, cv::BORDER_REPLICATE);
+    cv::morphologyEx(buf_.level, buf_.scratch, cv::MORPH_OPEN,
+                     cv::getStructuringElement(cv::MORPH_RECT, cv::Size(speck_k, speck_k)), cv::Point(-1, -1),
+                     1, cv::BORDER_REPLICATE);
+    std::swap(buf_.level, buf_.scratch);
+    const int inside_count = cv::countNonZero(buf_.hull_mask);
+    const auto outside_count = static_cast<int>(buf_.work.total()) - inside_count;
+    if (inside_count > 0 && outside_count > 0) {
+      const double inside_mean = cv::mean(buf_.level, buf_.hull_mask)[0];
+      const double outside_mean = (cv::sum(buf_.level)[0] - inside_mean * inside_count) / outside_count;
+      // A step must carry a fair part of the contrast between the contact and the background to count.
+      level_drop_min = 0.25 * (inside_mean - outside_mean);
+    }
+    use_level_edge = level_drop_min > 0.0;
+  }
+
+  // Sub-pixel outline along the ray from the hull's centroid through each of 4x hull_points samples: first
+  // where the texture energy falls through the threshold (pixel-centre hulls sit ~half a working pixel
+  // inside it), then, where the level step is clear, at the steepest descent of the merged level within
+  // one ridge period of that.
+  const int dense_count = 4 * std::max(options_.hull_points, 8);
+  const std::vector<cv::Point2d> dense_w = resample_closed_polygon(hull_w, dense_count);
+  std::vector<cv::Point2d> refined_full;
+  std::vector<std::uint8_t> cut;
+  refined_full.reserve(dense_w.size());
+  for (const auto& p : dense_w) {
+    const bool at_cut = on_cut(p);
+    cv::Point2d q = p;
+    if (!at_cut) {
+      cv::Point2d dir = p - centroid;
+      const double length = cv::norm(dir);
+      if (length > 1e-9) {
+        dir *= 1.0 / length;
+        constexpr double kStep = 0.25;
+        double crossing = 0.0;
+        double prev_s = -1.5;
+        float prev_e = bilinear(buf_.energy, p.x + prev_s * dir.x, p.y + prev_s * dir.y);
+        for (double s = prev_s + kStep; s <= 2.5 + 1e-9; s += kStep) {
+          const float e = bilinear(buf_.energy, p.x + s * dir.x, p.y + s * dir.y);
+          if (prev_e > split.threshold && e <= split.threshold) {
+            crossing = prev_s + kStep * (prev_e - split.threshold) / std::max(1e-12f, prev_e - e);
+            break;
+          }
+          prev_s = s;
+          prev_e = e;
+        }
+        if (use_level_edge) {
+          // Local levels along this ray: the merged crest plateau inside, the background beyond; the edge is
+          // where the level falls to edge_level of the way from background to plateau. Local, so vignetting
+          // and illumination drift do not move it; low, because ridge contrast fades towards the border.
+          const double reach = std::max(3.0, 1.5 * period_w);
+          const int samples = static_cast<int>(std::lround(2.0 * reach / kStep)) + 1;
+          double inside = -1e30, outside = 0.0;
+          int outside_n = 0, peak = 0;
+          ray_.resize(static_cast<std::size_t>(samples));
+          for (int k = 0; k < samples; ++k) {
+            const double s = crossing - reach + k * kStep;
+            const float v = bilinear(buf_.level, p.x + s * dir.x, p.y + s * dir.y);
+            ray_[static_cast<std::size_t>(k)] = v;
+            if (s <= crossing && v > inside) {
+              inside = v;
+              peak = k;
+            }
+            if (s >= crossing + reach - 1.0) {
+              outside += v;
+              ++outside_n;
+            }
+          }
+          outside /= std::max(1, outside_n);
+          if (inside - outside >= level_drop_min) {
+            const double level = outside + options_.edge_level * (inside - outside);
+            for (int k = peak + 1; k < samples; ++k) {
+              const float v0 = ray_[static_cast<std::size_t>(k - 1)], v1 = ray_[static_cast<std::size_t>(k)];
+              if (v0 >= level && v1 < level) {
+                crossing = crossing - reach + (k - 1 + (v0 - level) / std::max(1e-12f, v0 - v1)) * kStep;
+                break;
+              }
+            }
+          }
+        }
+        q = p + crossing * dir;
+      }
+    }
+    q = to_full(q, f);
+    if (at_cut) {
+      // Push cut points onto the frame edge (or the excluded band), so the area counts the visible contact.
+      if (p.x < 1.0) q.x = -0.5;
+      if (p.y < 1.0) q.y = -0.5;
+      if (p.x > frame_w.width - 2.0) q.x = full_size.width - 0.5;
+      if (p.y > frame_w.height - 2.0) q.y = full_size.height - 0.5;
+      status |= kTouchesEdge;
+    }
+    q.x = std::clamp(q.x, -0.5, full_size.width - 0.5);
+    q.y = std::clamp(q.y, -0.5, full_size.height - 0.5);
+    refined_full.push_back(q);
+    cut.push_back(at_cut ? 1 : 0);
+  }
+  bridge_valleys(refined_full, cut, options_.valley_gap_periods * period_px);
+  result.outline_px = convex_hull(refined_full);
+  result.area_mm2 = polygon_area_px2(result.outline_px) / (options_.px_per_mm * options_.px_per_mm);
+  result.hull_px = resample_closed_polygon(result.outline_px, options_.hull_points);
+  const cv::Rect box =
+      cv::boundingRect(std::vector<cv::Point2f>(result.outline_px.begin(), result.outline_px.end()));
+  result.bounding_box_px = box & cv::Rect(0, 0, full_size.width, full_size.height);
+
+  // Ellipse: the 50 hull points, except those on a cut, which lie on the border rather than the contact.
+  std::vector<cv::Point2d> fit_points;
+  const double cut_margin_px = 1.5 * f;
+  for (const auto& p : result.hull_px) {
+    bool free = p.x > cut_margin_px - 0.5 && p.y > cut_margin_px - 0.5 &&
+                p.x < full_size.width - 0.5 - cut_margin_px && p.y < full_size.height - 0.5 - cut_margin_px;
+    if (free && options_.exclude_px) {
+      const cv::Rect& r = *options_.exclude_px;
+      free = !(p.x > r.x - cut_margin_px - 0.5 && p.x < r.x + r.width + cut_margin_px - 0.5 &&
+               p.y > r.y - cut_margin_px - 0.5 && p.y < r.y + r.height + cut_margin_px - 0.5);
+    }
+    if (free) fit_points.push_back(p);
+  }
+  if ((status & kTouchesEdge) != 0 && fit_points.size() < 20) {
+    // Short free arcs: use the dense refined outline for more support.
+    fit_points.clear();
+    for (std::size_t i = 0; i < refined_full.size(); ++i)
+      if (cut[i] == 0) fit_points.push_back(refined_full[i]);
+  }
+  if (fit_points.size() >= 6) result.ellipse = fit_ellipse_direct(fit_points);
+  // An ellipse much larger than the frame is an extrapolation from a nearly straight arc: not reported.
+  if (result.ellipse && result.ellipse->semi_major_px > 2.0 * std::hypot(full_size.width, full_size.height))
+    result.ellipse.reset();
+  if (result.ellipse) {
+    result.normalization = EllipseNormalization(*result.ellipse);
+  } else {
+    status |= kNoEllipse;
+  }
+
+  // Working-resolution contact mask (final hull filled) for the orientation blocks.
+  std::vector<cv::Point2d> outline_w;
+  outline_w.reserve(result.outline_px.size());
+  for (const auto& p : result.outline_px)
+    outline_w.emplace_back((p.x + 0.5) / f - 0.5, (p.y + 0.5) / f - 0.5);
+  buf_.hull_mask = rasterize_polygon(outline_w, buf_.work.size());
+  if (options_.orientation) {
+    OrientationField field = block_orientation(buf_.band, f, full_size, block_px, buf_.hull_mask);
+    result.orientation_rad = field.orientation_rad;
+    result.coherence = field.coherence;
+  }
+  if (split.mean_high < options_.low_contrast) status |= kLowContrast;
+  result.status = status;
+  return result;
+}
+
+}  // namespace tirstrain::contact

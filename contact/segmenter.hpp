@@ -1,0 +1,140 @@
+#pragma once
+// Contact segmentation of TIR fingertip images.
+//
+// Where skin touches the glass the image carries the ridge texture; elsewhere it shows the smooth
+// background of the optics. Detection is therefore "texture in the ridge band", whatever the polarity:
+// band-pass around the ridge period (measured from the spectrum unless the scene fixes it), rectify, grey
+// closing (fills the zero crossings between ridges and valleys) then opening (removes specks of noise), Otsu
+// threshold, the largest connected region (plus regions >= merge_fraction of it, e.g. a contact split by a
+// sweat patch), convex hull. That decides contact / no contact and gives a coarse outline.
+//
+// The outline is then placed where the contact ends rather than where the texture is half as strong (ridge
+// contrast fades towards the border, where skin only nearly touches, so the texture's half-maximum lies
+// several pixels inside): with ridges made bright, grey closing then opening over one period merges ridges
+// and valleys into a plateau whose outer edge is the outermost crest; along the ray from the centre through
+// each of 200 outline samples the edge is where that level falls to edge_level of the way from the local
+// background to the local plateau. A valley lying along the border is invisible (it reflects like the
+// background); such one-sided dips are found against an outer-envelope ellipse and bridged by it. Convex
+// hull, 50 points equally spaced along its perimeter, area, then the direct ellipse fit and the ridge
+// orientation field.
+//
+// Working resolution (the design choice that sets the speed): everything runs on the frame averaged over
+// f x f blocks with f = floor(ridge period / 5.5 px), i.e. about 5.5-8 working pixels per ridge period
+// (f = 4 at 52 px/mm and a 0.45 mm period: 1280x1024 -> 320x256). That is the coarsest sampling at which
+// the ridge band stays well below the Nyquist limit after block averaging (gain sinc(f/P) > 0.9), so the
+// texture decision is unchanged, while the outline is still found to sub-pixel accuracy by interpolating
+// along the rays. The cost drops ~f^2 and does not depend on where the contact is, so no ROI tracking is
+// needed (an ROI could also miss a second region appearing). `downsample = 1` runs at full resolution, for
+// comparison (see bench/contact_bench.cpp and BENCHMARKS.md).
+#include <opencv2/core.hpp>
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "contact/ellipse.hpp"
+
+namespace tirstrain::contact {
+
+// Per-frame contact status: bit flags; 0 is a clean measurement. Written as /contact/status.
+enum ContactFlag : std::uint32_t {
+  kContactOk = 0,
+  kNoContact = 1u << 0,      // no ridge texture above the noise: area 0, hull, ellipse and field all 0
+  kTouchesEdge = 1u << 1,    // contact runs off the frame or into the excluded band: the hull is cut
+                             // there, and the ellipse is fitted to the free part of the outline only
+  kMultipleBlobs = 1u << 2,  // more than one textured region; those >= merge_fraction of the largest
+                             // are joined in one hull
+  kSaturated = 1u << 3,      // >= saturated_fraction of the pixels at full scale
+  kLowContrast = 1u << 4,    // ridge amplitude below low_contrast (fraction of full scale): kept, less sure
+  kNoEllipse = 1u << 5,      // contact found but too little free outline to fit an ellipse: ellipse 0
+  kFrameSkipped = 1u << 6,   // not segmented (corrupt or unreadable frame); set by the pipeline
+};
+
+// "ok", or the set flags joined by '|', e.g. "touches_edge|low_contrast".
+std::string contact_status_text(std::uint32_t status);
+
+struct SegmenterOptions {
+  double px_per_mm = 52.0;
+  // Fixed ridge period; without it the period is measured from the spectrum of the first frames that show
+  // a clear ridge ring (and default_period_mm is used until then).
+  std::optional<double> ridge_period_px;
+  double default_period_mm = 0.45;
+  double min_period_mm = 0.25;
+  double max_period_mm = 1.2;
+  double min_period_confidence = 6.0;
+  int polarity = 0;    // -1: ridges in contact darker than the background, +1 brighter, 0: measure
+  int downsample = 0;  // working-resolution factor f; 0 = automatic (see above), 1 = full resolution
+  int hull_points = 50;
+  int block_px = 32;  // orientation blocks, full-resolution pixels
+  bool orientation = true;
+  std::optional<cv::Rect> exclude_px;  // never contact (e.g. the reference pattern band on the glass)
+  double min_area_mm2 = 0.5;           // smaller textured regions are noise, not contact
+  double min_energy_ratio = 3.0;       // texture energy inside / outside needed to call it contact
+  double min_energy = 0.003;           // and in absolute terms (fraction of full scale)
+  double merge_fraction = 0.1;         // join regions at least this fraction of the largest one
+  double saturated_fraction = 0.02;
+  // The outline is where the merged ridge level falls to this fraction of the way from background to the
+  // contact's plateau: low, because ridge contrast fades towards the border where skin only nearly touches.
+  double edge_level = 0.14;
+  // Outline dips deeper than this (in ridge periods) inside the outer-envelope ellipse are valleys along
+  // the border and are bridged by the ellipse (see bridge_valleys in segmenter.cpp).
+  double valley_gap_periods = 0.1;
+  double low_contrast = 0.02;  // texture energy (≈ 0.6 x ridge amplitude) below this: low contrast
+};
+
+struct ContactResult {
+  std::uint32_t status = kNoContact;
+  double area_mm2 = 0.0;                // area inside the (dense) convex hull
+  std::vector<cv::Point2d> hull_px;     // hull_points points along the hull perimeter (empty: no contact)
+  std::vector<cv::Point2d> outline_px;  // the dense refined hull the above is resampled from
+  std::optional<Ellipse> ellipse;       // fit to the free part of the outline
+  EllipseNormalization normalization;   // identity when there is no ellipse
+  cv::Mat orientation_rad;              // blocks, CV_32FC1 (see orientation.hpp); 0 outside the contact
+  cv::Mat coherence;                    // blocks, CV_32FC1; 0 outside the contact
+  cv::Rect bounding_box_px;             // of the outline, clipped to the frame
+  double ridge_period_px = 0.0;         // period used for this frame
+  double texture_energy = 0.0;          // mean band-pass envelope inside the contact, fraction of full scale
+  double energy_ratio = 0.0;            // inside over outside
+  double saturated_fraction = 0.0;
+  int polarity = 0;  // -1: contact darker than background (dark ridges), +1 brighter, 0 unknown
+};
+
+class ContactSegmenter {
+ public:
+  explicit ContactSegmenter(SegmenterOptions options = {});
+
+  // `image`: CV_8UC1, CV_16UC1 or CV_32FC1 (0..1). Never throws for image content; throws Error for a wrong
+  // image type.
+  ContactResult segment(const cv::Mat& image);
+
+  // Ridge period in full-resolution pixels once known (fixed or measured), and whether it was measured.
+  std::optional<double> ridge_period_px() const { return period_px_; }
+  bool period_measured() const { return period_measured_; }
+  // Working-resolution factor used for the last frame.
+  int downsample() const { return factor_; }
+  const SegmenterOptions& options() const { return options_; }
+
+ private:
+  struct Buffers {
+    cv::Mat work, measure, blur_small, blur_large, band, energy, level, scratch, mask, labels, stats,
+        centroids, hull_mask;
+    std::vector<float> row_sum;
+  };
+
+  double period_for_frame(const cv::Mat& image, double full_scale);
+  void to_working(const cv::Mat& image, int factor, double full_scale, cv::Mat& out);
+
+  SegmenterOptions options_;
+  std::vector<float> ray_;
+  std::optional<double> period_px_;
+  bool period_measured_ = false;
+  int factor_ = 1;
+  Buffers buf_;
+};
+
+// Full scale of an image's values: 255 for 8-bit; for 16-bit the smallest of 2^10-1, 2^12-1, 2^14-1,
+// 2^16-1 not below the frame's maximum (cameras store 10-14 bit data in 16-bit files); 1 for float.
+double full_scale_of(const cv::Mat& image);
+
+}  // namespace tirstrain::contact

@@ -1,0 +1,164 @@
+#include "flow/settings.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.hpp"
+#include "core/yaml_reader.hpp"
+
+namespace tirstrain::flow {
+namespace {
+
+int odd(double v) {
+  const int i = std::max(3, static_cast<int>(std::lround(v)));
+  return i % 2 == 0 ? i + 1 : i;
+}
+
+}  // namespace
+
+std::string to_string(ShapeFunction shape) {
+  switch (shape) {
+    case ShapeFunction::kTranslation:
+      return "translation";
+    case ShapeFunction::kAffine:
+      return "affine";
+    case ShapeFunction::kQuadratic:
+      return "quadratic";
+  }
+  return "?";
+}
+
+const std::vector<std::string>& preset_names() {
+  static const std::vector<std::string> names = {"auto", "delhaye2016"};
+  return names;
+}
+
+SceneHints hints_from_scene(const Scene& scene) {
+  SceneHints h;
+  h.px_per_mm = scene.px_per_mm;
+  h.ridge_period_px = scene.ridge_period_mm.value_or(0.45) * scene.px_per_mm;
+  h.max_displacement_px = 0.5 * h.ridge_period_px;
+  return h;
+}
+
+TrackerSettings preset_settings(const std::string& name, const SceneHints& hints) {
+  TrackerSettings s;
+  s.preset = name;
+  s.max_displacement_px = hints.max_displacement_px;
+  const double period = hints.ridge_period_px;
+  if (name == "delhaye2016") {
+    // Delhaye et al. 2016: features on a 9 px grid, 101×101 px KLT window, up to 3000 features, tracked
+    // frame to frame with a three-level pyramid (levels 0..2) and no refinement against the first frame.
+    s.grid_step_px = 9.0;
+    s.max_features = 3000;
+    s.window_px = 101;
+    s.pyramid_levels = 2;
+    s.refine = false;
+    s.neighbour_check = false;
+    s.fusion_sigma_px = 0.0;
+    s.global_prediction = false;
+    s.reanchor_interval_frames = 0;
+    s.births = true;
+    return s;
+  }
+  if (name != "auto")
+    throw Error("unknown tracking preset '" + name + "' (known: auto, delhaye2016)",
+                {.key = "tracking.preset"});
+  // Sized from the ridge period P: the LK window spans about one period (enough texture to be well posed,
+  // small enough that the field is nearly uniform inside it); the refinement subset has a radius of about
+  // 0.55 P, where a second-order subset's curvature bias is negligible and its noise is still low; seeds on a
+  // grid of P/3 (three samples per ridge period, the finest spacing at which neighbouring subsets still
+  // differ). The pyramid is as deep as the largest expected displacement needs, but never so deep that the
+  // ridges (P / 2^L px at level L) fall below 4 px and vanish in the pyramid's smoothing.
+  s.grid_step_px = std::max(3.0, std::round(period / 3.0));
+  s.window_px = odd(period);
+  s.subset_radius_px = std::max(5, static_cast<int>(std::lround(0.55 * period)));
+  s.neighbour_radius_px = 3.0 * s.grid_step_px;
+  s.fusion_sigma_px = s.grid_step_px;
+  s.border_exclusion_px = std::round(0.6 * period);
+  s.border_margin_px = s.border_exclusion_px;
+  const double reach_px = 0.25 * s.window_px;  // what one level of LK follows reliably
+  const int needed = hints.max_displacement_px > reach_px
+                         ? static_cast<int>(std::ceil(std::log2(hints.max_displacement_px / reach_px)))
+                         : 0;
+  const int allowed = std::max(0, static_cast<int>(std::floor(std::log2(period / 4.0))));
+  s.pyramid_levels = std::clamp(needed, 0, allowed);
+  s.plate_subset_radius_px = 15;
+  return s;
+}
+
+TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& preset_override) {
+  YamlSection t(scene.tracking, scene.file, "tracking");
+  std::string preset = t.choice("preset", "auto", preset_names());
+  if (!preset_override.empty()) {
+    if (std::find(preset_names().begin(), preset_names().end(), preset_override) == preset_names().end())
+      throw Error("unknown tracking preset '" + preset_override + "' (known: auto, delhaye2016)",
+                  {.key = "--preset"});
+    preset = preset_override;
+  }
+  SceneHints hints = hints_from_scene(scene);
+  hints.max_displacement_px = t.number("max_displacement_px", hints.max_displacement_px, 0.0, 1000.0);
+  TrackerSettings s = preset_settings(preset, hints);
+  s.grid_step_px = t.number("grid_step_px", s.grid_step_px, 1.0, 1000.0);
+  s.max_features = static_cast<int>(t.integer("max_features", s.max_features, 1, 1000000));
+  s.min_eigen_quality = t.number("min_eigen_quality", s.min_eigen_quality, 0.0, 1.0);
+  s.births = t.boolean("births", s.births);
+  s.birth_interval_frames =
+      static_cast<int>(t.integer("birth_interval_frames", s.birth_interval_frames, 1, 100000));
+  s.window_px = static_cast<int>(t.integer("window_px", s.window_px, 3, 401));
+  if (s.window_px % 2 == 0)
+    throw Error("the LK window side must be odd", {.file = scene.file, .key = t.path_of("window_px")});
+  s.pyramid_levels = static_cast<int>(t.integer("pyramid_levels", s.pyramid_levels, 0, 8));
+  s.forward_backward_px = t.number("forward_backward_px", s.forward_backward_px, 0.0, 1000.0);
+  s.global_prediction = t.boolean("global_prediction", s.global_prediction);
+  const std::string refine = t.choice("refine", s.refine ? to_string(s.shape) : "none",
+                                      {"none", "translation", "affine", "quadratic"});
+  s.refine = refine != "none";
+  if (refine == "translation") s.shape = ShapeFunction::kTranslation;
+  if (refine == "affine") s.shape = ShapeFunction::kAffine;
+  if (refine == "quadratic") s.shape = ShapeFunction::kQuadratic;
+  s.subset_radius_px = static_cast<int>(t.integer("subset_radius_px", s.subset_radius_px, 3, 200));
+  s.subset_stride = static_cast<int>(t.integer("subset_stride", s.subset_stride, 1, 8));
+  s.match.max_iterations = static_cast<int>(t.integer("max_iterations", s.match.max_iterations, 1, 1000));
+  s.match.convergence_px = t.number("convergence_px", s.match.convergence_px, 1e-6, 1.0);
+  s.max_correction_px = t.number("max_correction_px", s.max_correction_px, 0.01, 1000.0);
+  s.min_zncc = t.number("min_zncc", s.min_zncc, -1.0, 1.0);
+  s.neighbour_check = t.boolean("neighbour_check", s.neighbour_check);
+  s.neighbour_tolerance_px = t.number("neighbour_tolerance_px", s.neighbour_tolerance_px, 0.01, 100.0);
+  s.border_exclusion_px = t.number("border_exclusion_px", s.border_exclusion_px, 0.0, 1000.0);
+  s.border_margin_px = t.number("border_margin_px", s.border_margin_px, 0.0, 1000.0);
+  s.fusion_sigma_px = t.number("fusion_sigma_px", s.fusion_sigma_px, 0.0, 1000.0);
+  s.fusion_weight = t.number("fusion_weight", s.fusion_weight, 0.0, 1000.0);
+  s.fusion_sweeps = static_cast<int>(t.integer("fusion_sweeps", s.fusion_sweeps, 0, 1000));
+  s.reanchor_interval_frames =
+      static_cast<int>(t.integer("reanchor_interval_frames", s.reanchor_interval_frames, 0, 100000));
+  s.plate_subset_radius_px =
+      static_cast<int>(t.integer("plate_subset_radius_px", s.plate_subset_radius_px, 3, 200));
+  t.finish();
+  if (s.neighbour_check && !s.refine)
+    throw Error(
+        "the neighbour check needs refinement (it compares deformation gradients): set refine or "
+        "neighbour_check: false",
+        {.file = scene.file, .key = t.path_of("neighbour_check")});
+  validate(s);
+  return s;
+}
+
+void validate(const TrackerSettings& s) {
+  const auto fail = [](const std::string& key, const std::string& message) {
+    throw Error(message, {.key = "tracking." + key});
+  };
+  if (!(s.grid_step_px >= 1.0)) fail("grid_step_px", "must be at least 1 px");
+  if (s.max_features < 1) fail("max_features", "must be at least 1");
+  if (s.window_px < 3 || s.window_px % 2 == 0) fail("window_px", "must be odd and at least 3");
+  if (s.pyramid_levels < 0 || s.pyramid_levels > 8) fail("pyramid_levels", "must lie in [0, 8]");
+  if (s.subset_radius_px < 3) fail("subset_radius_px", "must be at least 3 px");
+  if (s.subset_stride < 1 || s.subset_stride > s.subset_radius_px)
+    fail("subset_stride", "must lie in [1, radius]");
+  if (s.neighbour_check && !s.refine) fail("neighbour_check", "needs refinement");
+  if (s.birth_interval_frames < 1) fail("birth_interval_frames", "must be at least 1");
+  if (!(s.forward_backward_px > 0.0)) fail("forward_backward_px", "must be positive");
+  if (s.plate_subset_radius_px < 3) fail("plate_subset_radius_px", "must be at least 3 px");
+}
+
+}  // namespace tirstrain::flow

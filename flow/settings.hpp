@@ -1,0 +1,109 @@
+#pragma once
+// Tracking settings: the two presets (`auto`, sized from the scene, and `delhaye2016`, the paper's fixed
+// settings) and the scene file's `tracking:` section, parsed strictly.
+//
+//   tracking:
+//     preset: auto                  # or delhaye2016
+//     max_displacement_px: 12       # largest expected skin motion between two frames (sizes the pyramid)
+//     grid_step_px: 8               # any key below overrides the preset's value
+//     max_features: 3000
+//     window_px: 21                 # LK window side (odd)
+//     pyramid_levels: 2
+//     refine: quadratic             # none | translation | affine | quadratic (subset vs. anchor frame)
+//     subset_radius_px: 13
+//     subset_stride: 1
+//     ...
+#include <string>
+#include <vector>
+
+#include "core/scene.hpp"
+#include "flow/subset.hpp"
+
+namespace tirstrain::flow {
+
+struct TrackerSettings {
+  std::string preset = "auto";
+
+  // Seeding and births.
+  double grid_step_px = 8.0;
+  int max_features = 3000;
+  double min_eigen_quality = 0.01;  // Shi–Tomasi: kept if λ_min ≥ quality × the largest λ_min in the contact
+  int eigen_block_px = 7;           // Shi–Tomasi block side
+  bool births = true;
+  int birth_interval_frames = 5;  // look for thin coverage every this many frames
+  double border_margin_px = 3.0;  // seeds and births at least this far inside the contact
+  // Subset pixels closer than this to the contact border are not matched: there the ridge contrast fades
+  // with the partial contact, a pattern fixed in the image that the skin slides through, so it biases any
+  // match towards zero motion. Tracks whose subsets lose most of their pixels this way are retired.
+  double border_exclusion_px = 0.0;
+
+  // Frame-to-frame pyramidal Lucas–Kanade (the prediction).
+  int window_px = 21;
+  int pyramid_levels = 2;
+  int lk_max_iterations = 30;
+  double lk_epsilon = 0.01;
+  double forward_backward_px = 1.0;  // largest forward–backward disagreement
+  bool global_prediction = true;     // phase correlation of the contact between frames catches large jumps
+
+  // Refinement against the anchor frame (none: the paper's plain frame-to-frame chaining).
+  bool refine = true;
+  ShapeFunction shape = ShapeFunction::kQuadratic;
+  int subset_radius_px = 13;
+  int subset_stride = 1;
+  MatchOptions match;
+  double min_zncc = 0.6;
+  // A refined match further than this from its prediction is re-checked against the neighbours.
+  double max_correction_px = 3.0;
+
+  // Neighbour consistency (needs refinement: it uses each track's deformation gradient).
+  bool neighbour_check = true;
+  double neighbour_radius_px = 24.0;
+  double neighbour_tolerance_px = 0.6;
+  int min_neighbours = 3;
+
+  // Fusion: each refined position is replaced by the information-weighted mean of what it and its
+  // neighbours within ~2σ imply for it (carried over by their deformation gradients). A subset of about one
+  // ridge period pins the motion across its ridges but hardly along them; neighbours whose ridges run
+  // another way supply that direction. σ in reference pixels; 0 = off.
+  double fusion_sigma_px = 8.0;
+  double fusion_weight = 0.02;  // smoothness weight, as a fraction of each track's own information
+  int fusion_sweeps = 8;
+
+  // Drift control for unrefined (frame-to-frame) tracking: every this many frames, track again from the
+  // anchor frame to the current one and adopt that result where it agrees; 0 = never. Refined tracking is
+  // anchored every frame and needs none.
+  int reanchor_interval_frames = 0;
+  double reanchor_tolerance_px = 2.0;
+
+  // Plate motion from the pattern on the glass.
+  int plate_subset_radius_px = 15;
+  double plate_grid_step_px = 24.0;
+
+  // Largest expected skin displacement between consecutive frames (sizes the pyramid).
+  double max_displacement_px = 12.0;
+};
+
+// What the presets are sized from.
+struct SceneHints {
+  double px_per_mm = 52.0;
+  double ridge_period_px = 0.45 * 52.0;
+  double max_displacement_px = 12.0;
+};
+
+SceneHints hints_from_scene(const Scene& scene);
+
+// The preset's settings for a scene. Names: "auto", "delhaye2016". Throws Error for an unknown name.
+TrackerSettings preset_settings(const std::string& name, const SceneHints& hints);
+const std::vector<std::string>& preset_names();
+
+// The scene's `tracking:` section on top of its preset (`preset_override`, if not empty, replaces the
+// section's `preset`, e.g. from `--preset`). Unknown keys and out-of-range values throw Error naming the
+// file and key.
+TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& preset_override = "");
+
+// Checks a settings object built in code; throws Error naming the offending field.
+void validate(const TrackerSettings& settings);
+
+std::string to_string(ShapeFunction shape);
+
+}  // namespace tirstrain::flow

@@ -1,0 +1,347 @@
+#include "flow/subset.hpp"
+
+#include <Eigen/Dense>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace tirstrain::flow {
+namespace {
+
+using Vector12 = Eigen::Matrix<double, 12, 1>;
+// Directions of the scaled Hessian weaker than this fraction of the strongest are not solved for.
+constexpr double kEigenFloor = 2e-3;
+
+inline void keys_weights(float t, float w[4]) {
+  const float t2 = t * t, t3 = t2 * t;
+  w[0] = -0.5f * t3 + t2 - 0.5f * t;
+  w[1] = 1.5f * t3 - 2.5f * t2 + 1.0f;
+  w[2] = -1.5f * t3 + 2.0f * t2 + 0.5f * t;
+  w[3] = 0.5f * t3 - 0.5f * t2;
+}
+
+inline bool sample(const cv::Mat& image, double x, double y, float& value) {
+  const double fx = std::floor(x), fy = std::floor(y);
+  const int ix = static_cast<int>(fx), iy = static_cast<int>(fy);
+  if (ix < 1 || iy < 1 || ix + 2 >= image.cols || iy + 2 >= image.rows) return false;
+  float wx[4], wy[4];
+  keys_weights(static_cast<float>(x - fx), wx);
+  keys_weights(static_cast<float>(y - fy), wy);
+  const std::size_t step = image.step1();
+  const float* row = image.ptr<float>(iy - 1) + (ix - 1);
+  float sum = 0.0f;
+  for (int j = 0; j < 4; ++j, row += step)
+    sum += wy[j] * (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3]);
+  value = sum;
+  return true;
+}
+
+// Steepest-descent image of one reference pixel: ∇f · ∂W/∂p at p = 0.
+inline void jacobian(float dx, float dy, float gx, float gy, double j[12]) {
+  j[0] = gx;
+  j[1] = gy;
+  j[2] = gx * dx;
+  j[3] = gx * dy;
+  j[4] = gy * dx;
+  j[5] = gy * dy;
+  j[6] = 0.5 * gx * dx * dx;
+  j[7] = gx * dx * dy;
+  j[8] = 0.5 * gx * dy * dy;
+  j[9] = 0.5 * gy * dx * dx;
+  j[10] = gy * dx * dy;
+  j[11] = 0.5 * gy * dy * dy;
+}
+
+// Least-squares fit of a quadratic c0 + c1 a + c2 b + c3 a² + c4 ab + c5 b² to samples on {-1, 0, 1}².
+const Eigen::Matrix<double, 6, 9>& quadratic_fit() {
+  static const Eigen::Matrix<double, 6, 9> fit = [] {
+    Eigen::Matrix<double, 9, 6> basis;
+    int k = 0;
+    for (int b = -1; b <= 1; ++b)
+      for (int a = -1; a <= 1; ++a, ++k) basis.row(k) << 1, a, b, a * a, a * b, b * b;
+    return Eigen::Matrix<double, 6, 9>((basis.transpose() * basis).inverse() * basis.transpose());
+  }();
+  return fit;
+}
+
+// W(ξ; p) ← W(W⁻¹(ξ; Δp); p). Exact for translation and affine warps; for the second-order warp the
+// composite (a quartic) is projected back onto the quadratic shape function by a fit on nine nodes spanning
+// the subset. At convergence Δp → 0 and the projection is exact, so the solution does not depend on it.
+void compose_inverse(Warp& warp, const Vector12& dp, ShapeFunction shape, double span_px) {
+  auto& p = warp.p;
+  if (shape == ShapeFunction::kTranslation) {
+    p[0] -= dp[0];
+    p[1] -= dp[1];
+    return;
+  }
+  if (shape == ShapeFunction::kAffine) {
+    Eigen::Matrix2d a, da;
+    a << 1 + p[2], p[3], p[4], 1 + p[5];
+    da << 1 + dp[2], dp[3], dp[4], 1 + dp[5];
+    const Eigen::Matrix2d m = a * da.inverse();
+    const Eigen::Vector2d u = Eigen::Vector2d(p[0], p[1]) - m * Eigen::Vector2d(dp[0], dp[1]);
+    p[0] = u[0];
+    p[1] = u[1];
+    p[2] = m(0, 0) - 1;
+    p[3] = m(0, 1);
+    p[4] = m(1, 0);
+    p[5] = m(1, 1) - 1;
+    return;
+  }
+  Warp delta;
+  for (int i = 0; i < 12; ++i) delta.p[static_cast<std::size_t>(i)] = dp[i];
+  Eigen::Matrix<double, 9, 1> tx, ty;
+  int k = 0;
+  for (int b = -1; b <= 1; ++b) {
+    for (int a = -1; a <= 1; ++a, ++k) {
+      const double xi = a * span_px, yi = b * span_px;
+      // Solve η + Δu(η) = ξ by fixed-point iteration (Δp is small).
+      double ex = xi, ey = yi;
+      for (int it = 0; it < 3; ++it) {
+        const Vec2 d = delta.displacement_px(ex, ey);
+        ex = xi - d.x;
+        ey = yi - d.y;
+      }
+      const Vec2 u = warp.displacement_px(ex, ey);
+      tx[k] = ex + u.x - xi;
+      ty[k] = ey + u.y - yi;
+    }
+  }
+  const auto& fit = quadratic_fit();
+  const Eigen::Matrix<double, 6, 1> cx = fit * tx, cy = fit * ty;
+  const double s = span_px, s2 = span_px * span_px;
+  p = {cx[0],          cy[0],      cx[1] / s,      cx[2] / s,      cy[1] / s,  cy[2] / s,
+       2 * cx[3] / s2, cx[4] / s2, 2 * cx[5] / s2, 2 * cy[3] / s2, cy[4] / s2, 2 * cy[5] / s2};
+}
+
+// Pseudo-inverse of a Hessian that ignores the directions its texture leaves undetermined: along
+// straight ridges the SSD is flat, and a plain inverse turns the smallest model error into a large step
+// there (Gauss–Newton then "converges" anywhere along the ridge). Those directions keep their starting
+// value, which comes from the prediction and the neighbours. Judged on the Jacobi-scaled matrix because
+// the parameters mix px, px/px and px/px².
+Eigen::MatrixXd truncated_inverse(const Eigen::MatrixXd& h, double relative_floor) {
+  const Eigen::VectorXd d = h.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd scaled = d.asDiagonal() * h * d.asDiagonal();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(scaled);
+  const Eigen::VectorXd& l = eig.eigenvalues();
+  const double floor = relative_floor * l.maxCoeff();
+  Eigen::VectorXd inv(l.size());
+  for (Eigen::Index i = 0; i < l.size(); ++i) inv[i] = l[i] > floor ? 1.0 / l[i] : 0.0;
+  return d.asDiagonal() * (eig.eigenvectors() * inv.asDiagonal() * eig.eigenvectors().transpose()) *
+         d.asDiagonal();
+}
+
+inline bool mask_allows(const cv::Mat& mask, double x, double y) {
+  if (mask.empty()) return true;
+  const int ix = static_cast<int>(std::lround(x)), iy = static_cast<int>(std::lround(y));
+  if (ix < 0 || iy < 0 || ix >= mask.cols || iy >= mask.rows) return false;
+  return mask.ptr<std::uint8_t>(iy)[ix] != 0;
+}
+
+}  // namespace
+
+bool sample_bicubic(const cv::Mat& image, double x, double y, float& value) {
+  return sample(image, x, y, value);
+}
+
+void AnchorImage::assign(const cv::Mat& image, const cv::Mat& mask) {
+  CV_Assert(image.type() == CV_32F);
+  image.copyTo(image_);
+  // Sobel/8 is the central difference smoothed across: at ≥ 20 px ridge periods its gain is within 1 % of
+  // the true derivative, and the smoothing halves the noise in the steepest-descent images.
+  cv::Sobel(image_, gx_, CV_32F, 1, 0, 3, 1.0 / 8.0, 0.0, cv::BORDER_REPLICATE);
+  cv::Sobel(image_, gy_, CV_32F, 0, 1, 3, 1.0 / 8.0, 0.0, cv::BORDER_REPLICATE);
+  if (mask.empty())
+    mask_ = cv::Mat(image.size(), CV_8U, cv::Scalar(1));
+  else
+    cv::erode(mask, mask_, cv::Mat(), cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+}
+
+void erode_for_matching(const cv::Mat& mask, cv::Mat& out) {
+  cv::erode(mask, out, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(5, 5)), cv::Point(-1, -1), 1,
+            cv::BORDER_CONSTANT, cv::Scalar(0));
+}
+
+bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, int stride,
+                   ShapeFunction shape, int min_pixels) {
+  points_.clear();
+  centre_ = centre;
+  radius_px_ = radius_px;
+  shape_ = shape;
+  const int n = parameter_count(shape);
+  const cv::Mat& img = anchor.image();
+  const cv::Mat& mask = anchor.mask();
+  stride = std::max(1, stride);
+  for (int dy = -radius_px; dy <= radius_px; dy += stride) {
+    const int y = centre.y + dy;
+    if (y < 1 || y >= img.rows - 1) continue;
+    const float* row = img.ptr<float>(y);
+    const float* gxr = anchor.gx().ptr<float>(y);
+    const float* gyr = anchor.gy().ptr<float>(y);
+    const std::uint8_t* mrow = mask.ptr<std::uint8_t>(y);
+    for (int dx = -radius_px; dx <= radius_px; dx += stride) {
+      const int x = centre.x + dx;
+      if (x < 1 || x >= img.cols - 1 || mrow[x] == 0) continue;
+      points_.push_back({static_cast<float>(dx), static_cast<float>(dy), row[x], gxr[x], gyr[x]});
+    }
+  }
+  if (static_cast<int>(points_.size()) < std::max(min_pixels, 2 * n)) {
+    points_.clear();
+    return false;
+  }
+  double mean = 0.0;
+  for (const Pixel& p : points_) mean += p.f;
+  mean /= static_cast<double>(points_.size());
+  hessian_.setZero();
+  sum_j_.setZero();
+  sum_jf_.setZero();
+  sum_ff_ = 0.0;
+  double j[12];
+  for (Pixel& p : points_) {
+    p.f = static_cast<float>(p.f - mean);
+    jacobian(p.dx, p.dy, p.gx, p.gy, j);
+    const Eigen::Map<const Vector12> jv(j);
+    hessian_.topLeftCorner(n, n).noalias() += jv.head(n) * jv.head(n).transpose();
+    sum_j_.head(n) += jv.head(n);
+    sum_jf_.head(n) += jv.head(n) * p.f;
+    sum_ff_ += static_cast<double>(p.f) * p.f;
+  }
+  // The parameters mix units (px, px/px, px/px²): judge the conditioning on the scaled Hessian.
+  const Eigen::MatrixXd h = hessian_.topLeftCorner(n, n);
+  const Eigen::VectorXd d = h.diagonal().cwiseMax(1e-30).cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd scaled = d.asDiagonal() * h * d.asDiagonal();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(scaled, Eigen::EigenvaluesOnly);
+  if (sum_ff_ <= 1e-12 || eig.eigenvalues()[0] < 1e-6) {
+    points_.clear();
+    return false;
+  }
+  hessian_inverse_.setZero();
+  hessian_inverse_.topLeftCorner(n, n) = truncated_inverse(h, kEigenFloor);
+  // The inverse of the translation block of H⁻¹ is the Schur complement: the information on (u, v) once the
+  // other parameters are free.
+  information_ = h.inverse().topLeftCorner(2, 2).inverse() / sum_ff_;
+  return true;
+}
+
+double Subset::correlation(const cv::Mat& current, const cv::Mat& current_mask, const Warp& warp) const {
+  double sf = 0, sff = 0, sg = 0, sgg = 0, sfg = 0;
+  long count = 0;
+  for (const Pixel& p : points_) {
+    const Vec2 u = warp.displacement_px(p.dx, p.dy);
+    const double x = centre_.x + p.dx + u.x, y = centre_.y + p.dy + u.y;
+    float g;
+    if (!mask_allows(current_mask, x, y) || !sample(current, x, y, g)) continue;
+    sf += p.f, sff += static_cast<double>(p.f) * p.f, sg += g, sgg += static_cast<double>(g) * g;
+    sfg += static_cast<double>(p.f) * g;
+    ++count;
+  }
+  if (count < 3) return 0.0;
+  const double n = static_cast<double>(count);
+  const double df2 = sff - sf * sf / n, dg2 = sgg - sg * sg / n;
+  if (df2 <= 0 || dg2 <= 0) return 0.0;
+  return (sfg - sf * sg / n) / std::sqrt(df2 * dg2);
+}
+
+MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, Warp& warp,
+                          const MatchOptions& options) const {
+  MatchResult result;
+  if (points_.empty()) {
+    result.degenerate = true;
+    return result;
+  }
+  const int n = parameter_count(shape_);
+  for (int i = n; i < 12; ++i) warp.p[static_cast<std::size_t>(i)] = 0.0;
+  const double total = static_cast<double>(points_.size());
+  const double r = radius_px_;
+  const bool has_mask = !current_mask.empty();
+  double j[12];
+  Matrix h_out;
+  Vector sj_out, sjf_out, sjg;
+  for (int iter = 1; iter <= options.max_iterations; ++iter) {
+    result.iterations = iter;
+    h_out.setZero();
+    sj_out.setZero();
+    sjf_out.setZero();
+    sjg.setZero();
+    double sf_out = 0, sff_out = 0, sg = 0, sgg = 0, sfg = 0;
+    long outside = 0;
+    const auto& q = warp.p;
+    for (const Pixel& p : points_) {
+      const double dx = p.dx, dy = p.dy;
+      const double x = centre_.x + dx + q[0] + q[2] * dx + q[3] * dy +
+                       (0.5 * q[6] * dx * dx + q[7] * dx * dy + 0.5 * q[8] * dy * dy);
+      const double y = centre_.y + dy + q[1] + q[4] * dx + q[5] * dy +
+                       (0.5 * q[9] * dx * dx + q[10] * dx * dy + 0.5 * q[11] * dy * dy);
+      float g = 0.0f;
+      jacobian(p.dx, p.dy, p.gx, p.gy, j);
+      const Eigen::Map<const Vector12> jv(j);
+      if ((has_mask && !mask_allows(current_mask, x, y)) || !sample(current, x, y, g)) {
+        ++outside;
+        h_out.topLeftCorner(n, n).noalias() += jv.head(n) * jv.head(n).transpose();
+        sj_out.head(n) += jv.head(n);
+        sjf_out.head(n) += jv.head(n) * p.f;
+        sf_out += p.f;
+        sff_out += static_cast<double>(p.f) * p.f;
+        continue;
+      }
+      sjg.head(n) += jv.head(n) * g;
+      sg += g;
+      sgg += static_cast<double>(g) * g;
+      sfg += static_cast<double>(p.f) * g;
+    }
+    const double count = total - static_cast<double>(outside);
+    result.valid_fraction = count / total;
+    if (result.valid_fraction < options.min_valid_fraction || count < 2.0 * n) return result;
+    // f has zero mean over the whole subset; over the pixels still visible its mean is −Σ_out f / count.
+    const double f_mean = -sf_out / count;
+    const double df2 = (sum_ff_ - sff_out) - count * f_mean * f_mean;
+    const double g_mean = sg / count;
+    const double dg2 = sgg - count * g_mean * g_mean;
+    if (df2 <= 1e-12 || dg2 <= 1e-12) {
+      result.degenerate = true;
+      return result;
+    }
+    const double scale = std::sqrt(df2 / dg2);
+    // ZNCC at the current parameters: Σ(f − f̄)(g − ḡ) with Σ f g taken over visible pixels only.
+    result.zncc = (sfg - count * f_mean * g_mean) / std::sqrt(df2 * dg2);
+    const Vector sj = sum_j_ - sj_out;
+    const Vector sjf = sum_jf_ - sjf_out;
+    const Vector b = (sjf - f_mean * sj) - scale * (sjg - g_mean * sj);
+    Vector dp = Vector::Zero();
+    if (outside == 0) {
+      dp.head(n).noalias() = -hessian_inverse_.topLeftCorner(n, n) * b.head(n);
+    } else {
+      const Eigen::MatrixXd hv = hessian_.topLeftCorner(n, n) - h_out.topLeftCorner(n, n);
+      if (!(hv.diagonal().minCoeff() > 0.0)) {
+        result.degenerate = true;
+        return result;
+      }
+      dp.head(n) = -truncated_inverse(hv, kEigenFloor) * Eigen::VectorXd(b.head(n));
+    }
+    if (!dp.allFinite()) {
+      result.degenerate = true;
+      return result;
+    }
+    compose_inverse(warp, dp, shape_, r);
+    // Size of the step: the largest change of the displacement at the subset's corners.
+    Warp step;
+    for (int i = 0; i < n; ++i) step.p[static_cast<std::size_t>(i)] = dp[i];
+    double largest = 0.0;
+    for (double cy : {-r, r})
+      for (double cx : {-r, r}) {
+        const Vec2 d = step.displacement_px(cx, cy);
+        largest = std::max(largest, std::hypot(d.x, d.y));
+      }
+    const double ssd_change = dp.head(n).dot(hessian_.topLeftCorner(n, n) * dp.head(n)) / sum_ff_;
+    if (largest < options.convergence_px || ssd_change < options.convergence_ssd) {
+      result.converged = true;
+      return result;
+    }
+    // A step of several ridge periods means the iteration is running away, not converging.
+    if (largest > 4.0 * r + 20.0) return result;
+  }
+  return result;
+}
+
+}  // namespace tirstrain::flow

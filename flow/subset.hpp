@@ -1,0 +1,140 @@
+#pragma once
+// Subset matching against a reference (anchor) frame, as in digital image correlation: a square subset of
+// the reference image, masked to the contact, is warped by a shape function (translation, affine or
+// second-order) and matched to the current frame by inverse-compositional Gauss–Newton (IC-GN) on the
+// zero-normalised sum of squared differences, which is insensitive to a local offset and gain of the
+// illumination. IC-GN keeps the Hessian of the reference subset fixed, so a match costs one interpolation
+// pass per iteration; pixels whose warped position leaves the current contact are removed from the sums
+// (and their share subtracted from the Hessian), so a subset straddling the fixed contact border is never
+// pulled towards zero motion by the background.
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "core/tensor2.hpp"
+
+namespace tirstrain::flow {
+
+enum class ShapeFunction : std::uint8_t {
+  kTranslation = 2,  // u, v
+  kAffine = 6,       // + first derivatives
+  kQuadratic = 12,   // + second derivatives: follows the curvature of the field inside the subset
+};
+
+inline int parameter_count(ShapeFunction shape) {
+  return static_cast<int>(shape);
+}
+
+// Displacement of the subset's pixels as a function of their offset ξ from the subset centre, in the
+// anchor frame: u(ξ) = u + ux ξx + uy ξy + ½ uxx ξx² + uxy ξx ξy + ½ uyy ξy² (and v alike).
+// Parameter order: u, v, ux, uy, vx, vy, uxx, uxy, uyy, vxx, vxy, vyy (the first N are used).
+struct Warp {
+  std::array<double, 12> p{};
+
+  Vec2 displacement_px(double dx, double dy) const {
+    return {p[0] + p[2] * dx + p[3] * dy + 0.5 * p[6] * dx * dx + p[7] * dx * dy + 0.5 * p[8] * dy * dy,
+            p[1] + p[4] * dx + p[5] * dy + 0.5 * p[9] * dx * dx + p[10] * dx * dy + 0.5 * p[11] * dy * dy};
+  }
+  // du/dξ at ξ (dimensionless).
+  Gradient2 gradient(double dx, double dy) const {
+    return {p[2] + p[6] * dx + p[7] * dy, p[3] + p[7] * dx + p[8] * dy, p[4] + p[9] * dx + p[10] * dy,
+            p[5] + p[10] * dx + p[11] * dy};
+  }
+  // Moves the whole subset so that offset ξ lands at displacement `u` (keeps the gradient terms).
+  void set_displacement_at(double dx, double dy, Vec2 u) {
+    const Vec2 now = displacement_px(dx, dy);
+    p[0] += u.x - now.x;
+    p[1] += u.y - now.y;
+  }
+};
+
+// A frame prepared for use as an anchor: float image (full scale 1), its gradients and its contact mask.
+class AnchorImage {
+ public:
+  // `image` CV_32F; `mask` CV_8U (non-zero = usable) of the same size, or empty (everything usable). The
+  // mask is eroded by 1 px: the gradient (3×3 Sobel) of a pixel on the border sees the background.
+  void assign(const cv::Mat& image, const cv::Mat& mask);
+  const cv::Mat& image() const { return image_; }
+  const cv::Mat& gx() const { return gx_; }
+  const cv::Mat& gy() const { return gy_; }
+  const cv::Mat& mask() const { return mask_; }
+
+ private:
+  cv::Mat image_, gx_, gy_, mask_;
+};
+
+struct MatchOptions {
+  int max_iterations = 20;
+  double convergence_px = 2e-3;  // largest change of the displacement over the subset in the last step
+  // ... or the last step changed the normalised SSD by less than this: along the ridges a subset barely
+  // constrains the motion and Gauss–Newton creeps there; such a match is converged in every direction the
+  // texture determines, and what it leaves undetermined is weighted down by translation_information().
+  double convergence_ssd = 1e-6;
+  double min_valid_fraction = 0.5;
+};
+
+struct MatchResult {
+  bool converged = false;
+  int iterations = 0;
+  double zncc = 0.0;            // zero-normalised cross-correlation at the solution, in [-1, 1]
+  double valid_fraction = 0.0;  // share of the reference subset still inside the current mask and image
+  bool degenerate = false;      // too few pixels or no texture left to solve for the parameters
+};
+
+class Subset {
+ public:
+  // Builds the reference subset of (2 radius + 1)² pixels (every `stride`-th pixel) around the integer
+  // centre. Returns false (and stays empty) when fewer than `min_pixels` are inside the anchor's mask or
+  // the texture cannot determine the shape function's parameters.
+  bool build(const AnchorImage& anchor, cv::Point centre, int radius_px, int stride, ShapeFunction shape,
+             int min_pixels);
+  bool empty() const { return points_.empty(); }
+  cv::Point centre() const { return centre_; }
+  int radius_px() const { return radius_px_; }
+  ShapeFunction shape() const { return shape_; }
+  std::size_t pixel_count() const { return points_.size(); }
+  // How well the subset's texture pins down its translation (2×2, the Hessian's translation block with the
+  // other shape parameters eliminated), normalised by the texture's energy: large across the ridges, small
+  // along them.
+  const Eigen::Matrix2d& translation_information() const { return information_; }
+
+  // Refines `warp` (in/out) so that the subset matches `current` (CV_32F) where `current_mask` (CV_8U, may
+  // be empty) allows. The warp's unused parameters (beyond the shape function) are left at zero.
+  MatchResult match(const cv::Mat& current, const cv::Mat& current_mask, Warp& warp,
+                    const MatchOptions& options) const;
+  // ZNCC of the subset against `current` at `warp`, without iterating.
+  double correlation(const cv::Mat& current, const cv::Mat& current_mask, const Warp& warp) const;
+
+ private:
+  struct Pixel {
+    float dx, dy;  // offset from the centre
+    float f;       // reference intensity minus the subset mean
+    float gx, gy;  // reference gradient
+  };
+  using Vector = Eigen::Matrix<double, 12, 1>;
+  using Matrix = Eigen::Matrix<double, 12, 12>;
+
+  std::vector<Pixel> points_;
+  cv::Point centre_{0, 0};
+  int radius_px_ = 0;
+  ShapeFunction shape_ = ShapeFunction::kAffine;
+  // Sums over the whole reference subset, so the common case (nothing masked) needs no per-match setup.
+  Matrix hessian_ = Matrix::Zero();
+  Matrix hessian_inverse_ = Matrix::Zero();
+  Vector sum_j_ = Vector::Zero();
+  Vector sum_jf_ = Vector::Zero();
+  double sum_ff_ = 0.0;
+  Eigen::Matrix2d information_ = Eigen::Matrix2d::Zero();
+};
+
+// The mask a match should test warped pixels against: the contact eroded by the 2 px reach of the bicubic
+// kernel, so that no interpolated value mixes in the (static) background.
+void erode_for_matching(const cv::Mat& mask, cv::Mat& out);
+
+// Keys bicubic interpolation (a = −0.5) of a CV_32F image; false if the 4×4 support leaves the image.
+bool sample_bicubic(const cv::Mat& image, double x, double y, float& value);
+
+}  // namespace tirstrain::flow

@@ -1,0 +1,961 @@
+#include "flow/tracker.hpp"
+
+#include <Eigen/Dense>
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+
+#include "core/error.hpp"
+#include "flow/plate.hpp"
+
+namespace tirstrain::flow {
+namespace {
+
+using Mat2d = Eigen::Matrix2d;
+
+struct KeyFrame {
+  int frame = 0;
+  AnchorImage anchor;
+  cv::Mat image_u8;  // for re-anchoring unrefined tracks by LK
+  int users = 0;
+};
+
+struct TrackState {
+  int key = -1;
+  Subset subset;
+  Warp warp;
+  Vec2 offset;                            // track point minus subset centre, in the anchor frame
+  Mat2d birth = Mat2d::Identity();        // d(anchor position)/dX: identity for frame-0 tracks
+  Mat2d deformation = Mat2d::Identity();  // F = dx/dX now
+  Vec2 velocity;                          // motion over the last frame
+  Vec2 previous;                          // position in the previous frame
+  Vec2 guess;                             // where this frame's match started
+  Vec2 candidate;                         // this frame's match
+  Vec2 anchor_point;                      // the track's position in its anchor frame
+  bool lk_ok = false;
+  bool matched = false;
+  bool suspect = false;
+  MatchResult match;
+};
+
+bool inside_mask(const cv::Mat& mask, Vec2 p) {
+  const long ix = std::lround(p.x), iy = std::lround(p.y);
+  if (ix < 0 || iy < 0 || ix >= mask.cols || iy >= mask.rows) return false;
+  return mask.ptr<std::uint8_t>(static_cast<int>(iy))[ix] != 0;
+}
+
+double median_in_place(std::vector<double>& v) {
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  if (v.size() % 2 == 1) return *mid;
+  return 0.5 * (*mid + *std::max_element(v.begin(), mid));
+}
+
+Mat2d to_matrix(const Gradient2& g) {
+  Mat2d m;
+  m << g.xx, g.xy, g.yx, g.yy;
+  return m;
+}
+
+}  // namespace
+
+const char* to_string(TrackStatus status) {
+  switch (status) {
+    case TrackStatus::kTracked:
+      return "tracked";
+    case TrackStatus::kBorn:
+      return "born";
+    case TrackStatus::kRecovered:
+      return "recovered";
+    case TrackStatus::kUnchecked:
+      return "unchecked";
+    case TrackStatus::kLeftContact:
+      return "left_contact";
+    case TrackStatus::kForwardBackward:
+      return "forward_backward";
+    case TrackStatus::kPoorMatch:
+      return "poor_match";
+    case TrackStatus::kInconsistent:
+      return "inconsistent";
+    case TrackStatus::kLeftImage:
+      return "left_image";
+  }
+  return "?";
+}
+
+void to_float_image(const cv::Mat& image, cv::Mat& out) {
+  switch (image.depth()) {
+    case CV_8U:
+      image.convertTo(out, CV_32F, 1.0 / 255.0);
+      return;
+    case CV_16U:
+      image.convertTo(out, CV_32F, 1.0 / 65535.0);
+      return;
+    case CV_32F:
+      image.copyTo(out);
+      return;
+    default:
+      throw Error("unsupported image type (expected 8-bit, 16-bit or float grey)");
+  }
+}
+
+cv::Mat to_float_image(const cv::Mat& image) {
+  cv::Mat out;
+  to_float_image(image, out);
+  return out;
+}
+
+void to_u8_image(const cv::Mat& image, cv::Mat& out) {
+  switch (image.depth()) {
+    case CV_8U:
+      image.copyTo(out);
+      return;
+    case CV_16U:
+      image.convertTo(out, CV_8U, 1.0 / 257.0);
+      return;
+    case CV_32F:
+      image.convertTo(out, CV_8U, 255.0);
+      return;
+    default:
+      throw Error("unsupported image type (expected 8-bit, 16-bit or float grey)");
+  }
+}
+
+struct FeatureTracker::Impl {
+  TrackerSettings settings;
+  std::optional<RoiPx> plate_roi;
+  std::optional<PlateTracker> plate;
+
+  std::vector<Track> tracks;
+  std::vector<TrackState> states;
+  std::vector<std::unique_ptr<KeyFrame>> keys;
+  FrameStats stats;
+  int frame = -1;
+  bool points_mode = false;
+  cv::Size size;
+  double eigen_threshold = 0.0;
+
+  cv::Mat current_f, current_u8, previous_u8, mask, match_mask, birth_mask, eigen;
+  cv::Rect roi;
+  std::vector<cv::Mat> previous_pyramid, current_pyramid;
+  cv::Mat previous_hp, current_hp, hp_blur, hp_weight;
+
+  // Per-frame scratch, reused.
+  std::vector<int> alive;
+  std::vector<cv::Point2f> lk_from, lk_to, lk_back;
+  std::vector<unsigned char> lk_status, lk_back_status;
+  std::vector<float> lk_error;
+  std::vector<double> scratch_x, scratch_y;
+  std::vector<int> retry;
+  std::vector<Vec2> fused, measured;
+  // Spatial hash of live tracks by current position.
+  int hash_cols = 0, hash_rows = 0;
+  double hash_cell = 1.0;
+  std::vector<int> hash_start, hash_items, hash_fill;
+  std::vector<std::uint8_t> lattice_taken;
+  std::vector<int> neighbours;
+  std::vector<cv::Mat> anchor_pyramid;
+
+  void check_input(const cv::Mat& image, const cv::Mat& contact_mask) const;
+  void prepare(const cv::Mat& image, const cv::Mat& contact_mask);
+  void update_roi(bool rebuild_previous);
+  void build_pyramid(const cv::Mat& u8, std::vector<cv::Mat>& pyramid) const;
+  void high_pass(const cv::Mat& image, cv::Mat& out);
+  int add_key_frame();
+  void release_key(int key);
+  bool create_track(Vec2 position, Vec2 reference, const Mat2d& birth, Vec2 velocity, int key,
+                    TrackStatus status);
+  void seed_grid();
+  void predict_and_match();
+  void match_track(int index, Vec2 guess, const Warp* initial);
+  void build_hash(bool matched_only);
+  void gather_neighbours(Vec2 p, double radius, int self);
+  bool predict_from_neighbours(int index, Vec2& predicted, Mat2d& deformation);
+  void check_neighbours();
+  void reanchor();
+  void fuse();
+  void retire(int index, TrackStatus why);
+  void births();
+  void finish_frame();
+  double ridge_reach_px() const { return 0.25 * settings.window_px; }
+};
+
+void FeatureTracker::Impl::check_input(const cv::Mat& image, const cv::Mat& contact_mask) const {
+  if (image.empty()) throw Error("empty frame", {.frame = frame < 0 ? 0 : frame});
+  if (image.channels() != 1)
+    throw Error("expected a grey frame, got " + std::to_string(image.channels()) + " channels",
+                {.frame = frame < 0 ? 0 : frame});
+  if (frame >= 0 && image.size() != size)
+    throw Error("frame size " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+                    " differs from the first frame's " + std::to_string(size.width) + "x" +
+                    std::to_string(size.height),
+                {.frame = frame});
+  if (!contact_mask.empty() && (contact_mask.size() != image.size() || contact_mask.type() != CV_8U))
+    throw Error("the contact mask must be 8-bit and the size of the frame", {.frame = frame < 0 ? 0 : frame});
+}
+
+void FeatureTracker::Impl::prepare(const cv::Mat& image, const cv::Mat& contact_mask) {
+  to_float_image(image, current_f);
+  to_u8_image(image, current_u8);
+  if (contact_mask.empty())
+    mask = cv::Mat(image.size(), CV_8U, cv::Scalar(1));
+  else
+    cv::compare(contact_mask, 0, mask, cv::CMP_NE);
+  if (settings.refine) {
+    erode_for_matching(mask, match_mask);
+    const int e = static_cast<int>(std::lround(settings.border_exclusion_px));
+    if (e > 0)
+      cv::erode(match_mask, match_mask,
+                cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * e + 1, 2 * e + 1)),
+                cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+  }
+}
+
+void FeatureTracker::Impl::update_roi(bool rebuild_previous) {
+  cv::Rect box = cv::boundingRect(mask);
+  if (box.area() == 0) box = cv::Rect(0, 0, size.width, size.height);
+  const int margin = settings.window_px + static_cast<int>(std::ceil(2.0 * settings.max_displacement_px)) + 8;
+  box.x -= margin;
+  box.y -= margin;
+  box.width += 2 * margin;
+  box.height += 2 * margin;
+  box &= cv::Rect(0, 0, size.width, size.height);
+  if (roi.area() > 0 && (box & roi) == box) return;
+  roi = roi.area() > 0 ? (roi | box) : box;
+  if (rebuild_previous && !previous_u8.empty()) {
+    build_pyramid(previous_u8, previous_pyramid);
+    if (settings.global_prediction) {
+      // The previous high-passed image must cover the new ROI too.
+      cv::Mat previous_f;
+      previous_u8.convertTo(previous_f, CV_32F, 1.0 / 255.0);
+      high_pass(previous_f, previous_hp);
+    }
+  }
+}
+
+void FeatureTracker::Impl::build_pyramid(const cv::Mat& u8, std::vector<cv::Mat>& pyramid) const {
+  cv::buildOpticalFlowPyramid(u8(roi), pyramid, cv::Size(settings.window_px, settings.window_px),
+                              settings.pyramid_levels);
+}
+
+// Ridges only, faded out towards the contact border: the border stays put while the skin moves, so its
+// step would otherwise dominate the correlation and pull the global shift to zero.
+void FeatureTracker::Impl::high_pass(const cv::Mat& image, cv::Mat& out) {
+  const double period = 4.0 * ridge_reach_px();
+  const cv::Mat view = image(roi);
+  cv::GaussianBlur(view, hp_blur, cv::Size(0, 0), 0.5 * period);
+  cv::subtract(view, hp_blur, out);
+  mask(roi).convertTo(hp_weight, CV_32F);
+  cv::erode(hp_weight, hp_weight, cv::Mat(), cv::Point(-1, -1), static_cast<int>(0.5 * period));
+  cv::GaussianBlur(hp_weight, hp_weight, cv::Size(0, 0), 0.5 * period);
+  cv::multiply(out, hp_weight, out);
+}
+
+int FeatureTracker::Impl::add_key_frame() {
+  auto key = std::make_unique<KeyFrame>();
+  key->frame = frame;
+  if (settings.refine)
+    key->anchor.assign(current_f, match_mask);
+  else
+    current_u8.copyTo(key->image_u8);
+  // Reuse a released slot so the list does not grow over a long trial.
+  for (std::size_t i = 0; i < keys.size(); ++i)
+    if (!keys[i]) {
+      keys[i] = std::move(key);
+      return static_cast<int>(i);
+    }
+  keys.push_back(std::move(key));
+  return static_cast<int>(keys.size() - 1);
+}
+
+void FeatureTracker::Impl::release_key(int key) {
+  if (key < 0) return;
+  KeyFrame& k = *keys[static_cast<std::size_t>(key)];
+  if (--k.users == 0 && k.frame != frame) keys[static_cast<std::size_t>(key)].reset();
+}
+
+bool FeatureTracker::Impl::create_track(Vec2 position, Vec2 reference, const Mat2d& birth, Vec2 velocity,
+                                        int key, TrackStatus status) {
+  TrackState st;
+  st.key = key;
+  const cv::Point centre(static_cast<int>(std::lround(position.x)),
+                         static_cast<int>(std::lround(position.y)));
+  st.offset = {position.x - centre.x, position.y - centre.y};
+  st.birth = birth;
+  st.deformation = birth.inverse();
+  st.velocity = velocity;
+  st.previous = position;
+  st.anchor_point = position;
+  Track t;
+  t.id = static_cast<std::int64_t>(tracks.size());
+  t.reference_px = reference;
+  t.position_px = position;
+  t.status = status;
+  t.born_frame = frame;
+  t.zncc = 1.0;
+  if (settings.refine) {
+    const int r = settings.subset_radius_px;
+    const int side = 2 * (r / settings.subset_stride) + 1;
+    const bool ok = st.subset.build(keys[static_cast<std::size_t>(key)]->anchor, centre, r,
+                                    settings.subset_stride, settings.shape, side * side / 3);
+    if (!ok) {
+      if (!points_mode) return false;
+      // A point the user asked for is kept in the output, retired at once.
+      t.status = TrackStatus::kPoorMatch;
+      t.retired_frame = frame;
+      tracks.push_back(t);
+      st.key = -1;
+      states.push_back(std::move(st));
+      return true;
+    }
+  }
+  ++keys[static_cast<std::size_t>(key)]->users;
+  tracks.push_back(t);
+  states.push_back(std::move(st));
+  return true;
+}
+
+void FeatureTracker::Impl::seed_grid() {
+  const int margin = static_cast<int>(std::ceil(settings.border_margin_px));
+  cv::erode(mask, birth_mask,
+            cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * margin + 1, 2 * margin + 1)));
+  cv::cornerMinEigenVal(current_f(roi), eigen, settings.eigen_block_px, 3);
+  double largest = 0.0;
+  cv::minMaxLoc(eigen, nullptr, &largest, nullptr, nullptr, birth_mask(roi));
+  eigen_threshold = settings.min_eigen_quality * largest;
+  struct Candidate {
+    float strength;
+    cv::Point p;
+  };
+  std::vector<Candidate> candidates;
+  const double step = settings.grid_step_px;
+  const int i0 = static_cast<int>(std::ceil(roi.x / step)),
+            i1 = static_cast<int>((roi.x + roi.width - 1) / step);
+  const int j0 = static_cast<int>(std::ceil(roi.y / step)),
+            j1 = static_cast<int>((roi.y + roi.height - 1) / step);
+  for (int j = j0; j <= j1; ++j)
+    for (int i = i0; i <= i1; ++i) {
+      const cv::Point p(static_cast<int>(std::lround(i * step)), static_cast<int>(std::lround(j * step)));
+      if (!roi.contains(p) || !birth_mask.at<std::uint8_t>(p)) continue;
+      const float strength = eigen.at<float>(p - roi.tl());
+      if (strength >= eigen_threshold && strength > 0.0f) candidates.push_back({strength, p});
+    }
+  if (static_cast<int>(candidates.size()) > settings.max_features) {
+    std::nth_element(candidates.begin(), candidates.begin() + settings.max_features, candidates.end(),
+                     [](const Candidate& a, const Candidate& b) { return a.strength > b.strength; });
+    candidates.resize(static_cast<std::size_t>(settings.max_features));
+    std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+      return a.p.y != b.p.y ? a.p.y < b.p.y : a.p.x < b.p.x;
+    });
+  }
+  for (const Candidate& c : candidates) {
+    const Vec2 p{static_cast<double>(c.p.x), static_cast<double>(c.p.y)};
+    create_track(p, p, Mat2d::Identity(), {}, 0, TrackStatus::kTracked);
+  }
+}
+
+void FeatureTracker::Impl::match_track(int index, Vec2 guess, const Warp* initial) {
+  TrackState& st = states[static_cast<std::size_t>(index)];
+  if (initial) st.warp = *initial;
+  const cv::Point c = st.subset.centre();
+  st.warp.set_displacement_at(st.offset.x, st.offset.y,
+                              {guess.x - c.x - st.offset.x, guess.y - c.y - st.offset.y});
+  st.guess = guess;
+  st.match = st.subset.match(current_f, match_mask, st.warp, settings.match);
+  const Vec2 u = st.warp.displacement_px(st.offset.x, st.offset.y);
+  st.candidate = {c.x + st.offset.x + u.x, c.y + st.offset.y + u.y};
+  st.matched = st.match.converged && st.match.zncc >= settings.min_zncc;
+  const double moved = std::hypot(st.candidate.x - guess.x, st.candidate.y - guess.y);
+  st.suspect = !st.matched || moved > settings.max_correction_px;
+  if (st.matched) {
+    const Mat2d a = Mat2d::Identity() + to_matrix(st.warp.gradient(st.offset.x, st.offset.y));
+    st.deformation = a * st.birth;
+  }
+}
+
+void FeatureTracker::Impl::predict_and_match() {
+  alive.clear();
+  for (std::size_t i = 0; i < tracks.size(); ++i)
+    if (is_alive(tracks[i].status)) alive.push_back(static_cast<int>(i));
+  stats.global_jump = false;
+  stats.global_shift_px = {};
+
+  // Prediction: each track's own last motion, unless the whole contact jumped.
+  Vec2 shift{0.0, 0.0};
+  if (settings.global_prediction && !alive.empty()) {
+    high_pass(current_f, current_hp);
+    if (previous_hp.size() == current_hp.size()) {
+      double response = 0.0;
+      const cv::Point2d s = cv::phaseCorrelate(previous_hp, current_hp, cv::noArray(), &response);
+      stats.global_shift_px = {s.x, s.y};
+      scratch_x.clear();
+      scratch_y.clear();
+      for (int i : alive) {
+        scratch_x.push_back(states[static_cast<std::size_t>(i)].velocity.x);
+        scratch_y.push_back(states[static_cast<std::size_t>(i)].velocity.y);
+      }
+      const double vx = median_in_place(scratch_x), vy = median_in_place(scratch_y);
+      if (response > 0.05 && std::hypot(s.x - vx, s.y - vy) > ridge_reach_px()) {
+        stats.global_jump = true;
+        shift = {s.x, s.y};
+      }
+    }
+  }
+  const int n = static_cast<int>(alive.size());
+  lk_from.resize(static_cast<std::size_t>(n));
+  lk_to.resize(static_cast<std::size_t>(n));
+  const cv::Point2f tl(static_cast<float>(roi.x), static_cast<float>(roi.y));
+  for (int k = 0; k < n; ++k) {
+    const TrackState& st = states[static_cast<std::size_t>(alive[static_cast<std::size_t>(k)])];
+    const Vec2 motion = stats.global_jump ? shift : st.velocity;
+    lk_from[static_cast<std::size_t>(k)] =
+        cv::Point2f(static_cast<float>(st.previous.x), static_cast<float>(st.previous.y)) - tl;
+    lk_to[static_cast<std::size_t>(k)] = cv::Point2f(static_cast<float>(st.previous.x + motion.x),
+                                                     static_cast<float>(st.previous.y + motion.y)) -
+                                         tl;
+  }
+  const cv::Size window(settings.window_px, settings.window_px);
+  const cv::TermCriteria term(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, settings.lk_max_iterations,
+                              settings.lk_epsilon);
+  if (n > 0) {
+    cv::calcOpticalFlowPyrLK(previous_pyramid, current_pyramid, lk_from, lk_to, lk_status, lk_error, window,
+                             settings.pyramid_levels, term, cv::OPTFLOW_USE_INITIAL_FLOW);
+    lk_back = lk_from;
+    cv::calcOpticalFlowPyrLK(current_pyramid, previous_pyramid, lk_to, lk_back, lk_back_status, lk_error,
+                             window, settings.pyramid_levels, term, cv::OPTFLOW_USE_INITIAL_FLOW);
+  }
+  for (int k = 0; k < n; ++k) {
+    const auto kk = static_cast<std::size_t>(k);
+    TrackState& st = states[static_cast<std::size_t>(alive[kk])];
+    const double fb = std::hypot(lk_back[kk].x - lk_from[kk].x, lk_back[kk].y - lk_from[kk].y);
+    st.lk_ok = lk_status[kk] && lk_back_status[kk] && fb <= settings.forward_backward_px;
+    const Vec2 motion = stats.global_jump ? shift : st.velocity;
+    st.guess = st.lk_ok ? Vec2{lk_to[kk].x + tl.x, lk_to[kk].y + tl.y}
+                        : Vec2{st.previous.x + motion.x, st.previous.y + motion.y};
+    st.candidate = st.guess;
+    st.matched = st.lk_ok;
+    st.suspect = false;
+    if (!settings.refine && !st.lk_ok) st.suspect = true;  // retired below with the reason
+  }
+  if (!settings.refine) return;
+  cv::parallel_for_(cv::Range(0, n), [&](const cv::Range& range) {
+    for (int k = range.start; k < range.end; ++k) {
+      const int index = alive[static_cast<std::size_t>(k)];
+      TrackState& st = states[static_cast<std::size_t>(index)];
+      const Vec2 first = st.guess;
+      match_track(index, first, nullptr);
+      // A failed LK guess is not the only start: the track's own motion may still be right.
+      if (st.suspect && st.lk_ok) {
+        const Vec2 motion = stats.global_jump ? shift : st.velocity;
+        const Vec2 second{st.previous.x + motion.x, st.previous.y + motion.y};
+        if (std::hypot(second.x - first.x, second.y - first.y) > 0.5) {
+          const Warp kept = st.warp;
+          const MatchResult kept_match = st.match;
+          const Vec2 kept_candidate = st.candidate;
+          match_track(index, second, nullptr);
+          if (st.suspect) {
+            st.warp = kept;
+            st.match = kept_match;
+            st.candidate = kept_candidate;
+            st.guess = first;
+          }
+        }
+      }
+    }
+  });
+}
+
+void FeatureTracker::Impl::build_hash(bool matched_only) {
+  hash_cell = std::max(4.0, settings.neighbour_radius_px);
+  hash_cols = static_cast<int>(size.width / hash_cell) + 1;
+  hash_rows = static_cast<int>(size.height / hash_cell) + 1;
+  const std::size_t cells = static_cast<std::size_t>(hash_cols) * static_cast<std::size_t>(hash_rows);
+  hash_start.assign(cells + 1, 0);
+  hash_items.clear();
+  const auto cell_of = [&](Vec2 p) {
+    const int cx = std::clamp(static_cast<int>(p.x / hash_cell), 0, hash_cols - 1);
+    const int cy = std::clamp(static_cast<int>(p.y / hash_cell), 0, hash_rows - 1);
+    return static_cast<std::size_t>(cy) * static_cast<std::size_t>(hash_cols) + static_cast<std::size_t>(cx);
+  };
+  const auto usable = [&](int i) {
+    const TrackState& st = states[static_cast<std::size_t>(i)];
+    return is_alive(tracks[static_cast<std::size_t>(i)].status) &&
+           (!matched_only || (st.matched && !st.suspect));
+  };
+  for (int i : alive)
+    if (usable(i)) ++hash_start[cell_of(states[static_cast<std::size_t>(i)].candidate) + 1];
+  for (std::size_t c = 0; c < cells; ++c) hash_start[c + 1] += hash_start[c];
+  hash_items.resize(static_cast<std::size_t>(hash_start[cells]));
+  hash_fill.assign(hash_start.begin(), hash_start.end() - 1);
+  for (int i : alive)
+    if (usable(i))
+      hash_items[static_cast<std::size_t>(
+          hash_fill[cell_of(states[static_cast<std::size_t>(i)].candidate)]++)] = i;
+}
+
+void FeatureTracker::Impl::gather_neighbours(Vec2 p, double radius, int self) {
+  neighbours.clear();
+  const int cx0 = std::max(0, static_cast<int>((p.x - radius) / hash_cell));
+  const int cx1 = std::min(hash_cols - 1, static_cast<int>((p.x + radius) / hash_cell));
+  const int cy0 = std::max(0, static_cast<int>((p.y - radius) / hash_cell));
+  const int cy1 = std::min(hash_rows - 1, static_cast<int>((p.y + radius) / hash_cell));
+  const double r2 = radius * radius;
+  for (int cy = cy0; cy <= cy1; ++cy)
+    for (int cx = cx0; cx <= cx1; ++cx) {
+      const std::size_t c =
+          static_cast<std::size_t>(cy) * static_cast<std::size_t>(hash_cols) + static_cast<std::size_t>(cx);
+      for (int k = hash_start[c]; k < hash_start[c + 1]; ++k) {
+        const int j = hash_items[static_cast<std::size_t>(k)];
+        if (j == self) continue;
+        const Vec2 q = states[static_cast<std::size_t>(j)].candidate;
+        const double dx = q.x - p.x, dy = q.y - p.y;
+        if (dx * dx + dy * dy <= r2) neighbours.push_back(j);
+      }
+    }
+}
+
+// Where the neighbours put track `index`: each carries its own position over to the track's reference
+// position by the mean of its and (if trusted) the track's deformation gradient — the trapezoid rule,
+// exact for a quadratic field. The median over neighbours ignores a minority of wrong ones.
+bool FeatureTracker::Impl::predict_from_neighbours(int index, Vec2& predicted, Mat2d& deformation) {
+  const TrackState& st = states[static_cast<std::size_t>(index)];
+  const Vec2 X = tracks[static_cast<std::size_t>(index)].reference_px;
+  gather_neighbours(st.candidate, settings.neighbour_radius_px, index);
+  if (static_cast<int>(neighbours.size()) < settings.min_neighbours) return false;
+  scratch_x.clear();
+  scratch_y.clear();
+  Mat2d sum = Mat2d::Zero();
+  const bool own = st.matched && !st.suspect;
+  for (int j : neighbours) {
+    const TrackState& nb = states[static_cast<std::size_t>(j)];
+    const Vec2 Xj = tracks[static_cast<std::size_t>(j)].reference_px;
+    const Mat2d f = own ? Mat2d(0.5 * (nb.deformation + st.deformation)) : nb.deformation;
+    const Eigen::Vector2d d = f * Eigen::Vector2d(X.x - Xj.x, X.y - Xj.y);
+    scratch_x.push_back(nb.candidate.x + d.x());
+    scratch_y.push_back(nb.candidate.y + d.y());
+    sum += nb.deformation;
+  }
+  predicted = {median_in_place(scratch_x), median_in_place(scratch_y)};
+  deformation = sum / static_cast<double>(neighbours.size());
+  return true;
+}
+
+void FeatureTracker::Impl::check_neighbours() {
+  build_hash(true);
+  retry.clear();
+  for (int i : alive) {
+    TrackState& st = states[static_cast<std::size_t>(i)];
+    Vec2 predicted;
+    Mat2d deformation;
+    if (!predict_from_neighbours(i, predicted, deformation)) {
+      if (st.suspect)
+        retire(i, st.match.valid_fraction < settings.match.min_valid_fraction ? TrackStatus::kLeftContact
+                                                                              : TrackStatus::kPoorMatch);
+      else
+        tracks[static_cast<std::size_t>(i)].status = TrackStatus::kUnchecked;
+      continue;
+    }
+    const double deviation = std::hypot(st.candidate.x - predicted.x, st.candidate.y - predicted.y);
+    if (!st.suspect && deviation <= settings.neighbour_tolerance_px) continue;
+    if (st.match.valid_fraction < settings.match.min_valid_fraction) {
+      retire(i, TrackStatus::kLeftContact);
+      continue;
+    }
+    // Re-match from the neighbours' prediction, with their deformation as the subset's first-order terms.
+    Warp w;
+    const Mat2d a = deformation * st.birth.inverse() - Mat2d::Identity();
+    w.p[2] = a(0, 0);
+    w.p[3] = a(0, 1);
+    w.p[4] = a(1, 0);
+    w.p[5] = a(1, 1);
+    if (settings.shape == ShapeFunction::kTranslation) w.p[2] = w.p[3] = w.p[4] = w.p[5] = 0.0;
+    st.warp = w;
+    st.guess = predicted;
+    retry.push_back(i);
+  }
+  cv::parallel_for_(cv::Range(0, static_cast<int>(retry.size())), [&](const cv::Range& range) {
+    for (int k = range.start; k < range.end; ++k) {
+      const int i = retry[static_cast<std::size_t>(k)];
+      TrackState& st = states[static_cast<std::size_t>(i)];
+      const Warp w = st.warp;
+      match_track(i, st.guess, &w);
+    }
+  });
+  for (int i : retry) {
+    TrackState& st = states[static_cast<std::size_t>(i)];
+    const double deviation = std::hypot(st.candidate.x - st.guess.x, st.candidate.y - st.guess.y);
+    if (st.matched && deviation <= settings.neighbour_tolerance_px) {
+      st.suspect = false;
+      tracks[static_cast<std::size_t>(i)].status = TrackStatus::kRecovered;
+      ++stats.recovered;
+    } else {
+      retire(i, st.matched ? TrackStatus::kInconsistent
+                           : (st.match.valid_fraction < settings.match.min_valid_fraction
+                                  ? TrackStatus::kLeftContact
+                                  : TrackStatus::kPoorMatch));
+    }
+  }
+}
+
+// Unrefined tracks only: LK from each anchor frame straight to the current frame, started at the chained
+// estimate. Where both agree, the anchored result replaces the chained one, so the random walk of
+// frame-to-frame chaining is reset every few frames instead of growing over the whole trial.
+void FeatureTracker::Impl::reanchor() {
+  const cv::Size window(settings.window_px, settings.window_px);
+  const cv::TermCriteria term(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, settings.lk_max_iterations,
+                              settings.lk_epsilon);
+  const cv::Point2f tl(static_cast<float>(roi.x), static_cast<float>(roi.y));
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    if (!keys[k] || keys[k]->users == 0 || keys[k]->frame == frame) continue;
+    retry.clear();
+    lk_from.clear();
+    lk_to.clear();
+    for (int i : alive) {
+      const TrackState& st = states[static_cast<std::size_t>(i)];
+      if (st.key != static_cast<int>(k) || !is_alive(tracks[static_cast<std::size_t>(i)].status) ||
+          st.suspect)
+        continue;
+      retry.push_back(i);
+      lk_from.push_back(
+          cv::Point2f(static_cast<float>(st.anchor_point.x), static_cast<float>(st.anchor_point.y)) - tl);
+      lk_to.push_back(cv::Point2f(static_cast<float>(st.candidate.x), static_cast<float>(st.candidate.y)) -
+                      tl);
+    }
+    if (retry.empty()) continue;
+    build_pyramid(keys[k]->image_u8, anchor_pyramid);
+    cv::calcOpticalFlowPyrLK(anchor_pyramid, current_pyramid, lk_from, lk_to, lk_status, lk_error, window,
+                             settings.pyramid_levels, term, cv::OPTFLOW_USE_INITIAL_FLOW);
+    for (std::size_t n = 0; n < retry.size(); ++n) {
+      TrackState& st = states[static_cast<std::size_t>(retry[n])];
+      const Vec2 anchored{lk_to[n].x + tl.x, lk_to[n].y + tl.y};
+      if (lk_status[n] && std::hypot(anchored.x - st.candidate.x, anchored.y - st.candidate.y) <=
+                              settings.reanchor_tolerance_px)
+        st.candidate = anchored;
+    }
+  }
+}
+
+// A subset of about one ridge period pins the motion across its ridges but hardly along them, and where
+// the ridges run straight for a while, all its neighbours share that blind direction. So the positions are
+// the solution of a small regularised least-squares problem: each track's match weighted by its subset's
+// translation information, plus a weak smoothness term tying it to what its neighbours imply (their
+// positions carried over by the mean deformation gradient). The smoothness weight is a small fraction of
+// each track's own information, so it decides only the directions the texture leaves open; Jacobi sweeps,
+// warm-started from the matches, spread that information along the ridges.
+void FeatureTracker::Impl::fuse() {
+  const double sigma = settings.fusion_sigma_px;
+  const double radius = 2.0 * sigma;
+  build_hash(true);
+  const std::size_t n = alive.size();
+  fused.resize(n);
+  measured.resize(n);
+  for (std::size_t k = 0; k < n; ++k) measured[k] = states[static_cast<std::size_t>(alive[k])].candidate;
+  for (int sweep = 0; sweep < settings.fusion_sweeps; ++sweep) {
+    cv::parallel_for_(cv::Range(0, static_cast<int>(n)), [&](const cv::Range& range) {
+      for (int k = range.start; k < range.end; ++k) {
+        const int i = alive[static_cast<std::size_t>(k)];
+        const TrackState& st = states[static_cast<std::size_t>(i)];
+        fused[static_cast<std::size_t>(k)] = st.candidate;
+        if (!is_alive(tracks[static_cast<std::size_t>(i)].status) || !st.matched || st.suspect) continue;
+        const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
+        const Vec2 p = st.candidate;
+        const Eigen::Matrix2d own = st.subset.translation_information();
+        const double alpha = settings.fusion_weight * 0.5 * own.trace();
+        const Vec2 m = measured[static_cast<std::size_t>(k)];
+        Eigen::Matrix2d a = own;
+        Eigen::Vector2d b = own * Eigen::Vector2d(m.x, m.y);
+        double wsum = 0.0;
+        Eigen::Vector2d q_sum = Eigen::Vector2d::Zero();
+        const int cx0 = std::max(0, static_cast<int>((p.x - radius) / hash_cell));
+        const int cx1 = std::min(hash_cols - 1, static_cast<int>((p.x + radius) / hash_cell));
+        const int cy0 = std::max(0, static_cast<int>((p.y - radius) / hash_cell));
+        const int cy1 = std::min(hash_rows - 1, static_cast<int>((p.y + radius) / hash_cell));
+        for (int cy = cy0; cy <= cy1; ++cy)
+          for (int cx = cx0; cx <= cx1; ++cx) {
+            const std::size_t c = static_cast<std::size_t>(cy) * static_cast<std::size_t>(hash_cols) +
+                                  static_cast<std::size_t>(cx);
+            for (int h = hash_start[c]; h < hash_start[c + 1]; ++h) {
+              const int j = hash_items[static_cast<std::size_t>(h)];
+              if (j == i) continue;
+              const TrackState& nb = states[static_cast<std::size_t>(j)];
+              const Vec2 Xj = tracks[static_cast<std::size_t>(j)].reference_px;
+              const double dx = X.x - Xj.x, dy = X.y - Xj.y, d2 = dx * dx + dy * dy;
+              if (d2 > radius * radius) continue;
+              const double w = std::exp(-0.5 * d2 / (sigma * sigma));
+              q_sum += w * (Eigen::Vector2d(nb.candidate.x, nb.candidate.y) +
+                            0.5 * (nb.deformation + st.deformation) * Eigen::Vector2d(dx, dy));
+              wsum += w;
+            }
+          }
+        if (wsum <= 0.0) continue;
+        a += alpha * Eigen::Matrix2d::Identity();
+        b += alpha * q_sum / wsum;
+        const Eigen::Vector2d x = a.inverse() * b;
+        if (x.allFinite()) fused[static_cast<std::size_t>(k)] = {x.x(), x.y()};
+      }
+    });
+    for (std::size_t k = 0; k < n; ++k) states[static_cast<std::size_t>(alive[k])].candidate = fused[k];
+  }
+}
+
+void FeatureTracker::Impl::retire(int index, TrackStatus why) {
+  Track& t = tracks[static_cast<std::size_t>(index)];
+  if (!is_alive(t.status)) return;
+  t.status = why;
+  t.retired_frame = frame;
+  TrackState& st = states[static_cast<std::size_t>(index)];
+  release_key(st.key);
+  st.key = -1;
+  st.subset = Subset();
+  ++stats.retired;
+}
+
+void FeatureTracker::Impl::births() {
+  // Lattice points of the seeding grid that no live track is near any more.
+  const double step = settings.grid_step_px;
+  const int cols = static_cast<int>((size.width - 1) / step) + 1,
+            rows = static_cast<int>((size.height - 1) / step) + 1;
+  lattice_taken.assign(static_cast<std::size_t>(cols) * static_cast<std::size_t>(rows), 0);
+  int live = 0;
+  for (int i : alive) {
+    if (!is_alive(tracks[static_cast<std::size_t>(i)].status)) continue;
+    ++live;
+    const Vec2 p = states[static_cast<std::size_t>(i)].candidate;
+    const int ci = static_cast<int>(std::floor(p.x / step)), cj = static_cast<int>(std::floor(p.y / step));
+    for (int dj = 0; dj <= 1; ++dj)
+      for (int di = 0; di <= 1; ++di) {
+        const int li = ci + di, lj = cj + dj;
+        if (li < 0 || lj < 0 || li >= cols || lj >= rows) continue;
+        if (std::hypot(li * step - p.x, lj * step - p.y) < 0.6 * step)
+          lattice_taken[static_cast<std::size_t>(lj) * static_cast<std::size_t>(cols) +
+                        static_cast<std::size_t>(li)] = 1;
+      }
+  }
+  if (live >= settings.max_features) return;
+  const int margin = static_cast<int>(std::ceil(settings.border_margin_px));
+  cv::erode(mask, birth_mask,
+            cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * margin + 1, 2 * margin + 1)));
+  cv::cornerMinEigenVal(current_f(roi), eigen, settings.eigen_block_px, 3);
+  build_hash(false);
+  int key = -1;
+  const double radius = std::max(settings.neighbour_radius_px, 2.5 * step);
+  for (int lj = 0; lj < rows && live < settings.max_features; ++lj)
+    for (int li = 0; li < cols && live < settings.max_features; ++li) {
+      if (lattice_taken[static_cast<std::size_t>(lj) * static_cast<std::size_t>(cols) +
+                        static_cast<std::size_t>(li)])
+        continue;
+      const cv::Point p(static_cast<int>(std::lround(li * step)), static_cast<int>(std::lround(lj * step)));
+      if (!roi.contains(p) || !birth_mask.at<std::uint8_t>(p)) continue;
+      if (eigen.at<float>(p - roi.tl()) < eigen_threshold) continue;
+      const Vec2 x{static_cast<double>(p.x), static_cast<double>(p.y)};
+      gather_neighbours(x, radius, -1);
+      if (neighbours.size() < 4) continue;
+      // Local fit of the map current → reference position around the newborn, weighted towards the
+      // nearest neighbours; quadratic when the neighbours surround it, affine when they lie to one side
+      // (extrapolating a quadratic is unstable).
+      int quadrants = 0;
+      for (int j : neighbours) {
+        const Vec2 q = states[static_cast<std::size_t>(j)].candidate;
+        quadrants |= 1 << ((q.x >= x.x ? 1 : 0) + (q.y >= x.y ? 2 : 0));
+      }
+      const bool quadratic = neighbours.size() >= 10 && quadrants == 15;
+      const int m = quadratic ? 6 : 3;
+      Eigen::MatrixXd a(static_cast<Eigen::Index>(neighbours.size()), m);
+      Eigen::MatrixXd b(static_cast<Eigen::Index>(neighbours.size()), 2);
+      Eigen::VectorXd w(static_cast<Eigen::Index>(neighbours.size()));
+      Vec2 velocity{0.0, 0.0};
+      double wsum = 0.0;
+      for (std::size_t k = 0; k < neighbours.size(); ++k) {
+        const int j = neighbours[k];
+        const Vec2 q = states[static_cast<std::size_t>(j)].candidate;
+        const double dx = (q.x - x.x) / radius, dy = (q.y - x.y) / radius;
+        const auto r = static_cast<Eigen::Index>(k);
+        a(r, 0) = 1.0;
+        a(r, 1) = dx;
+        a(r, 2) = dy;
+        if (quadratic) {
+          a(r, 3) = dx * dx;
+          a(r, 4) = dx * dy;
+          a(r, 5) = dy * dy;
+        }
+        b(r, 0) = tracks[static_cast<std::size_t>(j)].reference_px.x;
+        b(r, 1) = tracks[static_cast<std::size_t>(j)].reference_px.y;
+        w[r] = std::exp(-2.0 * (dx * dx + dy * dy));
+        velocity.x += w[r] * states[static_cast<std::size_t>(j)].velocity.x;
+        velocity.y += w[r] * states[static_cast<std::size_t>(j)].velocity.y;
+        wsum += w[r];
+      }
+      const Eigen::MatrixXd aw = w.asDiagonal() * a;
+      const Eigen::MatrixXd normal = a.transpose() * aw;
+      Eigen::LDLT<Eigen::MatrixXd> ldlt(normal);
+      if (ldlt.info() != Eigen::Success || !ldlt.isPositive() || ldlt.rcond() < 1e-8) continue;
+      const Eigen::MatrixXd coef = ldlt.solve(aw.transpose() * b);
+      Mat2d dX_dx;
+      dX_dx << coef(1, 0) / radius, coef(2, 0) / radius, coef(1, 1) / radius, coef(2, 1) / radius;
+      if (!(dX_dx.determinant() > 0.05) || !coef.allFinite()) continue;
+      if (key < 0) key = add_key_frame();
+      velocity = {velocity.x / wsum, velocity.y / wsum};
+      if (create_track(x, {coef(0, 0), coef(0, 1)}, dX_dx, velocity, key, TrackStatus::kBorn)) {
+        states.back().candidate = x;
+        states.back().matched = true;
+        ++live;
+        ++stats.born;
+      }
+    }
+  if (key >= 0 && keys[static_cast<std::size_t>(key)]->users == 0)
+    keys[static_cast<std::size_t>(key)].reset();
+}
+
+void FeatureTracker::Impl::finish_frame() {
+  for (int i : alive) {
+    Track& t = tracks[static_cast<std::size_t>(i)];
+    if (!is_alive(t.status)) continue;
+    TrackState& st = states[static_cast<std::size_t>(i)];
+    st.velocity = {st.candidate.x - st.previous.x, st.candidate.y - st.previous.y};
+    st.previous = st.candidate;
+    t.position_px = st.candidate;
+    if (settings.refine) {
+      t.zncc = st.match.zncc;
+      const Mat2d h = st.deformation - Mat2d::Identity();
+      t.gradient = {h(0, 0), h(0, 1), h(1, 0), h(1, 1)};
+    }
+  }
+}
+
+FeatureTracker::FeatureTracker(TrackerSettings settings, std::optional<RoiPx> plate_roi)
+    : impl_(std::make_unique<Impl>()) {
+  validate(settings);
+  impl_->settings = std::move(settings);
+  impl_->plate_roi = plate_roi;
+}
+
+FeatureTracker::~FeatureTracker() = default;
+
+void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, double t_s) {
+  start(image, contact_mask, t_s, {});
+  impl_->points_mode = false;
+}
+
+void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, double /*t_s*/,
+                           const std::vector<Vec2>& points_px) {
+  Impl& m = *impl_;
+  m.frame = -1;
+  m.check_input(image, contact_mask);
+  m.frame = 0;
+  m.size = image.size();
+  m.tracks.clear();
+  m.states.clear();
+  m.keys.clear();
+  m.roi = cv::Rect();
+  m.stats = FrameStats{};
+  m.prepare(image, contact_mask);
+  m.update_roi(false);
+  m.build_pyramid(m.current_u8, m.previous_pyramid);
+  if (m.settings.global_prediction) m.high_pass(m.current_f, m.previous_hp);
+  m.add_key_frame();
+  m.points_mode = !points_px.empty();
+  if (m.points_mode) {
+    for (const Vec2& p : points_px) {
+      if (!(std::isfinite(p.x) && std::isfinite(p.y)) || p.x < 0 || p.y < 0 || p.x > m.size.width - 1 ||
+          p.y > m.size.height - 1)
+        throw Error("point (" + std::to_string(p.x) + ", " + std::to_string(p.y) + ") lies outside the " +
+                    std::to_string(m.size.width) + "x" + std::to_string(m.size.height) + " frame");
+      m.create_track(p, p, Mat2d::Identity(), {}, 0, TrackStatus::kTracked);
+    }
+  } else {
+    m.seed_grid();
+  }
+  for (std::size_t i = 0; i < m.states.size(); ++i) {
+    m.states[i].candidate = m.tracks[i].position_px;
+    m.states[i].previous = m.tracks[i].position_px;
+  }
+  if (m.plate_roi) {
+    PlateSettings ps;
+    ps.subset_radius_px = m.settings.plate_subset_radius_px;
+    ps.grid_step_px = m.settings.plate_grid_step_px;
+    m.plate.emplace();
+    m.plate->start(m.current_f, m.current_u8, *m.plate_roi, ps);
+  }
+  if (m.keys[0]->users == 0 && !m.settings.births) m.keys[0].reset();
+  std::swap(m.previous_u8, m.current_u8);
+  m.stats.frame = 0;
+  m.stats.alive = static_cast<int>(
+      std::count_if(m.tracks.begin(), m.tracks.end(), [](const Track& t) { return is_alive(t.status); }));
+  m.stats.born = m.stats.alive;
+}
+
+const FrameStats& FeatureTracker::track(const cv::Mat& image, const cv::Mat& contact_mask, double /*t_s*/) {
+  Impl& m = *impl_;
+  if (m.frame < 0) throw Error("FeatureTracker::track called before start");
+  m.check_input(image, contact_mask);
+  ++m.frame;
+  m.stats = FrameStats{};
+  m.stats.frame = m.frame;
+  m.prepare(image, contact_mask);
+  m.update_roi(true);
+  m.build_pyramid(m.current_u8, m.current_pyramid);
+  for (Track& t : m.tracks)
+    if (t.status == TrackStatus::kBorn || t.status == TrackStatus::kRecovered ||
+        t.status == TrackStatus::kUnchecked)
+      t.status = TrackStatus::kTracked;
+  m.predict_and_match();
+  if (m.settings.refine && m.settings.neighbour_check) m.check_neighbours();
+  if (m.settings.refine && m.settings.fusion_sigma_px > 0.0) m.fuse();
+  if (!m.settings.refine && m.settings.reanchor_interval_frames > 0 &&
+      m.frame % m.settings.reanchor_interval_frames == 0)
+    m.reanchor();
+  for (int i : m.alive) {
+    if (!is_alive(m.tracks[static_cast<std::size_t>(i)].status)) continue;
+    TrackState& st = m.states[static_cast<std::size_t>(i)];
+    if (st.suspect) {
+      if (!m.settings.refine)
+        m.retire(i, TrackStatus::kForwardBackward);
+      else
+        m.retire(i, st.match.valid_fraction < m.settings.match.min_valid_fraction ? TrackStatus::kLeftContact
+                                                                                  : TrackStatus::kPoorMatch);
+      continue;
+    }
+    const Vec2 p = st.candidate;
+    if (p.x < 0 || p.y < 0 || p.x > m.size.width - 1 || p.y > m.size.height - 1) {
+      m.retire(i, TrackStatus::kLeftImage);
+      continue;
+    }
+    if (!m.points_mode && !inside_mask(m.mask, p)) m.retire(i, TrackStatus::kLeftContact);
+  }
+  m.finish_frame();
+  if (!m.points_mode && m.settings.births && m.frame % m.settings.birth_interval_frames == 0) m.births();
+  if (m.plate) m.plate->track(m.current_f, m.current_u8);
+  // Key frames nobody anchors to any more.
+  for (auto& k : m.keys)
+    if (k && k->users == 0) k.reset();
+  std::swap(m.previous_pyramid, m.current_pyramid);
+  std::swap(m.previous_u8, m.current_u8);
+  std::swap(m.previous_hp, m.current_hp);
+  m.stats.alive = static_cast<int>(
+      std::count_if(m.tracks.begin(), m.tracks.end(), [](const Track& t) { return is_alive(t.status); }));
+  return m.stats;
+}
+
+int FeatureTracker::frame_index() const {
+  return impl_->frame;
+}
+const std::vector<Track>& FeatureTracker::tracks() const {
+  return impl_->tracks;
+}
+const FrameStats& FeatureTracker::stats() const {
+  return impl_->stats;
+}
+const TrackerSettings& FeatureTracker::settings() const {
+  return impl_->settings;
+}
+std::optional<Vec2> FeatureTracker::plate_displacement_px() const {
+  if (!impl_->plate) return std::nullopt;
+  return impl_->plate->displacement_px();
+}
+
+}  // namespace tirstrain::flow

@@ -1,0 +1,105 @@
+#pragma once
+// Feature tracking of the skin inside the contact, one frame at a time (the pipeline calls track() per
+// frame; `tirstrain track` drives it over an image sequence).
+//
+// Per frame: the frame's LK pyramid is built once (on the contact ROI) and reused as the previous pyramid
+// next frame; every live track is predicted (its own last motion, or the contact's global shift from phase
+// correlation when the frame jumped), followed by pyramidal LK with a forward–backward check, then refined
+// against its anchor frame (frame 0, or the frame it was born in) by a masked IC-GN subset match with a
+// second-order shape function, so the error never accumulates from frame to frame. Each track is then
+// checked against what its neighbours imply (their positions carried over by their deformation gradients);
+// a disagreeing track is re-matched from that prediction or retired. Tracks leaving the contact are
+// retired; where coverage thins, tracks are born with reference positions mapped back through a local
+// quadratic fit of the neighbours' current → reference map. See docs/flow.md.
+#include <opencv2/core.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "core/scene.hpp"
+#include "core/tensor2.hpp"
+#include "flow/settings.hpp"
+
+namespace tirstrain::flow {
+
+// Written per frame and track as /tracks/status. Values < 10 are live tracks; ≥ 10 say why a track was
+// retired (in the frame it was retired; afterwards it is simply not alive).
+enum class TrackStatus : std::int8_t {
+  kTracked = 0,           // matched this frame
+  kBorn = 1,              // born this frame (reference position mapped back through its neighbours)
+  kRecovered = 2,         // its first match disagreed with its neighbours; re-matched from their prediction
+  kUnchecked = 3,         // matched, but too few neighbours to check it against
+  kLeftContact = 10,      // left the contact (or too little of its subset is still in contact)
+  kForwardBackward = 11,  // forward–backward LK check failed (unrefined tracking)
+  kPoorMatch = 12,        // no converged match with enough correlation
+  kInconsistent = 13,     // disagreed with its neighbours even after re-matching
+  kLeftImage = 14,        // left the image or the tracked region
+};
+
+inline bool is_alive(TrackStatus s) {
+  return static_cast<int>(s) < 10;
+}
+const char* to_string(TrackStatus status);
+
+struct Track {
+  std::int64_t id = 0;
+  Vec2 reference_px;  // X: position in the reference (first) frame
+  Vec2 position_px;   // x_t: current position while alive; the last good position after retirement
+  TrackStatus status = TrackStatus::kTracked;
+  int born_frame = 0;
+  int retired_frame = -1;
+  double zncc = 0.0;   // correlation of the last refined match (1 for unrefined tracks)
+  Gradient2 gradient;  // du/dX at the track from its subset's shape function (zero if unrefined)
+};
+
+struct FrameStats {
+  int frame = 0;
+  int alive = 0;
+  int born = 0;
+  int retired = 0;
+  int recovered = 0;
+  bool global_jump = false;  // the frame's prediction came from the global shift, not the tracks' motion
+  Vec2 global_shift_px;      // phase-correlation shift of the contact since the previous frame
+};
+
+class PlateTracker;
+
+class FeatureTracker {
+ public:
+  // `plate_roi`: the band of the image showing the pattern printed on the glass
+  // (Scene::reference_pattern_roi).
+  explicit FeatureTracker(TrackerSettings settings, std::optional<RoiPx> plate_roi = std::nullopt);
+  ~FeatureTracker();
+  FeatureTracker(const FeatureTracker&) = delete;
+  FeatureTracker& operator=(const FeatureTracker&) = delete;
+
+  // Frame 0. `image` CV_8U, CV_16U or CV_32F (full scale 1) grey; `contact_mask` CV_8U (non-zero = contact)
+  // of the same size, or empty (the whole image). Seeds features on the grid inside the contact (Shi–Tomasi).
+  void start(const cv::Mat& image, const cv::Mat& contact_mask, double t_s);
+  // The same, tracking the given points instead of a grid (no births).
+  void start(const cv::Mat& image, const cv::Mat& contact_mask, double t_s,
+             const std::vector<Vec2>& points_px);
+  // The next frame. Throws Error if the size differs from the first frame's.
+  const FrameStats& track(const cv::Mat& image, const cv::Mat& contact_mask, double t_s);
+
+  int frame_index() const;  // 0 after start(), incremented by each track()
+  // Every track ever created; tracks()[k].id == k, so K only grows. Alive: is_alive(status).
+  const std::vector<Track>& tracks() const;
+  const FrameStats& stats() const;
+  const TrackerSettings& settings() const;
+  // Plate displacement since frame 0 (median over the pattern's subsets); nullopt without a pattern ROI.
+  std::optional<Vec2> plate_displacement_px() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Frame conversions shared with the plate tracker: float with full scale 1, and 8 bits for LK.
+cv::Mat to_float_image(const cv::Mat& image);
+void to_float_image(const cv::Mat& image, cv::Mat& out);
+void to_u8_image(const cv::Mat& image, cv::Mat& out);
+
+}  // namespace tirstrain::flow

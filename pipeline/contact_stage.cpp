@@ -1,0 +1,226 @@
+#include "pipeline/contact_stage.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <numbers>
+
+#include "core/csv.hpp"
+
+namespace tirstrain::pipeline {
+namespace {
+
+// What is kept per frame: small and fixed-size, so memory grows by ~11 kB per 1280x1024 frame.
+struct ContactRecord {
+  std::uint32_t status = contact::kNoContact;
+  double area_mm2 = 0.0;
+  std::vector<cv::Point2d> hull_px;
+  std::array<double, 5> ellipse{};  // cx, cy, semi-major, semi-minor, angle; zeros without an ellipse
+  cv::Mat orientation_rad, coherence;
+};
+
+class ContactStage final : public Stage {
+ public:
+  explicit ContactStage(const Scene& scene) : options_(segmenter_options_for(scene)), segmenter_(options_) {
+    period_source_ = scene.ridge_period_mm ? "scene" : "measured";
+  }
+
+  std::string name() const override { return "contact"; }
+
+  void start(const TrialInfo& info) override {
+    const int block = options_.block_px;
+    blocks_ =
+        cv::Size((info.frame_size.width + block - 1) / block, (info.frame_size.height + block - 1) / block);
+  }
+
+  void process(FrameContext& context) override {
+    ContactRecord record;
+    if (!context.usable) {
+      record.status = contact::kFrameSkipped;
+      records_.push_back(std::move(record));
+      return;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    contact::ContactResult result = segmenter_.segment(context.frame->image);
+    segment_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ++segmented_;
+    record.status = result.status;
+    record.area_mm2 = result.area_mm2;
+    record.hull_px = result.hull_px;
+    if (result.ellipse) {
+      const auto& e = *result.ellipse;
+      record.ellipse = {e.cx_px, e.cy_px, e.semi_major_px, e.semi_minor_px, e.angle_rad};
+    }
+    record.orientation_rad = result.orientation_rad;
+    record.coherence = result.coherence;
+    if (result.polarity < 0) ++dark_votes_;
+    if (result.polarity > 0) ++bright_votes_;
+    records_.push_back(std::move(record));
+    context.contact = std::move(result);
+  }
+
+  void draw(cv::Mat& bgr, const FrameContext& context) const override {
+    if (!context.contact) return;
+    const contact::ContactResult& r = *context.contact;
+    const double thickness_scale = std::max(1.0, bgr.cols / 640.0);
+    const int thick = static_cast<int>(std::lround(thickness_scale));
+    constexpr int kShift = 4;
+    const auto fixed = [](const cv::Point2d& p) {
+      return cv::Point(static_cast<int>(std::lround(p.x * (1 << kShift))),
+                       static_cast<int>(std::lround(p.y * (1 << kShift))));
+    };
+    // Orientation: a short segment along the ridges in every block, brighter where coherence is higher.
+    const int block = options_.block_px;
+    for (int by = 0; by < r.coherence.rows; ++by)
+      for (int bx = 0; bx < r.coherence.cols; ++bx) {
+        const float coherence = r.coherence.at<float>(by, bx);
+        if (coherence < 0.2f) continue;
+        const double a = r.orientation_rad.at<float>(by, bx);
+        const cv::Point2d centre(bx * block + block / 2.0 - 0.5, by * block + block / 2.0 - 0.5);
+        const cv::Point2d half(0.4 * block * std::cos(a), 0.4 * block * std::sin(a));
+        cv::line(bgr, fixed(centre - half), fixed(centre + half),
+                 cv::Scalar(0, 200.0 * coherence + 55.0, 255), thick, cv::LINE_AA, kShift);
+      }
+    if (!r.hull_px.empty()) {
+      std::vector<cv::Point> hull;
+      for (const auto& p : r.hull_px) hull.push_back(fixed(p));
+      cv::polylines(bgr, hull, true, cv::Scalar(0, 220, 0), thick, cv::LINE_AA, kShift);
+    }
+    if (r.ellipse) {
+      const auto& e = *r.ellipse;
+      cv::ellipse(bgr, fixed({e.cx_px, e.cy_px}),
+                  cv::Size(static_cast<int>(std::lround(e.semi_major_px * (1 << kShift))),
+                           static_cast<int>(std::lround(e.semi_minor_px * (1 << kShift)))),
+                  e.angle_rad * 180.0 / std::numbers::pi, 0.0, 360.0, cv::Scalar(60, 60, 255), thick,
+                  cv::LINE_AA, kShift);
+    }
+    char text[160];
+    std::snprintf(text, sizeof text, "contact: %s  area %.2f mm2",
+                  contact::contact_status_text(r.status).c_str(), r.area_mm2);
+    cv::putText(bgr, text, cv::Point(8, static_cast<int>(44 * thickness_scale)), cv::FONT_HERSHEY_SIMPLEX,
+                0.5 * thickness_scale, cv::Scalar(255, 255, 255), thick, cv::LINE_AA);
+  }
+
+  std::vector<std::string> csv_header() const override {
+    return {"contact_status", "area_mm2", "cx_px", "cy_px", "semi_major_px", "semi_minor_px", "angle_rad"};
+  }
+
+  void csv_row(std::size_t row, std::vector<std::string>& cells) const override {
+    const ContactRecord& r = records_.at(row);
+    cells.push_back(std::to_string(r.status));
+    cells.push_back(format_double(r.area_mm2));
+    for (double v : r.ellipse) cells.push_back(format_double(v));
+  }
+
+  void write(H5Writer& out) const override {
+    const std::size_t n = records_.size();
+    const auto hull_points = static_cast<std::size_t>(options_.hull_points);
+    const auto by = static_cast<std::size_t>(blocks_.height), bx = static_cast<std::size_t>(blocks_.width);
+    std::vector<std::int32_t> status(n);
+    std::vector<double> area(n), hull(n * hull_points * 2, 0.0), ellipse(n * 5, 0.0);
+    std::vector<float> orientation(n * by * bx, 0.0f), coherence(n * by * bx, 0.0f);
+    for (std::size_t i = 0; i < n; ++i) {
+      const ContactRecord& r = records_[i];
+      status[i] = static_cast<std::int32_t>(r.status);
+      area[i] = r.area_mm2;
+      for (std::size_t k = 0; k < r.hull_px.size() && k < hull_points; ++k) {
+        hull[(i * hull_points + k) * 2] = r.hull_px[k].x;
+        hull[(i * hull_points + k) * 2 + 1] = r.hull_px[k].y;
+      }
+      std::copy(r.ellipse.begin(), r.ellipse.end(), ellipse.begin() + static_cast<std::ptrdiff_t>(i * 5));
+      if (!r.orientation_rad.empty() && r.orientation_rad.size() == blocks_) {
+        const auto offset = static_cast<std::ptrdiff_t>(i * by * bx);
+        std::copy(r.orientation_rad.begin<float>(), r.orientation_rad.end<float>(),
+                  orientation.begin() + offset);
+        std::copy(r.coherence.begin<float>(), r.coherence.end<float>(), coherence.begin() + offset);
+      }
+    }
+    out.write("/contact/status", std::span<const std::int32_t>(status), {n});
+    out.write("/contact/area_mm2", std::span<const double>(area), {n});
+    out.write("/contact/hull_px", std::span<const double>(hull), {n, hull_points, 2});
+    out.write("/contact/ellipse", std::span<const double>(ellipse), {n, 5});
+    out.write("/contact/orientation_rad", std::span<const float>(orientation), {n, by, bx});
+    out.write("/contact/coherence", std::span<const float>(coherence), {n, by, bx});
+    out.attribute("/contact", "px_per_mm", options_.px_per_mm);
+    out.attribute("/contact", "ridge_period_px", period_px());
+    out.attribute("/contact", "ridge_period_source", period_source());
+    out.attribute("/contact", "ridge_polarity", polarity());
+    out.attribute("/contact", "working_downsample", static_cast<double>(segmenter_.downsample()));
+    out.attribute("/contact", "block_px", static_cast<double>(options_.block_px));
+    out.attribute("/contact", "ellipse_columns", "cx_px,cy_px,semi_major_px,semi_minor_px,angle_rad");
+    out.attribute("/contact", "status_bits",
+                  "0 ok; 1 no_contact; 2 touches_edge; 4 multiple_blobs; 8 saturated; 16 low_contrast; "
+                  "32 no_ellipse; 64 frame_skipped");
+  }
+
+  void summarize(nlohmann::json& summary) const override {
+    nlohmann::json c;
+    std::int64_t with_contact = 0;
+    double area_sum = 0.0, area_max = 0.0;
+    std::map<std::string, std::int64_t> flags;
+    for (const auto& r : records_) {
+      if ((r.status & (contact::kNoContact | contact::kFrameSkipped)) == 0) {
+        ++with_contact;
+        area_sum += r.area_mm2;
+        area_max = std::max(area_max, r.area_mm2);
+      }
+      for (std::uint32_t bit = 1; bit <= contact::kFrameSkipped; bit <<= 1)
+        if ((r.status & bit) != 0) ++flags[contact::contact_status_text(bit)];
+    }
+    c["frames_with_contact"] = with_contact;
+    c["status_counts"] = flags;
+    c["area_mm2_mean"] = with_contact > 0 ? area_sum / static_cast<double>(with_contact) : 0.0;
+    c["area_mm2_max"] = area_max;
+    c["ridge_period_px"] = period_px();
+    c["ridge_period_mm"] = period_px() / options_.px_per_mm;
+    c["ridge_period_source"] = period_source();
+    c["ridge_polarity"] = polarity();
+    c["working_downsample"] = segmenter_.downsample();
+    c["segment_ms_per_frame"] = segmented_ > 0 ? 1e3 * segment_s_ / static_cast<double>(segmented_) : 0.0;
+    summary["contact"] = c;
+  }
+
+ private:
+  double period_px() const {
+    return segmenter_.ridge_period_px().value_or(options_.default_period_mm * options_.px_per_mm);
+  }
+  std::string period_source() const {
+    if (options_.ridge_period_px) return "scene";
+    return segmenter_.period_measured() ? "measured" : "default (no clear ridge ring in any frame)";
+  }
+  std::string polarity() const {
+    if (dark_votes_ == 0 && bright_votes_ == 0) return "unknown";
+    return dark_votes_ >= bright_votes_ ? "dark" : "bright";
+  }
+
+  contact::SegmenterOptions options_;
+  contact::ContactSegmenter segmenter_;
+  std::string period_source_;
+  cv::Size blocks_;
+  std::vector<ContactRecord> records_;
+  double segment_s_ = 0.0;
+  std::int64_t segmented_ = 0;
+  std::int64_t dark_votes_ = 0, bright_votes_ = 0;
+};
+
+}  // namespace
+
+contact::SegmenterOptions segmenter_options_for(const Scene& scene) {
+  contact::SegmenterOptions options;
+  options.px_per_mm = scene.px_per_mm;
+  if (scene.ridge_period_mm) options.ridge_period_px = *scene.ridge_period_mm * scene.px_per_mm;
+  if (scene.ridge_polarity == "dark") options.polarity = -1;
+  if (scene.ridge_polarity == "bright") options.polarity = 1;
+  if (scene.reference_pattern_roi) {
+    const RoiPx& r = *scene.reference_pattern_roi;
+    options.exclude_px = cv::Rect(r.x, r.y, r.width, r.height);
+  }
+  return options;
+}
+
+std::unique_ptr<Stage> make_contact_stage(const Scene& scene) {
+  return std::make_unique<ContactStage>(scene);
+}
+
+}  // namespace tirstrain::pipeline

@@ -1,0 +1,317 @@
+#include "pipeline/process.hpp"
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <chrono>
+#include <filesystem>
+#include <map>
+#include <sstream>
+
+#include "capture/frame_source.hpp"
+#include "core/atomic_output.hpp"
+#include "core/csv.hpp"
+#include "core/error.hpp"
+#include "core/h5_file.hpp"
+#include "core/progress.hpp"
+#include "core/scene.hpp"
+#include "core/version.hpp"
+#include "pipeline/prefetch.hpp"
+#include "pipeline/stage.hpp"
+
+namespace tirstrain::pipeline {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Overlay for people: an MP4 through FFmpeg, or a PNG sequence. The MP4 is written to a ".partial.mp4"
+// name (FFmpeg picks the container from the extension) and the PNGs to a staging folder; both are renamed
+// only when the run completes.
+class OverlayWriter {
+ public:
+  OverlayWriter(OverlayMode mode, const std::string& out_dir, std::FILE* log, bool quiet)
+      : mode_(mode), out_dir_(out_dir), log_(log), quiet_(quiet) {}
+
+  ~OverlayWriter() {
+    if (video_.isOpened()) video_.release();
+    std::error_code ec;
+    if (!committed_ && !video_partial_.empty()) fs::remove(video_partial_, ec);
+  }
+
+  void write(const cv::Mat& bgr) {
+    if (mode_ == OverlayMode::kMp4 && !video_.isOpened()) open_video(bgr.size());
+    if (mode_ == OverlayMode::kMp4) {
+      video_.write(bgr);
+    } else if (mode_ == OverlayMode::kPng) {
+      if (!staging_) staging_ = std::make_unique<StagingDirectory>((fs::path(out_dir_) / "overlay").string());
+      char name[32];
+      std::snprintf(name, sizeof name, "%06lld.png", static_cast<long long>(count_));
+      if (!cv::imwrite((fs::path(staging_->path()) / name).string(), bgr, {cv::IMWRITE_PNG_COMPRESSION, 1}))
+        throw Error("cannot write overlay image", {.file = (fs::path(staging_->path()) / name).string()});
+    }
+    ++count_;
+  }
+
+  // Returns the final path, or "" when nothing was written.
+  std::string commit() {
+    if (mode_ == OverlayMode::kMp4 && video_.isOpened()) {
+      video_.release();
+      const std::string final_path = (fs::path(out_dir_) / "overlay.mp4").string();
+      std::error_code ec;
+      fs::rename(video_partial_, final_path, ec);
+      if (ec) throw Error("cannot rename overlay into place: " + ec.message(), {.file = final_path});
+      committed_ = true;
+      return final_path;
+    }
+    if (mode_ == OverlayMode::kPng && staging_) {
+      staging_->commit();
+      return staging_->final_path();
+    }
+    return "";
+  }
+
+  bool enabled() const { return mode_ != OverlayMode::kNone; }
+
+ private:
+  void open_video(cv::Size size) {
+    video_partial_ = (fs::path(out_dir_) / "overlay.partial.mp4").string();
+    // H.264 ('avc1') is the most widely playable but often missing from Debian's FFmpeg encoders list for
+    // OpenCV; MPEG-4 Part 2 ('mp4v') is always there.
+    for (const char* code : {"avc1", "mp4v"}) {
+      video_.open(video_partial_, cv::CAP_FFMPEG, cv::VideoWriter::fourcc(code[0], code[1], code[2], code[3]),
+                  25.0, size, true);
+      if (video_.isOpened()) return;
+    }
+    if (!quiet_)
+      std::fprintf(
+          log_, "tirstrain: warning: no MP4 encoder available; writing the overlay as PNG images instead\n");
+    video_partial_.clear();
+    mode_ = OverlayMode::kPng;
+  }
+
+  OverlayMode mode_;
+  std::string out_dir_;
+  std::FILE* log_;
+  bool quiet_;
+  cv::VideoWriter video_;
+  std::string video_partial_;
+  std::unique_ptr<StagingDirectory> staging_;
+  std::int64_t count_ = 0;
+  bool committed_ = false;
+};
+
+cv::Mat to_display(const cv::Mat& grey, cv::Size size) {
+  cv::Mat bgr;
+  if (grey.empty()) {
+    bgr = cv::Mat(size, CV_8UC3, cv::Scalar(40, 40, 40));
+    return bgr;
+  }
+  cv::Mat eight;
+  if (grey.depth() == CV_16U) {
+    double max_value = 0.0;
+    cv::minMaxLoc(grey, nullptr, &max_value);
+    eight = cv::Mat();
+    grey.convertTo(eight, CV_8U, 255.0 / std::max(1.0, max_value));
+  } else {
+    eight = grey;
+  }
+  cv::cvtColor(eight, bgr, cv::COLOR_GRAY2BGR);
+  return bgr;
+}
+
+void remove_stale(const fs::path& path) {
+  std::error_code ec;
+  fs::remove(path, ec);
+}
+
+}  // namespace
+
+ProcessReport run_process(const ProcessOptions& options) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  ProcessReport report;
+  const auto warn = [&](const std::string& message) {
+    report.warnings.push_back(message);
+    if (!options.quiet) std::fprintf(options.log, "tirstrain: warning: %s\n", message.c_str());
+  };
+
+  const Scene scene = options.scene_path ? load_scene(*options.scene_path) : Scene{};
+  StagePlan plan = plan_stages(scene);
+  for (const auto& name : plan.unavailable) {
+    const std::string message = "stage '" + name +
+                                "' requested by the scene's compute list is not available in this "
+                                "build yet; it is skipped";
+    if (options.strict) throw Error(message + " (--strict)", {.file = scene.file, .key = "compute"});
+    warn(message);
+  }
+  if (plan.stages.empty())
+    throw Error("nothing to compute: the scene's compute list has no available stage",
+                {.file = scene.file, .key = "compute"});
+
+  std::unique_ptr<capture::FrameSource> source = capture::open_source(options.input);
+  const auto settings = source->settings();
+  const bool time_measured = settings.count("time_measured") == 0 || settings.at("time_measured") == "true";
+  const std::string time_source =
+      settings.count("time_source") ? settings.at("time_source") : "source timestamps";
+  if (!time_measured) {
+    if (options.strict)
+      throw Error("the input has no timestamps (no frames.csv) (--strict)", {.file = options.input});
+    warn("no timestamps for " + options.input + ": " + time_source);
+  }
+
+  ensure_output_dir(options.out_dir, "--out");
+  const fs::path out(options.out_dir);
+  // A result.h5 left from an earlier run would look like this run's result if this one is interrupted.
+  for (const char* name : {"result.h5", "frames.csv", "summary.json", "overlay.mp4"})
+    remove_stale(out / name);
+
+  OverlayWriter overlay(options.overlay, options.out_dir, options.log, options.quiet);
+  Progress progress("process", source->frame_count() > 0 ? static_cast<long>(source->frame_count()) : 1L,
+                    options.quiet, options.log);
+
+  // Per-frame bookkeeping for /frames.
+  std::vector<std::int64_t> index, device_id, lost_before;
+  std::vector<double> t_s;
+  std::vector<std::int32_t> frame_status;
+  std::optional<TrialInfo> trial;
+  cv::Size display_size;
+
+  {
+    PrefetchingReader reader(*source, 4);
+    while (std::optional<capture::Frame> frame = reader.next()) {
+      FrameContext context;
+      context.frame = &*frame;
+      context.usable = !frame->image.empty() && frame->status != capture::FrameStatus::kCorrupt &&
+                       frame->status != capture::FrameStatus::kIncomplete;
+      if (!context.usable) {
+        const std::string what =
+            frame->status == capture::FrameStatus::kIncomplete ? "is incomplete" : "could not be decoded";
+        if (options.strict)
+          throw Error("frame " + what + " (--strict)", {.file = frame->origin, .frame = frame->index});
+        warn(format_error("frame " + what + "; marked and skipped",
+                          {.file = frame->origin, .frame = frame->index}));
+        ++report.frames_skipped;
+      } else if (!trial) {
+        trial = TrialInfo{frame->image.size(), frame->image.depth(), source->frame_count(), &scene};
+        display_size = frame->image.size();
+        for (auto& stage : plan.stages) stage->start(*trial);
+      }
+      for (auto& stage : plan.stages) stage->process(context);
+
+      index.push_back(frame->index);
+      device_id.push_back(frame->device_frame_id);
+      lost_before.push_back(frame->frames_lost_before);
+      t_s.push_back(frame->device_time_s);
+      frame_status.push_back(static_cast<std::int32_t>(frame->status));
+      if (context.contact && (context.contact->status & contact::kNoContact) == 0)
+        ++report.frames_with_contact;
+
+      if (overlay.enabled() && trial) {
+        cv::Mat bgr = to_display(context.usable ? frame->image : cv::Mat(), display_size);
+        for (const auto& stage : plan.stages) stage->draw(bgr, context);
+        const double scale = std::max(1.0, bgr.cols / 640.0);
+        char text[160];
+        std::snprintf(text, sizeof text, "frame %lld  t = %.4f s  %s", static_cast<long long>(frame->index),
+                      frame->device_time_s, context.usable ? "" : "(corrupt: skipped)");
+        cv::putText(bgr, text, cv::Point(8, static_cast<int>(20 * scale)), cv::FONT_HERSHEY_SIMPLEX,
+                    0.5 * scale, cv::Scalar(255, 255, 255), static_cast<int>(std::lround(scale)),
+                    cv::LINE_AA);
+        overlay.write(bgr);
+      }
+      ++report.frames;
+      progress.update(static_cast<long>(report.frames));
+    }
+  }
+  progress.finish();
+  if (!trial) throw Error("no frame of the input could be decoded", {.file = options.input});
+
+  const std::size_t n = t_s.size();
+  // Outputs in order of increasing importance; result.h5 last, so its presence means a complete run.
+  if (const std::string path = overlay.commit(); !path.empty()) report.outputs.push_back(path);
+
+  {
+    std::vector<std::string> header = {"index", "t_s", "frame_status"};
+    for (const auto& stage : plan.stages)
+      for (const auto& column : stage->csv_header()) header.push_back(column);
+    CsvWriter csv((out / "frames.csv").string(), header);
+    std::vector<std::string> cells;
+    for (std::size_t i = 0; i < n; ++i) {
+      cells = {std::to_string(index[i]), format_double(t_s[i]), std::to_string(frame_status[i])};
+      for (const auto& stage : plan.stages) stage->csv_row(i, cells);
+      csv.row_text(cells);
+    }
+    csv.commit();
+    report.outputs.push_back((out / "frames.csv").string());
+  }
+
+  nlohmann::json summary;
+  summary["software"] = {{"name", "tirstrain"}, {"version", kVersion}};
+  summary["input"] = options.input;
+  summary["source"] = source->describe();
+  summary["time_source"] = time_source;
+  summary["time_measured"] = time_measured;
+  summary["scene"] = scene.file.empty() ? "defaults" : scene.file;
+  summary["px_per_mm"] = scene.px_per_mm;
+  std::vector<std::string> run_names;
+  for (const auto& stage : plan.stages) run_names.push_back(stage->name());
+  summary["stages_run"] = run_names;
+  summary["stages_unavailable"] = plan.unavailable;
+  std::map<std::string, std::int64_t> status_counts;
+  std::int64_t lost = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    ++status_counts[capture::to_string(static_cast<capture::FrameStatus>(frame_status[i]))];
+    lost += lost_before[i];
+  }
+  summary["frames"] = {{"total", n},
+                       {"skipped", report.frames_skipped},
+                       {"status_counts", status_counts},
+                       {"frames_lost", lost},
+                       {"width_px", trial->frame_size.width},
+                       {"height_px", trial->frame_size.height},
+                       {"t_first_s", n ? t_s.front() : 0.0},
+                       {"t_last_s", n ? t_s.back() : 0.0}};
+  for (const auto& stage : plan.stages) stage->summarize(summary);
+  summary["warnings"] = report.warnings;
+  summary["wall_time_s"] =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  summary["outputs"] = {"result.h5", "frames.csv", "summary.json"};
+  write_text_file((out / "summary.json").string(), summary.dump(2) + "\n");
+  report.outputs.push_back((out / "summary.json").string());
+
+  {
+    H5Writer h5((out / "result.h5").string());
+    h5.write("/frames/index", std::span<const std::int64_t>(index), {n});
+    h5.write("/frames/t_s", std::span<const double>(t_s), {n});
+    h5.write("/frames/status", std::span<const std::int32_t>(frame_status), {n});
+    h5.write("/frames/device_frame_id", std::span<const std::int64_t>(device_id), {n});
+    h5.write("/frames/frames_lost_before", std::span<const std::int64_t>(lost_before), {n});
+    h5.attribute("/frames", "time_source", time_source);
+    h5.attribute("/frames", "time_measured", time_measured ? 1.0 : 0.0);
+    h5.attribute("/frames", "status_codes",
+                 "0 ok; 1 incomplete; 2 corrupt (skipped); 3 gap_before; 4 overrun");
+    h5.attribute("/frames", "width_px", static_cast<double>(trial->frame_size.width));
+    h5.attribute("/frames", "height_px", static_cast<double>(trial->frame_size.height));
+    for (const auto& stage : plan.stages) stage->write(h5);
+    std::ostringstream scene_yaml;
+    scene_yaml << scene_to_yaml(scene);
+    h5.attribute("/", "format", "tirstrain result");
+    h5.attribute("/", "format_version", 1.0);
+    h5.attribute("/", "software_version", std::string("tirstrain ") + kVersion);
+    h5.attribute("/", "scene_yaml", scene_yaml.str());
+    h5.attribute("/", "scene_file", scene.file.empty() ? std::string("defaults") : scene.file);
+    h5.attribute("/", "input", options.input);
+    h5.attribute("/", "source", source->describe());
+    std::string stages_text;
+    for (const auto& name : run_names) {
+      if (!stages_text.empty()) stages_text.push_back(',');
+      stages_text.append(name);
+    }
+    h5.attribute("/", "stages", stages_text);
+    h5.commit();
+    report.outputs.push_back((out / "result.h5").string());
+  }
+  return report;
+}
+
+}  // namespace tirstrain::pipeline

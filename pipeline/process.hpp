@@ -1,0 +1,38 @@
+#pragma once
+// `tirstrain process`: frames in, result.h5 + frames.csv + summary.json + overlay out. Runs the stages the
+// scene's `compute` list asks for (pipeline/stage.hpp) over a frame source (capture/), with decoding
+// overlapped with analysis, and writes every output under a temporary name, renamed only when complete:
+// result.h5 last, so its presence means the run finished.
+#include <cstdint>
+#include <cstdio>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace tirstrain::pipeline {
+
+enum class OverlayMode { kNone, kMp4, kPng };
+
+struct ProcessOptions {
+  std::string input;                      // folder, pattern, video file or source URI
+  std::optional<std::string> scene_path;  // absent: documented defaults, the rest measured from the images
+  std::string out_dir;
+  bool quiet = false;
+  // Stop at the first corrupt frame, at a requested stage that is not available, or when the input has
+  // no timestamps, instead of marking/skipping/assuming.
+  bool strict = false;
+  OverlayMode overlay = OverlayMode::kMp4;
+  std::FILE* log = stderr;  // warnings and progress
+};
+
+struct ProcessReport {
+  std::int64_t frames = 0;
+  std::int64_t frames_skipped = 0;  // corrupt / undecodable
+  std::int64_t frames_with_contact = 0;
+  std::vector<std::string> outputs;  // paths written
+  std::vector<std::string> warnings;
+};
+
+ProcessReport run_process(const ProcessOptions& options);
+
+}  // namespace tirstrain::pipeline

@@ -1,0 +1,73 @@
+#pragma once
+// The pipeline's plug-in point. Each analysis the scene's `compute` list can ask for (contact, tracking,
+// strain, channels) is a Stage: it sees every frame in order, keeps what it measures, and at the end writes
+// its own group of result.h5 (/contact, /tracks, /mesh, /strain, /energy, /channels), its columns of
+// frames.csv and its part of summary.json. Stages later in the list read the results of earlier ones from
+// the FrameContext (tracking needs the contact ROI, strain needs tracks).
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "capture/frame_source.hpp"
+#include "contact/segmenter.hpp"
+#include "core/h5_file.hpp"
+#include "core/scene.hpp"
+
+namespace tirstrain::pipeline {
+
+struct TrialInfo {
+  cv::Size frame_size;  // of the first decodable frame; every usable frame has it
+  int depth = CV_8U;    // CV_8U or CV_16U
+  std::int64_t expected_frames = -1;
+  const Scene* scene = nullptr;
+};
+
+// What one frame carries through the stages.
+struct FrameContext {
+  const capture::Frame* frame = nullptr;
+  bool usable = false;  // false: corrupt / undecodable frame; stages record a placeholder
+  std::optional<contact::ContactResult> contact;  // filled by the contact stage
+};
+
+class Stage {
+ public:
+  virtual ~Stage() = default;
+  virtual std::string name() const = 0;
+  // Called once, before the first usable frame; unusable frames before it still reach process().
+  virtual void start(const TrialInfo& info) = 0;
+  // Every frame, in order, usable or not, so per-frame datasets stay aligned with /frames.
+  virtual void process(FrameContext& context) = 0;
+  // Draws this stage's result for people to look at (BGR 8-bit frame).
+  virtual void draw(cv::Mat& /*bgr*/, const FrameContext& /*context*/) const {}
+  // Per-frame columns appended to frames.csv, and the row for frame `row` (0-based, in processing order).
+  virtual std::vector<std::string> csv_header() const { return {}; }
+  virtual void csv_row(std::size_t /*row*/, std::vector<std::string>& /*cells*/) const {}
+  virtual void write(H5Writer& out) const = 0;
+  virtual void summarize(nlohmann::json& /*summary*/) const {}
+};
+
+// How a stage is made, and which stages it needs before it.
+struct StageSpec {
+  std::string name;
+  std::vector<std::string> needs;
+  // Null while the stage is not implemented in this build.
+  std::function<std::unique_ptr<Stage>(const Scene&)> make;
+};
+
+// Every stage the scene may name, in pipeline order.
+const std::vector<StageSpec>& stage_registry();
+
+struct StagePlan {
+  std::vector<std::unique_ptr<Stage>> stages;  // in pipeline order, dependencies included
+  std::vector<std::string> unavailable;        // requested (or needed) but not built yet
+};
+
+// The stages the scene asks for plus what they need, and nothing else.
+StagePlan plan_stages(const Scene& scene);
+
+}  // namespace tirstrain::pipeline

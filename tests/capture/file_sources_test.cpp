@@ -1,0 +1,201 @@
+// File frame sources: image folders, patterns and videos; time from timestamps; bad input reported with
+// the file and frame.
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <filesystem>
+#include <fstream>
+
+#include "capture/file_sources.hpp"
+#include "capture/frame_source.hpp"
+#include "core/error.hpp"
+
+namespace tirstrain::capture {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "capture" / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+cv::Mat frame_image(int i, cv::Size size = {64, 48}, int type = CV_8UC1) {
+  cv::Mat m(size, type, cv::Scalar(10 * i + 5));
+  return m;
+}
+
+void write_text(const fs::path& path, const std::string& text) {
+  std::ofstream(path) << text;
+}
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+std::vector<Frame> read_all(FrameSource& source) {
+  std::vector<Frame> frames;
+  while (auto f = source.next()) frames.push_back(std::move(*f));
+  return frames;
+}
+
+TEST(ImageFolder, ReadsFramesAndTimestampsInOrder) {
+  const fs::path dir = scratch("folder");
+  fs::create_directories(dir / "frames");
+  for (int i = 0; i < 5; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof name, "%06d.png", i);
+    cv::imwrite((dir / "frames" / name).string(), frame_image(i));
+  }
+  write_text(dir / "frames.csv", "index,t_s\n0,0.0\n1,0.004\n2,0.0085\n3,0.0125\n4,0.0171\n");
+  auto source = open_source(dir.string());
+  EXPECT_EQ(source->frame_count(), 5);
+  const auto frames = read_all(*source);
+  ASSERT_EQ(frames.size(), 5u);
+  const double expected_t[] = {0.0, 0.004, 0.0085, 0.0125, 0.0171};
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_EQ(frames[i].index, i);
+    EXPECT_DOUBLE_EQ(frames[i].device_time_s, expected_t[i]);
+    EXPECT_EQ(frames[i].status, FrameStatus::kOk);
+    EXPECT_EQ(frames[i].image.type(), CV_8UC1);
+    EXPECT_EQ(frames[i].image.at<std::uint8_t>(0, 0), 10 * i + 5);
+  }
+  EXPECT_EQ(source->settings().at("time_measured"), "true");
+  // The same through "file:" and through a printf pattern inside frames/.
+  EXPECT_EQ(read_all(*open_source("file:" + dir.string())).size(), 5u);
+  auto pattern = open_source((dir / "frames" / "%06d.png").string());
+  const auto by_pattern = read_all(*pattern);
+  ASSERT_EQ(by_pattern.size(), 5u);
+  EXPECT_DOUBLE_EQ(by_pattern[3].device_time_s, 0.0125);
+}
+
+TEST(ImageFolder, SixteenBitTiffWithoutTimestampsSaysSo) {
+  const fs::path dir = scratch("tiff16");
+  for (int i = 0; i < 3; ++i)
+    cv::imwrite((dir / ("f" + std::to_string(i) + ".tif")).string(),
+                frame_image(1000 * i + 1, {32, 24}, CV_16UC1));
+  auto source = open_source(dir.string());
+  const auto frames = read_all(*source);
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(frames[2].image.type(), CV_16UC1);
+  EXPECT_EQ(frames[2].image.at<std::uint16_t>(0, 0), 10 * 2001 + 5);
+  EXPECT_DOUBLE_EQ(frames[2].device_time_s, 2.0);
+  EXPECT_EQ(source->settings().at("time_measured"), "false");
+  EXPECT_NE(source->describe().find("no frames.csv"), std::string::npos);
+}
+
+TEST(ImagePattern, GlobAndNaturalOrder) {
+  const fs::path dir = scratch("glob");
+  for (int i : {1, 2, 10, 11})
+    cv::imwrite((dir / ("img" + std::to_string(i) + ".png")).string(), frame_image(i));
+  cv::imwrite((dir / "other.png").string(), frame_image(0));
+  auto source = open_source((dir / "img*.png").string());
+  const auto frames = read_all(*source);
+  ASSERT_EQ(frames.size(), 4u);
+  EXPECT_EQ(frames[2].image.at<std::uint8_t>(0, 0), 105);  // img10 after img2
+  EXPECT_EQ(frames[2].device_frame_id, 10);
+  EXPECT_TRUE(natural_less("a2.png", "a10.png"));
+  EXPECT_FALSE(natural_less("a10.png", "a2.png"));
+  EXPECT_NE(error_of([&] { open_source((dir / "nothing_*.png").string()); }).find("no files match"),
+            std::string::npos);
+}
+
+TEST(ImageFolder, MissingFileBecomesGapWithFrameNumbers) {
+  const fs::path dir = scratch("gap");
+  for (int i : {0, 1, 3})
+    cv::imwrite((dir / ("frame_" + std::to_string(i) + ".png")).string(), frame_image(i));
+  write_text(dir / "frames.csv", "index,t_s\n0,0\n1,0.01\n2,0.02\n3,0.03\n");
+  const auto frames = read_all(*open_source(dir.string()));
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(frames[2].status, FrameStatus::kGapBefore);
+  EXPECT_EQ(frames[2].frames_lost_before, 1);
+  EXPECT_DOUBLE_EQ(frames[2].device_time_s, 0.03);
+}
+
+TEST(ImageFolder, CorruptMiddleFrameIsMarkedNotFatal) {
+  const fs::path dir = scratch("corrupt");
+  for (int i = 0; i < 4; ++i)
+    cv::imwrite((dir / ("f" + std::to_string(i) + ".png")).string(), frame_image(i));
+  write_text(dir / "f2.png", "this is not a PNG");
+  const auto frames = read_all(*open_source(dir.string()));
+  ASSERT_EQ(frames.size(), 4u);
+  EXPECT_EQ(frames[1].status, FrameStatus::kOk);
+  EXPECT_EQ(frames[2].status, FrameStatus::kCorrupt);
+  EXPECT_TRUE(frames[2].image.empty());
+  EXPECT_NE(frames[2].origin.find("f2.png"), std::string::npos);
+  EXPECT_EQ(frames[3].status, FrameStatus::kOk);
+}
+
+TEST(ImageFolder, DifferentFrameSizeNamesFileAndFrame) {
+  const fs::path dir = scratch("sizes");
+  cv::imwrite((dir / "f0.png").string(), frame_image(0));
+  cv::imwrite((dir / "f1.png").string(), frame_image(1));
+  cv::imwrite((dir / "f2.png").string(), frame_image(2, {80, 48}));
+  auto source = open_source(dir.string());
+  source->next();
+  source->next();
+  const std::string message = error_of([&] { source->next(); });
+  EXPECT_NE(message.find("f2.png"), std::string::npos) << message;
+  EXPECT_NE(message.find("frame 2"), std::string::npos) << message;
+  EXPECT_NE(message.find("80x48"), std::string::npos) << message;
+}
+
+TEST(ImageFolder, BackwardTimestampsNameFileAndFrame) {
+  const fs::path dir = scratch("backwards");
+  for (int i = 0; i < 3; ++i)
+    cv::imwrite((dir / ("f" + std::to_string(i) + ".png")).string(), frame_image(i));
+  write_text(dir / "frames.csv", "index,t_s\n0,0.0\n1,0.02\n2,0.01\n");
+  const std::string message = error_of([&] { open_source(dir.string()); });
+  EXPECT_NE(message.find("frames.csv"), std::string::npos) << message;
+  EXPECT_NE(message.find("frame 2"), std::string::npos) << message;
+  EXPECT_NE(message.find("backwards"), std::string::npos) << message;
+  EXPECT_NE(message.find("f2.png"), std::string::npos) << message;
+}
+
+TEST(OpenSource, MissingInputAndCameraSchemes) {
+  const std::string missing = (fs::path(TIRSTRAIN_TEST_TMP) / "capture" / "does_not_exist").string();
+  const std::string message = error_of([&] { open_source(missing); });
+  EXPECT_NE(message.find("does_not_exist"), std::string::npos) << message;
+  EXPECT_NE(message.find("no such file"), std::string::npos) << message;
+  EXPECT_NE(error_of([] { open_source("libcamera:cam0"); }).find("not built yet"), std::string::npos);
+  const fs::path empty = scratch("empty");
+  EXPECT_NE(error_of([&] { open_source(empty.string()); }).find("no image files"), std::string::npos);
+}
+
+TEST(VideoFile, ReadsFramesWithContainerTimestamps) {
+  const fs::path dir = scratch("video");
+  const std::string path = (dir / "clip.mp4").string();
+  {
+    cv::VideoWriter writer(path, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), 25.0, {64, 48}, false);
+    ASSERT_TRUE(writer.isOpened());
+    for (int i = 0; i < 10; ++i) writer.write(frame_image(i * 2));
+  }
+  auto source = open_source(path);
+  const auto frames = read_all(*source);
+  ASSERT_EQ(frames.size(), 10u);
+  for (int i = 0; i < 10; ++i) {
+    EXPECT_NEAR(frames[i].device_time_s, i / 25.0, 1e-3);
+    EXPECT_EQ(frames[i].image.type(), CV_8UC1);
+  }
+  EXPECT_NEAR(frames[5].image.at<std::uint8_t>(20, 20), 105, 4);
+}
+
+TEST(VideoFile, UndecodableVideoIsAnError) {
+  const fs::path dir = scratch("badvideo");
+  write_text(dir / "broken.mp4", std::string(4096, 'x'));
+  const std::string message = error_of([&] { open_source((dir / "broken.mp4").string()); });
+  EXPECT_NE(message.find("broken.mp4"), std::string::npos) << message;
+  EXPECT_NE(message.find("video"), std::string::npos) << message;
+}
+
+}  // namespace
+}  // namespace tirstrain::capture

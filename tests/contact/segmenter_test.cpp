@@ -1,0 +1,245 @@
+// Contact segmentation on rendered TIR images with exact truth: mask IoU, ellipse centre and axes, ridge
+// period and orientation, and every named hard case giving a defined result.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+#include <numbers>
+
+#include "contact/geometry.hpp"
+#include "contact/segmenter.hpp"
+#include "tests/contact/tir_render.hpp"
+
+namespace tirstrain::contact {
+namespace {
+
+using test::TirScene;
+
+double angle_difference_mod_pi(double a, double b) {
+  double d = std::fmod(std::abs(a - b), std::numbers::pi);
+  return std::min(d, std::numbers::pi - d);
+}
+
+struct Measured {
+  ContactResult result;
+  double iou = 0.0;
+};
+
+Measured run(const TirScene& scene, SegmenterOptions options = {}) {
+  ContactSegmenter segmenter(options);
+  Measured m;
+  m.result = segmenter.segment(test::render_tir(scene));
+  if (!m.result.hull_px.empty())
+    m.iou = mask_iou(rasterize_polygon(m.result.hull_px, scene.size), test::render_truth_mask(scene));
+  return m;
+}
+
+void expect_finite(const ContactResult& r) {
+  EXPECT_TRUE(std::isfinite(r.area_mm2));
+  for (const auto& p : r.hull_px) EXPECT_TRUE(std::isfinite(p.x) && std::isfinite(p.y));
+  EXPECT_TRUE(cv::checkRange(r.orientation_rad));
+  EXPECT_TRUE(cv::checkRange(r.coherence));
+}
+
+void expect_ellipse_close(const ContactResult& r, const Ellipse& truth, double centre_tol_px,
+                          double axis_tol) {
+  ASSERT_TRUE(r.ellipse.has_value());
+  const Ellipse& e = *r.ellipse;
+  std::cout << "  ellipse centre error " << std::hypot(e.cx_px - truth.cx_px, e.cy_px - truth.cy_px)
+            << " px, axes " << e.semi_major_px / truth.semi_major_px - 1.0 << ", "
+            << e.semi_minor_px / truth.semi_minor_px - 1.0 << " relative\n";
+  EXPECT_LE(std::hypot(e.cx_px - truth.cx_px, e.cy_px - truth.cy_px), centre_tol_px);
+  EXPECT_NEAR(e.semi_major_px / truth.semi_major_px, 1.0, axis_tol);
+  EXPECT_NEAR(e.semi_minor_px / truth.semi_minor_px, 1.0, axis_tol);
+}
+
+TEST(ContactSegmenter, DefaultSceneMeetsAccuracy) {
+  const TirScene scene;
+  const Measured m = run(scene);
+  std::cout << "  status " << contact_status_text(m.result.status) << " IoU " << m.iou << " period "
+            << m.result.ridge_period_px << " px\n";
+  EXPECT_EQ(m.result.status, kContactOk);
+  EXPECT_GE(m.iou, 0.97);
+  expect_ellipse_close(m.result, scene.contacts[0], 1.0, 0.02);
+  ASSERT_EQ(m.result.hull_px.size(), 50u);
+  const double truth_area_mm2 = std::numbers::pi * 150.0 * 110.0 / (52.0 * 52.0);
+  EXPECT_NEAR(m.result.area_mm2 / truth_area_mm2, 1.0, 0.04);
+  EXPECT_EQ(m.result.polarity, -1);
+  expect_finite(m.result);
+}
+
+TEST(ContactSegmenter, LargeFrameAndBrightRidges16Bit) {
+  TirScene scene;
+  scene.size = {1280, 1024};
+  scene.contacts = {{655.0, 498.0, 270.0, 190.0, -0.3}};
+  scene.core_x = 640.0;
+  scene.core_y = 470.0;
+  scene.dark_ridges = false;
+  scene.background = 0.15;
+  scene.depth = CV_16U;
+  const Measured m = run(scene);
+  std::cout << "  status " << contact_status_text(m.result.status) << " IoU " << m.iou << "\n";
+  EXPECT_EQ(m.result.status, kContactOk);
+  EXPECT_GE(m.iou, 0.97);
+  expect_ellipse_close(m.result, scene.contacts[0], 1.0, 0.02);
+  EXPECT_EQ(m.result.polarity, 1);
+}
+
+TEST(ContactSegmenter, FullResolutionAgreesWithReduced) {
+  const TirScene scene;
+  SegmenterOptions full;
+  full.downsample = 1;
+  const Measured m = run(scene, full);
+  std::cout << "  full resolution IoU " << m.iou << "\n";
+  EXPECT_GE(m.iou, 0.97);
+  expect_ellipse_close(m.result, scene.contacts[0], 1.0, 0.02);
+}
+
+TEST(ContactSegmenter, MeasuresRidgePeriodFromSpectrum) {
+  for (double period_px : {16.0, 23.4, 35.0}) {
+    TirScene scene;
+    scene.period_px = period_px;
+    ContactSegmenter segmenter;
+    const ContactResult r = segmenter.segment(test::render_tir(scene));
+    ASSERT_TRUE(segmenter.period_measured());
+    std::cout << "  period truth " << period_px << " measured " << *segmenter.ridge_period_px() << " px\n";
+    EXPECT_NEAR(*segmenter.ridge_period_px() / period_px, 1.0, 0.05);
+    EXPECT_EQ(r.status, kContactOk);
+  }
+}
+
+TEST(ContactSegmenter, OrientationFieldMatchesRidges) {
+  for (bool whorl : {false, true}) {
+    TirScene scene;
+    scene.whorl = whorl;
+    scene.ridge_angle_rad = 0.52;
+    const Measured m = run(scene);
+    double sum = 0.0;
+    int count = 0;
+    for (int by = 0; by < m.result.coherence.rows; ++by)
+      for (int bx = 0; bx < m.result.coherence.cols; ++bx) {
+        if (m.result.coherence.at<float>(by, bx) < 0.5) continue;
+        // Blocks near the whorl's core have curved ridges; the truth is taken at the block centre.
+        const double truth = test::ridge_orientation(scene, bx * 32 + 15.5, by * 32 + 15.5);
+        sum += angle_difference_mod_pi(m.result.orientation_rad.at<float>(by, bx), truth);
+        ++count;
+      }
+    ASSERT_GT(count, 40);
+    const double mean_deg = sum / count * 180.0 / std::numbers::pi;
+    std::cout << "  " << (whorl ? "whorl" : "straight") << " ridges: mean |orientation error| " << mean_deg
+              << " deg over " << count << " blocks\n";
+    EXPECT_LE(mean_deg, whorl ? 5.0 : 2.0);
+  }
+}
+
+TEST(ContactSegmenter, UniformImageIsNoContact) {
+  for (double noise : {0.0, 0.02}) {
+    TirScene scene;
+    scene.contacts.clear();
+    scene.noise = noise;
+    const Measured m = run(scene);
+    EXPECT_EQ(m.result.status & kNoContact, kNoContact);
+    EXPECT_EQ(m.result.area_mm2, 0.0);
+    EXPECT_TRUE(m.result.hull_px.empty());
+    EXPECT_FALSE(m.result.ellipse.has_value());
+    EXPECT_EQ(m.result.orientation_rad.size(), cv::Size(20, 16));
+    EXPECT_EQ(cv::countNonZero(m.result.coherence), 0);
+    expect_finite(m.result);
+  }
+  const cv::Mat black = cv::Mat::zeros(512, 640, CV_8UC1), white(512, 640, CV_8UC1, cv::Scalar(255));
+  ContactSegmenter segmenter;
+  EXPECT_EQ(segmenter.segment(black).status, kNoContact);
+  EXPECT_EQ(segmenter.segment(white).status, kNoContact | kSaturated);
+  EXPECT_EQ(segmenter.segment(cv::Mat(3, 3, CV_8UC1, cv::Scalar(9))).status, kNoContact);
+}
+
+TEST(ContactSegmenter, ContactTouchingFrameEdge) {
+  TirScene scene;
+  scene.contacts = {{90.0, 300.0, 150.0, 110.0, 0.2}};  // a third of it outside the frame
+  scene.core_x = 100.0;
+  const Measured m = run(scene);
+  std::cout << "  status " << contact_status_text(m.result.status) << " IoU " << m.iou << "\n";
+  EXPECT_EQ(m.result.status, kTouchesEdge);
+  EXPECT_GE(m.iou, 0.93);
+  expect_ellipse_close(m.result, scene.contacts[0], 2.0, 0.03);
+  expect_finite(m.result);
+}
+
+TEST(ContactSegmenter, TwoBlobsAreFlaggedAndJoined) {
+  TirScene scene;
+  scene.contacts = {{230.0, 256.0, 100.0, 90.0, 0.0}, {440.0, 256.0, 80.0, 70.0, 0.0}};
+  const Measured m = run(scene);
+  std::cout << "  status " << contact_status_text(m.result.status) << "\n";
+  EXPECT_EQ(m.result.status & kMultipleBlobs, kMultipleBlobs);
+  // The joined hull spans both regions.
+  ASSERT_FALSE(m.result.hull_px.empty());
+  EXPECT_LT(m.result.bounding_box_px.x, 135);
+  EXPECT_GT(m.result.bounding_box_px.br().x, 515);
+  expect_finite(m.result);
+}
+
+TEST(ContactSegmenter, SweatPatchesInsideContact) {
+  TirScene scene;
+  scene.sweat = {{300.0, 240.0, 45.0}, {400.0, 300.0, 30.0}};
+  const Measured m = run(scene);
+  std::cout << "  status " << contact_status_text(m.result.status) << " IoU " << m.iou << "\n";
+  EXPECT_EQ(m.result.status, kContactOk);
+  EXPECT_GE(m.iou, 0.93);
+  expect_ellipse_close(m.result, scene.contacts[0], 1.0, 0.02);
+}
+
+TEST(ContactSegmenter, SaturatedFrame) {
+  TirScene scene;
+  scene.gain = 1.5;  // background and valleys clip at full scale
+  const Measured m = run(scene);
+  std::cout << "  status " << contact_status_text(m.result.status) << " IoU " << m.iou << "\n";
+  EXPECT_EQ(m.result.status, kSaturated);
+  EXPECT_GE(m.iou, 0.93);
+  expect_ellipse_close(m.result, scene.contacts[0], 1.0, 0.02);
+}
+
+TEST(ContactSegmenter, VeryLowContrast) {
+  TirScene scene;
+  scene.ridge_depth = 0.025;  // ~6 grey levels against noise of 2.5 levels
+  scene.noise = 0.01;
+  const Measured m = run(scene);
+  std::cout << "  status " << contact_status_text(m.result.status) << " IoU " << m.iou << " energy "
+            << m.result.texture_energy << "\n";
+  EXPECT_EQ(m.result.status, kLowContrast);
+  EXPECT_GE(m.iou, 0.93);
+  // Hard case: only IoU is specified; the ellipse is checked loosely (measured 2.0 px, 3.1 %).
+  expect_ellipse_close(m.result, scene.contacts[0], 3.0, 0.04);
+}
+
+TEST(ContactSegmenter, PureNoiseIsNoContact) {
+  TirScene scene;
+  scene.contacts.clear();
+  scene.noise = 0.08;
+  const Measured m = run(scene);
+  EXPECT_EQ(m.result.status, kNoContact);
+}
+
+TEST(ContactSegmenter, ExcludedBandIsNeverContact) {
+  TirScene scene;
+  scene.contacts = {{320.0, 200.0, 150.0, 110.0, 0.0}};
+  // A textured band at the bottom (the reference pattern on the glass), touching the contact.
+  cv::Mat image = test::render_tir(scene);
+  for (int y = 440; y < 512; ++y)
+    for (int x = 0; x < 640; ++x) image.at<std::uint8_t>(y, x) = ((x / 6 + y / 6) % 2) != 0 ? 40 : 200;
+  SegmenterOptions options;
+  options.exclude_px = cv::Rect(0, 440, 640, 72);
+  ContactSegmenter segmenter(options);
+  const ContactResult r = segmenter.segment(image);
+  EXPECT_EQ(r.status, kContactOk);
+  ASSERT_TRUE(r.ellipse.has_value());
+  EXPECT_NEAR(r.ellipse->cy_px, 200.0, 1.0);
+  EXPECT_LT(r.bounding_box_px.br().y, 330);
+}
+
+TEST(ContactSegmenter, RejectsColourImages) {
+  ContactSegmenter segmenter;
+  EXPECT_THROW(segmenter.segment(cv::Mat(10, 10, CV_8UC3)), std::exception);
+}
+
+}  // namespace
+}  // namespace tirstrain::contact

@@ -1,0 +1,78 @@
+#include "flow_support.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+
+namespace tirstrain::flow::testing {
+
+Score run_and_score(const samples::Trial& trial, const RenderedTrial& frames, const TrackerSettings& settings,
+                    bool with_plate) {
+  std::optional<RoiPx> plate_roi;
+  if (with_plate) plate_roi = trial.config().scene.reference_pattern_roi;
+  FeatureTracker tracker(settings, plate_roi);
+  Score s;
+  const int n = static_cast<int>(frames.frames.size());
+  s.frame_rms_px.assign(static_cast<std::size_t>(n), 0.0);
+  s.frame_alive.assign(static_cast<std::size_t>(n), 0);
+  double sum2 = 0.0, birth2 = 0.0, plate2 = 0.0;
+  int plate_n = 0;
+  double seconds = 0.0;
+  for (int f = 0; f < n; ++f) {
+    const auto t0 = std::chrono::steady_clock::now();
+    if (f == 0)
+      tracker.start(frames.frames[0], frames.mask, trial.frame_times_s()[0]);
+    else
+      tracker.track(frames.frames[static_cast<std::size_t>(f)], frames.mask,
+                    trial.frame_times_s()[static_cast<std::size_t>(f)]);
+    seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (f == 0) s.tracks_started = static_cast<int>(tracker.tracks().size());
+    const samples::FrameField field = trial.field(f);
+    double frame2 = 0.0;
+    int alive = 0;
+    for (const Track& t : tracker.tracks()) {
+      if (!is_alive(t.status)) continue;
+      ++alive;
+      if (t.status == TrackStatus::kBorn && f > 0) {
+        const Vec2 truth = field.invert(t.position_px).reference_px;
+        const double e = std::hypot(truth.x - t.reference_px.x, truth.y - t.reference_px.y);
+        birth2 += e * e;
+        s.birth_max_px = std::max(s.birth_max_px, e);
+        ++s.born;
+      }
+      if (f == 0) continue;
+      const Vec2 u = field.displacement_px(t.reference_px);
+      const double e =
+          std::hypot(t.reference_px.x + u.x - t.position_px.x, t.reference_px.y + u.y - t.position_px.y);
+      frame2 += e * e;
+      s.max_px = std::max(s.max_px, e);
+      if (e > 1.0) ++s.wrong;
+      if (e > 2.0 && std::getenv("FLOW_DUMP_WRONG"))
+        std::fprintf(stderr,
+                     "frame %d id %ld born %d X %.1f %.1f x %.2f %.2f truth %.2f %.2f zncc %.3f status %d\n",
+                     f, static_cast<long>(t.id), t.born_frame, t.reference_px.x, t.reference_px.y,
+                     t.position_px.x, t.position_px.y, t.reference_px.x + u.x, t.reference_px.y + u.y, t.zncc,
+                     static_cast<int>(t.status));
+    }
+    s.frame_alive[static_cast<std::size_t>(f)] = alive;
+    if (alive > 0 && f > 0) s.frame_rms_px[static_cast<std::size_t>(f)] = std::sqrt(frame2 / alive);
+    sum2 += frame2;
+    if (f > 0) s.samples += alive;
+    if (with_plate && f > 0 && tracker.plate_displacement_px()) {
+      const Vec2 d = *tracker.plate_displacement_px();
+      const Vec2 truth = trial.load(f).plate_px;
+      const double e = std::hypot(d.x - truth.x, d.y - truth.y);
+      plate2 += e * e;
+      s.plate_max_px = std::max(s.plate_max_px, e);
+      ++plate_n;
+    }
+  }
+  s.rms_px = s.samples > 0 ? std::sqrt(sum2 / static_cast<double>(s.samples)) : 0.0;
+  s.birth_rms_px = s.born > 0 ? std::sqrt(birth2 / s.born) : 0.0;
+  s.plate_rms_px = plate_n > 0 ? std::sqrt(plate2 / plate_n) : 0.0;
+  s.seconds = seconds;
+  return s;
+}
+
+}  // namespace tirstrain::flow::testing

@@ -1,0 +1,65 @@
+// Presets and the scene's `tracking:` section.
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
+
+#include "core/error.hpp"
+#include "flow/settings.hpp"
+
+namespace tirstrain::flow {
+namespace {
+
+Scene scene_with(const std::string& tracking_yaml) {
+  Scene s;
+  s.file = "scene.yaml";
+  s.tracking = YAML::Load(tracking_yaml);
+  return s;
+}
+
+TEST(Settings, Delhaye2016IsThePapersFixedSettings) {
+  const TrackerSettings s = preset_settings("delhaye2016", SceneHints{});
+  EXPECT_EQ(s.grid_step_px, 9.0);
+  EXPECT_EQ(s.window_px, 101);
+  EXPECT_EQ(s.max_features, 3000);
+  EXPECT_FALSE(s.refine);
+}
+
+TEST(Settings, AutoIsSizedFromTheRidgePeriod) {
+  SceneHints h;
+  h.ridge_period_px = 0.45 * 52.0;  // 23.4 px
+  h.max_displacement_px = 12.0;
+  const TrackerSettings s = preset_settings("auto", h);
+  EXPECT_EQ(s.window_px, 23);
+  EXPECT_EQ(s.subset_radius_px, 13);
+  EXPECT_EQ(s.grid_step_px, 8.0);
+  EXPECT_EQ(s.pyramid_levels, 2);  // 12 px needs two levels above a 23 px window's reach of ~6 px
+  h.max_displacement_px = 2.0;
+  EXPECT_EQ(preset_settings("auto", h).pyramid_levels, 0);
+  h.max_displacement_px = 200.0;  // capped: ridges must survive the pyramid (23.4 / 2^L >= 4 px)
+  EXPECT_EQ(preset_settings("auto", h).pyramid_levels, 2);
+}
+
+TEST(Settings, SceneSectionOverridesPreset) {
+  const TrackerSettings s =
+      parse_tracking_settings(scene_with("{preset: auto, grid_step_px: 6, refine: affine, window_px: 31}"));
+  EXPECT_EQ(s.grid_step_px, 6.0);
+  EXPECT_EQ(s.shape, ShapeFunction::kAffine);
+  EXPECT_EQ(s.window_px, 31);
+  EXPECT_EQ(parse_tracking_settings(scene_with("{}"), "delhaye2016").window_px, 101);
+}
+
+TEST(Settings, StrictParsingNamesTheKey) {
+  try {
+    parse_tracking_settings(scene_with("{grid_stepp_px: 6}"));
+    FAIL() << "unknown key accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("tracking.grid_stepp_px"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(parse_tracking_settings(scene_with("{window_px: 20}")), Error);  // even
+  EXPECT_THROW(parse_tracking_settings(scene_with("{preset: fast}")), Error);   // unknown preset
+  EXPECT_THROW(parse_tracking_settings(scene_with("{}"), "paper"), Error);      // --preset
+  EXPECT_THROW(parse_tracking_settings(scene_with("{refine: none}")), Error);   // check needs refine
+  EXPECT_NO_THROW(parse_tracking_settings(scene_with("{refine: none, neighbour_check: false}")));
+}
+
+}  // namespace
+}  // namespace tirstrain::flow

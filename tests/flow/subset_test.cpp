@@ -1,0 +1,164 @@
+// IC-GN subset matching on a smooth ridge texture warped by exactly known maps (rendered by evaluating the
+// texture at the inverse-mapped position of every pixel, so the only error is the matcher's).
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+
+#include <cmath>
+#include <functional>
+#include <numbers>
+
+#include "flow/settings.hpp"
+#include "flow/subset.hpp"
+
+namespace tirstrain::flow {
+namespace {
+
+// Curved ridges of period ≈ 23 px around a near core plus a weaker ridge system around another core, so
+// that every subset is well posed in both directions (a single system of nearly straight ridges leaves the
+// motion along the ridges to the faint curvature: the aperture problem, tested in the tracker tests).
+double ridge_texture(double x, double y) {
+  const double r1 = std::hypot(x + 40.0, y + 30.0), r2 = std::hypot(x - 150.0, y + 60.0);
+  return 0.5 + 0.25 * std::cos(2.0 * std::numbers::pi * r1 / 23.0) +
+         0.12 * std::cos(2.0 * std::numbers::pi * r2 / 17.0);
+}
+
+cv::Mat render(int size, const std::function<Vec2(double, double)>& inverse) {
+  cv::Mat img(size, size, CV_32F);
+  for (int y = 0; y < size; ++y)
+    for (int x = 0; x < size; ++x) {
+      const Vec2 X = inverse(x, y);
+      img.at<float>(y, x) = static_cast<float>(ridge_texture(X.x, X.y));
+    }
+  return img;
+}
+
+struct Case {
+  ShapeFunction shape;
+  double tolerance_px;
+};
+
+// Affine map about the image centre: x = c + A (X − c) + t.
+Vec2 match_affine(ShapeFunction shape, const Eigen::Matrix2d& a, Vec2 t, Vec2 start_error,
+                  MatchResult* out = nullptr) {
+  const int size = 96;
+  const Vec2 c{47.0, 47.0};
+  const cv::Mat ref = render(size, [](double x, double y) { return Vec2{x, y}; });
+  const Eigen::Matrix2d inv = a.inverse();
+  const cv::Mat cur = render(size, [&](double x, double y) {
+    const Eigen::Vector2d X = inv * Eigen::Vector2d(x - c.x - t.x, y - c.y - t.y);
+    return Vec2{X.x() + c.x, X.y() + c.y};
+  });
+  AnchorImage anchor;
+  anchor.assign(ref, cv::Mat());
+  Subset s;
+  EXPECT_TRUE(s.build(anchor, cv::Point(47, 47), 14, 1, shape, 100));
+  Warp w;
+  w.p[0] = t.x + start_error.x;
+  w.p[1] = t.y + start_error.y;
+  const MatchResult m = s.match(cur, cv::Mat(), w, MatchOptions{});
+  if (out) *out = m;
+  EXPECT_TRUE(m.converged);
+  return {w.p[0] - t.x, w.p[1] - t.y};
+}
+
+TEST(Subset, TranslationByHalfPixelIsExact) {
+  for (const Case c : {Case{ShapeFunction::kTranslation, 0.01}, Case{ShapeFunction::kAffine, 0.01},
+                       Case{ShapeFunction::kQuadratic, 0.01}}) {
+    MatchResult m;
+    const Vec2 e = match_affine(c.shape, Eigen::Matrix2d::Identity(), {3.5, -2.5}, {1.2, -1.0}, &m);
+    EXPECT_LT(std::hypot(e.x, e.y), c.tolerance_px) << to_string(c.shape);
+    EXPECT_GT(m.zncc, 0.999);
+  }
+}
+
+TEST(Subset, AffineStretchAndRotation) {
+  // 8 % stretch along x, −4 % along y, 5° rotation: a translation-only subset is biased by the warp of its
+  // own window; first and second order follow it exactly.
+  const double angle = 5.0 * std::numbers::pi / 180.0;
+  Eigen::Matrix2d rot;
+  rot << std::cos(angle), -std::sin(angle), std::sin(angle), std::cos(angle);
+  const Eigen::Matrix2d a = rot * Eigen::Vector2d(1.08, 0.96).asDiagonal();
+  for (ShapeFunction shape : {ShapeFunction::kAffine, ShapeFunction::kQuadratic}) {
+    const Vec2 e = match_affine(shape, a, {2.3, 1.7}, {0.8, 0.6});
+    EXPECT_LT(std::hypot(e.x, e.y), 0.01) << to_string(shape);
+  }
+}
+
+// x = X + u(X) with a strongly curved u: u = 0.004 (X − c)² along x. A first-order subset sees the
+// curvature as a bias of about ⅙·0.004·2·r² ≈ 0.27 px·(r/14)²; the second-order one removes it.
+TEST(Subset, SecondOrderRemovesCurvatureBias) {
+  const int size = 96;
+  const double k = 0.004, cx = 47.0;
+  const cv::Mat ref = render(size, [](double x, double y) { return Vec2{x, y}; });
+  const cv::Mat cur = render(size, [&](double x, double y) {
+    // Invert x = X + 1.5 + k (X − c)² by Newton (monotone where 1 + 2k(X − c) > 0).
+    double X = x;
+    for (int i = 0; i < 30; ++i) X -= (X + 1.5 + k * (X - cx) * (X - cx) - x) / (1.0 + 2.0 * k * (X - cx));
+    return Vec2{X, y};
+  });
+  AnchorImage anchor;
+  anchor.assign(ref, cv::Mat());
+  double error[2] = {0, 0};
+  int idx = 0;
+  for (ShapeFunction shape : {ShapeFunction::kAffine, ShapeFunction::kQuadratic}) {
+    Subset s;
+    ASSERT_TRUE(s.build(anchor, cv::Point(47, 47), 14, 1, shape, 100));
+    Warp w;
+    w.p[0] = 1.0;
+    ASSERT_TRUE(s.match(cur, cv::Mat(), w, MatchOptions{}).converged);
+    error[idx++] = std::abs(w.p[0] - 1.5);
+  }
+  EXPECT_GT(error[0], 0.1);   // first order: biased by the curvature
+  EXPECT_LT(error[1], 0.01);  // second order: exact
+}
+
+// A subset straddling a fixed border: the background does not move; the masked match ignores it.
+TEST(Subset, MaskKeepsFixedBackgroundFromPullingTowardsZero) {
+  const int size = 96;
+  const cv::Mat ref = render(size, [](double x, double y) { return Vec2{x, y}; });
+  cv::Mat cur = render(size, [](double x, double y) { return Vec2{x - 2.5, y + 1.25}; });
+  cv::Mat mask(size, size, CV_8U, cv::Scalar(1));
+  mask.colRange(52, size).setTo(0);
+  cv::Mat ref_masked = ref.clone(), cur_masked = cur.clone();
+  // The background (right of x = 52) is flat and fixed in both frames, with a fixed edge.
+  ref_masked.colRange(52, size).setTo(0.9);
+  cur_masked.colRange(52, size).setTo(0.9);
+  AnchorImage anchor;
+  anchor.assign(ref_masked, mask);
+  Subset s;
+  ASSERT_TRUE(s.build(anchor, cv::Point(47, 47), 14, 1, ShapeFunction::kQuadratic, 100));
+  // Started 0.3 px from the truth: directions the masked texture leaves undetermined keep their start.
+  Warp w;
+  w.p[0] = 2.3;
+  w.p[1] = -1.05;
+  cv::Mat match_mask;
+  erode_for_matching(mask, match_mask);
+  const MatchResult m = s.match(cur_masked, match_mask, w, MatchOptions{});
+  ASSERT_TRUE(m.converged);
+  EXPECT_LT(m.valid_fraction, 0.95);
+  EXPECT_NEAR(w.displacement_px(0, 0).x, 2.5, 0.02);
+  EXPECT_NEAR(w.displacement_px(0, 0).y, -1.25, 0.02);
+}
+
+TEST(Subset, FlatPatchIsDegenerate) {
+  AnchorImage anchor;
+  anchor.assign(cv::Mat(64, 64, CV_32F, cv::Scalar(0.5)), cv::Mat());
+  Subset s;
+  EXPECT_FALSE(s.build(anchor, cv::Point(32, 32), 10, 1, ShapeFunction::kAffine, 50));
+  EXPECT_TRUE(s.empty());
+}
+
+TEST(Subset, BicubicReproducesSmoothSignal) {
+  cv::Mat img(32, 32, CV_32F);
+  for (int y = 0; y < 32; ++y)
+    for (int x = 0; x < 32; ++x) img.at<float>(y, x) = static_cast<float>(ridge_texture(x, y));
+  float v = 0;
+  ASSERT_TRUE(sample_bicubic(img, 10.3, 12.7, v));
+  EXPECT_NEAR(v, ridge_texture(10.3, 12.7), 2e-3);
+  EXPECT_FALSE(sample_bicubic(img, 0.5, 10.0, v));
+  EXPECT_FALSE(sample_bicubic(img, 10.0, 30.2, v));
+}
+
+}  // namespace
+}  // namespace tirstrain::flow

@@ -1,0 +1,135 @@
+// The feature tracker against synthetic trials with exact fields (samples/), small images so the whole
+// set stays fast under AddressSanitizer.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+#include "core/error.hpp"
+#include "flow/settings.hpp"
+#include "flow/tracker.hpp"
+#include "flow_support.hpp"
+
+namespace tirstrain::flow {
+namespace {
+
+using testing::cm_scene;
+using testing::config_of;
+using testing::render;
+using testing::run_and_score;
+using testing::Score;
+
+TrackerSettings auto_settings() {
+  return preset_settings("auto", SceneHints{});
+}
+
+void print(const char* label, const Score& s) {
+  std::printf(
+      "[%s] tracks %d, samples %ld, rms %.4f px, max %.3f px, >1px %ld, born %d (rms %.3f, max %.3f), "
+      "plate rms %.4f px, alive at end %d\n",
+      label, s.tracks_started, s.samples, s.rms_px, s.max_px, s.wrong, s.born, s.birth_rms_px, s.birth_max_px,
+      s.plate_rms_px, s.frame_alive.back());
+}
+
+YAML::Node rigid_scene(int frames, double tx, double ty, double rotation_deg) {
+  YAML::Node root = cm_scene(160, 160, frames, 50.0);
+  root["synthesis"]["loading"] = YAML::Load("{field: rigid}");
+  root["synthesis"]["loading"]["translation_px"].push_back(tx);
+  root["synthesis"]["loading"]["translation_px"].push_back(ty);
+  root["synthesis"]["loading"]["rotation_deg"] = rotation_deg;
+  return root;
+}
+
+YAML::Node with_plate(YAML::Node root, int band_px) {
+  root["reference_pattern"]["roi_px"] = YAML::Load("[0, 0, 0, 0]");
+  root["reference_pattern"]["roi_px"][2] = root["synthesis"]["image"]["width_px"].as<int>();
+  root["reference_pattern"]["roi_px"][3] = band_px;
+  return root;
+}
+
+struct BothRuns {
+  Score automatic, paper;
+};
+
+BothRuns run_both(const YAML::Node& scene, bool sensor, bool plate) {
+  const samples::Trial trial(config_of(scene));
+  const auto frames = render(trial, sensor);
+  BothRuns r;
+  r.automatic = run_and_score(trial, frames, auto_settings(), plate);
+  r.paper = run_and_score(trial, frames, preset_settings("delhaye2016", SceneHints{}), plate);
+  print("auto", r.automatic);
+  print("delhaye2016", r.paper);
+  return r;
+}
+
+// Tolerances: the targets where they are met; otherwise the measured value (Release, this commit)
+// with headroom, marked "regression bound", so a change that makes things worse fails. Measured values
+// are in the comments.
+
+TEST(Tracker, RigidTranslationByHalfPixels) {
+  // 6 frames ramping to (5.5, −2.5): every frame moves by (1.1, −0.5), the last frame by k + 0.5 overall.
+  const BothRuns r = run_both(rigid_scene(6, 5.5, -2.5, 0.0), false, false);
+  // Measured: auto 0.087 px RMS, max 0.46 px, none > 1 px; delhaye2016 0.45 px RMS, max 1.46 px.
+  EXPECT_EQ(r.automatic.wrong, 0);
+  EXPECT_LT(r.automatic.rms_px, 0.15);  // regression bound (target 0.05)
+  EXPECT_LT(r.automatic.rms_px, r.paper.rms_px);
+  EXPECT_GT(r.automatic.frame_alive.back(), 40);
+}
+
+TEST(Tracker, JumpOf25PxIsTrackedNotAliased) {
+  // The second frame jumps by 25 px, more than one ridge period: the phase correlation of the contact
+  // supplies the prediction; plain LK (delhaye2016) locks onto a neighbouring ridge.
+  const BothRuns r = run_both(rigid_scene(2, 25.0, 0.0, 0.0), false, false);
+  // Measured: auto 0.042 px RMS, max 0.13 px on 42 tracks.
+  EXPECT_EQ(r.automatic.wrong, 0);
+  EXPECT_LT(r.automatic.rms_px, 0.1);
+  EXPECT_GE(r.automatic.frame_alive.back(), 30);
+}
+
+TEST(Tracker, MotionBlurFrameDoesNotBreakTracks) {
+  YAML::Node root = rigid_scene(6, 5.5, -2.5, 0.0);
+  root["synthesis"]["sensor"]["motion_blur_frames"] = YAML::Load("[3]");
+  root["synthesis"]["sensor"]["motion_blur_exposure_s"] = 0.01;
+  const BothRuns r = run_both(root, true, false);
+  // Measured: auto 0.087 px RMS, none > 1 px.
+  EXPECT_EQ(r.automatic.wrong, 0);
+  EXPECT_LT(r.automatic.rms_px, 0.15);  // regression bound
+}
+
+TEST(Tracker, CattaneoMindlinAndPlate) {
+  const BothRuns r = run_both(with_plate(cm_scene(200, 220, 12, 50.0), 40), false, true);
+  // Measured: auto 0.18 px RMS (6 of 847 samples > 1 px), delhaye2016 0.68 px; plate 0.0057 px RMS.
+  EXPECT_LT(r.automatic.rms_px, 0.3);  // regression bound (target 0.05)
+  EXPECT_LT(r.automatic.rms_px, r.paper.rms_px);
+  EXPECT_LT(r.automatic.plate_rms_px, 0.02);
+  EXPECT_LT(r.automatic.plate_max_px, 0.05);
+  // Newborn reference positions: measured 0.27 px RMS, max 0.58 px (target 0.2 px).
+  EXPECT_LT(r.automatic.birth_rms_px, 0.5);  // regression bound
+}
+
+// Known failures, kept visible: large rotation and stretch, and low contrast with noise, are not yet
+// tracked within the limits (see docs/flow.md, "Status"). These tests only print.
+TEST(TrackerKnownLimits, RotationStretchLowContrast) {
+  run_both(rigid_scene(6, 0.0, 0.0, 4.0), false, false);
+  YAML::Node stretch = cm_scene(160, 160, 11, 50.0);
+  stretch["synthesis"]["loading"] =
+      YAML::Load("{field: affine, translation_px: [0, 0], gradient: [0.5, 0, 0, 0]}");
+  run_both(stretch, false, false);
+  YAML::Node noisy = cm_scene(200, 180, 12, 50.0);
+  noisy["synthesis"]["sensor"] =
+      YAML::Load("{full_well_electrons: 5000, read_noise: 0.01, blur_sigma_px: 0.8}");
+  noisy["synthesis"]["fingerprint"]["ridge_contrast"] = 0.25;
+  noisy["synthesis"]["image"]["bit_depth"] = 8;
+  run_both(noisy, true, false);
+}
+
+TEST(Tracker, RejectsFramesOfAnotherSize) {
+  FeatureTracker tracker(auto_settings());
+  tracker.start(cv::Mat(64, 64, CV_8U, cv::Scalar(100)), cv::Mat(), 0.0);
+  EXPECT_THROW(tracker.track(cv::Mat(32, 64, CV_8U, cv::Scalar(100)), cv::Mat(), 0.1), Error);
+  EXPECT_THROW(tracker.track(cv::Mat(64, 64, CV_8UC3), cv::Mat(), 0.1), Error);
+}
+
+}  // namespace
+}  // namespace tirstrain::flow

@@ -1,0 +1,273 @@
+// `tirstrain process` end to end through the CLI: the documented datasets with the right shapes and
+// values, bad input reported with file and frame, and an interrupted run leaving no result.h5.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "core/csv.hpp"
+#include "core/h5_file.hpp"
+#include "tests/contact/tir_render.hpp"
+
+namespace tirstrain {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "pipeline" / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+struct CliRun {
+  int exit_code = -1;
+  std::string output;
+};
+
+CliRun run_cli(const std::string& arguments) {
+  const std::string command = std::string(TIRSTRAIN_CLI) + " " + arguments + " 2>&1";
+  CliRun run;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return run;
+  std::array<char, 4096> buffer{};
+  while (std::fgets(buffer.data(), buffer.size(), pipe) != nullptr) run.output += buffer.data();
+  const int status = pclose(pipe);
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return run;
+}
+
+// The contact of frame i drifts right by 2 px per frame; time steps are uneven, as from a real camera.
+test::TirScene frame_scene(int i) {
+  test::TirScene scene;
+  scene.contacts = {{300.0 + 2.0 * i, 256.0, 150.0, 110.0, 0.4}};
+  scene.seed = static_cast<std::uint64_t>(i + 1);
+  return scene;
+}
+
+double frame_time_s(int i) {
+  return 0.005 * i + 0.0003 * (i % 3);
+}
+
+fs::path write_trial(const std::string& name, int frames, bool with_times = true) {
+  const fs::path dir = scratch(name);
+  fs::create_directories(dir / "frames");
+  std::ofstream times(dir / "frames.csv");
+  times << "index,t_s\n";
+  for (int i = 0; i < frames; ++i) {
+    char file[32];
+    std::snprintf(file, sizeof file, "%06d.png", i);
+    cv::imwrite((dir / "frames" / file).string(), test::render_tir(frame_scene(i)));
+    times << i << ',' << format_double(frame_time_s(i)) << '\n';
+  }
+  times.close();
+  if (!with_times) fs::remove(dir / "frames.csv");
+  return dir;
+}
+
+TEST(Process, WritesDocumentedResults) {
+  constexpr int kFrames = 8;
+  const fs::path trial = write_trial("e2e_trial", kFrames);
+  const fs::path out = scratch("e2e_out");
+  const CliRun run = run_cli("process " + trial.string() + " --out " + out.string() + " --quiet");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+
+  H5Reader h5((out / "result.h5").string());
+  const std::size_t n = kFrames;
+  EXPECT_EQ(h5.shape("/frames/t_s"), (H5Shape{n}));
+  EXPECT_EQ(h5.shape("/frames/status"), (H5Shape{n}));
+  EXPECT_EQ(h5.shape("/contact/status"), (H5Shape{n}));
+  EXPECT_EQ(h5.shape("/contact/area_mm2"), (H5Shape{n}));
+  EXPECT_EQ(h5.shape("/contact/hull_px"), (H5Shape{n, 50, 2}));
+  EXPECT_EQ(h5.shape("/contact/ellipse"), (H5Shape{n, 5}));
+  EXPECT_EQ(h5.shape("/contact/orientation_rad"), (H5Shape{n, 16, 20}));
+  EXPECT_EQ(h5.shape("/contact/coherence"), (H5Shape{n, 16, 20}));
+  EXPECT_NE(h5.attribute_text("/", "software_version").find("tirstrain"), std::string::npos);
+  EXPECT_NE(h5.attribute_text("/", "scene_yaml").find("px_per_mm"), std::string::npos);
+  EXPECT_NEAR(h5.attribute_number("/contact", "ridge_period_px"), 23.4, 1.0);
+
+  const auto t_s = h5.read_doubles("/frames/t_s");
+  const auto status = h5.read_integers("/contact/status");
+  const auto ellipse = h5.read_doubles("/contact/ellipse");
+  const auto area = h5.read_doubles("/contact/area_mm2");
+  const double truth_area_mm2 = M_PI * 150.0 * 110.0 / (52.0 * 52.0);
+  for (int i = 0; i < kFrames; ++i) {
+    EXPECT_DOUBLE_EQ(t_s[static_cast<std::size_t>(i)], frame_time_s(i));
+    EXPECT_EQ(status[static_cast<std::size_t>(i)], 0);
+    const double dx = ellipse[static_cast<std::size_t>(i) * 5] - (300.0 + 2.0 * i);
+    const double dy = ellipse[static_cast<std::size_t>(i) * 5 + 1] - 256.0;
+    // Values, not accuracy (tested in tests/contact): the contact moves over a fixed whorl, so the ridge
+    // phase at its border changes per frame (measured 0.5-1.6 px, area +3 %).
+    EXPECT_LE(std::hypot(dx, dy), 2.0) << "frame " << i;
+    EXPECT_NEAR(ellipse[static_cast<std::size_t>(i) * 5 + 2] / 150.0, 1.0, 0.02);
+    EXPECT_NEAR(area[static_cast<std::size_t>(i)] / truth_area_mm2, 1.0, 0.04);
+  }
+
+  const CsvTable csv = read_numeric_csv((out / "frames.csv").string());
+  EXPECT_EQ(csv.rows(), n);
+  for (const char* column : {"index", "t_s", "frame_status", "contact_status", "area_mm2", "cx_px", "cy_px",
+                             "semi_major_px", "semi_minor_px", "angle_rad"})
+    EXPECT_TRUE(csv.has(column)) << column;
+  EXPECT_DOUBLE_EQ(csv.column("t_s")[3], frame_time_s(3));
+
+  std::ifstream summary_file(out / "summary.json");
+  const nlohmann::json summary = nlohmann::json::parse(summary_file);
+  EXPECT_EQ(summary["frames"]["total"], kFrames);
+  EXPECT_EQ(summary["contact"]["frames_with_contact"], kFrames);
+  EXPECT_EQ(summary["time_measured"], true);
+
+  cv::VideoCapture overlay((out / "overlay.mp4").string());
+  ASSERT_TRUE(overlay.isOpened());
+  int overlay_frames = 0;
+  cv::Mat image;
+  while (overlay.read(image)) ++overlay_frames;
+  EXPECT_EQ(overlay_frames, kFrames);
+  for (const char* leftover : {"result.h5.partial", "frames.csv.partial", "overlay.partial.mp4"})
+    EXPECT_FALSE(fs::exists(out / leftover)) << leftover;
+}
+
+TEST(Process, CorruptMiddleFrameIsSkippedUnlessStrict) {
+  const fs::path trial = write_trial("corrupt_trial", 5);
+  std::ofstream(trial / "frames" / "000002.png") << "not an image";
+  const fs::path out = scratch("corrupt_out");
+  const CliRun run = run_cli("process " + trial.string() + " --out " + out.string() + " --overlay none");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("000002.png: frame 2: frame could not be decoded"), std::string::npos)
+      << run.output;
+  H5Reader h5((out / "result.h5").string());
+  const auto frame_status = h5.read_integers("/frames/status");
+  const auto contact_status = h5.read_integers("/contact/status");
+  ASSERT_EQ(frame_status.size(), 5u);
+  EXPECT_EQ(frame_status[2], 2);     // corrupt
+  EXPECT_EQ(contact_status[2], 64);  // frame_skipped
+  EXPECT_EQ(frame_status[3], 0);
+  EXPECT_EQ(contact_status[3], 0);
+  EXPECT_EQ(h5.read_doubles("/contact/area_mm2")[2], 0.0);
+  EXPECT_FALSE(fs::exists(out / "overlay.mp4"));
+
+  const fs::path strict_out = scratch("corrupt_strict_out");
+  const CliRun strict =
+      run_cli("process " + trial.string() + " --out " + strict_out.string() + " --strict --quiet");
+  EXPECT_EQ(strict.exit_code, 1);
+  EXPECT_NE(strict.output.find("000002.png: frame 2:"), std::string::npos) << strict.output;
+  EXPECT_FALSE(fs::exists(strict_out / "result.h5"));
+}
+
+TEST(Process, BadInputsGiveClearErrorsAndNoResult) {
+  const fs::path out = scratch("bad_out");
+  const auto expect_failure = [&](const std::string& input, const std::vector<std::string>& needles) {
+    const CliRun run = run_cli("process " + input + " --out " + out.string() + " --quiet");
+    EXPECT_EQ(run.exit_code, 1) << run.output;
+    for (const auto& needle : needles) EXPECT_NE(run.output.find(needle), std::string::npos) << run.output;
+    EXPECT_FALSE(fs::exists(out / "result.h5"));
+  };
+  expect_failure((fs::path(TIRSTRAIN_TEST_TMP) / "pipeline" / "missing_input").string(),
+                 {"missing_input", "no such file"});
+
+  const fs::path sizes = write_trial("sizes_trial", 4);
+  cv::imwrite((sizes / "frames" / "000003.png").string(), cv::Mat(100, 120, CV_8UC1, cv::Scalar(100)));
+  expect_failure(sizes.string(), {"000003.png", "frame 3", "120x100"});
+
+  const fs::path backwards = write_trial("backwards_trial", 4);
+  std::ofstream(backwards / "frames.csv") << "index,t_s\n0,0\n1,0.01\n2,0.005\n3,0.02\n";
+  expect_failure(backwards.string(), {"frames.csv", "frame 2", "backwards"});
+
+  const fs::path video_dir = scratch("bad_video");
+  std::ofstream(video_dir / "trial.mp4") << std::string(2048, '\x42');
+  expect_failure((video_dir / "trial.mp4").string(), {"trial.mp4", "video"});
+}
+
+TEST(Process, VideoInputUsesContainerTimestamps) {
+  const fs::path dir = scratch("video_trial");
+  const std::string video = (dir / "trial.avi").string();
+  {
+    cv::VideoWriter writer(video, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 50.0, {640, 512}, false);
+    ASSERT_TRUE(writer.isOpened());
+    for (int i = 0; i < 4; ++i) writer.write(test::render_tir(frame_scene(i)));
+  }
+  const fs::path out = scratch("video_out");
+  const CliRun run = run_cli("process " + video + " --out " + out.string() + " --quiet --overlay png");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  H5Reader h5((out / "result.h5").string());
+  const auto t_s = h5.read_doubles("/frames/t_s");
+  ASSERT_EQ(t_s.size(), 4u);
+  for (std::size_t i = 0; i < 4; ++i) EXPECT_NEAR(t_s[i], i / 50.0, 1e-6);
+  EXPECT_EQ(h5.read_integers("/contact/status")[1], 0);
+  EXPECT_TRUE(fs::exists(out / "overlay" / "000003.png"));
+}
+
+TEST(Process, SceneStagesNotYetAvailableAreReported) {
+  const fs::path trial = write_trial("stages_trial", 2, false);
+  const fs::path scene = trial / "scene.yaml";
+  std::ofstream(scene)
+      << "calibration:\n  px_per_mm: 52\n  ridge_period_mm: 0.45\ncompute: [contact, strain]\n";
+  const fs::path out = scratch("stages_out");
+  const CliRun run = run_cli("process " + trial.string() + " --scene " + scene.string() + " --out " +
+                             out.string() + " --overlay none");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("stage 'tracking'"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("no timestamps"), std::string::npos) << run.output;
+  H5Reader h5((out / "result.h5").string());
+  EXPECT_DOUBLE_EQ(h5.attribute_number("/contact", "ridge_period_px"), 0.45 * 52.0);
+  EXPECT_EQ(h5.attribute_number("/frames", "time_measured"), 0.0);
+  const CliRun strict = run_cli("process " + trial.string() + " --scene " + scene.string() + " --out " +
+                                out.string() + " --strict --quiet");
+  EXPECT_EQ(strict.exit_code, 1);
+  EXPECT_NE(strict.output.find("compute"), std::string::npos) << strict.output;
+}
+
+TEST(Process, KilledHalfwayLeavesNoResult) {
+  constexpr int kFrames = 60;
+  const fs::path trial = write_trial("kill_trial", kFrames);
+  const fs::path out = scratch("kill_out");
+  int pipe_fds[2];
+  ASSERT_EQ(pipe(pipe_fds), 0);
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    dup2(pipe_fds[1], STDERR_FILENO);
+    close(pipe_fds[0]);
+    const std::string in = trial.string(), dir = out.string();
+    execl(TIRSTRAIN_CLI, TIRSTRAIN_CLI, "process", in.c_str(), "--out", dir.c_str(),
+          static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  close(pipe_fds[1]);
+  // Progress lines come every 10 %; kill once 30 % of the frames are done.
+  FILE* err = fdopen(pipe_fds[0], "r");
+  std::string seen;
+  std::array<char, 512> line{};
+  bool reached = false;
+  while (std::fgets(line.data(), line.size(), err) != nullptr) {
+    seen += line.data();
+    if (seen.find("(30%)") != std::string::npos) {
+      reached = true;
+      break;
+    }
+  }
+  kill(pid, SIGKILL);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  fclose(err);
+  ASSERT_TRUE(reached) << seen;
+  EXPECT_TRUE(WIFSIGNALED(status));
+  EXPECT_FALSE(fs::exists(out / "result.h5"));
+  EXPECT_FALSE(fs::exists(out / "frames.csv"));
+  EXPECT_FALSE(fs::exists(out / "summary.json"));
+  EXPECT_FALSE(fs::exists(out / "overlay.mp4"));
+}
+
+}  // namespace
+}  // namespace tirstrain
