@@ -12,8 +12,8 @@ namespace {
 using tirstrain::samples::Trial;
 
 const Trial& default_trial() {
-  static const Trial trial(
-      tirstrain::samples::load_synth_config(std::string(TIRSTRAIN_SOURCE_DIR) + "/samples/scenes/default.yaml"));
+  static const Trial trial(tirstrain::samples::load_synth_config(std::string(TIRSTRAIN_SOURCE_DIR) +
+                                                                 "/samples/scenes/default.yaml"));
   return trial;
 }
 
@@ -25,7 +25,8 @@ void BM_RenderDefaultFrame(benchmark::State& state) {
     benchmark::DoNotOptimize(image.data);
     frame = (frame + 1) % trial.frames();
   }
-  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["frames_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
   double residual_px = 0.0;
   trial.inverse_map(trial.frames() - 1, &residual_px);
   state.counters["max_inverse_residual_px"] = residual_px;

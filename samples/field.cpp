@@ -102,9 +102,11 @@ FrameField::Inverse FrameField::invert(Vec2 x, Vec2 guess) const {
     const double ry = X.y + v.displacement_px.y - x.y;
     residual = std::hypot(rx, ry);
     if (residual <= 1e-10) break;
-    const double jxx = 1.0 + v.gradient.xx, jxy = v.gradient.xy, jyx = v.gradient.yx, jyy = 1.0 + v.gradient.yy;
+    const double jxx = 1.0 + v.gradient.xx, jxy = v.gradient.xy, jyx = v.gradient.yx,
+                 jyy = 1.0 + v.gradient.yy;
     const double det = jxx * jyy - jxy * jyx;
-    // A fold (det <= 0) is outside what the scene validation allows; damped fixed-point steps still make progress.
+    // A fold (det <= 0) is outside what the scene validation allows; damped fixed-point steps still make
+    // progress.
     if (!(det > 1e-6)) {
       X.x -= 0.5 * rx;
       X.y -= 0.5 * ry;
@@ -134,8 +136,10 @@ LoadHistory::LoadHistory(const SynthConfig& config)
   if (config.scene.reference_pattern_roi) {
     // Centre the contact in what the pattern band leaves free when the band runs along the top or bottom.
     const RoiPx& r = *config.scene.reference_pattern_roi;
-    if (r.y == 0 && r.height < h) centre_px_.y = 0.5 * (r.height + h - 1);
-    else if (r.y + r.height == static_cast<int>(h) && r.y > 0) centre_px_.y = 0.5 * (r.y - 1);
+    if (r.y == 0 && r.height < h)
+      centre_px_.y = 0.5 * (r.height + h - 1);
+    else if (r.y + r.height == static_cast<int>(h) && r.y > 0)
+      centre_px_.y = 0.5 * (r.y - 1);
   }
   if (contact_.centre_px) centre_px_ = *contact_.centre_px;
 
@@ -170,7 +174,8 @@ LoadHistory::LoadHistory(const SynthConfig& config)
   if (contact_.shape == ContactShape::kHertz) {
     semi_axes_px_ = {contact_radius_m_ * px_per_m_, contact_radius_m_ * px_per_m_};
   } else {
-    semi_axes_px_ = {contact_.semi_axes_mm[0] * 1e-3 * px_per_m_, contact_.semi_axes_mm[1] * 1e-3 * px_per_m_};
+    semi_axes_px_ = {contact_.semi_axes_mm[0] * 1e-3 * px_per_m_,
+                     contact_.semi_axes_mm[1] * 1e-3 * px_per_m_};
     contact_angle_rad_ = contact_.angle_deg * std::numbers::pi / 180.0;
     const double cs = std::cos(contact_angle_rad_), sn = std::sin(contact_angle_rad_);
     const double sx = contact_radius_m_ / (contact_.semi_axes_mm[0] * 1e-3);
@@ -187,7 +192,8 @@ LoadState LoadHistory::at(double t_s) const {
   s.normal_N = contact_.normal_N;
   const double since_start_s = std::max(0.0, t_s - loading_.shear_start_s);
   const double ramp_span_s = last_frame_s_ - loading_.shear_start_s;
-  s.ramp = ramp_span_s > 0.0 ? std::clamp(since_start_s / ramp_span_s, 0.0, 1.0) : (since_start_s > 0 ? 1.0 : 0.0);
+  s.ramp =
+      ramp_span_s > 0.0 ? std::clamp(since_start_s / ramp_span_s, 0.0, 1.0) : (since_start_s > 0 ? 1.0 : 0.0);
   // Snap the loading direction's components so axis-aligned directions give exact zeros (no "-0" or 1e-16
   // plate motion across the axis).
   const auto snap = [](double v) { return std::abs(v) < 1e-14 ? 0.0 : v; };

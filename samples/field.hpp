@@ -28,9 +28,9 @@ class FrameField {
   FrameField() = default;
   // u(X) = H (X - centre) + translation.
   static FrameField affine(Vec2 centre_px, const Gradient2& h, Vec2 translation_px);
-  // Cattaneo–Mindlin field evaluated at metric coordinates X_m = M (X - centre) / px_per_m; u_px = px_per_m u_m,
-  // H = H_cm M. M = identity for a Hertz (circular) contact; for an elliptical contact M maps the ellipse
-  // onto the model's circle.
+  // Cattaneo–Mindlin field evaluated at metric coordinates X_m = M (X - centre) / px_per_m; u_px = px_per_m
+  // u_m, H = H_cm M. M = identity for a Hertz (circular) contact; for an elliptical contact M maps the
+  // ellipse onto the model's circle.
   static FrameField contact(const model::CattaneoMindlin& model, Vec2 centre_px, double px_per_m,
                             std::optional<Mat2> ellipse_map);
 
@@ -71,13 +71,13 @@ struct LoadState {
   double rigid_shift_m = 0.0;   // delta_x of the stick zone along the loading direction
   double ramp = 0.0;            // 0 before the shear starts, 1 at the last frame (rigid/affine fields)
   bool full_slip = false;
-  Vec2 plate_px;                // displacement of the glass plate (and its printed pattern), pixels
+  Vec2 plate_px;  // displacement of the glass plate (and its printed pattern), pixels
 };
 
 // The load history: P constant; displacement-controlled plate moving at plate_speed_mm_s from shear_start_s.
 // While the plate displacement d is below the Mindlin limit delta_max (the stick zone follows the plate),
-// Q = mu P [1 - (1 - d / delta_max)^(3/2)] (the exact inverse of the Mindlin compliance); beyond it full slip,
-// Q = mu P, c = 0, and the skin field stays frozen while the plate keeps moving.
+// Q = mu P [1 - (1 - d / delta_max)^(3/2)] (the exact inverse of the Mindlin compliance); beyond it full
+// slip, Q = mu P, c = 0, and the skin field stays frozen while the plate keeps moving.
 class LoadHistory {
  public:
   explicit LoadHistory(const SynthConfig& config);

@@ -76,7 +76,8 @@ void write_truth(const Trial& trial, const std::string& path, const std::vector<
   out.attribute("/", "contact_radius_m", history.contact_radius_m());
   out.attribute("/", "max_rigid_shift_m", history.max_rigid_shift_m());
 
-  std::vector<double> t_s(frames), normal(frames), tangential(frames), stick(frames), shift(frames), plate(2 * frames);
+  std::vector<double> t_s(frames), normal(frames), tangential(frames), stick(frames), shift(frames),
+      plate(2 * frames);
   std::vector<std::uint8_t> slip(frames);
   for (std::size_t k = 0; k < frames; ++k) {
     const LoadState s = trial.load(static_cast<int>(k));
@@ -156,7 +157,8 @@ void write_trial(const Trial& trial, const std::string& out_dir, bool quiet) {
     const cv::Mat image = trial.apply_sensor(trial.render_clean(k), k);
     const std::string file = (root / "frames" / frame_name(k)).string();
     if (!cv::imwrite(file, image)) throw Error("cannot write image", {.file = file, .frame = k});
-    frames_csv.row_text({std::to_string(k), format_double(trial.frame_times_s()[static_cast<std::size_t>(k)])});
+    frames_csv.row_text(
+        {std::to_string(k), format_double(trial.frame_times_s()[static_cast<std::size_t>(k)])});
     grid.push_back(trial.grid_truth(k));
     masks.push_back(mask);  // the contact is fixed in the image; stored per frame so consumers need not know
     progress.update(k + 1);

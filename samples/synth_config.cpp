@@ -16,8 +16,8 @@ std::vector<double> fixed_numbers(YamlSection& section, const std::string& key, 
                                   const std::vector<double>& fallback) {
   std::vector<double> values = section.numbers(key, fallback);
   if (values.size() != count)
-    throw Error("expected a list of " + std::to_string(count) + " numbers", {.file = section.file(),
-                                                                            .key = section.path_of(key)});
+    throw Error("expected a list of " + std::to_string(count) + " numbers",
+                {.file = section.file(), .key = section.path_of(key)});
   return values;
 }
 
@@ -28,14 +28,15 @@ Vec2 vec2(YamlSection& section, const std::string& key, Vec2 fallback) {
 
 void parse_contact(YamlSection s, ContactConfig& c) {
   c.shape = s.choice("shape", "hertz", {"hertz", "ellipse"}) == "hertz" ? ContactShape::kHertz
-                                                                         : ContactShape::kEllipse;
+                                                                        : ContactShape::kEllipse;
   c.normal_N = s.number("normal_N", c.normal_N, 1e-4, 1e3);
   c.radius_m = s.number("radius_m", c.radius_m, 1e-4, 1.0);
   if (c.shape == ContactShape::kEllipse) {
     const auto axes = fixed_numbers(s, "semi_axes_mm", 2, {c.semi_axes_mm[0], c.semi_axes_mm[1]});
     for (double a : axes)
       if (!(a > 0.01 && a < 1000.0))
-        throw Error("semi-axes must lie in (0.01, 1000) mm", {.file = s.file(), .key = s.path_of("semi_axes_mm")});
+        throw Error("semi-axes must lie in (0.01, 1000) mm",
+                    {.file = s.file(), .key = s.path_of("semi_axes_mm")});
     c.semi_axes_mm[0] = axes[0];
     c.semi_axes_mm[1] = axes[1];
     c.angle_deg = s.number("angle_deg", 0.0, -360.0, 360.0);
@@ -49,7 +50,8 @@ void parse_contact(YamlSection s, ContactConfig& c) {
 }
 
 void parse_loading(YamlSection s, LoadingConfig& l) {
-  const std::string field = s.choice("field", "cattaneo_mindlin", {"cattaneo_mindlin", "rigid", "affine", "none"});
+  const std::string field =
+      s.choice("field", "cattaneo_mindlin", {"cattaneo_mindlin", "rigid", "affine", "none"});
   l.field = field == "cattaneo_mindlin" ? FieldKind::kCattaneoMindlin
             : field == "rigid"          ? FieldKind::kRigid
             : field == "affine"         ? FieldKind::kAffine
@@ -106,7 +108,8 @@ void parse_sweat(YamlSection s, SweatConfig& w) {
   w.radius_mm_min = s.number("radius_mm_min", w.radius_mm_min, 0.01, 20.0);
   w.radius_mm_max = s.number("radius_mm_max", w.radius_mm_max, 0.01, 20.0);
   if (w.radius_mm_max < w.radius_mm_min)
-    throw Error("must not be smaller than radius_mm_min", {.file = s.file(), .key = s.path_of("radius_mm_max")});
+    throw Error("must not be smaller than radius_mm_min",
+                {.file = s.file(), .key = s.path_of("radius_mm_max")});
   w.depth = s.number("depth", w.depth, 0.0, 1.0);
   s.finish();
 }
@@ -189,18 +192,21 @@ SynthConfig parse_synth_config(const Scene& scene) {
   if (scene.reference_pattern_roi) {
     const RoiPx& r = *scene.reference_pattern_roi;
     if (r.x + r.width > cfg.image.width_px || r.y + r.height > cfg.image.height_px)
-      throw Error("the reference pattern band does not fit in the " + std::to_string(cfg.image.width_px) + "x" +
-                      std::to_string(cfg.image.height_px) + " image",
+      throw Error("the reference pattern band does not fit in the " + std::to_string(cfg.image.width_px) +
+                      "x" + std::to_string(cfg.image.height_px) + " image",
                   {.file = file, .key = "reference_pattern.roi_px"});
   }
   if (cfg.contact.centre_px) {
     const Vec2 c = *cfg.contact.centre_px;
     if (c.x < 0 || c.y < 0 || c.x > cfg.image.width_px - 1 || c.y > cfg.image.height_px - 1)
-      throw Error("the contact centre lies outside the image", {.file = file, .key = "synthesis.contact.centre_px"});
+      throw Error("the contact centre lies outside the image",
+                  {.file = file, .key = "synthesis.contact.centre_px"});
   }
   return cfg;
 }
 
-SynthConfig load_synth_config(const std::string& path) { return parse_synth_config(load_scene(path)); }
+SynthConfig load_synth_config(const std::string& path) {
+  return parse_synth_config(load_scene(path));
+}
 
 }  // namespace tirstrain::samples

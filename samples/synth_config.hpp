@@ -30,14 +30,14 @@ struct TimingConfig {
 struct ContactConfig {
   ContactShape shape = ContactShape::kHertz;
   double normal_N = 2.0;
-  double radius_m = 0.02;                   // sphere radius R for Hertz (and the ellipse's equivalent field)
-  double semi_axes_mm[2] = {4.0, 3.0};      // ellipse only, along its own axes
-  double angle_deg = 0.0;                   // ellipse only: first semi-axis from +x towards +y
-  std::optional<Vec2> centre_px;            // default: image centre of the part below the pattern band
-  double border_irregularity = 0.03;        // relative amplitude of the border's radius modulation
-  double border_softness_px = 2.0;          // width of the soft contact edge
-  double fade_mm = 0.4;                     // ridge contrast rises over this distance inside the border
-  double fade_floor = 0.35;                 // relative ridge contrast right at the border
+  double radius_m = 0.02;               // sphere radius R for Hertz (and the ellipse's equivalent field)
+  double semi_axes_mm[2] = {4.0, 3.0};  // ellipse only, along its own axes
+  double angle_deg = 0.0;               // ellipse only: first semi-axis from +x towards +y
+  std::optional<Vec2> centre_px;        // default: image centre of the part below the pattern band
+  double border_irregularity = 0.03;    // relative amplitude of the border's radius modulation
+  double border_softness_px = 2.0;      // width of the soft contact edge
+  double fade_mm = 0.4;                 // ridge contrast rises over this distance inside the border
+  double fade_floor = 0.35;             // relative ridge contrast right at the border
 };
 
 struct LoadingConfig {
@@ -52,15 +52,15 @@ struct LoadingConfig {
 };
 
 struct FingerprintConfig {
-  Vec2 core_offset_mm{0.0, -0.6};                 // core relative to the contact centre
-  double axis_deg = 90.0;                         // finger axis (distal -> proximal) from +x towards +y
-  double loop_length_mm = 0.8;                    // straight part of the loop below the core
-  std::optional<Vec2> delta_offset_mm;            // triradius relative to the core; absent: no delta
-  double minutiae_per_mm2 = 0.4;                  // ridge endings + bifurcations
-  double flow_warp = 0.5;                         // amplitude of the smooth ridge-flow warp, in ridge periods
-  double background = -1.0;                       // optics background level (0..1); <0: 0.8 dark / 0.15 bright
-  double ridge_contrast = 0.55;                   // ridge crest change of level in full contact (0..1)
-  double vignetting = 0.08;                       // relative fall-off at the image corners
+  Vec2 core_offset_mm{0.0, -0.6};       // core relative to the contact centre
+  double axis_deg = 90.0;               // finger axis (distal -> proximal) from +x towards +y
+  double loop_length_mm = 0.8;          // straight part of the loop below the core
+  std::optional<Vec2> delta_offset_mm;  // triradius relative to the core; absent: no delta
+  double minutiae_per_mm2 = 0.4;        // ridge endings + bifurcations
+  double flow_warp = 0.5;               // amplitude of the smooth ridge-flow warp, in ridge periods
+  double background = -1.0;             // optics background level (0..1); <0: 0.8 dark / 0.15 bright
+  double ridge_contrast = 0.55;         // ridge crest change of level in full contact (0..1)
+  double vignetting = 0.08;             // relative fall-off at the image corners
 };
 
 struct PatternConfig {
@@ -81,8 +81,8 @@ struct SensorConfig {
   double full_well_electrons = 0.0;  // shot noise from this many electrons at full scale; 0 = no shot noise
   double read_noise = 0.0;           // standard deviation, fraction of full scale
   double blur_sigma_px = 0.0;
-  double drift = 0.0;                // relative illumination change over the trial
-  double gain = 1.0;                 // > 1 saturates the brightest parts
+  double drift = 0.0;  // relative illumination change over the trial
+  double gain = 1.0;   // > 1 saturates the brightest parts
   std::vector<int> motion_blur_frames;
   double motion_blur_exposure_s = 0.01;
 };
@@ -96,9 +96,9 @@ struct AccelerometerConfig {
 
 struct ChannelsConfig {
   double rate_hz = 1000.0;
-  double normal_noise_N = 0.0;       // servo noise on the normal force
-  double tangential_noise_N = 0.0;   // sensor noise on the tangential force
-  double slip_fluctuation_N = 0.0;   // broadband friction force fluctuation during full slip (drives the pad)
+  double normal_noise_N = 0.0;      // servo noise on the normal force
+  double tangential_noise_N = 0.0;  // sensor noise on the tangential force
+  double slip_fluctuation_N = 0.0;  // broadband friction force fluctuation during full slip (drives the pad)
   AccelerometerConfig accelerometer;
 };
 
@@ -119,8 +119,9 @@ struct SynthConfig {
   SensorConfig sensor;
   ChannelsConfig channels;
   TruthConfig truth;
-  double ridge_period_mm = 0.45;  // calibration.ridge_period_mm, or 0.45 when the scene leaves it to measurement
-  bool ridges_dark = true;        // calibration.ridge_polarity ("auto" renders dark ridges)
+  double ridge_period_mm =
+      0.45;                 // calibration.ridge_period_mm, or 0.45 when the scene leaves it to measurement
+  bool ridges_dark = true;  // calibration.ridge_polarity ("auto" renders dark ridges)
 };
 
 // Reads the scene's `synthesis:` section (required) and checks it against the rest of the scene.

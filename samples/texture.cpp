@@ -23,11 +23,15 @@ double smoothstep5(double t) {
   return t * t * t * (t * (6.0 * t - 15.0) + 10.0);
 }
 
-double unit(std::uint64_t bits) { return static_cast<double>(bits >> 11) * 0x1.0p-53; }
+double unit(std::uint64_t bits) {
+  return static_cast<double>(bits >> 11) * 0x1.0p-53;
+}
 
 }  // namespace
 
-std::uint64_t mix_seed(std::uint64_t a, std::uint64_t b) { return splitmix64(a ^ splitmix64(b)); }
+std::uint64_t mix_seed(std::uint64_t a, std::uint64_t b) {
+  return splitmix64(a ^ splitmix64(b));
+}
 
 Fingerprint::Fingerprint(const FingerprintConfig& config, double px_per_mm, double period_mm, Vec2 core_px,
                          Vec2 extent_px, std::uint64_t seed)
@@ -46,7 +50,8 @@ Fingerprint::Fingerprint(const FingerprintConfig& config, double px_per_mm, doub
   if (config.delta_offset_mm) {
     // The triradius forms at the saddle between the two centres, so the second centre sits twice as far.
     has_delta_ = true;
-    const double dx = 2.0 * config.delta_offset_mm->x * px_per_mm, dy = 2.0 * config.delta_offset_mm->y * px_per_mm;
+    const double dx = 2.0 * config.delta_offset_mm->x * px_per_mm,
+                 dy = 2.0 * config.delta_offset_mm->y * px_per_mm;
     second_centre_local_ = {dx * axis_cos_ + dy * axis_sin_, -dx * axis_sin_ + dy * axis_cos_};
   }
 
@@ -88,21 +93,30 @@ Fingerprint::Fingerprint(const FingerprintConfig& config, double px_per_mm, doub
   bins_.assign(static_cast<std::size_t>(bins_x_) * bins_y_, {});
   for (std::size_t i = 0; i < pairs_.size(); ++i) {
     const Pair& p = pairs_[i];
-    const int x0 = std::max(0, static_cast<int>(std::floor((p.mid.x - p.outer_px - bin_origin_px_.x) / bin_size_px_)));
-    const int x1 = std::min(bins_x_ - 1, static_cast<int>(std::floor((p.mid.x + p.outer_px - bin_origin_px_.x) / bin_size_px_)));
-    const int y0 = std::max(0, static_cast<int>(std::floor((p.mid.y - p.outer_px - bin_origin_px_.y) / bin_size_px_)));
-    const int y1 = std::min(bins_y_ - 1, static_cast<int>(std::floor((p.mid.y + p.outer_px - bin_origin_px_.y) / bin_size_px_)));
+    const int x0 =
+        std::max(0, static_cast<int>(std::floor((p.mid.x - p.outer_px - bin_origin_px_.x) / bin_size_px_)));
+    const int x1 = std::min(
+        bins_x_ - 1, static_cast<int>(std::floor((p.mid.x + p.outer_px - bin_origin_px_.x) / bin_size_px_)));
+    const int y0 =
+        std::max(0, static_cast<int>(std::floor((p.mid.y - p.outer_px - bin_origin_px_.y) / bin_size_px_)));
+    const int y1 = std::min(
+        bins_y_ - 1, static_cast<int>(std::floor((p.mid.y + p.outer_px - bin_origin_px_.y) / bin_size_px_)));
     for (int by = y0; by <= y1; ++by)
-      for (int bx = x0; bx <= x1; ++bx) bins_[static_cast<std::size_t>(by) * bins_x_ + bx].push_back(static_cast<int>(i));
+      for (int bx = x0; bx <= x1; ++bx)
+        bins_[static_cast<std::size_t>(by) * bins_x_ + bx].push_back(static_cast<int>(i));
   }
 }
 
 double Fingerprint::ridge(Vec2 X) const {
   double px = X.x - core_px_.x, py = X.y - core_px_.y;
-  const double wx = warp_amplitude_px_[0] * std::sin(warp_wavevector_[0].x * px + warp_wavevector_[0].y * py + warp_phase_[0]) +
-                    warp_amplitude_px_[1] * std::sin(warp_wavevector_[1].x * px + warp_wavevector_[1].y * py + warp_phase_[1]);
-  const double wy = warp_amplitude_px_[2] * std::sin(warp_wavevector_[2].x * px + warp_wavevector_[2].y * py + warp_phase_[2]) +
-                    warp_amplitude_px_[3] * std::sin(warp_wavevector_[3].x * px + warp_wavevector_[3].y * py + warp_phase_[3]);
+  const double wx = warp_amplitude_px_[0] *
+                        std::sin(warp_wavevector_[0].x * px + warp_wavevector_[0].y * py + warp_phase_[0]) +
+                    warp_amplitude_px_[1] *
+                        std::sin(warp_wavevector_[1].x * px + warp_wavevector_[1].y * py + warp_phase_[1]);
+  const double wy = warp_amplitude_px_[2] *
+                        std::sin(warp_wavevector_[2].x * px + warp_wavevector_[2].y * py + warp_phase_[2]) +
+                    warp_amplitude_px_[3] *
+                        std::sin(warp_wavevector_[3].x * px + warp_wavevector_[3].y * py + warp_phase_[3]);
   px += wx;
   py += wy;
   const double along = px * axis_cos_ + py * axis_sin_;
@@ -131,7 +145,8 @@ double Fingerprint::ridge(Vec2 X) const {
       const double ax = X.x - p.a.x, ay = X.y - p.a.y, bxx = X.x - p.b.x, byy = X.y - p.b.y;
       const double angle = std::atan2(ax * byy - ay * bxx, ax * bxx + ay * byy);
       const double r = std::sqrt(r2);
-      const double window = r <= p.inner_px ? 1.0 : 1.0 - smoothstep5((r - p.inner_px) / (p.outer_px - p.inner_px));
+      const double window =
+          r <= p.inner_px ? 1.0 : 1.0 - smoothstep5((r - p.inner_px) / (p.outer_px - p.inner_px));
       phase += p.sign * window * angle;
       const double da2 = ax * ax + ay * ay, db2 = bxx * bxx + byy * byy;
       if (da2 < 25.0 * minutia_core_px_ * minutia_core_px_) amplitude *= 1.0 - std::exp(-da2 * inv_two_s2);
@@ -155,7 +170,8 @@ double PlatePattern::darkness(Vec2 p) const {
   double sum = 0.0;
   for (long long j = cj - reach; j <= cj + reach; ++j) {
     for (long long i = ci - reach; i <= ci + reach; ++i) {
-      const std::uint64_t h = mix_seed(seed_, (static_cast<std::uint64_t>(i) << 32) ^ static_cast<std::uint64_t>(j));
+      const std::uint64_t h =
+          mix_seed(seed_, (static_cast<std::uint64_t>(i) << 32) ^ static_cast<std::uint64_t>(j));
       if (unit(h) >= fill_) continue;
       const std::uint64_t h2 = splitmix64(h);
       const double x = (static_cast<double>(i) + 0.15 + 0.7 * unit(h2)) * spacing_px_;
@@ -175,9 +191,11 @@ SweatBlobs::SweatBlobs(const SweatConfig& config, double px_per_mm, Vec2 centre_
   for (int i = 0; i < config.blobs; ++i) {
     // Uniform over the contact ellipse (axis-aligned; blobs need not follow an elliptical contact's angle).
     const double r = std::sqrt(u01(rng)) * 0.85, angle = kTwoPi * u01(rng);
-    const double radius_px = (config.radius_mm_min + (config.radius_mm_max - config.radius_mm_min) * u01(rng)) * px_per_mm;
+    const double radius_px =
+        (config.radius_mm_min + (config.radius_mm_max - config.radius_mm_min) * u01(rng)) * px_per_mm;
     const double sigma_px = 0.5 * radius_px;
-    blobs_.push_back({{centre_px.x + r * semi_axes_px.x * std::cos(angle), centre_px.y + r * semi_axes_px.y * std::sin(angle)},
+    blobs_.push_back({{centre_px.x + r * semi_axes_px.x * std::cos(angle),
+                       centre_px.y + r * semi_axes_px.y * std::sin(angle)},
                       1.0 / (2.0 * sigma_px * sigma_px),
                       radius_px});
   }

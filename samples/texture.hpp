@@ -17,14 +17,14 @@ std::uint64_t mix_seed(std::uint64_t a, std::uint64_t b);
 //   phase = 2 pi rho(p) / lambda + sum over minutia pairs of w(r) * angle(p - a, p - b),
 // where rho is a smoothed distance to the loop's axis segment (the core sits at its end; an optional second
 // centre makes a triradius (delta) at the saddle between them), p is warped by a few long-wavelength sines so
-// the flow curves naturally, and each minutia pair (a, b) adds a ridge ending and a bifurcation. The pair term
-// is windowed smoothly to zero a few periods away so each pixel sums only nearby pairs; the window is exactly
-// 1 on the pair's branch cut, where the angle jumps by 2 pi, so cos(phase) stays continuous. Contrast falls to
-// zero right at each minutia point, where the phase is singular.
+// the flow curves naturally, and each minutia pair (a, b) adds a ridge ending and a bifurcation. The pair
+// term is windowed smoothly to zero a few periods away so each pixel sums only nearby pairs; the window is
+// exactly 1 on the pair's branch cut, where the angle jumps by 2 pi, so cos(phase) stays continuous. Contrast
+// falls to zero right at each minutia point, where the phase is singular.
 class Fingerprint {
  public:
-  Fingerprint(const FingerprintConfig& config, double px_per_mm, double period_mm, Vec2 core_px, Vec2 extent_px,
-              std::uint64_t seed);
+  Fingerprint(const FingerprintConfig& config, double px_per_mm, double period_mm, Vec2 core_px,
+              Vec2 extent_px, std::uint64_t seed);
   // Ridge indicator in [0, 1]; 1 on a ridge crest.
   double ridge(Vec2 X_px) const;
   std::size_t minutia_pairs() const { return pairs_.size(); }
@@ -73,7 +73,8 @@ class PlatePattern {
 // Sweat blobs attached to the skin: patches where ridges lose contrast.
 class SweatBlobs {
  public:
-  SweatBlobs(const SweatConfig& config, double px_per_mm, Vec2 centre_px, Vec2 semi_axes_px, std::uint64_t seed);
+  SweatBlobs(const SweatConfig& config, double px_per_mm, Vec2 centre_px, Vec2 semi_axes_px,
+             std::uint64_t seed);
   double contrast_factor(Vec2 X_px) const;  // in [1 - depth, 1]
 
  private:

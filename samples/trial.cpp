@@ -31,7 +31,8 @@ std::vector<double> make_frame_times(const SynthConfig& c) {
   std::vector<double> t(static_cast<std::size_t>(c.timing.frames));
   for (std::size_t i = 0; i < t.size(); ++i) {
     // Frame 0 is the reference (t = 0); jitter is clamped to +-0.4 periods so timestamps stay increasing.
-    const double j = (i == 0 || c.timing.jitter_s == 0.0) ? 0.0 : std::clamp(jitter(rng), -0.4 * period_s, 0.4 * period_s);
+    const double j =
+        (i == 0 || c.timing.jitter_s == 0.0) ? 0.0 : std::clamp(jitter(rng), -0.4 * period_s, 0.4 * period_s);
     t[i] = static_cast<double>(i) * period_s + j;
   }
   return t;
@@ -49,11 +50,14 @@ Trial::Trial(SynthConfig config)
     : config_(std::move(config)),
       history_(config_),
       frame_times_s_(make_frame_times(config_)),
-      fingerprint_(config_.fingerprint, config_.scene.px_per_mm, config_.ridge_period_mm, core_position(config_, history_),
-                   {static_cast<double>(config_.image.width_px), static_cast<double>(config_.image.height_px)}, config_.seed),
+      fingerprint_(
+          config_.fingerprint, config_.scene.px_per_mm, config_.ridge_period_mm,
+          core_position(config_, history_),
+          {static_cast<double>(config_.image.width_px), static_cast<double>(config_.image.height_px)},
+          config_.seed),
       pattern_(config_.pattern, config_.scene.px_per_mm, config_.seed),
-      sweat_(config_.sweat, config_.scene.px_per_mm, history_.contact_centre_px(), history_.contact_semi_axes_px(),
-             config_.seed) {
+      sweat_(config_.sweat, config_.scene.px_per_mm, history_.contact_centre_px(),
+             history_.contact_semi_axes_px(), config_.seed) {
   std::mt19937_64 rng(mix_seed(config_.seed, 0xB0DEULL));
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (int k = 0; k < 4; ++k) {
@@ -97,7 +101,8 @@ double Trial::contact_weight(Vec2 x) const {
 cv::Mat Trial::contact_mask() const {
   cv::Mat mask(height(), width(), CV_8U);
   for (int y = 0; y < height(); ++y)
-    for (int x = 0; x < width(); ++x) mask.at<std::uint8_t>(y, x) = signed_distance_px_.at<double>(y, x) <= 0.0 ? 1 : 0;
+    for (int x = 0; x < width(); ++x)
+      mask.at<std::uint8_t>(y, x) = signed_distance_px_.at<double>(y, x) <= 0.0 ? 1 : 0;
   return mask;
 }
 
@@ -139,7 +144,8 @@ void Trial::render_into(const LoadState& state, cv::Mat& out) const {
               have_previous ? field.invert(p, {previous.x + 1.0, previous.y}) : field.invert(p);
           previous = inv.reference_px;
           have_previous = true;
-          const double fade = fade_px > 0.0 ? fade_floor + (1.0 - fade_floor) * smoothstep5(-s / fade_px) : 1.0;
+          const double fade =
+              fade_px > 0.0 ? fade_floor + (1.0 - fade_floor) * smoothstep5(-s / fade_px) : 1.0;
           const double wet = sweat_.contrast_factor(inv.reference_px);
           const double ridge = wet * fingerprint_.ridge(inv.reference_px) + (1.0 - wet) * kWetLevel;
           value += contrast * w * fade * ridge;
@@ -163,12 +169,14 @@ cv::Mat Trial::render_clean_at(double t_s) const {
 cv::Mat Trial::render_clean(int frame) const {
   const double t = frame_times_s_.at(static_cast<std::size_t>(frame));
   const auto& blurred = config_.sensor.motion_blur_frames;
-  if (std::find(blurred.begin(), blurred.end(), frame) == blurred.end() || config_.sensor.motion_blur_exposure_s <= 0.0)
+  if (std::find(blurred.begin(), blurred.end(), frame) == blurred.end() ||
+      config_.sensor.motion_blur_exposure_s <= 0.0)
     return render_clean_at(t);
   // The exposure is centred on the frame's timestamp; truth refers to that centre.
   cv::Mat sum = cv::Mat::zeros(height(), width(), CV_32F), sample;
   for (int i = 0; i < kMotionBlurSamples; ++i) {
-    const double offset = (static_cast<double>(i) / (kMotionBlurSamples - 1) - 0.5) * config_.sensor.motion_blur_exposure_s;
+    const double offset =
+        (static_cast<double>(i) / (kMotionBlurSamples - 1) - 0.5) * config_.sensor.motion_blur_exposure_s;
     render_into(history_.at(std::max(0.0, t + offset)), sample);
     sum += sample;
   }
@@ -178,7 +186,8 @@ cv::Mat Trial::render_clean(int frame) const {
 cv::Mat Trial::apply_sensor(const cv::Mat& clean, int frame) const {
   const SensorConfig& s = config_.sensor;
   cv::Mat image = clean.clone();
-  if (s.blur_sigma_px > 0.0) cv::GaussianBlur(image, image, cv::Size(0, 0), s.blur_sigma_px, s.blur_sigma_px, cv::BORDER_REFLECT);
+  if (s.blur_sigma_px > 0.0)
+    cv::GaussianBlur(image, image, cv::Size(0, 0), s.blur_sigma_px, s.blur_sigma_px, cv::BORDER_REFLECT);
   std::mt19937_64 rng(mix_seed(config_.seed, 0xA0150000ULL + static_cast<std::uint64_t>(frame)));
   std::normal_distribution<double> normal(0.0, 1.0);
   const double full_scale = config_.image.bit_depth == 16 ? 65535.0 : 255.0;
@@ -196,8 +205,10 @@ cv::Mat Trial::apply_sensor(const cv::Mat& clean, int frame) const {
         if (s.read_noise > 0.0) v += s.read_noise * normal(rng);
       }
       const double level = std::round(std::clamp(v, 0.0, 1.0) * full_scale);
-      if (config_.image.bit_depth == 16) out.at<std::uint16_t>(y, x) = static_cast<std::uint16_t>(level);
-      else out.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(level);
+      if (config_.image.bit_depth == 16)
+        out.at<std::uint16_t>(y, x) = static_cast<std::uint16_t>(level);
+      else
+        out.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(level);
     }
   }
   return out;
@@ -213,7 +224,8 @@ cv::Mat Trial::inverse_map(int frame, double* max_residual_px) const {
       for (int x = 0; x < width(); ++x) {
         const FrameField::Inverse inv = field.invert({double(x), double(y)});
         row[x] = {inv.reference_px.x, inv.reference_px.y};
-        row_max[static_cast<std::size_t>(y)] = std::max(row_max[static_cast<std::size_t>(y)], inv.residual_px);
+        row_max[static_cast<std::size_t>(y)] =
+            std::max(row_max[static_cast<std::size_t>(y)], inv.residual_px);
       }
     }
   });
@@ -255,7 +267,8 @@ GridTruth Trial::grid_truth(int frame) const {
       if (contact && field.model()) {
         const Vec2 m = field.model_point_m(X);
         stick = std::hypot(m.x, m.y) < state.stick_radius_m;
-      } else if (contact && state.tangential_N == 0.0 && config_.loading.field == FieldKind::kCattaneoMindlin) {
+      } else if (contact && state.tangential_N == 0.0 &&
+                 config_.loading.field == FieldKind::kCattaneoMindlin) {
         stick = true;  // no tangential load yet: the whole contact sticks
       }
       t.in_stick[k] = stick ? 1 : 0;
@@ -286,7 +299,9 @@ ChannelSeries Trial::channels() const {
   // Pad model m x'' + c x' + k x = F(t), F linear between samples (first-order hold), integrated with RK4 on
   // 16 sub-steps per sample: at 1 kHz and a 27 Hz resonance the integration error is far below 1e-6 relative.
   const AccelerometerConfig& pad = c.accelerometer;
-  const auto accel = [&](double x, double v, double f) { return (f - pad.damping_N_s_m * v - pad.stiffness_N_m * x) / pad.mass_kg; };
+  const auto accel = [&](double x, double v, double f) {
+    return (f - pad.damping_N_s_m * v - pad.stiffness_N_m * x) / pad.mass_kg;
+  };
   double x = s.pad_force_N.front() / pad.stiffness_N_m, v = 0.0;
   const int substeps = 16;
   const double h = 1.0 / (c.rate_hz * substeps);

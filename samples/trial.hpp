@@ -19,12 +19,12 @@ struct ChannelSeries {
 
 // Truth on the regular grid of reference points for one frame, row-major [ny][nx].
 struct GridTruth {
-  std::vector<double> displacement_px;  // [ny][nx][2]
-  std::vector<double> gradient;         // [ny][nx][4]: H_xx, H_xy, H_yx, H_yy
-  std::vector<double> strain;           // [ny][nx][3]: E_xx, E_yy, E_xy (Green–Lagrange, tensor shear)
-  std::vector<double> energy_J_m3;      // [ny][nx]: plane-strain energy density
-  std::vector<std::uint8_t> in_contact; // [ny][nx]: current position X + u inside the contact mask
-  std::vector<std::uint8_t> in_stick;   // [ny][nx]: inside the stick zone (|X_model| < c) and in contact
+  std::vector<double> displacement_px;   // [ny][nx][2]
+  std::vector<double> gradient;          // [ny][nx][4]: H_xx, H_xy, H_yx, H_yy
+  std::vector<double> strain;            // [ny][nx][3]: E_xx, E_yy, E_xy (Green–Lagrange, tensor shear)
+  std::vector<double> energy_J_m3;       // [ny][nx]: plane-strain energy density
+  std::vector<std::uint8_t> in_contact;  // [ny][nx]: current position X + u inside the contact mask
+  std::vector<std::uint8_t> in_stick;    // [ny][nx]: inside the stick zone (|X_model| < c) and in contact
 };
 
 class Trial {
@@ -54,9 +54,9 @@ class Trial {
 
   // Contact geometry (fixed in the image: the finger does not move, the skin deforms inside the contact).
   double contact_signed_distance_px(Vec2 x) const;  // < 0 inside
-  double contact_weight(Vec2 x) const;               // soft edge, 0.5 on the border
+  double contact_weight(Vec2 x) const;              // soft edge, 0.5 on the border
   bool in_contact(Vec2 x) const { return contact_signed_distance_px(x) <= 0.0; }
-  cv::Mat contact_mask() const;                      // CV_8U, 1 inside
+  cv::Mat contact_mask() const;  // CV_8U, 1 inside
 
   // Regular grid of reference points covering the image.
   const std::vector<double>& grid_x_px() const { return grid_x_px_; }

@@ -1,4 +1,5 @@
-// Force and accelerometer channels: consistent with the load history, the friction coefficient and the pad model.
+// Force and accelerometer channels: consistent with the load history, the friction coefficient and the pad
+// model.
 #include <gtest/gtest.h>
 
 #include <opencv2/core.hpp>
@@ -17,8 +18,8 @@ namespace {
 using testing::clean_scene;
 using testing::config_of;
 
-// Q(t) written independently from the scene: displacement-controlled plate at v from t0; the stick zone follows
-// the plate, so d = delta_max [1 - (1 - Q/(mu P))^(2/3)] until d reaches delta_max (full slip).
+// Q(t) written independently from the scene: displacement-controlled plate at v from t0; the stick zone
+// follows the plate, so d = delta_max [1 - (1 - Q/(mu P))^(2/3)] until d reaches delta_max (full slip).
 double expected_q_N(double t_s, double mu, double p_N, double speed_m_s, double t0_s, double delta_max_m) {
   const double d = std::max(0.0, t_s - t0_s) * speed_m_s;
   if (d >= delta_max_m) return mu * p_N;
@@ -47,7 +48,8 @@ TEST(SamplesChannels, TangentialForceIsTheLoadHistoryResampled) {
   double worst = 0.0;
   for (std::size_t i = 0; i < s.t_s.size(); ++i) {
     EXPECT_DOUBLE_EQ(s.t_s[i], static_cast<double>(i) / 1000.0);
-    worst = std::max(worst, std::abs(s.tangential_N[i] - expected_q_N(s.t_s[i], 0.8, 1.0, 5e-3, 0.013, dmax)));
+    worst =
+        std::max(worst, std::abs(s.tangential_N[i] - expected_q_N(s.t_s[i], 0.8, 1.0, 5e-3, 0.013, dmax)));
     EXPECT_DOUBLE_EQ(s.normal_N[i], 1.0);
     const double plate_mm = std::max(0.0, s.t_s[i] - 0.013) * 5.0;
     EXPECT_NEAR(s.plate_y_mm[i], -plate_mm, 1e-12);  // distal = -y
@@ -57,7 +59,8 @@ TEST(SamplesChannels, TangentialForceIsTheLoadHistoryResampled) {
   EXPECT_LE(worst, 1e-12);
   // The frames' load (truth) follows the same history.
   for (int k = 0; k < trial.frames(); ++k)
-    EXPECT_NEAR(trial.load(k).tangential_N, expected_q_N(trial.frame_times_s()[k], 0.8, 1.0, 5e-3, 0.013, dmax), 1e-12);
+    EXPECT_NEAR(trial.load(k).tangential_N,
+                expected_q_N(trial.frame_times_s()[k], 0.8, 1.0, 5e-3, 0.013, dmax), 1e-12);
 }
 
 TEST(SamplesChannels, FrictionRatioInFullSlipEqualsSceneFrictionWithinNoise) {
@@ -80,14 +83,15 @@ TEST(SamplesChannels, FrictionRatioInFullSlipEqualsSceneFrictionWithinNoise) {
   const double mean = sum / n, sd = std::sqrt(sum2 / n - mean * mean);
   // Per-sample spread predicted from the noise levels: sqrt(0.01^2 + 0.015^2 + (0.9 * 0.02)^2) / 1 N.
   const double predicted_sd = std::sqrt(0.01 * 0.01 + 0.015 * 0.015 + 0.81 * 0.02 * 0.02);
-  std::printf("[ measured ] mu = F/W in full slip: %.5f (scene 0.9), sd %.5f (predicted %.5f), n = %d\n", mean, sd,
-              predicted_sd, n);
+  std::printf("[ measured ] mu = F/W in full slip: %.5f (scene 0.9), sd %.5f (predicted %.5f), n = %d\n",
+              mean, sd, predicted_sd, n);
   EXPECT_NEAR(mean, 0.9, 4.0 * predicted_sd / std::sqrt(n));
   EXPECT_NEAR(sd, predicted_sd, 0.1 * predicted_sd);
 }
 
 // Welch H1 estimate of the force-to-acceleration transfer function (Hann window, 50 % overlap).
-std::vector<std::complex<double>> welch_h1(const std::vector<double>& input, const std::vector<double>& output, int n) {
+std::vector<std::complex<double>> welch_h1(const std::vector<double>& input,
+                                           const std::vector<double>& output, int n) {
   std::vector<std::complex<double>> cross(n / 2 + 1), auto_in(n / 2 + 1);
   cv::Mat a(1, n, CV_64F), b(1, n, CV_64F), fa, fb;
   for (std::size_t start = 0; start + n <= input.size(); start += n / 2) {
@@ -137,7 +141,8 @@ TEST(SamplesChannels, AccelerometerFollowsThePadTransferFunction) {
     const std::complex<double> s_(0.0, 2.0 * M_PI * f);
     const std::complex<double> model = s_ * s_ / (0.029 * s_ * s_ + 2.1 * s_ + 830.0);
     worst_magnitude = std::max(worst_magnitude, std::abs(std::abs(h[k]) / std::abs(model) - 1.0));
-    if (std::getenv("SAMPLES_DEBUG")) std::printf("%.2f Hz %.4f %.4f\n", f, std::abs(h[k]) / std::abs(model), std::arg(h[k] / model));
+    if (std::getenv("SAMPLES_DEBUG"))
+      std::printf("%.2f Hz %.4f %.4f\n", f, std::abs(h[k]) / std::abs(model), std::arg(h[k] / model));
     worst_phase = std::max(worst_phase, std::abs(std::arg(h[k] / model)));
   }
   std::printf("[ measured ] pad transfer function 10-80 Hz: magnitude error %.4f, phase error %.4f rad\n",

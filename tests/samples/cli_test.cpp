@@ -42,7 +42,8 @@ TEST(SamplesCli, WritesACompleteTrialDirectory) {
   const std::string dir = scratch_dir("cli-complete");
   const YAML::Node scene = small_scene();
   write_yaml(scene, dir + "/scene.yaml");
-  const auto r = run_cli("synth --scene " + dir + "/scene.yaml --out " + dir + "/trial --quiet", dir + "/log.txt");
+  const auto r =
+      run_cli("synth --scene " + dir + "/scene.yaml --out " + dir + "/trial --quiet", dir + "/log.txt");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const fs::path trial(dir + "/trial");
   EXPECT_FALSE(fs::exists(dir + "/trial.partial"));
@@ -85,8 +86,8 @@ TEST(SamplesCli, WritesACompleteTrialDirectory) {
   EXPECT_EQ(truth.shape("/field/strain"), (H5Shape{4, 32, 40, 3}));
   EXPECT_EQ(truth.shape("/field/in_contact"), (H5Shape{4, 32, 40}));
   EXPECT_EQ(truth.shape("/plate/displacement_px"), (H5Shape{4, 2}));
-  for (const char* name : {"/load/normal_N", "/load/tangential_N", "/load/stick_radius_m", "/load/rigid_shift_m",
-                           "/frames/t_s", "/load/full_slip"})
+  for (const char* name : {"/load/normal_N", "/load/tangential_N", "/load/stick_radius_m",
+                           "/load/rigid_shift_m", "/frames/t_s", "/load/full_slip"})
     EXPECT_EQ(truth.shape(name), (H5Shape{4})) << name;
   // The file holds exactly what the in-memory trial applied.
   const auto displacement = truth.read_doubles("/field/displacement_px");
@@ -147,12 +148,15 @@ TEST(SamplesCli, BadSceneFilesNameKeyAndFileAndLeaveNoOutput) {
     for (std::string part; std::getline(path, part, '.');) parts.push_back(part);
     YAML::Node node = root;
     for (std::size_t i = 0; i + 1 < parts.size(); ++i) node.reset(node[parts[i]]);
-    if (std::string(c.value) == "<remove>") node.remove(parts.back());
-    else node[parts.back()] = YAML::Load(c.value);
+    if (std::string(c.value) == "<remove>")
+      node.remove(parts.back());
+    else
+      node[parts.back()] = YAML::Load(c.value);
     const std::string scene_file = dir + "/bad" + std::to_string(index) + ".yaml";
     const std::string out = dir + "/out" + std::to_string(index);
     write_yaml(root, scene_file);
-    const auto r = run_cli("synth --scene " + scene_file + " --out " + out, dir + "/log" + std::to_string(index) + ".txt");
+    const auto r = run_cli("synth --scene " + scene_file + " --out " + out,
+                           dir + "/log" + std::to_string(index) + ".txt");
     EXPECT_NE(r.exit_code, 0) << c.what;
     EXPECT_NE(r.output.find(c.key), std::string::npos) << c.what << ": " << r.output;
     EXPECT_NE(r.output.find(scene_file), std::string::npos) << c.what << ": " << r.output;

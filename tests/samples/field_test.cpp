@@ -32,17 +32,18 @@ double forward_error_px(const Trial& trial, int frame) {
 }
 
 TEST(SamplesField, ForwardMapOfInvertedCoordinatesReproducesEveryPixel) {
-  // Cattaneo–Mindlin in partial slip (frame 1) and full slip (frame 2), a 50 % uniaxial stretch, a pure shear,
-  // and a rigid rotation + translation: every pixel to 1e-6 px.
+  // Cattaneo–Mindlin in partial slip (frame 1) and full slip (frame 2), a 50 % uniaxial stretch, a pure
+  // shear, and a rigid rotation + translation: every pixel to 1e-6 px.
   YAML::Node cm = clean_scene(192, 192, 3, 20.0);
   YAML::Node stretch = clean_scene(160, 128, 2, 10.0);
-  stretch["synthesis"]["loading"] = YAML::Load("{field: affine, gradient: [0.5, 0, 0, 0], translation_px: [2.5, -1.25]}");
+  stretch["synthesis"]["loading"] =
+      YAML::Load("{field: affine, gradient: [0.5, 0, 0, 0], translation_px: [2.5, -1.25]}");
   YAML::Node shear = clean_scene(160, 128, 2, 10.0);
   shear["synthesis"]["loading"] = YAML::Load("{field: affine, gradient: [0, 0.2, 0.2, 0]}");
   YAML::Node rigid = clean_scene(160, 128, 2, 10.0);
   rigid["synthesis"]["loading"] = YAML::Load("{field: rigid, rotation_deg: 12, translation_px: [9.3, -4.1]}");
-  const std::pair<const char*, YAML::Node> scenes[] = {{"cattaneo_mindlin", cm}, {"stretch", stretch}, {"shear", shear},
-                                                       {"rigid", rigid}};
+  const std::pair<const char*, YAML::Node> scenes[] = {
+      {"cattaneo_mindlin", cm}, {"stretch", stretch}, {"shear", shear}, {"rigid", rigid}};
   for (const auto& [name, scene] : scenes) {
     const Trial trial(config_of(scene));
     for (int frame = 1; frame < trial.frames(); ++frame) {
@@ -83,17 +84,19 @@ TEST(SamplesField, TruthStrainEqualsModelStrainAtTheSameReferencePoints) {
     for (std::size_t j = 0; j < gy.size(); ++j) {
       for (std::size_t i = 0; i < gx.size(); ++i) {
         const std::size_t k = j * gx.size() + i;
-        const model::FieldSample s = model.evaluate((gx[i] - centre.x) / px_per_m, (gy[j] - centre.y) / px_per_m);
+        const model::FieldSample s =
+            model.evaluate((gx[i] - centre.x) / px_per_m, (gy[j] - centre.y) / px_per_m);
         worst_strain = std::max({worst_strain, std::abs(truth.strain[3 * k] - s.strain.xx),
                                  std::abs(truth.strain[3 * k + 1] - s.strain.yy),
                                  std::abs(truth.strain[3 * k + 2] - s.strain.xy)});
-        worst_displacement_px =
-            std::max({worst_displacement_px, std::abs(truth.displacement_px[2 * k] - s.displacement_m.x * px_per_m),
-                      std::abs(truth.displacement_px[2 * k + 1] - s.displacement_m.y * px_per_m)});
+        worst_displacement_px = std::max(
+            {worst_displacement_px, std::abs(truth.displacement_px[2 * k] - s.displacement_m.x * px_per_m),
+             std::abs(truth.displacement_px[2 * k + 1] - s.displacement_m.y * px_per_m)});
       }
     }
   }
-  std::printf("[ measured ] truth vs model: strain %.3g, displacement %.3g px\n", worst_strain, worst_displacement_px);
+  std::printf("[ measured ] truth vs model: strain %.3g, displacement %.3g px\n", worst_strain,
+              worst_displacement_px);
   EXPECT_LE(worst_strain, 1e-15);
   EXPECT_LE(worst_displacement_px, 1e-9);
 }
@@ -125,7 +128,8 @@ TEST(SamplesField, StickZoneMovesWithThePlate) {
 
 TEST(SamplesField, EllipticalContactTruthIsTheChainRuleOfTheCircularField) {
   YAML::Node scene = clean_scene(192, 160, 2, 20.0);
-  scene["synthesis"]["contact"] = YAML::Load("{shape: ellipse, normal_N: 1.0, semi_axes_mm: [1.6, 1.1], angle_deg: 30}");
+  scene["synthesis"]["contact"] =
+      YAML::Load("{shape: ellipse, normal_N: 1.0, semi_axes_mm: [1.6, 1.1], angle_deg: 30}");
   const Trial trial(config_of(scene));
   const FrameField field = trial.field(1);
   ASSERT_NE(field.model(), nullptr);

@@ -1,5 +1,5 @@
-// Exactness of the truth: an independent sub-pixel registration (OpenCV's ECC on 31x31 patches, initialised by
-// integer template matching and then by the previous frame's estimate, as a tracker would) recovers the
+// Exactness of the truth: an independent sub-pixel registration (OpenCV's ECC on 31x31 patches, initialised
+// by integer template matching and then by the previous frame's estimate, as a tracker would) recovers the
 // imposed displacement from the rendered noise-free images, and agrees with the truth to <= 0.02 px.
 #include <gtest/gtest.h>
 
@@ -33,10 +33,9 @@ Registration register_patch(const cv::Mat& reference, const cv::Mat& current, cv
                             int search_px) {
   const cv::Rect patch(X.x - kHalf, X.y - kHalf, 2 * kHalf + 1, 2 * kHalf + 1);
   const int gx = static_cast<int>(std::lround(guess_px.x)), gy = static_cast<int>(std::lround(guess_px.y));
-  const cv::Rect window =
-      cv::Rect(patch.x + gx - search_px, patch.y + gy - search_px, patch.width + 2 * search_px,
-               patch.height + 2 * search_px) &
-      cv::Rect(0, 0, current.cols, current.rows);
+  const cv::Rect window = cv::Rect(patch.x + gx - search_px, patch.y + gy - search_px,
+                                   patch.width + 2 * search_px, patch.height + 2 * search_px) &
+                          cv::Rect(0, 0, current.cols, current.rows);
   if (window.width < patch.width + 4 || window.height < patch.height + 4) return {};
   const cv::Mat templ = reference(patch);
   const cv::Mat input = current(window);
@@ -44,10 +43,12 @@ Registration register_patch(const cv::Mat& reference, const cv::Mat& current, cv
   cv::matchTemplate(input, templ, score, cv::TM_CCOEFF_NORMED);
   cv::Point best;
   cv::minMaxLoc(score, nullptr, nullptr, nullptr, &best);
-  cv::Mat warp = (cv::Mat_<float>(2, 3) << 1, 0, static_cast<float>(best.x), 0, 1, static_cast<float>(best.y));
+  cv::Mat warp =
+      (cv::Mat_<float>(2, 3) << 1, 0, static_cast<float>(best.x), 0, 1, static_cast<float>(best.y));
   try {
     cv::findTransformECC(templ, input, warp, cv::MOTION_AFFINE,
-                         cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 300, 1e-9), cv::noArray(), 1);
+                         cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 300, 1e-9),
+                         cv::noArray(), 1);
   } catch (const cv::Exception&) {
     return {};
   }
@@ -72,7 +73,8 @@ Agreement measure(const Trial& trial, int wanted_points, double curvature_limit_
   std::vector<cv::Mat> frames;
   for (int k = 0; k < trial.frames(); ++k) frames.push_back(trial.render_clean(k));
   std::mt19937_64 rng(seed);
-  std::uniform_int_distribution<int> ux(kHalf + 2, trial.width() - kHalf - 3), uy(kHalf + 2, trial.height() - kHalf - 3);
+  std::uniform_int_distribution<int> ux(kHalf + 2, trial.width() - kHalf - 3),
+      uy(kHalf + 2, trial.height() - kHalf - 3);
   Agreement a;
   double sum2 = 0.0;
   std::vector<FrameField> fields;
@@ -83,7 +85,8 @@ Agreement measure(const Trial& trial, int wanted_points, double curvature_limit_
     bool usable = trial.contact_signed_distance_px(Xv) < -kHalf * 1.5 - 4;
     for (int k = 1; usable && k < trial.frames(); ++k) {
       const FieldValue v = fields[k].evaluate(Xv);
-      usable = trial.contact_signed_distance_px({Xv.x + v.displacement_px.x, Xv.y + v.displacement_px.y}) < -kHalf * 1.5 - 4;
+      usable = trial.contact_signed_distance_px({Xv.x + v.displacement_px.x, Xv.y + v.displacement_px.y}) <
+               -kHalf * 1.5 - 4;
       // Departure of the field from its tangent plane across the patch (corners and edge midpoints).
       double departure = 0.0;
       for (int dy = -kHalf; dy <= kHalf; dy += kHalf) {
@@ -119,8 +122,8 @@ Agreement measure(const Trial& trial, int wanted_points, double curvature_limit_
 }
 
 void expect_agreement(const char* name, const Agreement& a) {
-  std::printf("[ measured ] %s: %d points, %d comparisons, max |u| %.2f px, error max %.4f px, rms %.4f px\n", name,
-              a.points, a.comparisons, a.max_displacement_px, a.max_error_px, a.rms_error_px);
+  std::printf("[ measured ] %s: %d points, %d comparisons, max |u| %.2f px, error max %.4f px, rms %.4f px\n",
+              name, a.points, a.comparisons, a.max_displacement_px, a.max_error_px, a.rms_error_px);
   EXPECT_GE(a.points, 200) << name;
   EXPECT_LE(a.max_error_px, 0.02) << name;
 }
@@ -137,7 +140,8 @@ TEST(SamplesRegistration, DISABLED_RigidTranslationAndRotation) {
 
 TEST(SamplesRegistration, DISABLED_AffineUniaxialStretch50Percent) {
   YAML::Node scene = clean_scene(256, 256, 6, 10.0);
-  scene["synthesis"]["loading"] = YAML::Load("{field: affine, gradient: [0.5, 0, 0, 0], translation_px: [1.7, 2.2]}");
+  scene["synthesis"]["loading"] =
+      YAML::Load("{field: affine, gradient: [0.5, 0, 0, 0], translation_px: [1.7, 2.2]}");
   expect_agreement("affine stretch", measure(Trial(config_of(scene)), 200, 1.0, 12));
 }
 

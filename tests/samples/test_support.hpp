@@ -36,7 +36,9 @@ synthesis:
   return root;
 }
 
-inline SynthConfig config_of(const YAML::Node& root) { return parse_synth_config(parse_scene(root, "test-scene.yaml")); }
+inline SynthConfig config_of(const YAML::Node& root) {
+  return parse_synth_config(parse_scene(root, "test-scene.yaml"));
+}
 
 inline std::string scratch_dir(const std::string& name) {
   const std::filesystem::path dir = std::filesystem::path(TIRSTRAIN_TEST_TMP) / "samples" / name;
