@@ -93,6 +93,9 @@ void H5Writer::write(const std::string& name, std::span<const std::int32_t> data
 void H5Writer::write(const std::string& name, std::span<const std::int64_t> data, const H5Shape& shape) {
   write_impl(name, data, shape, H5::PredType::NATIVE_INT64);
 }
+void H5Writer::write(const std::string& name, std::span<const std::int8_t> data, const H5Shape& shape) {
+  write_impl(name, data, shape, H5::PredType::NATIVE_INT8);
+}
 void H5Writer::write(const std::string& name, std::span<const std::uint8_t> data, const H5Shape& shape) {
   write_impl(name, data, shape, H5::PredType::NATIVE_UINT8);
 }

@@ -25,6 +25,7 @@ class H5Writer {
   void write(const std::string& name, std::span<const float> data, const H5Shape& shape);
   void write(const std::string& name, std::span<const std::int32_t> data, const H5Shape& shape);
   void write(const std::string& name, std::span<const std::int64_t> data, const H5Shape& shape);
+  void write(const std::string& name, std::span<const std::int8_t> data, const H5Shape& shape);
   void write(const std::string& name, std::span<const std::uint8_t> data, const H5Shape& shape);
   // Attribute on a group or dataset ("/" for the file); the object must exist (groups are created).
   void attribute(const std::string& object, const std::string& name, const std::string& value);

@@ -11,9 +11,7 @@
 #include "core/error.hpp"
 
 namespace tirstrain {
-namespace {
 
-// Diverging blue-white-red for signed quantities; t in [0, 1], 0.5 is white.
 cv::Vec3b diverging_colour(double t) {
   t = std::clamp(t, 0.0, 1.0);
   const double s = std::abs(2.0 * t - 1.0);
@@ -28,6 +26,8 @@ cv::Vec3b sequential_colour(double t) {
   cv::applyColorMap(in, out, cv::COLORMAP_VIRIDIS);
   return out.at<cv::Vec3b>(0, 0);
 }
+
+namespace {
 
 std::string tick_text(double v) {
   char buffer[32];

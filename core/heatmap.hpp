@@ -27,6 +27,10 @@ struct HeatmapOptions {
   int pixels_per_cell = 0;  // 0: chosen so the map is about 480 px wide
 };
 
+// The colour scales (BGR): diverging blue-white-red with t in [0, 1] and 0.5 white; sequential viridis.
+cv::Vec3b diverging_colour(double t);
+cv::Vec3b sequential_colour(double t);
+
 // values: CV_64FC1, rows = y, cols = x. Returns a BGR 8-bit image.
 cv::Mat render_heatmap(const cv::Mat& values, const HeatmapOptions& options);
 // Renders and writes a PNG (temporary name, then rename); throws Error on failure.

@@ -5,6 +5,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <map>
@@ -126,6 +127,27 @@ void remove_stale(const fs::path& path) {
   fs::remove(path, ec);
 }
 
+Scene scene_with_overrides(const ProcessOptions& options) {
+  Scene scene = options.scene_path ? load_scene(*options.scene_path) : Scene{};
+  for (const std::string& name : options.compute) {
+    const auto& known = known_stages();
+    if (std::find(known.begin(), known.end(), name) == known.end())
+      throw Error("unknown stage '" + name + "' in --compute");
+    if (std::find(scene.compute.begin(), scene.compute.end(), name) == scene.compute.end())
+      scene.compute.push_back(name);
+  }
+  // The scene's module sections are YAML nodes shared by reference: give the overrides fresh maps.
+  const auto with_key = [](const YAML::Node& section, const std::string& key, const std::string& value) {
+    YAML::Node copy = section && section.IsMap() ? YAML::Clone(section) : YAML::Node(YAML::NodeType::Map);
+    copy[key] = value;
+    return copy;
+  };
+  if (!options.tracking_preset.empty())
+    scene.tracking = with_key(scene.tracking, "preset", options.tracking_preset);
+  if (!options.strain_mode.empty()) scene.strain = with_key(scene.strain, "mode", options.strain_mode);
+  return scene;
+}
+
 }  // namespace
 
 ProcessReport run_process(const ProcessOptions& options) {
@@ -136,7 +158,7 @@ ProcessReport run_process(const ProcessOptions& options) {
     if (!options.quiet) std::fprintf(options.log, "tirstrain: warning: %s\n", message.c_str());
   };
 
-  const Scene scene = options.scene_path ? load_scene(*options.scene_path) : Scene{};
+  const Scene scene = scene_with_overrides(options);
   StagePlan plan = plan_stages(scene);
   for (const auto& name : plan.unavailable) {
     const std::string message = "stage '" + name +

@@ -22,6 +22,11 @@ struct ProcessOptions {
   // no timestamps, instead of marking/skipping/assuming.
   bool strict = false;
   OverlayMode overlay = OverlayMode::kMp4;
+  // Overrides of the scene (empty: the scene's value): extra stages to compute, the tracking preset, the
+  // strain mode.
+  std::vector<std::string> compute;
+  std::string tracking_preset;
+  std::string strain_mode;
   std::FILE* log = stderr;  // warnings and progress
 };
 

@@ -17,6 +17,8 @@
 #include "contact/segmenter.hpp"
 #include "core/h5_file.hpp"
 #include "core/scene.hpp"
+#include "core/tensor2.hpp"
+#include "flow/tracker.hpp"
 
 namespace tirstrain::pipeline {
 
@@ -32,6 +34,20 @@ struct FrameContext {
   const capture::Frame* frame = nullptr;
   bool usable = false;  // false: corrupt / undecodable frame; stages record a placeholder
   std::optional<contact::ContactResult> contact;  // filled by the contact stage
+  // Filled by the tracking stage once it has started (the first frame with contact is its reference).
+  struct Tracking {
+    const std::vector<flow::Track>* tracks = nullptr;  // every track ever created; index == id
+    int frame = 0;                                     // tracker frame: 0 is the reference frame
+    bool reference_frame = false;                      // this frame is the tracker's reference frame
+    // The contact's standard-ellipse normalisation of the reference frame (identity without an ellipse).
+    const contact::EllipseNormalization* reference_normalization = nullptr;
+    bool reference_has_ellipse = false;
+  };
+  std::optional<Tracking> tracking;
+  // Filled by the tracking stage: plate displacement since the first frame (absent without a pattern band).
+  std::optional<Vec2> plate_displacement_px;
+  // Filled by the strain stage: total strain energy U of this frame (J), absent when not computable.
+  std::optional<double> strain_energy_J;
 };
 
 class Stage {

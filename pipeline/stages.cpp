@@ -1,18 +1,20 @@
-// The registry of stages. A new stage (tracking in flow/, strain in strain/, channels in signals/) adds its
-// factory here; until then its entry has no factory and a scene that asks for it is told so.
+// The registry of stages. A new stage adds its factory here; an entry without a factory is a stage this build
+// does not have, and a scene that asks for it is told so.
 #include <algorithm>
 #include <set>
 
 #include "pipeline/contact_stage.hpp"
 #include "pipeline/stage.hpp"
+#include "pipeline/strain_stage.hpp"
+#include "pipeline/tracking_stage.hpp"
 
 namespace tirstrain::pipeline {
 
 const std::vector<StageSpec>& stage_registry() {
   static const std::vector<StageSpec> registry = {
       {"contact", {}, make_contact_stage},
-      {"tracking", {"contact"}, nullptr},
-      {"strain", {"tracking"}, nullptr},
+      {"tracking", {"contact"}, make_tracking_stage},
+      {"strain", {"tracking"}, make_strain_stage},
       {"channels", {}, nullptr},
   };
   return registry;

@@ -3,6 +3,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "pipeline/process.hpp"
 #include "tirstrain/commands.hpp"
@@ -11,13 +12,14 @@ namespace tirstrain::cli {
 
 void add_process_command(CLI::App& app) {
   struct Args {
-    std::string input, scene, out, overlay = "mp4";
+    std::string input, scene, out, overlay = "mp4", preset, strain_mode;
+    std::vector<std::string> compute;
     bool quiet = false, strict = false;
   };
   auto args = std::make_shared<Args>();
   CLI::App* sub = app.add_subcommand(
       "process",
-      "Measure contact (and, as they become available, tracks, strain, channels) from a recording.\n"
+      "Measure contact, tracks, strain and channels (as the scene's compute list asks) from a recording.\n"
       "INPUT: a folder of frames (DIR/frames/*.png + DIR/frames.csv, or images directly in DIR), a printf "
       "or\n"
       "glob pattern ('run/img_%05d.tif', 'run/*.png'), or a video file. Time comes from frames.csv "
@@ -28,6 +30,16 @@ void add_process_command(CLI::App& app) {
   sub->add_option("INPUT", args->input, "Frames folder, image pattern or video file")->required();
   sub->add_option("--scene", args->scene, "Scene file (YAML) for calibration and what to compute");
   sub->add_option("--out", args->out, "Output folder (created if needed)")->required();
+  sub->add_option(
+         "--compute", args->compute,
+         "Stages to run in addition to the scene's compute list: contact, tracking, strain, channels")
+      ->delimiter(',');
+  sub->add_option("--preset", args->preset, "Tracking preset, replacing the scene's: auto or delhaye2016")
+      ->check(CLI::IsMember({"auto", "delhaye2016"}));
+  sub->add_option("--strain-mode", args->strain_mode,
+                  "exact (Green-Lagrange from F against the reference; default) or incremental (the paper's "
+                  "running sum of per-frame increments)")
+      ->check(CLI::IsMember({"exact", "incremental"}));
   sub->add_flag("--quiet", args->quiet, "No progress or warnings on stderr");
   sub->add_flag(
       "--strict", args->strict,
@@ -46,6 +58,9 @@ void add_process_command(CLI::App& app) {
         {"png", pipeline::OverlayMode::kPng},
         {"none", pipeline::OverlayMode::kNone}};
     options.overlay = modes.at(args->overlay);
+    options.compute = args->compute;
+    options.tracking_preset = args->preset;
+    options.strain_mode = args->strain_mode;
     const pipeline::ProcessReport report = pipeline::run_process(options);
     if (!args->quiet) {
       std::cerr << "processed " << report.frames << " frames (" << report.frames_with_contact

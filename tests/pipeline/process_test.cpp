@@ -208,24 +208,33 @@ TEST(Process, VideoInputUsesContainerTimestamps) {
   EXPECT_TRUE(fs::exists(out / "overlay" / "000003.png"));
 }
 
-TEST(Process, SceneStagesNotYetAvailableAreReported) {
-  const fs::path trial = write_trial("stages_trial", 2, false);
+TEST(Process, StagesAskedForBringWhatTheyNeed) {
+  const fs::path trial = write_trial("stages_trial", 3, false);
   const fs::path scene = trial / "scene.yaml";
-  std::ofstream(scene)
-      << "calibration:\n  px_per_mm: 52\n  ridge_period_mm: 0.45\ncompute: [contact, strain]\n";
+  std::ofstream(scene) << "calibration:\n  px_per_mm: 52\n  ridge_period_mm: 0.45\ncompute: [strain]\n";
   const fs::path out = scratch("stages_out");
   const CliRun run = run_cli("process " + trial.string() + " --scene " + scene.string() + " --out " +
                              out.string() + " --overlay none");
   ASSERT_EQ(run.exit_code, 0) << run.output;
-  EXPECT_NE(run.output.find("stage 'tracking'"), std::string::npos) << run.output;
   EXPECT_NE(run.output.find("no timestamps"), std::string::npos) << run.output;
+  std::ifstream summary_file(out / "summary.json");
+  const nlohmann::json summary = nlohmann::json::parse(summary_file);
+  EXPECT_EQ(summary["stages_run"], nlohmann::json::array({"contact", "tracking", "strain"}));
   H5Reader h5((out / "result.h5").string());
   EXPECT_DOUBLE_EQ(h5.attribute_number("/contact", "ridge_period_px"), 0.45 * 52.0);
   EXPECT_EQ(h5.attribute_number("/frames", "time_measured"), 0.0);
+  EXPECT_TRUE(h5.has("/tracks/position_px"));
+  EXPECT_TRUE(h5.has("/strain/total"));
+  EXPECT_EQ(h5.shape("/energy/total_J"), (H5Shape{3}));
   const CliRun strict = run_cli("process " + trial.string() + " --scene " + scene.string() + " --out " +
                                 out.string() + " --strict --quiet");
   EXPECT_EQ(strict.exit_code, 1);
-  EXPECT_NE(strict.output.find("compute"), std::string::npos) << strict.output;
+  EXPECT_NE(strict.output.find("no timestamps"), std::string::npos) << strict.output;
+  // --compute adds stages to the scene's list; an unknown name is an error.
+  const CliRun unknown =
+      run_cli("process " + trial.string() + " --out " + out.string() + " --compute straim");
+  EXPECT_EQ(unknown.exit_code, 1);
+  EXPECT_NE(unknown.output.find("straim"), std::string::npos) << unknown.output;
 }
 
 TEST(Process, KilledHalfwayLeavesNoResult) {

@@ -1,0 +1,266 @@
+#include "pipeline/tracking_stage.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "core/csv.hpp"
+#include "flow/settings.hpp"
+
+namespace tirstrain::pipeline {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// /tracks/status for a track that does not exist in a frame (not born yet, or retired in an earlier frame).
+constexpr std::int8_t kAbsent = -1;
+// Contacts with semi-minor/semi-major above this are treated as circles by the normalised maps.
+constexpr double kCircularAspect = 0.95;
+
+// What is kept per frame: positions and status of the tracks that existed at that frame (K grows).
+struct TrackFrame {
+  std::vector<Vec2> position_px;
+  std::vector<std::int8_t> status;
+  std::optional<Vec2> plate_px;
+  int alive = 0, born = 0, retired = 0;
+};
+
+class TrackingStage final : public Stage {
+ public:
+  explicit TrackingStage(const Scene& scene) : scene_(scene) {
+    // Parsed now so that a bad `tracking:` section stops the run before any frame is read; sized again
+    // from the measured ridge period when the reference frame arrives.
+    settings_ = flow::parse_tracking_settings(scene_);
+  }
+
+  std::string name() const override { return "tracking"; }
+
+  void start(const TrialInfo& info) override { frame_size_ = info.frame_size; }
+
+  void process(FrameContext& context) override {
+    TrackFrame record;
+    const bool has_contact = context.usable && context.contact &&
+                             (context.contact->status & contact::kNoContact) == 0 &&
+                             context.contact->outline_px.size() >= 3;
+    if (!context.usable || (!tracker_ && !has_contact)) {
+      frames_.push_back(std::move(record));
+      return;
+    }
+    contact_mask(context, has_contact);
+    const auto t0 = std::chrono::steady_clock::now();
+    if (!tracker_) {
+      Scene sized = scene_;
+      // Model only what the scene needs: without a fixed ridge period, size the preset from the period the
+      // contact stage measured on this frame.
+      if (!scene_.ridge_period_mm && context.contact->ridge_period_px > 0.0)
+        sized.ridge_period_mm = context.contact->ridge_period_px / scene_.px_per_mm;
+      settings_ = flow::parse_tracking_settings(sized);
+      tracker_ = std::make_unique<flow::FeatureTracker>(settings_, scene_.reference_pattern_roi);
+      tracker_->start(context.frame->image, mask_, context.frame->device_time_s);
+      reference_has_ellipse_ = context.contact->ellipse.has_value();
+      if (reference_has_ellipse_) {
+        // A nearly circular contact has no meaningful major axis: its fitted angle is noise, and maps rotated
+        // by it could not be compared or averaged across trials. Below this aspect the maps keep the image
+        // axes (translation and scale only).
+        contact::Ellipse e = *context.contact->ellipse;
+        if (e.semi_minor_px > kCircularAspect * e.semi_major_px) e.angle_rad = 0.0;
+        reference_normalization_ = contact::EllipseNormalization(e);
+      } else {
+        reference_normalization_ = {};
+      }
+      reference_row_ = static_cast<std::int64_t>(frames_.size());
+      reference_frame_index_ = context.frame->index;
+    } else {
+      tracker_->track(context.frame->image, mask_, context.frame->device_time_s);
+    }
+    track_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ++tracked_frames_;
+
+    const int frame = tracker_->frame_index();
+    tracker_rows_.push_back(static_cast<std::int64_t>(frames_.size()));
+    const auto& tracks = tracker_->tracks();
+    record.position_px.resize(tracks.size(), Vec2{kNaN, kNaN});
+    record.status.resize(tracks.size(), kAbsent);
+    for (std::size_t k = 0; k < tracks.size(); ++k) {
+      const flow::Track& t = tracks[k];
+      if (flow::is_alive(t.status)) {
+        record.position_px[k] = t.position_px;
+        record.status[k] = static_cast<std::int8_t>(t.status);
+        ++record.alive;
+        if (t.status == flow::TrackStatus::kBorn && frame > 0) ++record.born;
+      } else if (t.retired_frame == frame) {
+        record.status[k] = static_cast<std::int8_t>(t.status);
+        ++record.retired;
+      }
+    }
+    record.plate_px = tracker_->plate_displacement_px();
+    context.tracking =
+        FrameContext::Tracking{&tracks, frame, frame == 0, &reference_normalization_, reference_has_ellipse_};
+    context.plate_displacement_px = record.plate_px;
+    frames_.push_back(std::move(record));
+  }
+
+  void draw(cv::Mat& bgr, const FrameContext& context) const override {
+    if (!context.tracking) return;
+    const double scale = std::max(1.0, bgr.cols / 640.0);
+    const int thick = static_cast<int>(std::lround(scale));
+    constexpr int kShift = 4;
+    const auto fixed = [](const Vec2& p) {
+      return cv::Point(static_cast<int>(std::lround(p.x * (1 << kShift))),
+                       static_cast<int>(std::lround(p.y * (1 << kShift))));
+    };
+    // Flow vectors: reference position → current position (the displacement since the reference frame),
+    // and the current position as a dot coloured by status (green tracked, cyan newborn, orange recovered).
+    for (const flow::Track& t : *context.tracking->tracks) {
+      if (!flow::is_alive(t.status)) continue;
+      cv::line(bgr, fixed(t.reference_px), fixed(t.position_px), cv::Scalar(0, 160, 0), 1, cv::LINE_AA,
+               kShift);
+      const cv::Scalar colour = t.status == flow::TrackStatus::kBorn        ? cv::Scalar(255, 255, 0)
+                                : t.status == flow::TrackStatus::kRecovered ? cv::Scalar(0, 140, 255)
+                                                                            : cv::Scalar(0, 255, 0);
+      cv::circle(bgr, fixed(t.position_px), thick * (1 << kShift), colour, cv::FILLED, cv::LINE_AA, kShift);
+    }
+    if (scene_.reference_pattern_roi) {
+      const RoiPx& r = *scene_.reference_pattern_roi;
+      cv::rectangle(bgr, cv::Rect(r.x, r.y, r.width, r.height), cv::Scalar(255, 120, 0), thick);
+    }
+    const TrackFrame& f = frames_.back();
+    char text[200];
+    if (f.plate_px)
+      std::snprintf(text, sizeof text, "tracks: %d alive (+%d, -%d)  plate (%.2f, %.2f) px", f.alive, f.born,
+                    f.retired, f.plate_px->x, f.plate_px->y);
+    else
+      std::snprintf(text, sizeof text, "tracks: %d alive (+%d, -%d)", f.alive, f.born, f.retired);
+    cv::putText(bgr, text, cv::Point(8, static_cast<int>(68 * scale)), cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale,
+                cv::Scalar(255, 255, 255), thick, cv::LINE_AA);
+  }
+
+  std::vector<std::string> csv_header() const override {
+    return {"tracks_alive", "tracks_born", "tracks_retired", "plate_dx_px", "plate_dy_px"};
+  }
+
+  void csv_row(std::size_t row, std::vector<std::string>& cells) const override {
+    const TrackFrame& f = frames_.at(row);
+    cells.push_back(std::to_string(f.alive));
+    cells.push_back(std::to_string(f.born));
+    cells.push_back(std::to_string(f.retired));
+    cells.push_back(format_double(f.plate_px ? f.plate_px->x : kNaN));
+    cells.push_back(format_double(f.plate_px ? f.plate_px->y : kNaN));
+  }
+
+  void write(H5Writer& out) const override {
+    const std::size_t n = frames_.size();
+    const std::size_t k = tracker_ ? tracker_->tracks().size() : 0;
+    std::vector<double> reference(k * 2), position(n * k * 2, kNaN), plate(n * 2, kNaN);
+    std::vector<std::int8_t> status(n * k, kAbsent);
+    std::vector<std::int32_t> born(k), retired(k);
+    for (std::size_t j = 0; j < k; ++j) {
+      const flow::Track& t = tracker_->tracks()[j];
+      reference[2 * j] = t.reference_px.x;
+      reference[2 * j + 1] = t.reference_px.y;
+      // Tracker frames count from the reference frame; stored as result.h5 frame rows (−1: never retired).
+      born[j] = row_of_tracker_frame(t.born_frame);
+      retired[j] = row_of_tracker_frame(t.retired_frame);
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      const TrackFrame& f = frames_[i];
+      for (std::size_t j = 0; j < f.position_px.size(); ++j) {
+        position[(i * k + j) * 2] = f.position_px[j].x;
+        position[(i * k + j) * 2 + 1] = f.position_px[j].y;
+        status[i * k + j] = f.status[j];
+      }
+      if (f.plate_px) {
+        plate[2 * i] = f.plate_px->x;
+        plate[2 * i + 1] = f.plate_px->y;
+      }
+    }
+    out.write("/tracks/reference_px", std::span<const double>(reference), {k, 2});
+    out.write("/tracks/position_px", std::span<const double>(position), {n, k, 2});
+    out.write("/tracks/status", std::span<const std::int8_t>(status), {n, k});
+    out.write("/tracks/born_frame", std::span<const std::int32_t>(born), {k});
+    out.write("/tracks/retired_frame", std::span<const std::int32_t>(retired), {k});
+    out.attribute("/tracks", "preset", settings_.preset);
+    out.attribute("/tracks", "reference_frame_row", static_cast<double>(reference_row_));
+    out.attribute("/tracks", "status_codes",
+                  "-1 absent (not born yet or retired earlier); 0 tracked; 1 born; 2 recovered; 3 unchecked; "
+                  "10 left contact; 11 forward-backward; 12 poor match; 13 inconsistent; 14 left image");
+    out.attribute("/tracks", "settings", settings_summary().dump());
+    out.write("/plate/displacement_px", std::span<const double>(plate), {n, 2});
+    out.attribute("/plate", "measured", scene_.reference_pattern_roi ? 1.0 : 0.0);
+  }
+
+  void summarize(nlohmann::json& summary) const override {
+    nlohmann::json s;
+    s["settings"] = settings_summary();
+    s["started"] = tracker_ != nullptr;
+    s["reference_frame_index"] = reference_frame_index_;
+    s["tracks_total"] = tracker_ ? tracker_->tracks().size() : 0;
+    double alive_sum = 0.0;
+    int alive_last = 0;
+    for (const TrackFrame& f : frames_) {
+      alive_sum += f.alive;
+      if (!f.position_px.empty()) alive_last = f.alive;
+    }
+    s["tracks_alive_mean"] = tracked_frames_ > 0 ? alive_sum / static_cast<double>(tracked_frames_) : 0.0;
+    s["tracks_alive_last"] = alive_last;
+    s["track_ms_per_frame"] =
+        tracked_frames_ > 0 ? 1e3 * track_s_ / static_cast<double>(tracked_frames_) : 0.0;
+    s["plate_measured"] = scene_.reference_pattern_roi.has_value();
+    if (!frames_.empty() && frames_.back().plate_px)
+      s["plate_displacement_last_px"] = {frames_.back().plate_px->x, frames_.back().plate_px->y};
+    summary["tracking"] = s;
+  }
+
+ private:
+  // Result rows of tracker frames (unusable frames in between have rows but are not tracked).
+  std::int32_t row_of_tracker_frame(int frame) const {
+    if (frame < 0 || static_cast<std::size_t>(frame) >= tracker_rows_.size()) return -1;
+    return static_cast<std::int32_t>(tracker_rows_[static_cast<std::size_t>(frame)]);
+  }
+
+  void contact_mask(const FrameContext& context, bool has_contact) {
+    if (mask_.size() != context.frame->image.size()) mask_.create(context.frame->image.size(), CV_8UC1);
+    mask_.setTo(0);
+    if (!has_contact) return;
+    std::vector<cv::Point> outline;
+    outline.reserve(context.contact->outline_px.size());
+    for (const auto& p : context.contact->outline_px)
+      outline.emplace_back(static_cast<int>(std::lround(p.x)), static_cast<int>(std::lround(p.y)));
+    cv::fillPoly(mask_, std::vector<std::vector<cv::Point>>{outline}, cv::Scalar(255));
+  }
+
+  nlohmann::json settings_summary() const {
+    return {{"preset", settings_.preset},
+            {"grid_step_px", settings_.grid_step_px},
+            {"max_features", settings_.max_features},
+            {"window_px", settings_.window_px},
+            {"pyramid_levels", settings_.pyramid_levels},
+            {"refine", settings_.refine ? flow::to_string(settings_.shape) : std::string("none")},
+            {"subset_radius_px", settings_.subset_radius_px},
+            {"border_exclusion_px", settings_.border_exclusion_px},
+            {"max_displacement_px", settings_.max_displacement_px}};
+  }
+
+  Scene scene_;
+  flow::TrackerSettings settings_;
+  std::unique_ptr<flow::FeatureTracker> tracker_;
+  cv::Size frame_size_;
+  cv::Mat mask_;
+  contact::EllipseNormalization reference_normalization_;
+  bool reference_has_ellipse_ = false;
+  std::int64_t reference_row_ = 0;
+  std::int64_t reference_frame_index_ = -1;
+  std::vector<TrackFrame> frames_;
+  std::vector<std::int64_t> tracker_rows_;
+  double track_s_ = 0.0;
+  std::int64_t tracked_frames_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<Stage> make_tracking_stage(const Scene& scene) {
+  return std::make_unique<TrackingStage>(scene);
+}
+
+}  // namespace tirstrain::pipeline

@@ -1,0 +1,393 @@
+#include "pipeline/validate.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <numbers>
+#include <sstream>
+
+#include "core/atomic_output.hpp"
+#include "core/csv.hpp"
+#include "core/error.hpp"
+#include "core/h5_file.hpp"
+#include "core/heatmap.hpp"
+#include "core/tensor2.hpp"
+#include "pipeline/process.hpp"
+#include "samples/synth.hpp"
+#include "samples/trial.hpp"
+#include "strain/deformation.hpp"
+
+namespace tirstrain::pipeline {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+struct Accumulator {
+  double sum = 0.0, sum2 = 0.0, max_abs = 0.0;
+  long n = 0;
+  void add(double error) {
+    if (!std::isfinite(error)) return;
+    sum += error;
+    sum2 += error * error;
+    max_abs = std::max(max_abs, std::abs(error));
+    ++n;
+  }
+  ErrorStats stats(std::string quantity, std::string reference, std::string mode, std::string unit) const {
+    ErrorStats s{std::move(quantity), std::move(reference), std::move(mode), std::move(unit)};
+    s.samples = n;
+    if (n > 0) {
+      s.rms = std::sqrt(sum2 / static_cast<double>(n));
+      s.mean = sum / static_cast<double>(n);
+      s.max_abs = max_abs;
+    } else {
+      s.rms = s.mean = s.max_abs = kNaN;
+    }
+    return s;
+  }
+};
+
+// The six strain quantities compared per triangle.
+constexpr const char* kComponents[] = {"E_xx", "E_yy", "E_xy", "e1", "e2", "energy_density"};
+constexpr int kComponentCount = 6;
+
+std::array<double, kComponentCount> components(const Strain2& e, double young_Pa, double poisson) {
+  const Principal2 p = principal_strains(e);
+  return {e.xx, e.yy, e.xy, p.e1, p.e2, plane_strain_energy_density_J_m3(e, young_Pa, poisson)};
+}
+
+// Reads a dataset and checks its leading dimensions.
+std::vector<double> read(const H5Reader& h5, const std::string& name, H5Shape* shape) {
+  if (!h5.has(name))
+    throw Error("the result has no " + name + " (was it processed with tracking and strain?)",
+                {.file = h5.path()});
+  return h5.read_doubles(name, shape);
+}
+
+cv::Matx23d parse_matrix(const std::string& text, const std::string& file) {
+  cv::Matx23d m;
+  std::istringstream in(text);
+  char separator = 0;
+  for (int r = 0; r < 2; ++r)
+    for (int c = 0; c < 3; ++c) {
+      if (!(in >> m(r, c))) throw Error("malformed /maps to_normalised attribute", {.file = file});
+      if (r * 3 + c < 5) in >> separator;
+    }
+  return m;
+}
+
+cv::Matx23d invert_similarity(const cv::Matx23d& m) {
+  const cv::Matx22d a(m(0, 0), m(0, 1), m(1, 0), m(1, 1));
+  const cv::Matx22d inv = a.inv();
+  const cv::Vec2d t = -(inv * cv::Vec2d(m(0, 2), m(1, 2)));
+  return {inv(0, 0), inv(0, 1), t[0], inv(1, 0), inv(1, 1), t[1]};
+}
+
+}  // namespace
+
+const ErrorStats* ValidationReport::find(const std::string& quantity, const std::string& reference,
+                                         const std::string& mode) const {
+  for (const ErrorStats& s : rows)
+    if (s.quantity == quantity && s.reference == reference && s.mode == mode) return &s;
+  return nullptr;
+}
+
+ValidationReport run_validate(const ValidateOptions& options) {
+  if (options.scene_path.has_value() == options.trial_dir.has_value())
+    throw Error("validate needs exactly one of --scene (synthesise) and --trial (an existing trial folder)");
+  ensure_output_dir(options.out_dir, "--out");
+  const fs::path out(options.out_dir);
+  ValidationReport report;
+
+  std::string trial_dir;
+  if (options.scene_path) {
+    trial_dir = (out / "trial").string();
+    samples::SynthOptions synth;
+    synth.scene_path = *options.scene_path;
+    synth.out_dir = trial_dir;
+    synth.quiet = options.quiet;
+    samples::synthesize(synth);
+  } else {
+    trial_dir = *options.trial_dir;
+  }
+  const std::string scene_path = (fs::path(trial_dir) / "scene.yaml").string();
+  if (!fs::exists(scene_path))
+    throw Error("not a synthesised trial folder (no scene.yaml with a synthesis section)",
+                {.file = trial_dir});
+  const samples::Trial trial(samples::load_synth_config(scene_path));
+  const Scene& scene = trial.config().scene;
+
+  if (options.result_dir) {
+    report.result_dir = *options.result_dir;
+  } else {
+    report.result_dir = (out / "result").string();
+    ProcessOptions process;
+    process.input = trial_dir;
+    process.scene_path = scene_path;
+    process.out_dir = report.result_dir;
+    process.quiet = options.quiet;
+    process.overlay = OverlayMode::kNone;
+    process.compute = {"contact", "tracking", "strain"};
+    process.tracking_preset = options.tracking_preset;
+    process.strain_mode = options.strain_mode;
+    process.log = options.log;
+    const auto t0 = std::chrono::steady_clock::now();
+    run_process(process);
+    report.process_wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+
+  const std::string result_path = (fs::path(report.result_dir) / "result.h5").string();
+  if (!fs::exists(result_path))
+    throw Error("no result.h5 (incomplete or missing run)", {.file = report.result_dir});
+  const H5Reader h5(result_path);
+  H5Shape shape;
+  const std::vector<double> t_s = read(h5, "/frames/t_s", &shape);
+  const std::size_t n = shape[0];
+  if (static_cast<int>(n) != trial.frames())
+    throw Error(
+        "the result has " + std::to_string(n) + " frames but the trial " + std::to_string(trial.frames()),
+        {.file = result_path});
+  for (std::size_t i = 0; i < n; ++i)
+    if (std::abs(t_s[i] - trial.frame_times_s()[i]) > 1e-6)
+      throw Error("frame times differ from the trial's (a different trial or seed?)",
+                  {.file = result_path, .frame = static_cast<std::int64_t>(i)});
+  report.frames = static_cast<int>(n);
+
+  const std::vector<double> reference = read(h5, "/tracks/reference_px", &shape);
+  const std::size_t k = shape[0];
+  const std::vector<double> position = read(h5, "/tracks/position_px", &shape);
+  const std::vector<double> plate = read(h5, "/plate/displacement_px", &shape);
+  const std::vector<double> triangles = read(h5, "/mesh/triangles", &shape);
+  const std::size_t t_count = shape[0];
+  const std::string mode = h5.attribute_text("/strain", "mode");
+  const std::string other_mode = mode == "exact" ? "incremental" : "exact";
+  const std::vector<double> total = read(h5, "/strain/total", &shape);
+  const std::vector<double> other = read(h5, "/strain/total_" + other_mode, &shape);
+  const std::vector<double> energy = read(h5, "/energy/total_J", &shape);
+  const std::vector<double> stick_ratio = read(h5, "/stick/ratio", &shape);
+  const std::vector<std::int64_t> stuck = h5.read_integers("/stick/stuck");
+  const double tolerance_px = h5.attribute_number("/stick", "tolerance_px");
+
+  const double young = scene.tissue.young_Pa, nu = scene.tissue.poisson, depth = scene.tissue.depth_m;
+  const double px_per_mm = scene.px_per_mm;
+  const double m_per_px = 1e-3 / px_per_mm;
+  const double border_px = options.border_exclusion_mm * px_per_mm;
+  const auto vec = [](const std::vector<double>& v, std::size_t i) { return Vec2{v[2 * i], v[2 * i + 1]}; };
+
+  std::map<std::string, Accumulator> acc;  // key: quantity|reference|mode
+  const auto key = [](const std::string& q, const std::string& r, const std::string& m) {
+    return q + "|" + r + "|" + m;
+  };
+  Accumulator displacement, displacement_interior, plate_error, energy_error, stick_error, c_error;
+  std::vector<double> u_truth(n, kNaN), u_truth_contact(n, kNaN), ratio_truth(n, kNaN), c_measured(n, kNaN),
+      c_model(n, kNaN), disp_rms(n, kNaN), exx_rms(n, kNaN);
+
+  for (std::size_t i = 0; i < n; ++i) {
+    const samples::FrameField field = trial.field(static_cast<int>(i));
+    const samples::LoadState load = trial.load(static_cast<int>(i));
+    // Tracks.
+    Accumulator frame_disp;
+    for (std::size_t j = 0; j < k; ++j) {
+      const Vec2 x = vec(position, i * k + j);
+      if (!std::isfinite(x.x)) continue;
+      const Vec2 X = vec(reference, j);
+      const Vec2 u = field.displacement_px(X);
+      const double error = std::hypot(x.x - X.x - u.x, x.y - X.y - u.y);
+      displacement.add(error);
+      frame_disp.add(error);
+      if (trial.contact_signed_distance_px(X) < -border_px &&
+          trial.contact_signed_distance_px({X.x + u.x, X.y + u.y}) < -border_px)
+        displacement_interior.add(error);
+    }
+    disp_rms[i] = frame_disp.stats("", "", "", "").rms;
+    if (std::isfinite(plate[2 * i]))
+      plate_error.add(std::hypot(plate[2 * i] - load.plate_px.x, plate[2 * i + 1] - load.plate_px.y));
+
+    // Triangles.
+    double truth_energy = 0.0, stuck_area_mm2 = 0.0, stuck_truth_area = 0.0, valid_area = 0.0;
+    Accumulator frame_exx;
+    for (std::size_t t = 0; t < t_count; ++t) {
+      const std::size_t cell = i * t_count + t;
+      if (!std::isfinite(total[cell * 3])) continue;
+      std::array<Vec2, 3> X, x_true;
+      for (int v = 0; v < 3; ++v) {
+        X[static_cast<std::size_t>(v)] =
+            vec(reference, static_cast<std::size_t>(triangles[t * 3 + static_cast<std::size_t>(v)]));
+        const Vec2 u = field.displacement_px(X[static_cast<std::size_t>(v)]);
+        x_true[static_cast<std::size_t>(v)] = {X[static_cast<std::size_t>(v)].x + u.x,
+                                               X[static_cast<std::size_t>(v)].y + u.y};
+      }
+      const Vec2 centroid{(X[0].x + X[1].x + X[2].x) / 3.0, (X[0].y + X[1].y + X[2].y) / 3.0};
+      const samples::FieldValue at = field.evaluate(centroid);
+      const Strain2 e_point = green_lagrange(at.gradient);
+      const double area_m2 = std::abs(strain::signed_area(X[0], X[1], X[2])) * m_per_px * m_per_px;
+      truth_energy += plane_strain_energy_density_J_m3(e_point, young, nu) * area_m2;
+      valid_area += area_m2;
+      const bool truth_stuck = std::hypot(at.displacement_px.x - load.plate_px.x,
+                                          at.displacement_px.y - load.plate_px.y) <= tolerance_px;
+      if (truth_stuck) stuck_truth_area += area_m2;
+      if (stuck[cell] == 1) stuck_area_mm2 += area_m2 * 1e6;
+
+      const Vec2 current{centroid.x + at.displacement_px.x, centroid.y + at.displacement_px.y};
+      if (trial.contact_signed_distance_px(centroid) >= -border_px ||
+          trial.contact_signed_distance_px(current) >= -border_px)
+        continue;
+      const Strain2 e_triangle = green_lagrange(strain::displacement_gradient(X, x_true));
+      const Strain2 measured = {total[cell * 3], total[cell * 3 + 1], total[cell * 3 + 2]};
+      const Strain2 measured_other = {other[cell * 3], other[cell * 3 + 1], other[cell * 3 + 2]};
+      const auto truth_point = components(e_point, young, nu);
+      const auto truth_triangle = components(e_triangle, young, nu);
+      for (const auto& [m, value] : {std::pair{mode, measured}, std::pair{other_mode, measured_other}}) {
+        const auto c = components(value, young, nu);
+        for (int q = 0; q < kComponentCount; ++q) {
+          acc[key(kComponents[q], "point", m)].add(c[static_cast<std::size_t>(q)] -
+                                                   truth_point[static_cast<std::size_t>(q)]);
+          acc[key(kComponents[q], "triangle", m)].add(c[static_cast<std::size_t>(q)] -
+                                                      truth_triangle[static_cast<std::size_t>(q)]);
+        }
+      }
+      frame_exx.add(measured.xx - e_point.xx);
+    }
+    exx_rms[i] = frame_exx.stats("", "", "", "").rms;
+    if (valid_area > 0.0) {
+      u_truth[i] = depth * truth_energy;
+      ratio_truth[i] = stuck_truth_area / valid_area;
+    }
+    const samples::GridTruth grid = trial.grid_truth(static_cast<int>(i));
+    const double cell_m2 =
+        trial.config().truth.grid_step_px * trial.config().truth.grid_step_px * m_per_px * m_per_px;
+    double contact_energy = 0.0;
+    for (std::size_t g = 0; g < grid.in_contact.size(); ++g)
+      if (grid.in_contact[g]) contact_energy += grid.energy_J_m3[g] * cell_m2;
+    u_truth_contact[i] = depth * contact_energy;
+    c_measured[i] = std::sqrt(stuck_area_mm2 / std::numbers::pi);
+    c_model[i] = load.stick_radius_m * 1e3;
+    if (std::isfinite(stick_ratio[i]) && std::isfinite(ratio_truth[i]))
+      stick_error.add(stick_ratio[i] - ratio_truth[i]);
+  }
+
+  // Energy: relative error on the frames carrying at least 10 % of the largest true energy.
+  double u_max = 0.0;
+  std::size_t u_argmax = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (std::isfinite(u_truth[i]) && u_truth[i] > u_max) {
+      u_max = u_truth[i];
+      u_argmax = i;
+    }
+  for (std::size_t i = 0; i < n; ++i)
+    if (std::isfinite(u_truth[i]) && u_truth[i] >= 0.1 * u_max && std::isfinite(energy[i]))
+      energy_error.add(100.0 * (energy[i] - u_truth[i]) / u_truth[i]);
+  // Stick radius: frames in partial slip whose stick zone lies well inside the meshed interior and is not
+  // tiny (the mesh resolves neither a stick zone near the border nor one a few triangles wide).
+  const double a_mm = trial.config().scene.px_per_mm > 0 ? trial.history().contact_radius_m() * 1e3 : 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double c = c_model[i];
+    if (c > 0.2 * a_mm && c < a_mm - 2.0 * options.border_exclusion_mm && std::isfinite(c_measured[i]))
+      c_error.add(100.0 * (c_measured[i] - c) / c);
+  }
+
+  for (const std::string& m : {mode, other_mode})
+    for (const char* reference_name : {"point", "triangle"})
+      for (int q = 0; q < kComponentCount; ++q)
+        report.rows.push_back(acc[key(kComponents[q], reference_name, m)].stats(
+            kComponents[q], reference_name, m, q == 5 ? "J/m3" : ""));
+  report.rows.push_back(displacement.stats("displacement", "tracks", "", "px"));
+  report.rows.push_back(displacement_interior.stats("displacement_interior", "tracks", "", "px"));
+  report.rows.push_back(plate_error.stats("plate_displacement", "truth", "", "px"));
+  report.rows.push_back(energy_error.stats("U", "same triangles", mode, "%"));
+  report.rows.push_back(stick_error.stats("stick_ratio", "same triangles", "", ""));
+  report.rows.push_back(c_error.stats("stick_radius_c", "model", "", "%"));
+
+  {
+    CsvWriter csv((out / "validation.csv").string(),
+                  {"quantity", "reference", "mode", "unit", "rms", "max_abs", "mean", "samples"});
+    for (const ErrorStats& s : report.rows)
+      csv.row_text({s.quantity, s.reference, s.mode, s.unit, format_double(s.rms), format_double(s.max_abs),
+                    format_double(s.mean), std::to_string(s.samples)});
+    csv.commit();
+    report.outputs.push_back((out / "validation.csv").string());
+  }
+  {
+    CsvWriter csv((out / "validation_frames.csv").string(),
+                  {"index", "t_s", "U_J", "U_truth_J", "U_truth_contact_J", "stick_ratio",
+                   "stick_ratio_truth", "c_mm", "c_model_mm", "displacement_rms_px", "E_xx_rms"});
+    for (std::size_t i = 0; i < n; ++i)
+      csv.row_text({std::to_string(i), format_double(t_s[i]), format_double(energy[i]),
+                    format_double(u_truth[i]), format_double(u_truth_contact[i]),
+                    format_double(stick_ratio[i]), format_double(ratio_truth[i]),
+                    format_double(c_measured[i]), format_double(c_model[i]), format_double(disp_rms[i]),
+                    format_double(exx_rms[i])});
+    csv.commit();
+    report.outputs.push_back((out / "validation_frames.csv").string());
+  }
+
+  if (options.write_maps && h5.has("/maps/strain_total") &&
+      h5.attribute_number("/maps", "reference_has_ellipse") > 0) {
+    const std::size_t frame =
+        options.map_frame >= 0 ? std::min(static_cast<std::size_t>(options.map_frame), n - 1) : u_argmax;
+    const std::vector<double> maps = h5.read_doubles("/maps/strain_total", &shape);
+    const std::size_t g = shape[1];
+    const cv::Matx23d to_reference =
+        invert_similarity(parse_matrix(h5.attribute_text("/maps", "to_normalised"), result_path));
+    const samples::FrameField field = trial.field(static_cast<int>(frame));
+    cv::Mat measured[3], truth[3];
+    for (int c = 0; c < 3; ++c) {
+      measured[c] = cv::Mat(static_cast<int>(g), static_cast<int>(g), CV_64F, cv::Scalar(kNaN));
+      truth[c] = measured[c].clone();
+    }
+    for (std::size_t r = 0; r < g; ++r)
+      for (std::size_t col = 0; col < g; ++col) {
+        const double qx = -1.0 + 2.0 * static_cast<double>(col) / static_cast<double>(g - 1);
+        const double qy = -1.0 + 2.0 * static_cast<double>(r) / static_cast<double>(g - 1);
+        const Vec2 X{to_reference(0, 0) * qx + to_reference(0, 1) * qy + to_reference(0, 2),
+                     to_reference(1, 0) * qx + to_reference(1, 1) * qy + to_reference(1, 2)};
+        const std::size_t base = ((frame * g + r) * g + col) * 3;
+        const bool inside = trial.contact_signed_distance_px(X) < 0.0;
+        const Strain2 e = inside ? green_lagrange(field.evaluate(X).gradient) : Strain2{kNaN, kNaN, kNaN};
+        const double truth_values[3] = {e.xx, e.yy, e.xy};
+        for (int c = 0; c < 3; ++c) {
+          measured[c].at<double>(static_cast<int>(r), static_cast<int>(col)) =
+              maps[base + static_cast<std::size_t>(c)];
+          truth[c].at<double>(static_cast<int>(r), static_cast<int>(col)) = truth_values[c];
+        }
+      }
+    const char* names[3] = {"E_xx", "E_yy", "E_xy"};
+    for (int c = 0; c < 3; ++c) {
+      double range = 0.0;
+      for (auto it = truth[c].begin<double>(); it != truth[c].end<double>(); ++it)
+        if (std::isfinite(*it)) range = std::max(range, std::abs(*it));
+      range = std::max(range, 1e-6);
+      cv::Mat difference = measured[c] - truth[c];  // NaN where either is NaN
+      HeatmapOptions o;
+      o.x_min = o.y_min = -1.0;
+      o.x_max = o.y_max = 1.0;
+      o.axis_unit = "normalised";
+      o.min = -range;
+      o.max = range;
+      char title[128];
+      std::snprintf(title, sizeof title, "%s measured (%s), frame %zu", names[c], mode.c_str(), frame);
+      o.title = title;
+      const cv::Mat left = render_heatmap(measured[c], o);
+      std::snprintf(title, sizeof title, "%s truth (exact field)", names[c]);
+      o.title = title;
+      const cv::Mat middle = render_heatmap(truth[c], o);
+      o.title = "measured - truth";
+      o.min = -0.25 * range;
+      o.max = 0.25 * range;
+      const cv::Mat right = render_heatmap(difference, o);
+      cv::Mat row;
+      cv::hconcat(std::vector<cv::Mat>{left, middle, right}, row);
+      const std::string path = (out / (std::string("maps_") + names[c] + ".png")).string();
+      const std::string partial = path + ".partial.png";
+      if (!cv::imwrite(partial, row)) throw Error("cannot write map image", {.file = path});
+      fs::rename(partial, path);
+      report.outputs.push_back(path);
+    }
+  }
+  return report;
+}
+
+}  // namespace tirstrain::pipeline

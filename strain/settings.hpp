@@ -1,0 +1,35 @@
+#pragma once
+// The scene's `strain:` section (strict: unknown keys are errors naming the file and key).
+//
+//   strain:
+//     mode: exact                 # exact (F against the reference) | incremental (the paper's running sum)
+//     stick_tolerance_px: 0.5     # a triangle is stuck when its centroid follows the plate this closely
+//     min_area_px2: 2             # triangle quality criteria (strain/mesh.hpp)
+//     min_angle_deg: 15
+//     max_aspect: 10
+//     map_cells: 65               # normalised maps: cells across the standard ellipse's [-1, 1] square
+//     overlay: e1                 # component drawn on the overlay: exx, eyy, exy, e1, e2, energy
+//     overlay_range: 0.2          # colour scale ±range (strain) or 0..range (energy density, J/m³)
+#include <string>
+
+#include "core/scene.hpp"
+#include "strain/deformation.hpp"
+
+namespace tirstrain::strain {
+
+enum class StrainMode { kExact, kIncremental };
+
+struct StrainStageSettings {
+  StrainSettings strain;  // quality criteria, tissue and calibration, stick tolerance
+  StrainMode mode = StrainMode::kExact;
+  int map_cells = 65;
+  std::string overlay = "e1";
+  double overlay_range = 0.2;
+};
+
+// `mode_override` (e.g. from `--strain-mode`), if not empty, replaces the section's `mode`.
+StrainStageSettings parse_strain_settings(const Scene& scene, const std::string& mode_override = "");
+
+const char* to_string(StrainMode mode);
+
+}  // namespace tirstrain::strain

@@ -1,0 +1,182 @@
+// The tracking and strain stages of `tirstrain process` on synthesised trials with exact truth, through
+// `tirstrain validate`'s comparison: datasets and shapes, strain against an affine field, the compressed
+// side of a Cattaneo–Mindlin contact facing the plate's motion for the four stimulus directions.
+#include <gtest/gtest.h>
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <string>
+
+#include "core/h5_file.hpp"
+#include "core/scene.hpp"
+#include "pipeline/process.hpp"
+#include "pipeline/validate.hpp"
+#include "samples/synth.hpp"
+#include "samples/trial.hpp"
+
+namespace tirstrain {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "strain_pipeline" / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir.parent_path());
+  return dir;
+}
+
+// A small noise-free trial: by default a Hertz contact with R = 5 mm (a = 1.83 mm, 95 px) in a 288x256
+// image.
+std::string scene_yaml(const std::string& loading, int frames, int size_px = 288, double radius_m = 0.005) {
+  return "calibration: {px_per_mm: 52, ridge_period_mm: 0.45, ridge_polarity: dark}\n"
+         "compute: [contact, tracking, strain]\n"
+         "synthesis:\n"
+         "  seed: 3\n"
+         "  image: {width_px: " +
+         std::to_string(size_px) + ", height_px: " + std::to_string(size_px - 32) +
+         ", bit_depth: 8}\n"
+         "  timing: {frames: " +
+         std::to_string(frames) +
+         ", frame_rate_hz: 100, jitter_s: 0}\n"
+         "  contact: {shape: hertz, normal_N: 2.0, radius_m: " +
+         std::to_string(radius_m) +
+         "}\n"
+         "  loading: " +
+         loading +
+         "\n"
+         "  sensor: {full_well_electrons: 0, read_noise: 0, blur_sigma_px: 0, drift: 0}\n";
+}
+
+// Writes the scene, synthesises the trial and processes it; returns the validation.
+pipeline::ValidationReport synthesise_and_validate(const std::string& name, const std::string& yaml) {
+  const fs::path dir = scratch(name);
+  fs::create_directories(dir);
+  const fs::path scene = dir / "scene_in.yaml";
+  {
+    std::ofstream out(scene);
+    out << yaml;
+  }
+  pipeline::ValidateOptions o;
+  o.scene_path = scene.string();
+  o.out_dir = (dir / "validation").string();
+  o.quiet = true;
+  return pipeline::run_validate(o);
+}
+
+TEST(StrainPipeline, AffineFieldDatasetsAndAccuracy) {
+  // 10 % stretch along x, 4 % compression along y and shear, ramped over 6 frames.
+  const pipeline::ValidationReport report = synthesise_and_validate(
+      "affine", scene_yaml("{field: affine, gradient: [0.10, 0.03, -0.02, -0.04]}", 6));
+  const H5Reader h5((fs::path(report.result_dir) / "result.h5").string());
+  const std::size_t n = 6;
+  const H5Shape positions = h5.shape("/tracks/position_px");
+  ASSERT_EQ(positions.size(), 3u);
+  EXPECT_EQ(positions[0], n);
+  EXPECT_EQ(positions[2], 2u);
+  const std::size_t k = positions[1];
+  EXPECT_GT(k, 100u);
+  EXPECT_EQ(h5.shape("/tracks/reference_px"), (H5Shape{k, 2}));
+  EXPECT_EQ(h5.shape("/tracks/status"), (H5Shape{n, k}));
+  EXPECT_EQ(h5.shape("/plate/displacement_px"), (H5Shape{n, 2}));
+  const H5Shape triangles = h5.shape("/mesh/triangles");
+  const std::size_t t = triangles[0];
+  EXPECT_GT(t, 150u);
+  for (const char* name : {"/strain/total", "/strain/total_incremental", "/strain/rate", "/strain/principal"})
+    EXPECT_EQ(h5.shape(name), (H5Shape{n, t, 3})) << name;
+  EXPECT_EQ(h5.shape("/strain/rotation_rad"), (H5Shape{n, t}));
+  EXPECT_EQ(h5.shape("/energy/density_J_m3"), (H5Shape{n, t}));
+  EXPECT_EQ(h5.shape("/energy/total_J"), (H5Shape{n}));
+  EXPECT_EQ(h5.shape("/stick/ratio"), (H5Shape{n}));
+  EXPECT_EQ(h5.shape("/maps/strain_total"), (H5Shape{n, 65, 65, 3}));
+  EXPECT_EQ(h5.attribute_text("/strain", "mode"), "exact");
+
+  // Every triangle index points at a track; the reference frame has zero strain.
+  const std::vector<std::int64_t> mesh = h5.read_integers("/mesh/triangles");
+  for (const std::int64_t v : mesh) ASSERT_TRUE(v >= 0 && static_cast<std::size_t>(v) < k);
+  const std::vector<double> total = h5.read_doubles("/strain/total");
+  for (std::size_t i = 0; i < t * 3; ++i) {
+    if (std::isfinite(total[i])) {
+      ASSERT_NEAR(total[i], 0.0, 1e-12);
+    }
+  }
+
+  // Against the exact field (interior, triangle reference: tracking error only), printed below. Measured on
+  // this noise-free trial: E_xx 0.0081, E_yy 0.0075, E_xy 0.0051 RMS, interior displacement 0.078 px RMS;
+  // the tolerances are those with a margin. The target (0.005 per component on the default scene)
+  // needs about 0.03 px displacement error at the 8 px grid: not met yet (see docs/flow.md).
+  for (const auto& row : report.rows) {
+    if (row.reference != "triangle" && row.reference != "tracks" && row.reference != "same triangles")
+      continue;
+    std::printf("  %-22s %-15s %-12s rms %.4g max %.4g (n = %ld)\n", row.quantity.c_str(),
+                row.reference.c_str(), row.mode.c_str(), row.rms, row.max_abs, row.samples);
+  }
+  for (const char* component : {"E_xx", "E_yy", "E_xy"}) {
+    const pipeline::ErrorStats* exact = report.find(component, "triangle", "exact");
+    ASSERT_NE(exact, nullptr);
+    EXPECT_GT(exact->samples, 500);
+    EXPECT_LT(exact->rms, 0.011) << component;
+  }
+  EXPECT_LT(report.find("displacement_interior", "tracks")->rms, 0.11);
+  EXPECT_LT(std::abs(report.find("U", "same triangles", "exact")->mean), 3.0);  // %
+}
+
+// The leading edge (towards the plate's motion) is compressed along the motion, the trailing edge stretched.
+TEST(StrainPipeline, CompressedSideLeadsInEachDirection) {
+  for (const int direction_deg : {0, 90, 180, 270}) {
+    const std::string loading =
+        "{field: cattaneo_mindlin, friction: 1.0, direction_deg: " + std::to_string(direction_deg) +
+        ", plate_speed_mm_s: 10.0, shear_start_s: 0.0}";
+    // R = 20 mm: a = 2.9 mm (152 px), as the default scene; by the last frame c/a is about 0.4, so the slip
+    // annulus reaches well inside the tracked region.
+    const pipeline::ValidationReport report = synthesise_and_validate(
+        "direction_" + std::to_string(direction_deg), scene_yaml(loading, 6, 352, 0.02));
+    const H5Reader h5((fs::path(report.result_dir) / "result.h5").string());
+    const std::vector<double> reference = h5.read_doubles("/tracks/reference_px");
+    const std::vector<std::int64_t> mesh = h5.read_integers("/mesh/triangles");
+    H5Shape shape;
+    const std::vector<double> total = h5.read_doubles("/strain/total", &shape);
+    const std::size_t n = shape[0], t_count = shape[1];
+    const double d = direction_deg * std::numbers::pi / 180.0;
+    const double dx = std::cos(d), dy = std::sin(d);
+    const double cx = 175.5, cy = 159.5, a_px = 152.0;  // contact centre = image centre
+    double leading = 0.0, trailing = 0.0;
+    int n_leading = 0, n_trailing = 0;
+    const std::size_t last = n - 1;
+    for (std::size_t tri = 0; tri < t_count; ++tri) {
+      const double* e = &total[(last * t_count + tri) * 3];
+      if (!std::isfinite(e[0])) continue;
+      double x = 0.0, y = 0.0;
+      for (int v = 0; v < 3; ++v) {
+        const auto id = static_cast<std::size_t>(mesh[tri * 3 + static_cast<std::size_t>(v)]);
+        x += reference[2 * id] / 3.0;
+        y += reference[2 * id + 1] / 3.0;
+      }
+      const double along = ((x - cx) * dx + (y - cy) * dy) / a_px;
+      const double e_dd = e[0] * dx * dx + e[1] * dy * dy + 2.0 * e[2] * dx * dy;
+      if (along > 0.3) {
+        leading += e_dd;
+        ++n_leading;
+      } else if (along < -0.3) {
+        trailing += e_dd;
+        ++n_trailing;
+      }
+    }
+    ASSERT_GT(n_leading, 20) << direction_deg;
+    ASSERT_GT(n_trailing, 20) << direction_deg;
+    leading /= n_leading;
+    trailing /= n_trailing;
+    std::printf("  direction %3d deg: mean strain along the motion, leading %.4f, trailing %.4f\n",
+                direction_deg, leading, trailing);
+    // Measured: about -0.064 leading and +0.08 to +0.09 trailing in every direction.
+    EXPECT_LT(leading, -0.03) << direction_deg;
+    EXPECT_GT(trailing, 0.03) << direction_deg;
+  }
+}
+
+}  // namespace
+}  // namespace tirstrain
