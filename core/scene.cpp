@@ -57,6 +57,7 @@ Scene parse_scene(const YAML::Node& root, const std::string& file) {
     }
   }
   scene.synthesis = top.raw("synthesis");
+  scene.segmentation = top.raw("segmentation");
   scene.tracking = top.raw("tracking");
   scene.strain = top.raw("strain");
   scene.channels = top.raw("channels");
@@ -91,6 +92,7 @@ YAML::Node scene_to_yaml(const Scene& scene) {
   compute.SetStyle(YAML::EmitterStyle::Flow);
   root["compute"] = compute;
   if (scene.synthesis && !scene.synthesis.IsNull()) root["synthesis"] = scene.synthesis;
+  if (scene.segmentation && !scene.segmentation.IsNull()) root["segmentation"] = scene.segmentation;
   if (scene.tracking && !scene.tracking.IsNull()) root["tracking"] = scene.tracking;
   if (scene.strain && !scene.strain.IsNull()) root["strain"] = scene.strain;
   if (scene.channels && !scene.channels.IsNull()) root["channels"] = scene.channels;

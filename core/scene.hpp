@@ -1,7 +1,7 @@
 #pragma once
 // The scene file (YAML): one trial or one rig. Core parses what every stage shares (calibration, tissue,
-// reference pattern, what to compute); sections owned by one module (synthesis, tracking, strain, channels)
-// are kept as raw YAML nodes and parsed strictly by that module with YamlSection.
+// reference pattern, what to compute); sections owned by one module (synthesis, segmentation, tracking,
+// strain, channels) are kept as raw YAML nodes and parsed strictly by that module with YamlSection.
 #include <yaml-cpp/yaml.h>
 
 #include <array>
@@ -31,6 +31,7 @@ struct Scene {
   std::vector<std::string> compute = {"contact"};  // stages requested, in pipeline order
   // Module-owned sections, parsed by their modules.
   YAML::Node synthesis;
+  YAML::Node segmentation;  // contact stage settings (pipeline/contact_stage.cpp)
   YAML::Node tracking;
   YAML::Node strain;
   YAML::Node channels;

@@ -7,6 +7,7 @@
 #include <numbers>
 
 #include "core/csv.hpp"
+#include "core/yaml_reader.hpp"
 
 namespace tirstrain::pipeline {
 namespace {
@@ -216,6 +217,10 @@ contact::SegmenterOptions segmenter_options_for(const Scene& scene) {
     const RoiPx& r = *scene.reference_pattern_roi;
     options.exclude_px = cv::Rect(r.x, r.y, r.width, r.height);
   }
+  // segmentation: {downsample: 0}  — working-resolution factor; 0 automatic (from the ridge period), 1 full.
+  YamlSection s(scene.segmentation, scene.file, "segmentation");
+  options.downsample = static_cast<int>(s.integer("downsample", options.downsample, 0, 16));
+  s.finish();
   return options;
 }
 

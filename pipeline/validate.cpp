@@ -126,7 +126,7 @@ ValidationReport run_validate(const ValidateOptions& options) {
     report.result_dir = (out / "result").string();
     ProcessOptions process;
     process.input = trial_dir;
-    process.scene_path = scene_path;
+    process.scene_path = options.process_scene_path.value_or(scene_path);
     process.out_dir = report.result_dir;
     process.quiet = options.quiet;
     process.overlay = OverlayMode::kNone;

@@ -23,6 +23,9 @@ struct ValidateOptions {
   std::optional<std::string> trial_dir;   // or an existing synthesised trial folder
   std::optional<std::string> result_dir;  // an existing result of processing the trial (skips processing)
   std::string out_dir;
+  // Scene used for processing (e.g. with other tracking settings); default: the trial's own scene.yaml. The
+  // truth always comes from the trial's scene.
+  std::optional<std::string> process_scene_path;
   std::string tracking_preset;  // "" = the scene's
   std::string strain_mode;      // "" = the scene's
   double border_exclusion_mm = 0.3;

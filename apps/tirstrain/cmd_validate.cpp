@@ -24,7 +24,7 @@ void print_table(const pipeline::ValidationReport& report) {
 
 void add_validate_command(CLI::App& app) {
   struct Args {
-    std::string scene, trial, result, out, preset, strain_mode;
+    std::string scene, trial, result, out, preset, strain_mode, process_scene;
     double border_mm = 0.3;
     int map_frame = -1;
     bool quiet = false, no_maps = false;
@@ -56,6 +56,9 @@ void add_validate_command(CLI::App& app) {
                   "An existing process output folder for that trial (skip processing)")
       ->check(CLI::ExistingDirectory);
   sub->add_option("--out", args->out, "Output folder")->required();
+  sub->add_option("--process-scene", args->process_scene,
+                  "Process with this scene (e.g. other tracking settings) instead of the trial's own")
+      ->check(CLI::ExistingFile);
   sub->add_option("--preset", args->preset, "Tracking preset: auto or delhaye2016")
       ->check(CLI::IsMember({"auto", "delhaye2016"}));
   sub->add_option("--strain-mode", args->strain_mode, "exact or incremental")
@@ -72,6 +75,7 @@ void add_validate_command(CLI::App& app) {
     if (!args->trial.empty()) o.trial_dir = args->trial;
     if (!args->result.empty()) o.result_dir = args->result;
     o.out_dir = args->out;
+    if (!args->process_scene.empty()) o.process_scene_path = args->process_scene;
     o.tracking_preset = args->preset;
     o.strain_mode = args->strain_mode;
     o.border_exclusion_mm = args->border_mm;

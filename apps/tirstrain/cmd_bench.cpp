@@ -1,0 +1,412 @@
+// `tirstrain bench`: speed against error. Every configuration processes the same synthesised trials (exact
+// truth) in a child process (`tirstrain validate`), so each row has its own wall time and peak memory;
+// frames/s is the median over repeats, errors are measured against the truth.
+#include <spawn.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <yaml-cpp/yaml.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <fcntl.h>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <limits>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/atomic_output.hpp"
+#include "core/csv.hpp"
+#include "core/error.hpp"
+#include "core/yaml_reader.hpp"
+#include "tirstrain/commands.hpp"
+
+extern char** environ;
+
+namespace tirstrain::cli {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+struct Config {
+  std::string name;
+  std::string tracking;      // YAML map merged into the scene's tracking: section
+  std::string segmentation;  // YAML map for the segmentation: section
+};
+
+// The presets and a sweep of the settings that matter, each changing one thing from the automatic default.
+const std::vector<Config>& all_configs() {
+  static const std::vector<Config> configs = {
+      {"delhaye2016", "{preset: delhaye2016}", ""},
+      {"default", "{preset: auto}", ""},
+      {"auto_window_15", "{preset: auto, window_px: 15}", ""},
+      {"auto_window_41", "{preset: auto, window_px: 41}", ""},
+      {"auto_levels_0", "{preset: auto, pyramid_levels: 0}", ""},
+      {"auto_levels_3", "{preset: auto, pyramid_levels: 3}", ""},
+      {"auto_grid_6", "{preset: auto, grid_step_px: 6}", ""},
+      {"auto_grid_12", "{preset: auto, grid_step_px: 12}", ""},
+      {"auto_cap_1000", "{preset: auto, max_features: 1000}", ""},
+      {"auto_affine", "{preset: auto, refine: affine}", ""},
+      {"auto_subset_9", "{preset: auto, subset_radius_px: 9}", ""},
+      {"auto_segment_full_res", "{preset: auto}", "{downsample: 1}"},
+  };
+  return configs;
+}
+
+struct Row {
+  std::string scene, config, error;
+  int frames = 0;
+  double frames_per_s = kNaN, contact_ms = kNaN, track_ms = kNaN, strain_ms = kNaN, peak_mb = kNaN;
+  double tracks_mean = kNaN, disp_rms_px = kNaN, strain_rms[3] = {kNaN, kNaN, kNaN}, strain_rms_all = kNaN;
+  double energy_err_pct = kNaN, plate_rms_px = kNaN;
+};
+
+double median(std::vector<double> v) {
+  if (v.empty()) return kNaN;
+  std::sort(v.begin(), v.end());
+  const std::size_t m = v.size() / 2;
+  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+}
+
+std::string self_exe() {
+  std::error_code ec;
+  const fs::path p = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) throw Error("cannot find the tirstrain executable (/proc/self/exe): " + ec.message());
+  return p.string();
+}
+
+// Runs `tirstrain ARGS...`, returns the exit code and the child's peak resident memory (MB).
+int run_child(const std::vector<std::string>& args, const std::string& log_path, double* peak_mb) {
+  std::vector<char*> argv;
+  const std::string exe = self_exe();
+  argv.push_back(const_cast<char*>(exe.c_str()));
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  pid_t pid = 0;
+  const int spawned = posix_spawn(&pid, exe.c_str(), &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (spawned != 0) throw Error("cannot start " + exe + ": " + std::strerror(spawned));
+  int status = 0;
+  rusage usage{};
+  if (wait4(pid, &status, 0, &usage) < 0) throw Error("wait for the benchmark child failed");
+  *peak_mb = static_cast<double>(usage.ru_maxrss) / 1024.0;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// A free-text cell without the separators that would split it.
+std::string csv_safe(std::string text) {
+  std::replace(text.begin(), text.end(), ',', ';');
+  std::replace(text.begin(), text.end(), '"', '\'');
+  return text;
+}
+
+std::string tail_of(const std::string& path) {
+  std::ifstream in(path);
+  std::string line, last;
+  while (std::getline(in, line))
+    if (!line.empty()) last = line;
+  return last;
+}
+
+// validation.csv → the numbers a row needs.
+void read_validation(const fs::path& dir, Row& row) {
+  std::ifstream in(dir / "validation.csv");
+  std::string line;
+  std::getline(in, line);
+  double sum2 = 0.0;
+  int components = 0;
+  while (std::getline(in, line)) {
+    std::vector<std::string> cells;
+    std::size_t start = 0;
+    while (true) {
+      const std::size_t comma = line.find(',', start);
+      cells.push_back(line.substr(start, comma - start));
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
+    if (cells.size() < 8) continue;
+    const std::string& q = cells[0];
+    const std::string& reference = cells[1];
+    const std::string& mode = cells[2];
+    const double rms = std::strtod(cells[4].c_str(), nullptr);
+    if (reference == "point" && mode == "exact") {
+      for (int c = 0; c < 3; ++c)
+        if (q == std::vector<std::string>{"E_xx", "E_yy", "E_xy"}[static_cast<std::size_t>(c)]) {
+          row.strain_rms[c] = rms;
+          sum2 += rms * rms;
+          ++components;
+        }
+    }
+    if (q == "displacement" && reference == "tracks") row.disp_rms_px = rms;
+    if (q == "plate_displacement") row.plate_rms_px = rms;
+    if (q == "U" && mode == "exact") row.energy_err_pct = rms;
+  }
+  if (components == 3) row.strain_rms_all = std::sqrt(sum2 / 3.0);
+}
+
+// The scene the configuration processes with: the trial's own plus the configuration's sections.
+std::string write_config_scene(const fs::path& trial, const Config& config, const fs::path& out) {
+  YAML::Node scene = load_yaml_file((trial / "scene.yaml").string());
+  scene["tracking"] = YAML::Load(config.tracking);
+  if (!config.segmentation.empty()) scene["segmentation"] = YAML::Load(config.segmentation);
+  YAML::Emitter emitter;
+  emitter << scene;
+  write_text_file(out.string(), std::string(emitter.c_str()) + "\n");
+  return out.string();
+}
+
+void write_plot(const std::vector<Row>& rows, const std::vector<std::string>& scenes,
+                const std::string& path) {
+  const int panel_w = 520, panel_h = 400, margin_l = 70, margin_b = 50, margin_t = 40, margin_r = 20;
+  cv::Mat image(panel_h, panel_w * static_cast<int>(scenes.size()), CV_8UC3, cv::Scalar(255, 255, 255));
+  for (std::size_t s = 0; s < scenes.size(); ++s) {
+    std::vector<const Row*> points;
+    for (const Row& r : rows)
+      if (r.scene == scenes[s] && std::isfinite(r.frames_per_s) && std::isfinite(r.strain_rms_all))
+        points.push_back(&r);
+    const int x0 = static_cast<int>(s) * panel_w;
+    cv::putText(image, scenes[s], {x0 + margin_l, 24}, cv::FONT_HERSHEY_SIMPLEX, 0.55, {0, 0, 0}, 1,
+                cv::LINE_AA);
+    if (points.empty()) continue;
+    double fmin = 1e300, fmax = 0, emin = 1e300, emax = 0;
+    for (const Row* r : points) {
+      fmin = std::min(fmin, r->frames_per_s);
+      fmax = std::max(fmax, r->frames_per_s);
+      emin = std::min(emin, r->strain_rms_all);
+      emax = std::max(emax, r->strain_rms_all);
+    }
+    // Log axes: speed and error both span decades across configurations.
+    const double lf0 = std::log10(fmin) - 0.1, lf1 = std::log10(fmax) + 0.1;
+    const double le0 = std::log10(emin) - 0.1, le1 = std::log10(emax) + 0.1;
+    const auto px = [&](double f, double e) {
+      const double u = (std::log10(f) - lf0) / (lf1 - lf0), v = (std::log10(e) - le0) / (le1 - le0);
+      return cv::Point(x0 + margin_l + static_cast<int>(u * (panel_w - margin_l - margin_r)),
+                       panel_h - margin_b - static_cast<int>(v * (panel_h - margin_b - margin_t)));
+    };
+    cv::rectangle(image, {x0 + margin_l, margin_t}, {x0 + panel_w - margin_r, panel_h - margin_b}, {0, 0, 0});
+    char text[64];
+    std::snprintf(text, sizeof text, "%.3g", fmin);
+    cv::putText(image, text, {x0 + margin_l, panel_h - margin_b + 16}, cv::FONT_HERSHEY_SIMPLEX, 0.4,
+                {0, 0, 0});
+    std::snprintf(text, sizeof text, "%.3g", fmax);
+    cv::putText(image, text, {x0 + panel_w - margin_r - 40, panel_h - margin_b + 16},
+                cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
+    cv::putText(image, "frames/s (log)", {x0 + panel_w / 2 - 40, panel_h - 12}, cv::FONT_HERSHEY_SIMPLEX,
+                0.45, {0, 0, 0});
+    std::snprintf(text, sizeof text, "%.3g", emax);
+    cv::putText(image, text, {x0 + 8, margin_t + 10}, cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
+    std::snprintf(text, sizeof text, "%.3g", emin);
+    cv::putText(image, text, {x0 + 8, panel_h - margin_b}, cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
+    cv::putText(image, "strain RMS", {x0 + 4, panel_h / 2}, cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
+    // Pareto front: no other configuration is both faster and more accurate.
+    std::vector<const Row*> front;
+    for (const Row* a : points) {
+      bool dominated = false;
+      for (const Row* b : points)
+        if (b != a && b->frames_per_s >= a->frames_per_s && b->strain_rms_all <= a->strain_rms_all &&
+            (b->frames_per_s > a->frames_per_s || b->strain_rms_all < a->strain_rms_all))
+          dominated = true;
+      if (!dominated) front.push_back(a);
+    }
+    std::sort(front.begin(), front.end(),
+              [](const Row* a, const Row* b) { return a->frames_per_s < b->frames_per_s; });
+    for (std::size_t i = 1; i < front.size(); ++i)
+      cv::line(image, px(front[i - 1]->frames_per_s, front[i - 1]->strain_rms_all),
+               px(front[i]->frames_per_s, front[i]->strain_rms_all), {0, 140, 255}, 2, cv::LINE_AA);
+    for (const Row* r : points) {
+      const bool on_front = std::find(front.begin(), front.end(), r) != front.end();
+      const cv::Scalar colour = r->config == "delhaye2016" ? cv::Scalar(200, 0, 0)
+                                : r->config == "default"   ? cv::Scalar(0, 150, 0)
+                                                           : cv::Scalar(90, 90, 90);
+      const cv::Point p = px(r->frames_per_s, r->strain_rms_all);
+      cv::circle(image, p, on_front ? 6 : 4, colour, on_front ? cv::FILLED : 1, cv::LINE_AA);
+      cv::putText(image, r->config, p + cv::Point(7, -4), cv::FONT_HERSHEY_SIMPLEX, 0.35, colour, 1,
+                  cv::LINE_AA);
+    }
+  }
+  cv::putText(image, "filled + orange line: Pareto front (faster and more accurate than every other point)",
+              {10, panel_h - 30}, cv::FONT_HERSHEY_SIMPLEX, 0.35, {0, 100, 200}, 1, cv::LINE_AA);
+  const std::string partial = path + ".partial.png";
+  if (!cv::imwrite(partial, image)) throw Error("cannot write the plot", {.file = path});
+  fs::rename(partial, path);
+}
+
+}  // namespace
+
+void add_bench_command(CLI::App& app) {
+  struct Args {
+    std::string out = "bench-output", scenes_dir = TIRSTRAIN_SCENES_DIR;
+    std::vector<std::string> scenes, configs;
+    int repeats = 3;
+    bool quick = false, fresh = false;
+  };
+  auto args = std::make_shared<Args>();
+  CLI::App* sub = app.add_subcommand(
+      "bench", "Speed against error: the whole pipeline on synthetic trials with exact truth");
+  sub->footer(
+      "For each scene x configuration: synthesise the trial once (cached in OUT/trials), then process and "
+      "validate\n"
+      "it in a child process (`tirstrain validate`), REPEATS times. Prints one row per configuration and "
+      "scene:\n"
+      "frames/s end to end (median of repeats; decode, contact, tracking, strain, energy, result writing), "
+      "per-stage\n"
+      "ms/frame, peak memory (MB, the child's maximum resident set), displacement RMS error of all tracks "
+      "(px),\n"
+      "strain RMS error per component in the contact interior (exact mode, against the exact strain at "
+      "triangle\n"
+      "centroids), and the total strain energy error U (% RMS over frames with >= 10 % of the peak energy).\n"
+      "Writes OUT/bench.csv and OUT/bench.png (strain error against frames/s, Pareto front marked).\n"
+      "Configurations: delhaye2016 (the paper's preset), default (automatic), and one-setting sweeps of the\n"
+      "automatic preset (window, pyramid levels, grid spacing, feature cap, shape function, subset radius,\n"
+      "full-resolution segmentation). Scenes (samples/scenes): default (640x512 CM), paper_camera_1280\n"
+      "(1280x1024, ~3000 tracks), hard_heavy_noise, hard_low_contrast, hard_large_displacement.\n"
+      "--quick: a 12-frame cut of the default scene, the two presets, one repeat (a CI smoke run, < 1 min).");
+  sub->add_option("--out", args->out, "Output folder (default bench-output)");
+  sub->add_option("--scenes-dir", args->scenes_dir, "Folder of the scene files")
+      ->check(CLI::ExistingDirectory);
+  sub->add_option("--scenes", args->scenes, "Scene names (files in --scenes-dir without .yaml)")
+      ->delimiter(',');
+  sub->add_option("--configs", args->configs, "Configuration names (default: all)")->delimiter(',');
+  sub->add_option("--repeats", args->repeats, "Repeats per row; frames/s is their median")
+      ->check(CLI::Range(1, 50));
+  sub->add_flag("--quick", args->quick, "A quick smoke run (see above)");
+  sub->add_flag("--fresh", args->fresh, "Synthesise the trials again even if cached");
+  sub->callback([args] {
+    ensure_output_dir(args->out, "--out");
+    const fs::path out(args->out);
+    std::vector<std::string> scenes = args->scenes;
+    std::vector<std::string> config_names = args->configs;
+    int repeats = args->repeats;
+    if (args->quick) {
+      if (scenes.empty()) scenes = {"quick"};
+      if (config_names.empty()) config_names = {"delhaye2016", "default"};
+      repeats = 1;
+    }
+    if (scenes.empty())
+      scenes = {"default", "paper_camera_1280", "hard_heavy_noise", "hard_low_contrast",
+                "hard_large_displacement"};
+    std::vector<Config> configs;
+    for (const Config& c : all_configs())
+      if (config_names.empty() ||
+          std::find(config_names.begin(), config_names.end(), c.name) != config_names.end())
+        configs.push_back(c);
+    for (const std::string& name : config_names)
+      if (std::none_of(configs.begin(), configs.end(), [&](const Config& c) { return c.name == name; }))
+        throw Error("unknown configuration '" + name + "'");
+
+    std::vector<Row> rows;
+    const std::size_t total_runs = scenes.size() * configs.size() * static_cast<std::size_t>(repeats);
+    std::size_t run_index = 0;
+    for (const std::string& scene_name : scenes) {
+      const fs::path trial = out / "trials" / scene_name;
+      if (args->fresh || !fs::exists(trial / "truth.h5")) {
+        fs::path scene_file = fs::path(args->scenes_dir) / (scene_name + ".yaml");
+        if (scene_name == "quick") {
+          // The default scene cut to 12 frames: five at rest, then partial slip.
+          YAML::Node s = load_yaml_file((fs::path(args->scenes_dir) / "default.yaml").string());
+          s["synthesis"]["timing"]["frames"] = 12;
+          YAML::Emitter e;
+          e << s;
+          fs::create_directories(out / "trials");
+          scene_file = out / "trials" / "quick.yaml";
+          write_text_file(scene_file.string(), std::string(e.c_str()) + "\n");
+        }
+        if (!fs::exists(scene_file)) throw Error("no such scene", {.file = scene_file.string()});
+        std::cerr << "bench: synthesising " << scene_name << " -> " << trial.string() << "\n";
+        double peak = 0.0;
+        const std::string log = (out / "trials" / (scene_name + ".log")).string();
+        fs::create_directories(out / "trials");
+        if (run_child({"synth", "--scene", scene_file.string(), "--out", trial.string(), "--quiet"}, log,
+                      &peak) != 0)
+          throw Error("synthesis failed: " + tail_of(log), {.file = scene_file.string()});
+      }
+      for (const Config& config : configs) {
+        Row row;
+        row.scene = scene_name;
+        row.config = config.name;
+        const fs::path run_dir = out / "runs" / scene_name / config.name;
+        fs::create_directories(run_dir);
+        const std::string scene_file = write_config_scene(trial, config, run_dir / "scene.yaml");
+        std::vector<double> fps, contact_ms, track_ms, strain_ms, tracks;
+        for (int r = 0; r < repeats; ++r) {
+          ++run_index;
+          const fs::path rep = run_dir / ("repeat" + std::to_string(r));
+          double peak = 0.0;
+          const std::string log = (run_dir / ("repeat" + std::to_string(r) + ".log")).string();
+          const int code = run_child({"validate", "--trial", trial.string(), "--process-scene", scene_file,
+                                      "--out", rep.string(), "--no-maps", "--quiet"},
+                                     log, &peak);
+          std::cerr << "bench: [" << run_index << "/" << total_runs << "] " << scene_name << " "
+                    << config.name << " repeat " << r + 1 << (code == 0 ? "" : " FAILED") << "\n";
+          if (code != 0) {
+            row.error = tail_of(log);
+            break;
+          }
+          row.peak_mb = std::isfinite(row.peak_mb) ? std::max(row.peak_mb, peak) : peak;
+          std::ifstream summary_file(rep / "result" / "summary.json");
+          const nlohmann::json summary = nlohmann::json::parse(summary_file);
+          row.frames = summary["frames"]["total"].get<int>();
+          fps.push_back(row.frames / summary["wall_time_s"].get<double>());
+          contact_ms.push_back(summary["contact"]["segment_ms_per_frame"].get<double>());
+          track_ms.push_back(summary["tracking"]["track_ms_per_frame"].get<double>());
+          strain_ms.push_back(summary["strain"]["strain_ms_per_frame"].get<double>());
+          tracks.push_back(summary["tracking"]["tracks_alive_mean"].get<double>());
+          if (r == 0) read_validation(rep, row);
+        }
+        row.frames_per_s = median(fps);
+        row.contact_ms = median(contact_ms);
+        row.track_ms = median(track_ms);
+        row.strain_ms = median(strain_ms);
+        row.tracks_mean = median(tracks);
+        rows.push_back(row);
+      }
+    }
+
+    std::printf("%-24s %-22s %8s %8s %8s %8s %8s %7s %9s %9s %9s %9s %8s\n", "scene", "config", "frames/s",
+                "contact", "track", "strain", "peak_MB", "tracks", "disp_px", "E_xx", "E_yy", "E_xy",
+                "U_err%");
+    for (const Row& r : rows) {
+      if (!r.error.empty()) {
+        std::printf("%-24s %-22s failed: %s\n", r.scene.c_str(), r.config.c_str(), r.error.c_str());
+        continue;
+      }
+      std::printf("%-24s %-22s %8.3g %8.3g %8.3g %8.3g %8.0f %7.0f %9.4f %9.5f %9.5f %9.5f %8.2f\n",
+                  r.scene.c_str(), r.config.c_str(), r.frames_per_s, r.contact_ms, r.track_ms, r.strain_ms,
+                  r.peak_mb, r.tracks_mean, r.disp_rms_px, r.strain_rms[0], r.strain_rms[1], r.strain_rms[2],
+                  r.energy_err_pct);
+    }
+    {
+      CsvWriter csv((out / "bench.csv").string(),
+                    {"scene", "config", "frames", "frames_per_s", "contact_ms", "track_ms", "strain_ms",
+                     "peak_mb", "tracks_mean", "disp_rms_px", "strain_rms", "strain_rms_exx",
+                     "strain_rms_eyy", "strain_rms_exy", "energy_err_pct", "plate_rms_px", "error"});
+      for (const Row& r : rows)
+        csv.row_text({r.scene, r.config, std::to_string(r.frames), format_double(r.frames_per_s),
+                      format_double(r.contact_ms), format_double(r.track_ms), format_double(r.strain_ms),
+                      format_double(r.peak_mb), format_double(r.tracks_mean), format_double(r.disp_rms_px),
+                      format_double(r.strain_rms_all), format_double(r.strain_rms[0]),
+                      format_double(r.strain_rms[1]), format_double(r.strain_rms[2]),
+                      format_double(r.energy_err_pct), format_double(r.plate_rms_px), csv_safe(r.error)});
+      csv.commit();
+    }
+    write_plot(rows, scenes, (out / "bench.png").string());
+    std::cerr << "bench: wrote " << (out / "bench.csv").string() << " and " << (out / "bench.png").string()
+              << "\n";
+  });
+}
+
+}  // namespace tirstrain::cli
