@@ -6,6 +6,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
@@ -176,6 +177,70 @@ TEST(StrainPipeline, CompressedSideLeadsInEachDirection) {
     EXPECT_LT(leading, -0.03) << direction_deg;
     EXPECT_GT(trailing, 0.03) << direction_deg;
   }
+}
+
+}  // namespace
+}  // namespace tirstrain
+
+namespace tirstrain {
+namespace {
+
+// Reads one frame of /maps/strain_total as three G x G grids (row-major).
+std::vector<double> last_frame_maps(const std::string& result_h5, std::size_t* cells) {
+  const H5Reader h5(result_h5);
+  H5Shape shape;
+  const std::vector<double> all = h5.read_doubles("/maps/strain_total", &shape);
+  const std::size_t g = shape[1], per_frame = g * g * 3;
+  *cells = g;
+  return {all.end() - static_cast<std::ptrdiff_t>(per_frame), all.end()};
+}
+
+TEST(StrainPipeline, AverageIsTheCellwiseMeanOverCoveringTrials) {
+  const pipeline::ValidationReport a = synthesise_and_validate(
+      "average_a", scene_yaml("{field: affine, gradient: [0.10, 0.0, 0.0, -0.04]}", 4));
+  const pipeline::ValidationReport b = synthesise_and_validate(
+      "average_b", scene_yaml("{field: affine, gradient: [-0.06, 0.0, 0.0, 0.08]}", 4));
+  const std::string result_a = (fs::path(a.result_dir) / "result.h5").string();
+  const std::string result_b = (fs::path(b.result_dir) / "result.h5").string();
+  const fs::path out = scratch("average_out");
+  const std::string command = std::string(TIRSTRAIN_CLI) + " average " + result_a + " " + b.result_dir +
+                              " --at last --out " + out.string() + " 2>&1";
+  ASSERT_EQ(std::system(command.c_str()), 0);
+  std::size_t g = 0;
+  const std::vector<double> map_a = last_frame_maps(result_a, &g);
+  const std::vector<double> map_b = last_frame_maps(result_b, &g);
+  const H5Reader h5((out / "average.h5").string());
+  const std::vector<double> mean = h5.read_doubles("/maps/strain_total");
+  const std::vector<double> count = h5.read_doubles("/maps/count");
+  ASSERT_EQ(mean.size(), g * g * 3);
+  int both = 0;
+  for (std::size_t cell = 0; cell < g * g; ++cell)
+    for (std::size_t c = 0; c < 3; ++c) {
+      const double va = map_a[cell * 3 + c], vb = map_b[cell * 3 + c], m = mean[cell * 3 + c];
+      const int n = std::isfinite(va) + std::isfinite(vb);
+      ASSERT_EQ(count[cell], n) << cell;
+      if (n == 2) {
+        ASSERT_NEAR(m, 0.5 * (va + vb), 1e-15);
+        ++both;
+      } else if (n == 1) {
+        ASSERT_EQ(m, std::isfinite(va) ? va : vb);
+      } else {
+        ASSERT_TRUE(std::isnan(m));
+      }
+    }
+  EXPECT_GT(both, 300);
+  for (const char* png : {"average_E_xx.png", "average_E_yy.png", "average_E_xy.png", "average_count.png"})
+    EXPECT_TRUE(fs::exists(out / png)) << png;
+  // The interior mean E_xx is about the mean of the two fields' Green–Lagrange E_xx at the last frame.
+  double sum = 0.0;
+  int n = 0;
+  for (std::size_t cell = 0; cell < g * g; ++cell)
+    if (count[cell] == 2.0 && std::isfinite(mean[cell * 3])) {
+      sum += mean[cell * 3];
+      ++n;
+    }
+  const double expected = 0.5 * ((0.10 + 0.5 * 0.10 * 0.10) + (-0.06 + 0.5 * 0.06 * 0.06));
+  EXPECT_NEAR(sum / n, expected, 0.003);
 }
 
 }  // namespace

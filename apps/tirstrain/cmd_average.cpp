@@ -1,0 +1,199 @@
+// `tirstrain average RESULT.h5... --out DIR`: strain maps averaged across trials on the standard ellipse, as
+// the seed paper averages repetitions and subjects.
+#include <opencv2/core.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "core/atomic_output.hpp"
+#include "core/error.hpp"
+#include "core/h5_file.hpp"
+#include "core/heatmap.hpp"
+#include "strain/normalised_map.hpp"
+#include "tirstrain/commands.hpp"
+
+namespace tirstrain::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Selection {
+  std::string how = "max-energy";  // last | max-energy | frame | time
+  long frame = -1;
+  double time_s = 0.0;
+};
+
+// The frame of a result to average.
+std::size_t pick_frame(const H5Reader& h5, const Selection& selection) {
+  const std::vector<double> t_s = h5.read_doubles("/frames/t_s");
+  if (t_s.empty()) throw Error("the result has no frames", {.file = h5.path()});
+  if (selection.how == "last") return t_s.size() - 1;
+  if (selection.how == "frame") {
+    if (selection.frame < 0 || static_cast<std::size_t>(selection.frame) >= t_s.size())
+      throw Error("--frame " + std::to_string(selection.frame) + " is outside the result's " +
+                      std::to_string(t_s.size()) + " frames",
+                  {.file = h5.path()});
+    return static_cast<std::size_t>(selection.frame);
+  }
+  if (selection.how == "time") {
+    std::size_t best = 0;
+    for (std::size_t i = 1; i < t_s.size(); ++i)
+      if (std::abs(t_s[i] - selection.time_s) < std::abs(t_s[best] - selection.time_s)) best = i;
+    return best;
+  }
+  const std::vector<double> energy = h5.read_doubles("/energy/total_J");
+  std::size_t best = 0;
+  double best_energy = -1.0;
+  for (std::size_t i = 0; i < energy.size(); ++i)
+    if (std::isfinite(energy[i]) && energy[i] > best_energy) {
+      best_energy = energy[i];
+      best = i;
+    }
+  if (best_energy < 0.0) throw Error("the result has no finite strain energy", {.file = h5.path()});
+  return best;
+}
+
+// One frame's map of `name` ([N, G, G, C]) as C matrices G x G.
+std::vector<cv::Mat> frame_maps(const H5Reader& h5, const std::string& name, std::size_t frame,
+                                std::size_t* cells) {
+  if (!h5.has(name))
+    throw Error("no " + name + " (processed without the strain stage?)", {.file = h5.path()});
+  H5Shape shape;
+  const std::vector<double> all = h5.read_doubles(name, &shape);
+  const std::size_t g = shape[1], c = shape.size() > 3 ? shape[3] : 1;
+  if (*cells != 0 && g != *cells)
+    throw Error("map grid " + std::to_string(g) + " differs from the first result's " +
+                    std::to_string(*cells) + " (strain.map_cells must be equal)",
+                {.file = h5.path()});
+  *cells = g;
+  std::vector<cv::Mat> out;
+  for (std::size_t k = 0; k < c; ++k) {
+    cv::Mat m(static_cast<int>(g), static_cast<int>(g), CV_64F);
+    for (std::size_t r = 0; r < g; ++r)
+      for (std::size_t col = 0; col < g; ++col)
+        m.at<double>(static_cast<int>(r), static_cast<int>(col)) = all[((frame * g + r) * g + col) * c + k];
+    out.push_back(m);
+  }
+  return out;
+}
+
+}  // namespace
+
+void add_average_command(CLI::App& app) {
+  struct Args {
+    std::vector<std::string> inputs;
+    std::string out, at = "max-energy";
+    long frame = -1;
+    double time_s = 0.0;
+  };
+  auto args = std::make_shared<Args>();
+  CLI::App* sub = app.add_subcommand("average", "Average strain maps across trials on the standard ellipse");
+  sub->footer(
+      "Each RESULT.h5 (from tirstrain process with the strain stage) contributes one frame's maps on the "
+      "standard\n"
+      "ellipse of its reference contact (docs/formats.md, /maps): by default the frame of largest total "
+      "strain\n"
+      "energy; --at last, --frame N or --time-s T instead. Cells are averaged over the trials that cover "
+      "them.\n"
+      "Writes DIR/average.h5 (/maps/strain_total [G,G,3], /maps/principal [G,G,2], "
+      "/maps/energy_density_J_m3\n"
+      "[G,G], /maps/count [G,G] trials per cell; attributes: inputs and frames used) and "
+      "DIR/average_E_xx.png,\n"
+      "average_E_yy.png, average_E_xy.png, average_count.png.");
+  sub->add_option("RESULT", args->inputs, "result.h5 files (or process output folders)")->required();
+  sub->add_option("--out", args->out, "Output folder")->required();
+  sub->add_option("--at", args->at, "Which frame of each trial: max-energy (default), last")
+      ->check(CLI::IsMember({"max-energy", "last"}));
+  sub->add_option("--frame", args->frame, "Use this frame index of every trial");
+  sub->add_option("--time-s", args->time_s, "Use the frame nearest this time (s) in every trial");
+  sub->callback([args, sub] {
+    Selection selection;
+    selection.how = args->at;
+    if (sub->count("--frame") > 0) {
+      selection.how = "frame";
+      selection.frame = args->frame;
+    }
+    if (sub->count("--time-s") > 0) {
+      if (selection.how == "frame") throw Error("give --frame or --time-s, not both");
+      selection.how = "time";
+      selection.time_s = args->time_s;
+    }
+    std::size_t cells = 0;
+    std::vector<cv::Mat> exx, eyy, exy, e1, e2, energy;
+    std::string used;
+    for (std::string input : args->inputs) {
+      if (fs::is_directory(input)) input = (fs::path(input) / "result.h5").string();
+      if (!fs::exists(input)) throw Error("no such result", {.file = input});
+      const H5Reader h5(input);
+      if (h5.has("/maps") && h5.attribute_number("/maps", "reference_has_ellipse") <= 0.0)
+        throw Error("the reference frame had no contact ellipse, so the result has no normalised maps",
+                    {.file = input});
+      const std::size_t frame = pick_frame(h5, selection);
+      const auto strain = frame_maps(h5, "/maps/strain_total", frame, &cells);
+      const auto principal = frame_maps(h5, "/maps/principal", frame, &cells);
+      const auto density = frame_maps(h5, "/maps/energy_density_J_m3", frame, &cells);
+      exx.push_back(strain[0]);
+      eyy.push_back(strain[1]);
+      exy.push_back(strain[2]);
+      e1.push_back(principal[0]);
+      e2.push_back(principal[1]);
+      energy.push_back(density[0]);
+      used += (used.empty() ? "" : ";") + input + "@" + std::to_string(frame);
+    }
+    ensure_output_dir(args->out, "--out");
+    const fs::path out(args->out);
+    cv::Mat count;
+    const cv::Mat m_exx = strain::nan_mean(exx, &count), m_eyy = strain::nan_mean(eyy),
+                  m_exy = strain::nan_mean(exy);
+    const cv::Mat m_e1 = strain::nan_mean(e1), m_e2 = strain::nan_mean(e2),
+                  m_energy = strain::nan_mean(energy);
+    const std::size_t g = cells;
+    std::vector<double> total(g * g * 3), principal(g * g * 2), density(g * g), counts(g * g);
+    for (std::size_t r = 0; r < g; ++r)
+      for (std::size_t c = 0; c < g; ++c) {
+        const int ri = static_cast<int>(r), ci = static_cast<int>(c);
+        const std::size_t k = r * g + c;
+        total[3 * k] = m_exx.at<double>(ri, ci);
+        total[3 * k + 1] = m_eyy.at<double>(ri, ci);
+        total[3 * k + 2] = m_exy.at<double>(ri, ci);
+        principal[2 * k] = m_e1.at<double>(ri, ci);
+        principal[2 * k + 1] = m_e2.at<double>(ri, ci);
+        density[k] = m_energy.at<double>(ri, ci);
+        counts[k] = count.at<double>(ri, ci);
+      }
+    {
+      H5Writer h5((out / "average.h5").string());
+      h5.write("/maps/strain_total", std::span<const double>(total), {g, g, 3});
+      h5.write("/maps/principal", std::span<const double>(principal), {g, g, 2});
+      h5.write("/maps/energy_density_J_m3", std::span<const double>(density), {g, g});
+      h5.write("/maps/count", std::span<const double>(counts), {g, g});
+      h5.attribute("/maps", "inputs_and_frames", used);
+      h5.attribute("/maps", "selection", selection.how);
+      h5.attribute("/maps", "cells", static_cast<double>(g));
+      h5.commit();
+    }
+    const auto png = [&](const std::string& name, const cv::Mat& values, const std::string& title,
+                         bool diverging) {
+      HeatmapOptions o;
+      o.title = title;
+      o.diverging = diverging;
+      o.x_min = o.y_min = -1.0;
+      o.x_max = o.y_max = 1.0;
+      o.axis_unit = "normalised";
+      write_heatmap_png((out / name).string(), values, o);
+    };
+    const std::string n = std::to_string(args->inputs.size());
+    png("average_E_xx.png", m_exx, "E_xx, mean of " + n + " trials", true);
+    png("average_E_yy.png", m_eyy, "E_yy, mean of " + n + " trials", true);
+    png("average_E_xy.png", m_exy, "E_xy, mean of " + n + " trials", true);
+    png("average_count.png", count, "trials covering each cell", false);
+    std::cerr << "averaged " << args->inputs.size() << " trials (" << g << "x" << g << " cells) -> "
+              << (out / "average.h5").string() << "\n";
+  });
+}
+
+}  // namespace tirstrain::cli
