@@ -30,6 +30,7 @@ class ContactStage final : public Stage {
   std::string name() const override { return "contact"; }
 
   void start(const TrialInfo& info) override {
+    keep_history_ = info.keep_history;
     const int block = options_.block_px;
     blocks_ =
         cv::Size((info.frame_size.width + block - 1) / block, (info.frame_size.height + block - 1) / block);
@@ -39,7 +40,7 @@ class ContactStage final : public Stage {
     ContactRecord record;
     if (!context.usable) {
       record.status = contact::kFrameSkipped;
-      records_.push_back(std::move(record));
+      remember(records_, std::move(record), keep_history_);
       return;
     }
     const auto t0 = std::chrono::steady_clock::now();
@@ -57,7 +58,7 @@ class ContactStage final : public Stage {
     record.coherence = result.coherence;
     if (result.polarity < 0) ++dark_votes_;
     if (result.polarity > 0) ++bright_votes_;
-    records_.push_back(std::move(record));
+    remember(records_, std::move(record), keep_history_);
     context.contact = std::move(result);
   }
 
@@ -200,6 +201,7 @@ class ContactStage final : public Stage {
   std::string period_source_;
   cv::Size blocks_;
   std::vector<ContactRecord> records_;
+  bool keep_history_ = true;
   double segment_s_ = 0.0;
   std::int64_t segmented_ = 0;
   std::int64_t dark_votes_ = 0, bright_votes_ = 0;

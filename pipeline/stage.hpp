@@ -27,7 +27,17 @@ struct TrialInfo {
   int depth = CV_8U;    // CV_8U or CV_16U
   std::int64_t expected_frames = -1;
   const Scene* scene = nullptr;
+  // false in the live view: stages keep only the newest frame's record (enough to draw), so memory stays
+  // flat however long the view runs; write() and csv_row() are then not called.
+  bool keep_history = true;
 };
+
+// Appends a frame's record, or keeps only the newest one when the trial keeps no history.
+template <typename Record>
+void remember(std::vector<Record>& records, Record&& record, bool keep_history) {
+  if (!keep_history) records.clear();
+  records.push_back(std::move(record));
+}
 
 // What one frame carries through the stages.
 struct FrameContext {

@@ -58,13 +58,13 @@ class StrainStage final : public Stage {
 
   std::string name() const override { return "strain"; }
 
-  void start(const TrialInfo&) override {}
+  void start(const TrialInfo& info) override { keep_history_ = info.keep_history; }
 
   void process(FrameContext& context) override {
     StrainFrame record;
     record.t_s = context.frame ? context.frame->device_time_s : kNaN;
     if (!context.tracking) {
-      frames_.push_back(std::move(record));
+      remember(frames_, std::move(record), keep_history_);
       return;
     }
     const auto t0 = std::chrono::steady_clock::now();
@@ -153,7 +153,7 @@ class StrainStage final : public Stage {
     previous_t_s_ = record.t_s;
     strain_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     ++strained_frames_;
-    frames_.push_back(std::move(record));
+    remember(frames_, std::move(record), keep_history_);
   }
 
   void draw(cv::Mat& bgr, const FrameContext& context) const override {
@@ -412,6 +412,7 @@ class StrainStage final : public Stage {
   std::vector<Strain2> incremental_;  // per union triangle; NaN until the triangle is first usable
   double previous_t_s_ = kNaN;
   std::vector<StrainFrame> frames_;
+  bool keep_history_ = true;
   double strain_s_ = 0.0;
   std::int64_t strained_frames_ = 0;
 };

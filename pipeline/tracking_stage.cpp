@@ -36,7 +36,10 @@ class TrackingStage final : public Stage {
 
   std::string name() const override { return "tracking"; }
 
-  void start(const TrialInfo& info) override { frame_size_ = info.frame_size; }
+  void start(const TrialInfo& info) override {
+    frame_size_ = info.frame_size;
+    keep_history_ = info.keep_history;
+  }
 
   void process(FrameContext& context) override {
     TrackFrame record;
@@ -44,7 +47,7 @@ class TrackingStage final : public Stage {
                              (context.contact->status & contact::kNoContact) == 0 &&
                              context.contact->outline_px.size() >= 3;
     if (!context.usable || (!tracker_ && !has_contact)) {
-      frames_.push_back(std::move(record));
+      remember(frames_, std::move(record), keep_history_);
       return;
     }
     contact_mask(context, has_contact);
@@ -98,7 +101,7 @@ class TrackingStage final : public Stage {
     context.tracking =
         FrameContext::Tracking{&tracks, frame, frame == 0, &reference_normalization_, reference_has_ellipse_};
     context.plate_displacement_px = record.plate_px;
-    frames_.push_back(std::move(record));
+    remember(frames_, std::move(record), keep_history_);
   }
 
   void draw(cv::Mat& bgr, const FrameContext& context) const override {
@@ -252,6 +255,7 @@ class TrackingStage final : public Stage {
   std::int64_t reference_row_ = 0;
   std::int64_t reference_frame_index_ = -1;
   std::vector<TrackFrame> frames_;
+  bool keep_history_ = true;
   std::vector<std::int64_t> tracker_rows_;
   double track_s_ = 0.0;
   std::int64_t tracked_frames_ = 0;

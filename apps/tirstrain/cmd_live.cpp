@@ -1,5 +1,6 @@
 // `tirstrain live URI [--scene FILE.yaml] [--record DIR] [--no-window]`: the camera on screen with frame
 // rate and losses, optionally recording at the same time without the display slowing the recording.
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -8,10 +9,56 @@
 #include "capture/live.hpp"
 #include "core/error.hpp"
 #include "core/scene.hpp"
+#include "pipeline/stage.hpp"
 #include "tirstrain/camera_options.hpp"
 #include "tirstrain/commands.hpp"
 
 namespace tirstrain::cli {
+namespace {
+
+// The scene's analysis stages (contact, tracking, strain; not channels, which need recorded files) run on the
+// frames the display shows and draw onto them. Stages keep only the newest frame (TrialInfo::keep_history).
+class LiveAnalysis {
+ public:
+  explicit LiveAnalysis(Scene scene) : scene_(std::move(scene)) {
+    scene_.compute.erase(std::remove(scene_.compute.begin(), scene_.compute.end(), "channels"),
+                         scene_.compute.end());
+    if (!scene_.compute.empty()) plan_ = pipeline::plan_stages(scene_);
+  }
+
+  void run(const capture::Frame& frame, cv::Mat& canvas) {
+    pipeline::FrameContext context;
+    context.frame = &frame;
+    context.usable = !frame.image.empty() && frame.status != capture::FrameStatus::kCorrupt &&
+                     frame.status != capture::FrameStatus::kIncomplete;
+    if (!started_) {
+      if (!context.usable) return;
+      info_ = pipeline::TrialInfo{frame.image.size(), frame.image.depth(), -1, &scene_, false};
+      for (auto& stage : plan_.stages) stage->start(info_);
+      started_ = true;
+    }
+    if (context.usable && frame.image.size() != info_.frame_size) return;  // a camera reconfigured mid-run
+    for (auto& stage : plan_.stages) stage->process(context);
+    for (const auto& stage : plan_.stages) stage->draw(canvas, context);
+    ++analysed_;
+  }
+
+  std::string describe() const {
+    std::string names;
+    for (const auto& stage : plan_.stages) names += (names.empty() ? "" : ", ") + stage->name();
+    return names.empty() ? "none" : names;
+  }
+  std::int64_t analysed() const { return analysed_; }
+
+ private:
+  Scene scene_;
+  pipeline::StagePlan plan_;
+  pipeline::TrialInfo info_;
+  bool started_ = false;
+  std::int64_t analysed_ = 0;
+};
+
+}  // namespace
 
 void add_live_command(CLI::App& app) {
   struct Args {
@@ -27,7 +74,11 @@ void add_live_command(CLI::App& app) {
       "Show a camera live with the achieved frame rate, lost and incomplete frames and display latency;\n"
       "optionally record at the same time (--record DIR, same folder layout as 'tirstrain record').\n"
       "--no-window runs the same capture and analysis headless and prints a status line per second.\n"
-      "Analysis overlays (contact, tracks, strain) appear here as those stages become available.\n"
+      "With --scene, the stages its compute list asks for (contact, tracking, strain) run on the frames "
+      "shown\n"
+      "and draw the hull, ellipse, tracks and a strain heat map; the display skips frames when they are "
+      "slow,\n"
+      "the recording never does.\n"
       "Keys: q or Esc quits. Ctrl-C stops cleanly.");
   sub->add_option("URI", args->uri, "Source: aravis:ID, aravis:IP, or a file source")->required();
   sub->add_option("--scene", args->scene, "Scene file (YAML): calibration and what to compute");
@@ -41,8 +92,9 @@ void add_live_command(CLI::App& app) {
   sub->add_flag("--quiet", args->quiet, "No status lines");
   add_camera_options(sub, camera);
   sub->callback([args, camera] {
-    // Validated now so a bad scene fails before the camera starts; its stages plug into the overlay hook.
-    if (!args->scene.empty()) (void)load_scene(args->scene);
+    // Loaded (and its stages built) now, so a bad scene fails before the camera starts.
+    std::shared_ptr<LiveAnalysis> analysis;
+    if (!args->scene.empty()) analysis = std::make_shared<LiveAnalysis>(load_scene(args->scene));
     if (!args->no_window) capture::check_display();  // before the camera starts
     const capture::CameraSettings settings = to_settings(*camera);
     capture::LiveOptions options;
@@ -52,6 +104,10 @@ void add_live_command(CLI::App& app) {
     options.record.overwrite = args->overwrite;
     options.max_frames = args->frames;
     options.max_seconds = args->seconds;
+    if (analysis)
+      options.overlay = [analysis](const capture::Frame& frame, cv::Mat& canvas) {
+        analysis->run(frame, canvas);
+      };
     install_interrupt_handler();
     options.stop = &interrupt_flag();
     if (!args->quiet)
@@ -72,6 +128,9 @@ void add_live_command(CLI::App& app) {
     if (report.recorded)
       std::cerr << "; " << report.record.counts.frames_saved << " saved to " << args->record;
     std::cerr << "\n";
+    if (analysis)
+      std::cerr << "live: analysis stages: " << analysis->describe() << " (" << analysis->analysed()
+                << " frames analysed)\n";
     if (!report.error.empty()) throw Error("live view stopped: " + report.error);
   });
 }

@@ -89,3 +89,23 @@ TEST(ValidateCli, ComparesAnExistingTrialAndNamesMissingInputs) {
 
 }  // namespace
 }  // namespace tirstrain
+
+namespace tirstrain {
+namespace {
+
+TEST(LiveCli, HeadlessViewRunsTheScenesStages) {
+  const std::string dir = testing::fresh_dir("live_trial");
+  const auto synth = testing::run_cli("bench --quick --configs default --out " + dir);
+  ASSERT_EQ(synth.exit_code, 0) << synth.output;
+  const std::string trial = dir + "/trials/quick";
+  const auto run =
+      testing::run_cli("live " + trial + " --scene " + trial + "/scene.yaml --no-window --frames 12 --quiet");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("12 frames received"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("analysis stages: contact, tracking, strain"), std::string::npos) << run.output;
+  // At least the first frame is analysed (the display thread takes the newest frame when it is free).
+  EXPECT_EQ(run.output.find("(0 frames analysed)"), std::string::npos) << run.output;
+}
+
+}  // namespace
+}  // namespace tirstrain
