@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <set>
 
+#include "pipeline/channels_stage.hpp"
 #include "pipeline/contact_stage.hpp"
 #include "pipeline/stage.hpp"
 #include "pipeline/strain_stage.hpp"
@@ -15,7 +16,7 @@ const std::vector<StageSpec>& stage_registry() {
       {"contact", {}, make_contact_stage},
       {"tracking", {"contact"}, make_tracking_stage},
       {"strain", {"tracking"}, make_strain_stage},
-      {"channels", {}, nullptr},
+      {"channels", {}, make_channels_stage},
   };
   return registry;
 }

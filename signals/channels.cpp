@@ -298,9 +298,74 @@ std::optional<double> first_crossing_s(const std::vector<double>& time_s, const 
   return std::nullopt;
 }
 
-ClockAlignment align_by_trigger(double trigger_channel_s, double trigger_camera_s) {
-  return {trigger_camera_s - trigger_channel_s, 1.0, "trigger"};
+ClockAlignment align_explicit(double offset_s) {
+  if (!std::isfinite(offset_s))
+    throw Error("clock offset must be a finite number of seconds", {.key = "offset_s"});
+  ClockAlignment out;
+  out.offset_s = offset_s;
+  out.correlation = 1.0;
+  out.method = "explicit";
+  return out;
 }
+
+ClockAlignment align_by_trigger(double trigger_channel_s, double trigger_camera_s) {
+  ClockAlignment out;
+  out.offset_s = trigger_camera_s - trigger_channel_s;
+  out.correlation = 1.0;
+  out.method = "trigger";
+  out.channel_edge_s = trigger_channel_s;
+  out.camera_edge_s = trigger_camera_s;
+  return out;
+}
+
+ClockAlignment align_by_trigger_channel(const std::vector<double>& time_s, const std::vector<double>& trigger,
+                                        double trigger_camera_s, std::optional<double> threshold,
+                                        bool rising) {
+  if (time_s.size() != trigger.size() || time_s.size() < 2)
+    throw Error("internal: trigger time and value vectors differ in length or have fewer than 2 samples");
+  const auto [lo, hi] = std::minmax_element(trigger.begin(), trigger.end());
+  if (!(*hi > *lo)) throw Error("the trigger channel is constant (" + fmt(*lo) + "): no edge to align on");
+  const double level = threshold.value_or(0.5 * (*lo + *hi));
+  const auto edge = first_crossing_s(time_s, trigger, level, rising);
+  if (!edge)
+    throw Error(std::string("the trigger channel never crosses ") + fmt(level) +
+                    (rising ? " rising" : " falling") + " (range " + fmt(*lo) + " to " + fmt(*hi) + ")",
+                {.key = "threshold"});
+  return align_by_trigger(*edge, trigger_camera_s);
+}
+
+namespace {
+
+// Pearson correlation of p(t_camera - shift) (channel interpolated) with the camera series; -2 when fewer
+// than 4 camera samples overlap the channel or a series is constant there.
+double correlation_at(const std::vector<double>& tc, const std::vector<double>& pc,
+                      const std::vector<double>& tv, const std::vector<double>& pv, double shift_s,
+                      std::size_t* pairs) {
+  std::size_t count = 0, k = 0;
+  double sp = 0.0, sv = 0.0, spp = 0.0, svv = 0.0, spv = 0.0;
+  for (std::size_t q = 0; q < tv.size(); ++q) {
+    const double t = tv[q] - shift_s;
+    if (t < tc.front() || t > tc.back()) continue;
+    while (k + 2 < tc.size() && tc[k + 1] < t) ++k;
+    const double w = (t - tc[k]) / (tc[k + 1] - tc[k]);
+    const double p = pc[k] + w * (pc[k + 1] - pc[k]);
+    sp += p;
+    sv += pv[q];
+    spp += p * p;
+    svv += pv[q] * pv[q];
+    spv += p * pv[q];
+    ++count;
+  }
+  if (pairs) *pairs = count;
+  if (count < 4) return -2.0;
+  const double n = static_cast<double>(count);
+  const double cpp = spp - sp * sp / n, cvv = svv - sv * sv / n, cpv = spv - sp * sv / n;
+  // Relative guard: sums of squares of a constant series cancel to rounding noise, not exactly 0.
+  if (!(cpp > 1e-12 * spp) || !(cvv > 1e-12 * svv)) return -2.0;
+  return cpv / std::sqrt(cpp * cvv);
+}
+
+}  // namespace
 
 ClockAlignment align_by_cross_correlation(const std::vector<double>& channel_time_s,
                                           const std::vector<double>& channel_position,
@@ -311,55 +376,68 @@ ClockAlignment align_by_cross_correlation(const std::vector<double>& channel_tim
   if (channel_time_s.size() < 4 || camera_time_s.size() < 4)
     throw Error("cross-correlation alignment needs at least 4 samples in each series");
   if (!(max_lag_s >= 0.0)) throw Error("maximum lag must be non-negative", {.key = "max_lag_s"});
+  // The camera series is walked in order: it must increase (frame times after skipped frames do).
+  for (std::size_t q = 1; q < camera_time_s.size(); ++q)
+    if (!(camera_time_s[q] > camera_time_s[q - 1]))
+      throw Error("camera times must increase (sample " + std::to_string(q) + ")");
   const double dt =
       (channel_time_s.back() - channel_time_s.front()) / static_cast<double>(channel_time_s.size() - 1);
-  const long max_lag = static_cast<long>(std::ceil(max_lag_s / dt));
-  const std::size_t n = channel_time_s.size();
+  const long max_lag = static_cast<long>(std::ceil(max_lag_s / dt - 1e-9));
   std::vector<double> corr(static_cast<std::size_t>(2 * max_lag + 1), -2.0);
-  std::vector<double> cam_at(n);
-  for (long lag = -max_lag; lag <= max_lag; ++lag) {
-    const double shift_s = static_cast<double>(lag) * dt;
-    std::size_t count = 0;
-    double sp = 0.0, sc = 0.0;
-    std::size_t k = 0;
-    std::size_t first = n, last = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      const double t = channel_time_s[i] + shift_s;
-      if (t < camera_time_s.front() || t > camera_time_s.back()) continue;
-      while (k + 2 < camera_time_s.size() && camera_time_s[k + 1] < t) ++k;
-      const double w = (t - camera_time_s[k]) / (camera_time_s[k + 1] - camera_time_s[k]);
-      cam_at[i] = camera_displacement[k] + w * (camera_displacement[k + 1] - camera_displacement[k]);
-      first = std::min(first, i);
-      last = i;
-      sp += channel_position[i];
-      sc += cam_at[i];
-      ++count;
-    }
-    if (count < 4) continue;
-    const double mp = sp / static_cast<double>(count), mc = sc / static_cast<double>(count);
-    double spp = 0.0, scc = 0.0, spc = 0.0;
-    for (std::size_t i = first; i <= last; ++i) {
-      const double dp = channel_position[i] - mp, dc = cam_at[i] - mc;
-      spp += dp * dp;
-      scc += dc * dc;
-      spc += dp * dc;
-    }
-    if (spp > 0.0 && scc > 0.0) corr[static_cast<std::size_t>(lag + max_lag)] = spc / std::sqrt(spp * scc);
-  }
+  const auto shift_of = [&](double index) { return (index - static_cast<double>(max_lag)) * dt; };
+  const auto eval = [&](double index) {
+    return correlation_at(channel_time_s, channel_position, camera_time_s, camera_displacement,
+                          shift_of(index), nullptr);
+  };
+  for (std::size_t j = 0; j < corr.size(); ++j) corr[j] = eval(static_cast<double>(j));
   const auto best = std::max_element(corr.begin(), corr.end());
   if (*best < -1.5)
     throw Error(
-        "cross-correlation alignment failed: the series do not overlap by at least 4 samples within the "
-        "lag range, or one of them is constant",
+        "cross-correlation alignment failed: fewer than 4 camera samples overlap the channel within the lag "
+        "range, or one of the series is constant",
         {.key = "max_lag_s"});
   const std::size_t b = static_cast<std::size_t>(best - corr.begin());
-  double frac = static_cast<double>(b);
-  if (b > 0 && b + 1 < corr.size() && corr[b - 1] > -1.5 && corr[b + 1] > -1.5)
-    frac = parabolic_peak_index(corr, b);
+  double index = static_cast<double>(b);
+  double value = *best;
+  if (b > 0 && b + 1 < corr.size() && corr[b - 1] > -1.5 && corr[b + 1] > -1.5) {
+    // Parabola first (exact for a quadratic peak), then golden-section on the continuous correlation.
+    const double parabola = std::clamp(parabolic_peak_index(corr, b), index - 1.0, index + 1.0);
+    if (const double c = eval(parabola); c > value) {
+      value = c;
+      index = parabola;
+    }
+    constexpr double kGolden = 0.6180339887498949;
+    double lo = static_cast<double>(b) - 1.0, hi = static_cast<double>(b) + 1.0;
+    double x1 = hi - kGolden * (hi - lo), x2 = lo + kGolden * (hi - lo);
+    double f1 = eval(x1), f2 = eval(x2);
+    for (int it = 0; it < 60 && hi - lo > 1e-7; ++it) {
+      if (f1 >= f2) {
+        hi = x2;
+        x2 = x1;
+        f2 = f1;
+        x1 = hi - kGolden * (hi - lo);
+        f1 = eval(x1);
+      } else {
+        lo = x1;
+        x1 = x2;
+        f1 = f2;
+        x2 = lo + kGolden * (hi - lo);
+        f2 = eval(x2);
+      }
+    }
+    const double golden = 0.5 * (lo + hi);
+    if (const double c = eval(golden); c >= value) {
+      value = c;
+      index = golden;
+    }
+  }
   ClockAlignment out;
-  out.offset_s = (frac - static_cast<double>(max_lag)) * dt;
-  out.correlation = *best;
+  out.offset_s = shift_of(index);
+  correlation_at(channel_time_s, channel_position, camera_time_s, camera_displacement, out.offset_s,
+                 &out.samples_compared);
+  out.correlation = value;
   out.method = "cross-correlation";
+  out.max_lag_s = max_lag_s;
   return out;
 }
 

@@ -67,21 +67,44 @@ std::optional<double> first_crossing_s(const std::vector<double>& time_s, const 
                                        double threshold, bool rising = true, std::size_t start_index = 0);
 
 // Clock offset between a channel clock and the camera clock: t_camera = t_channel + offset_s.
+// Three ways to get it (the pipeline's `channels.alignment.mode`, `tirstrain signals align`):
+//   explicit           a known offset (default 0: both clocks are the same);
+//   trigger            an edge seen on a trigger channel and its time on the camera clock;
+//   cross-correlation  the plate position channel against the image-measured plate displacement.
 struct ClockAlignment {
   double offset_s = 0.0;
   double correlation = 0.0;  // normalised cross-correlation at the optimum (1 = identical shapes)
   std::string method;        // "explicit", "trigger", "cross-correlation"
+  // trigger: the edge on each clock; cross-correlation: the lag range searched and the samples compared.
+  double channel_edge_s = 0.0;
+  double camera_edge_s = 0.0;
+  double max_lag_s = 0.0;
+  std::size_t samples_compared = 0;
 };
+
+ClockAlignment align_explicit(double offset_s);
 
 // From a shared trigger: the same edge seen at trigger_channel_s on the channel clock and at
 // trigger_camera_s on the camera clock.
 ClockAlignment align_by_trigger(double trigger_channel_s, double trigger_camera_s);
 
+// The same with the channel-side edge found on a trigger channel: the first crossing of `threshold`
+// (rising or falling, linearly interpolated between samples). Without a threshold, the midpoint between
+// the channel's minimum and maximum (the 50 % level of a logic pulse). Throws Error when the channel is
+// constant or never crosses.
+ClockAlignment align_by_trigger_channel(const std::vector<double>& time_s, const std::vector<double>& trigger,
+                                        double trigger_camera_s, std::optional<double> threshold = {},
+                                        bool rising = true);
+
 // Cross-correlates the channel's plate position p(t_channel) with the image-measured plate displacement
-// c(t_camera) over offsets in [-max_lag_s, max_lag_s] on the channel's sample grid, then refines the
-// optimum by a parabola through the three best lags (sub-sample resolution). Both series are mean-removed
-// over the overlap; their units need not match (correlation is normalised). Throws Error when the
-// overlap is too short or a series is constant.
+// c(t_camera). For a trial offset τ the channel is linearly interpolated at every camera time minus τ (the
+// dense series is evaluated at the sparse times, so the coarse camera series is never interpolated) and the
+// Pearson correlation of the pairs is taken; τ runs over [-max_lag_s, max_lag_s] in steps of the channel's
+// sample interval, the best step is refined by a parabola through its neighbours and then by a
+// golden-section search of the continuous correlation within ±1 step (sub-sample resolution). Both series
+// are mean-removed over the compared pairs and their units need not match; a sign flip between them is not
+// undone (orient both along the motion first). Throws Error when fewer than 4 camera samples overlap the
+// channel at every lag or a series is constant.
 ClockAlignment align_by_cross_correlation(const std::vector<double>& channel_time_s,
                                           const std::vector<double>& channel_position,
                                           const std::vector<double>& camera_time_s,

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -745,6 +746,132 @@ void add_resample(CLI::App& signals) {
   });
 }
 
+void add_align(CLI::App& signals) {
+  struct Opts {
+    Common c;
+    std::optional<double> offset_s;
+    std::string trigger, edge = "rising";
+    std::optional<double> threshold;
+    std::optional<double> camera_edge_s;
+    std::string position, camera, camera_column, camera_time_column = "t_s";
+    double max_lag_s = 0.2;
+    std::string shifted_out;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = add_verb(
+      signals, "align",
+      "Clock offset between a channel file and the camera (explicit, trigger, cross-correlation)",
+      "Clock offset between the channel clock and the camera clock, t_camera = t_channel + offset_s, by one "
+      "of:\n"
+      "  --offset-s S                 a known offset;\n"
+      "  --trigger COL --camera-edge-s T [--threshold V] [--edge rising|falling]\n"
+      "                               the first crossing of the threshold (default: the 50 % level between "
+      "the\n"
+      "                               channel's minimum and maximum), linearly interpolated between samples, "
+      "is\n"
+      "                               the edge the camera saw at T;\n"
+      "  --position COL --camera CAM.csv --camera-column C [--camera-time-column t_s] [--max-lag-s 0.2]\n"
+      "                               cross-correlation of the plate position channel with the "
+      "image-measured\n"
+      "                               plate displacement (any units): for each trial offset within +-max-lag "
+      "the\n"
+      "                               channel is interpolated at the camera times minus the offset and the "
+      "Pearson\n"
+      "                               correlation taken; steps of one channel sample, refined by a parabola "
+      "and a\n"
+      "                               golden-section search (sub-sample resolution). Both series are first\n"
+      "                               oriented so that their largest excursion from the first sample is "
+      "positive.\n"
+      "Output JSON: method, offset_s, correlation (1 for explicit and trigger), convention, and "
+      "channel_edge_s,\n"
+      "camera_edge_s, threshold (trigger) or max_lag_s, camera_samples_compared (cross-correlation).\n"
+      "--shifted-out writes IN with its time column moved to the camera clock (all columns, same names).");
+  add_common(sub, o->c, "output JSON: method, offset_s, correlation, ...");
+  auto* offset =
+      sub->add_option("--offset-s", o->offset_s, "explicit offset, s (t_camera = t_channel + offset)");
+  auto* trigger = sub->add_option("--trigger", o->trigger, "trigger channel (any unit)");
+  sub->add_option("--threshold", o->threshold, "trigger level, channel units (default: 50 % of its range)")
+      ->needs(trigger);
+  sub->add_option("--edge", o->edge, "trigger edge: rising or falling")
+      ->check(CLI::IsMember({"rising", "falling"}))
+      ->capture_default_str()
+      ->needs(trigger);
+  sub->add_option("--camera-edge-s", o->camera_edge_s, "camera time of the trigger edge, s")->needs(trigger);
+  auto* position = sub->add_option("--position", o->position, "plate position channel (any unit)");
+  sub->add_option("--camera", o->camera, "CSV of the image-measured plate displacement")->needs(position);
+  sub->add_option("--camera-column", o->camera_column, "displacement column of --camera (any unit)")
+      ->needs(position);
+  sub->add_option("--camera-time-column", o->camera_time_column, "time column of --camera, s")
+      ->capture_default_str();
+  sub->add_option("--max-lag-s", o->max_lag_s, "largest offset searched, s")->capture_default_str();
+  sub->add_option("--shifted-out", o->shifted_out, "IN on the camera clock (CSV)");
+  offset->excludes(trigger)->excludes(position);
+  trigger->excludes(position);
+  sub->callback([o] {
+    const int modes = (o->offset_s ? 1 : 0) + (o->trigger.empty() ? 0 : 1) + (o->position.empty() ? 0 : 1);
+    if (modes != 1)
+      throw Error("give exactly one of --offset-s, --trigger or --position", {.key = "--offset-s"});
+    std::vector<std::string> required;
+    if (!o->trigger.empty()) required.push_back(o->trigger);
+    if (!o->position.empty()) required.push_back(o->position);
+    const auto table = load(o->c, o->c.input, required);
+    ts::ClockAlignment a;
+    json j;
+    if (o->offset_s) {
+      a = in_context(o->c.input, "", [&] { return ts::align_explicit(*o->offset_s); });
+    } else if (!o->trigger.empty()) {
+      if (!o->camera_edge_s)
+        throw Error("--trigger needs --camera-edge-s (the camera time of the same edge)",
+                    {.key = "--camera-edge-s"});
+      a = in_context(o->c.input, o->trigger, [&] {
+        return ts::align_by_trigger_channel(table.time_s, table.column(o->trigger), *o->camera_edge_s,
+                                            o->threshold, o->edge == "rising");
+      });
+      j["channel_edge_s"] = a.channel_edge_s;
+      j["camera_edge_s"] = a.camera_edge_s;
+      if (o->threshold) j["threshold"] = *o->threshold;
+    } else {
+      if (o->camera.empty() || o->camera_column.empty())
+        throw Error("--position needs --camera and --camera-column", {.key = "--camera"});
+      const auto camera = load(Common{o->camera, "", o->camera_time_column, o->c.rate_tolerance, o->c.group},
+                               o->camera, {o->camera_column});
+      const auto oriented = [](std::vector<double> v) {
+        double best = 0.0;
+        for (double x : v)
+          if (std::abs(x - v.front()) > std::abs(best)) best = x - v.front();
+        if (best < 0.0)
+          for (double& x : v) x = -x;
+        return v;
+      };
+      a = in_context(o->c.input, o->position, [&] {
+        return ts::align_by_cross_correlation(table.time_s, oriented(table.column(o->position)),
+                                              camera.time_s, oriented(camera.column(o->camera_column)),
+                                              o->max_lag_s);
+      });
+      j["max_lag_s"] = o->max_lag_s;
+      j["camera_samples_compared"] = a.samples_compared;
+    }
+    j["method"] = a.method;
+    j["offset_s"] = a.offset_s;
+    j["correlation"] = a.correlation;
+    j["convention"] = "t_camera = t_channel + offset_s";
+    j["input"] = o->c.input;
+    if (!o->shifted_out.empty()) {
+      std::vector<std::string> names{o->c.time_column};
+      names.insert(names.end(), table.names.begin(), table.names.end());
+      CsvWriter out(o->shifted_out, names);
+      std::vector<double> row(names.size());
+      for (std::size_t i = 0; i < table.samples(); ++i) {
+        row[0] = table.time_s[i] + a.offset_s;
+        for (std::size_t c = 0; c < table.columns.size(); ++c) row[c + 1] = table.columns[c][i];
+        out.row(row);
+      }
+      out.commit();
+    }
+    write_json(o->c.out, j);
+  });
+}
+
 }  // namespace
 
 void add_signals_command(CLI::App& app) {
@@ -762,6 +889,7 @@ void add_signals_command(CLI::App& app) {
   add_spatial(*signals);
   add_pad_deformation(*signals);
   add_resample(*signals);
+  add_align(*signals);
 }
 
 }  // namespace tirstrain::cli

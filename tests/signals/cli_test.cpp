@@ -2,6 +2,7 @@
 // the library's numbers and the documented CSV/JSON contract; bad input gives exit 1 and a located message.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -177,4 +178,69 @@ TEST(SignalsCli, FrictionAndPowerLaw) {
   EXPECT_NEAR(k["a"].get<double>(), 1.63, 0.02 * 1.63);
   EXPECT_NEAR(k["b"].get<double>(), -0.33, 0.02);
   EXPECT_LT(k["b_low"].get<double>(), k["b"].get<double>());
+}
+
+TEST(SignalsCli, AlignThreeModes) {
+  // Channel clock: plate at rest until 0.2 s then 5 mm/s; a trigger with a 4 ms linear rise whose 2.5 V point
+  // is at 0.302 s. Camera: 100 fps from 0.05 s on a clock 23.37 ms ahead, plate in pixels along -x (52
+  // px/mm), so the camera series falls while the position rises: align orients both before correlating.
+  const double offset = 0.02337;
+  const auto plate_m = [](double t) { return t > 0.2 ? 5e-3 * (t - 0.2) : 0.0; };
+  const std::string in = dir() + "/align.csv", camera = dir() + "/camera.csv";
+  {
+    std::ofstream out(in);
+    out << "t_s,position_m,trigger_V\n";
+    for (int i = 0; i <= 1200; ++i) {
+      const double t = i / 1000.0;
+      out << tirstrain::format_double(t) << ',' << tirstrain::format_double(plate_m(t)) << ','
+          << tirstrain::format_double(5.0 * std::clamp((t - 0.3) / 0.004, 0.0, 1.0)) << '\n';
+    }
+    std::ofstream cam(camera);
+    cam << "t_s,plate_px\n";
+    for (int k = 0; k < 100; ++k) {
+      const double t = 0.05 + 0.01 * k;
+      cam << tirstrain::format_double(t) << ',' << tirstrain::format_double(-52000.0 * plate_m(t - offset))
+          << '\n';
+    }
+  }
+  const std::string json_out = dir() + "/align.json", shifted = dir() + "/shifted.csv";
+  const auto read = [&] {
+    std::ifstream f(json_out);
+    return nlohmann::json::parse(f);
+  };
+  auto r = run("signals align " + in + " --offset-s 0.0125 --shifted-out " + shifted + " --out " + json_out);
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(read()["method"], "explicit");
+  EXPECT_DOUBLE_EQ(read()["offset_s"].get<double>(), 0.0125);
+  const auto moved = tirstrain::read_numeric_csv(shifted);
+  EXPECT_EQ(moved.names, (std::vector<std::string>{"t_s", "position_m", "trigger_V"}));
+  EXPECT_NEAR(moved.column("t_s")[1000], 1.0125, 1e-12);
+  EXPECT_DOUBLE_EQ(moved.column("position_m")[1000], plate_m(1.0));
+
+  r = run("signals align " + in + " --trigger trigger_V --camera-edge-s 0.5 --out " + json_out);
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(read()["method"], "trigger");
+  EXPECT_NEAR(read()["channel_edge_s"].get<double>(), 0.302, 1e-12);
+  EXPECT_NEAR(read()["offset_s"].get<double>(), 0.198, 1e-12);
+
+  r = run("signals align " + in + " --position position_m --camera " + camera +
+          " --camera-column plate_px --max-lag-s 0.1 --out " + json_out);
+  ASSERT_EQ(r.code, 0) << r.output;
+  const auto j = read();
+  std::printf("[ measured ] align cross-correlation: offset error %.3g s\n",
+              j["offset_s"].get<double>() - offset);
+  EXPECT_EQ(j["method"], "cross-correlation");
+  EXPECT_NEAR(j["offset_s"].get<double>(), offset, 1e-5);  // 1 % of a channel sample
+  EXPECT_EQ(j["camera_samples_compared"].get<int>(), 100);
+
+  // Two modes at once, a missing column, a trigger that never crosses its threshold.
+  r = run("signals align " + in + " --offset-s 0.1 --trigger trigger_V --camera-edge-s 0 --out " + json_out);
+  EXPECT_NE(r.code, 0);
+  r = run("signals align " + in + " --trigger nope --camera-edge-s 0 --out " + json_out);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("column 'nope'"), std::string::npos) << r.output;
+  r = run("signals align " + in + " --trigger trigger_V --threshold 7 --camera-edge-s 0 --out " + json_out);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("align.csv"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("never crosses"), std::string::npos) << r.output;
 }

@@ -1,0 +1,20 @@
+#pragma once
+// The channels stage: force, plate-position, accelerometer and trigger channels (signals/) fused with the
+// frames. It reads the channel file named by the scene's `channels:` section, puts the channels on the
+// camera clock (explicit offset, trigger edge, or cross-correlation of the plate position with the
+// image-measured plate displacement), resamples them to the frame times, and derives friction (μ at
+// frames, dynamic μ on the full-slip plateau), loading events (onset, 90 % plateau, full slip), the external
+// work U_ext and, with the strain stage, U/U_ext. Writes /channels, /friction, /events and /work of
+// result.h5 (docs/formats.md) and the "channels" part of summary.json.
+#include <memory>
+
+#include "core/scene.hpp"
+#include "pipeline/stage.hpp"
+
+namespace tirstrain::pipeline {
+
+// Parses the scene's `channels:` section strictly (unknown keys, missing file or columns, a mode without the
+// channel it needs are errors naming the scene file and key). The channel file is read at start().
+std::unique_ptr<Stage> make_channels_stage(const Scene& scene);
+
+}  // namespace tirstrain::pipeline
