@@ -46,7 +46,8 @@ void write_scene(const Trial& trial, const std::string& path) {
 }
 
 void write_truth(const Trial& trial, const std::string& path, const std::vector<GridTruth>& grid,
-                 const std::vector<cv::Mat>& masks) {
+                 const std::vector<cv::Mat>& masks,
+                 const std::vector<Trial::OrientationBlocks>& orientation) {
   const SynthConfig& cfg = trial.config();
   const LoadHistory& history = trial.history();
   const auto frames = static_cast<std::size_t>(trial.frames());
@@ -127,6 +128,22 @@ void write_truth(const Trial& trial, const std::string& path, const std::vector<
   out.write("/field/in_stick", std::span<const std::uint8_t>(stick_flags), {frames, ny, nx});
   out.attribute("/field/gradient", "components", "H_xx, H_xy, H_yx, H_yy (H_ij = du_i/dX_j)");
   out.attribute("/field/strain", "components", "E_xx, E_yy, E_xy (Green-Lagrange, tensor shear)");
+
+  const auto blocks_y = static_cast<std::size_t>(orientation.front().orientation_rad.rows);
+  const auto blocks_x = static_cast<std::size_t>(orientation.front().orientation_rad.cols);
+  const auto stack_blocks = [&](cv::Mat Trial::OrientationBlocks::*member) {
+    std::vector<double> all;
+    all.reserve(frames * blocks_y * blocks_x);
+    for (const Trial::OrientationBlocks& o : orientation)
+      all.insert(all.end(), (o.*member).begin<double>(), (o.*member).end<double>());
+    return all;
+  };
+  const auto angle = stack_blocks(&Trial::OrientationBlocks::orientation_rad);
+  out.write("/texture/orientation_rad", std::span<const double>(angle), {frames, blocks_y, blocks_x});
+  const auto coherence = stack_blocks(&Trial::OrientationBlocks::coherence);
+  out.write("/texture/orientation_coherence", std::span<const double>(coherence),
+            {frames, blocks_y, blocks_x});
+  out.attribute("/texture/orientation_rad", "block_px", static_cast<double>(cfg.truth.orientation_block_px));
   out.commit();
 }
 
@@ -151,6 +168,7 @@ void write_trial(const Trial& trial, const std::string& out_dir, bool quiet) {
   const cv::Mat mask = trial.contact_mask();
   std::vector<GridTruth> grid;
   std::vector<cv::Mat> masks;
+  std::vector<Trial::OrientationBlocks> orientation;
   CsvWriter frames_csv((root / "frames.csv").string(), {"index", "t_s"});
   Progress progress("synth", trial.frames(), quiet);
   for (int k = 0; k < trial.frames(); ++k) {
@@ -161,13 +179,14 @@ void write_trial(const Trial& trial, const std::string& out_dir, bool quiet) {
         {std::to_string(k), format_double(trial.frame_times_s()[static_cast<std::size_t>(k)])});
     grid.push_back(trial.grid_truth(k));
     masks.push_back(mask);  // the contact is fixed in the image; stored per frame so consumers need not know
+    orientation.push_back(trial.ridge_orientation_blocks(k, trial.config().truth.orientation_block_px));
     progress.update(k + 1);
   }
   progress.finish();
   frames_csv.commit();
   write_channels(trial, (root / "channels.csv").string());
   write_scene(trial, (root / "scene.yaml").string());
-  write_truth(trial, (root / "truth.h5").string(), grid, masks);
+  write_truth(trial, (root / "truth.h5").string(), grid, masks, orientation);
   staging.commit();
 }
 

@@ -92,6 +92,9 @@ void parse_fingerprint(YamlSection s, FingerprintConfig& f) {
   if (s.has("background")) f.background = s.number("background", 0.8, 0.0, 1.0);
   f.ridge_contrast = s.number("ridge_contrast", f.ridge_contrast, 0.0, 1.0);
   f.vignetting = s.number("vignetting", f.vignetting, 0.0, 0.9);
+  f.pore_depth = s.number("pore_depth", f.pore_depth, 0.0, 1.0);
+  f.pore_spacing_mm = s.number("pore_spacing_mm", f.pore_spacing_mm, 0.02, 10.0);
+  f.pore_sigma_mm = s.number("pore_sigma_mm", f.pore_sigma_mm, 0.005, 5.0);
   s.finish();
 }
 
@@ -183,6 +186,8 @@ SynthConfig parse_synth_config(const Scene& scene) {
   parse_channels(top.section("channels"), cfg.channels);
   YamlSection truth = top.section("truth");
   cfg.truth.grid_step_px = truth.number("grid_step_px", cfg.truth.grid_step_px, 1.0, 1024.0);
+  cfg.truth.orientation_block_px =
+      static_cast<int>(truth.integer("orientation_block_px", cfg.truth.orientation_block_px, 4, 1024));
   truth.finish();
   top.finish();
 

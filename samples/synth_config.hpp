@@ -60,6 +60,9 @@ struct FingerprintConfig {
   double flow_warp = 0.5;               // amplitude of the smooth ridge-flow warp, in ridge periods
   double background = -1.0;             // optics background level (0..1); <0: 0.8 dark / 0.15 bright
   double ridge_contrast = 0.55;         // ridge crest change of level in full contact (0..1)
+  double pore_depth = 0.7;              // relative loss of ridge level at a sweat pore's centre
+  double pore_spacing_mm = 0.2;         // lattice of candidate pore sites (60 % hold a pore)
+  double pore_sigma_mm = 0.06;          // Gaussian pore profile (FWHM ~0.14 mm)
   double vignetting = 0.08;             // relative fall-off at the image corners
 };
 
@@ -104,6 +107,7 @@ struct ChannelsConfig {
 
 struct TruthConfig {
   double grid_step_px = 8.0;
+  int orientation_block_px = 32;  // blocks of the ridge orientation truth (contact/'s default block size)
 };
 
 struct SynthConfig {

@@ -43,7 +43,10 @@ Fingerprint::Fingerprint(const FingerprintConfig& config, double px_per_mm, doub
       loop_length_px_(config.loop_length_mm * px_per_mm),
       core_smoothing_px_(0.25 * period_mm * px_per_mm),
       softmin_px_(0.5 * period_mm * px_per_mm),
-      minutia_core_px_(0.25 * period_mm * px_per_mm) {
+      minutia_core_px_(0.25 * period_mm * px_per_mm),
+      pore_depth_(config.pore_depth),
+      pores_(PatternConfig{config.pore_spacing_mm, config.pore_sigma_mm, 1.0, 0.6}, px_per_mm,
+             mix_seed(seed, 0x9025ULL)) {
   std::mt19937_64 rng(mix_seed(seed, 0xF1A6E5ULL));
   std::uniform_real_distribution<double> u01(0.0, 1.0);
 
@@ -108,6 +111,32 @@ Fingerprint::Fingerprint(const FingerprintConfig& config, double px_per_mm, doub
 }
 
 double Fingerprint::ridge(Vec2 X) const {
+  double amplitude = 1.0;
+  const double p = phase(X, amplitude);
+  const double ridge = 0.5 + 0.5 * amplitude * std::cos(p);
+  return pore_depth_ > 0.0 ? ridge * (1.0 - pore_depth_ * pores_.darkness(X)) : ridge;
+}
+
+Vec2 Fingerprint::phase_gradient(Vec2 X) const {
+  constexpr double h = 1e-3;
+  double amplitude = 1.0;
+  const auto wrapped = [](double d) { return d - kTwoPi * std::round(d / kTwoPi); };
+  const double dx = wrapped(phase({X.x + h, X.y}, amplitude) - phase({X.x - h, X.y}, amplitude));
+  const double dy = wrapped(phase({X.x, X.y + h}, amplitude) - phase({X.x, X.y - h}, amplitude));
+  return {dx / (2.0 * h), dy / (2.0 * h)};
+}
+
+double Fingerprint::ridge_orientation_rad(Vec2 X) const {
+  const Vec2 g = phase_gradient(X);
+  if (g.x == 0.0 && g.y == 0.0) return 0.0;
+  // Along the ridge: (-g_y, g_x); its angle modulo pi.
+  double angle = std::atan2(g.x, -g.y);
+  if (angle < 0.0) angle += std::numbers::pi;
+  if (angle >= std::numbers::pi) angle -= std::numbers::pi;
+  return angle;
+}
+
+double Fingerprint::phase(Vec2 X, double& amplitude) const {
   double px = X.x - core_px_.x, py = X.y - core_px_.y;
   const double wx = warp_amplitude_px_[0] *
                         std::sin(warp_wavevector_[0].x * px + warp_wavevector_[0].y * py + warp_phase_[0]) +
@@ -131,7 +160,7 @@ double Fingerprint::ridge(Vec2 X) const {
     rho = std::min(rho, rho2) - softmin_px_ * std::log1p(std::exp(-std::abs(rho - rho2) / softmin_px_));
   }
   double phase = wavenumber_ * rho;
-  double amplitude = 1.0;
+  amplitude = 1.0;
 
   const int bx = static_cast<int>(std::floor((X.x - bin_origin_px_.x) / bin_size_px_));
   const int by = static_cast<int>(std::floor((X.y - bin_origin_px_.y) / bin_size_px_));
@@ -153,7 +182,7 @@ double Fingerprint::ridge(Vec2 X) const {
       if (db2 < 25.0 * minutia_core_px_ * minutia_core_px_) amplitude *= 1.0 - std::exp(-db2 * inv_two_s2);
     }
   }
-  return 0.5 + 0.5 * amplitude * std::cos(phase);
+  return phase;
 }
 
 PlatePattern::PlatePattern(const PatternConfig& config, double px_per_mm, std::uint64_t seed)

@@ -277,6 +277,51 @@ GridTruth Trial::grid_truth(int frame) const {
   return t;
 }
 
+double Trial::ridge_orientation_rad(const FrameField& field, Vec2 x) const {
+  const FrameField::Inverse inv = field.invert(x);
+  const double theta = fingerprint_.ridge_orientation_rad(inv.reference_px);
+  const Gradient2 h = field.evaluate(inv.reference_px).gradient;
+  const double tx = std::cos(theta), ty = std::sin(theta);
+  double angle = std::atan2(h.yx * tx + (1.0 + h.yy) * ty, (1.0 + h.xx) * tx + h.xy * ty);
+  if (angle < 0.0) angle += std::numbers::pi;
+  if (angle >= std::numbers::pi) angle -= std::numbers::pi;
+  return angle;
+}
+
+Trial::OrientationBlocks Trial::ridge_orientation_blocks(int frame, int block_px) const {
+  const FrameField field = this->field(frame);
+  const int bx_count = (width() + block_px - 1) / block_px, by_count = (height() + block_px - 1) / block_px;
+  OrientationBlocks out;
+  out.orientation_rad = cv::Mat::zeros(by_count, bx_count, CV_64F);
+  out.coherence = cv::Mat::zeros(by_count, bx_count, CV_64F);
+  constexpr int kSamples = 8;
+  cv::parallel_for_(cv::Range(0, by_count), [&](const cv::Range& rows) {
+    for (int by = rows.start; by < rows.end; ++by) {
+      const int y0 = by * block_px, y1 = std::min(height(), y0 + block_px);
+      for (int bx = 0; bx < bx_count; ++bx) {
+        const int x0 = bx * block_px, x1 = std::min(width(), x0 + block_px);
+        double c = 0.0, s = 0.0;
+        for (int j = 0; j < kSamples; ++j) {
+          // Pixel centres are at integer coordinates: the block spans [x0 - 0.5, x1 - 0.5).
+          const double y = y0 - 0.5 + (j + 0.5) * (y1 - y0) / kSamples;
+          for (int i = 0; i < kSamples; ++i) {
+            const double x = x0 - 0.5 + (i + 0.5) * (x1 - x0) / kSamples;
+            const double theta = ridge_orientation_rad(field, {x, y});
+            c += std::cos(2.0 * theta);
+            s += std::sin(2.0 * theta);
+          }
+        }
+        double mean = 0.5 * std::atan2(s, c);
+        if (mean < 0.0) mean += std::numbers::pi;
+        if (mean >= std::numbers::pi) mean -= std::numbers::pi;
+        out.orientation_rad.at<double>(by, bx) = mean;
+        out.coherence.at<double>(by, bx) = std::hypot(c, s) / (kSamples * kSamples);
+      }
+    }
+  });
+  return out;
+}
+
 ChannelSeries Trial::channels() const {
   const ChannelsConfig& c = config_.channels;
   const double end_s = frame_times_s_.back() + 1.0 / config_.timing.frame_rate_hz;

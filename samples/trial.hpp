@@ -63,6 +63,21 @@ class Trial {
   const std::vector<double>& grid_y_px() const { return grid_y_px_; }
   GridTruth grid_truth(int frame) const;
 
+  // Ridge direction in the image at image position x for a frame's field (from +x towards +y, in [0, pi)):
+  // the fingerprint's direction t at the reference point X with X + u(X) = x, carried into the image by
+  // F = I + H(X) (a material line element dX maps to F dX).
+  double ridge_orientation_rad(const FrameField& field, Vec2 x_px) const;
+  // Ridge orientation averaged over square blocks of the image, indexed as contact/'s orientation blocks:
+  // block (i, j) holds the pixels x in [i b, (i + 1) b), y in [j b, (j + 1) b), the last row and column
+  // clipped to the image. Each value is the doubled-angle mean over an 8 x 8 lattice of sub-cell centres;
+  // coherence is the length of that mean (1: one direction across the block; low around the core, a delta
+  // or a minutia, where the block mean says little). CV_64F, rows = blocks down.
+  struct OrientationBlocks {
+    cv::Mat orientation_rad;
+    cv::Mat coherence;
+  };
+  OrientationBlocks ridge_orientation_blocks(int frame, int block_px) const;
+
   ChannelSeries channels() const;
 
   const Fingerprint& fingerprint() const { return fingerprint_; }

@@ -98,6 +98,20 @@ TEST(SamplesCli, WritesACompleteTrialDirectory) {
       ASSERT_EQ(displacement[k * g.displacement_px.size() + i], g.displacement_px[i]);
     for (std::size_t i = 0; i < g.strain.size(); ++i) ASSERT_EQ(strain[k * g.strain.size() + i], g.strain[i]);
   }
+  // Ridge orientation on 32 x 32 blocks of the image (5 x 4 blocks of 160 x 128), per frame.
+  EXPECT_EQ(truth.shape("/texture/orientation_rad"), (H5Shape{4, 4, 5}));
+  EXPECT_EQ(truth.shape("/texture/orientation_coherence"), (H5Shape{4, 4, 5}));
+  EXPECT_EQ(truth.attribute_number("/texture/orientation_rad", "block_px"), 32.0);
+  const auto orientation = truth.read_doubles("/texture/orientation_rad");
+  const auto coherence = truth.read_doubles("/texture/orientation_coherence");
+  for (int k = 0; k < 4; ++k) {
+    const Trial::OrientationBlocks o = memory.ridge_orientation_blocks(k, 32);
+    for (int i = 0; i < 20; ++i) {
+      ASSERT_EQ(orientation[static_cast<std::size_t>(20 * k + i)],
+                o.orientation_rad.at<double>(i / 5, i % 5));
+      ASSERT_EQ(coherence[static_cast<std::size_t>(20 * k + i)], o.coherence.at<double>(i / 5, i % 5));
+    }
+  }
   const auto tangential = truth.read_doubles("/load/tangential_N");
   EXPECT_EQ(tangential[0], 0.0);
   EXPECT_GT(tangential[3], 0.0);
@@ -135,6 +149,9 @@ TEST(SamplesCli, BadSceneFilesNameKeyAndFileAndLeaveNoOutput) {
       {"wrong type (list)", "synthesis.loading.direction_deg", "[1, 2]", "synthesis.loading.direction_deg"},
       {"out of range", "synthesis.loading.friction", "-0.5", "synthesis.loading.friction"},
       {"out of range (bit depth)", "synthesis.image.bit_depth", "12", "synthesis.image.bit_depth"},
+      {"out of range (orientation blocks)", "synthesis.truth.orientation_block_px", "2",
+       "synthesis.truth.orientation_block_px"},
+      {"wrong type (pores)", "synthesis.fingerprint.pore_depth", "deep", "synthesis.fingerprint.pore_depth"},
       {"bad choice", "synthesis.loading.field", "twist", "synthesis.loading.field"},
       {"core key wrong type", "tissue.E_Pa", "soft", "tissue.E_Pa"},
       {"Poisson ratio at the incompressible limit", "tissue.nu", "0.5", "tissue.nu"},
