@@ -79,6 +79,8 @@ template <typename T>
 void block_average(const cv::Mat& src, int factor, double gain, cv::Mat& dst, std::vector<float>& row_sum) {
   const int out_w = src.cols / factor, out_h = src.rows / factor;
   dst.create(out_h, out_w, CV_32FC1);
+  // Narrower or shorter than one block: nothing to average (and no row pointer of an empty Mat to take).
+  if (out_w <= 0 || out_h <= 0) return;
   row_sum.assign(static_cast<std::size_t>(src.cols), 0.0f);
   const auto g = static_cast<float>(gain / (factor * factor));
   for (int y = 0; y < out_h; ++y) {
@@ -100,6 +102,29 @@ void block_average(const cv::Mat& src, int factor, double gain, cv::Mat& dst, st
 // Working pixel centre -> full-resolution pixel coordinates.
 cv::Point2d to_full(const cv::Point2d& p, int factor) {
   return {(p.x + 0.5) * factor - 0.5, (p.y + 0.5) * factor - 0.5};
+}
+
+// Noise can carry a single ray's edge outward, and the convex hull keeps any outward excursion. Clip each
+// free point's distance from `centre` to the median of its 11 neighbours (free ones) plus `spike_px`.
+void clip_spikes(std::vector<cv::Point2d>& points, const std::vector<std::uint8_t>& cut,
+                 const cv::Point2d& centre, double spike_px) {
+  constexpr int kHalf = 5;
+  const std::size_t n = points.size();
+  if (n < 2 * kHalf + 1) return;
+  std::vector<double> radius(n), window;
+  for (std::size_t i = 0; i < n; ++i) radius[i] = cv::norm(points[i] - centre);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (cut[i] != 0 || radius[i] <= 0.0) continue;
+    window.clear();
+    for (std::size_t k = 0; k <= 2 * kHalf; ++k) {
+      const std::size_t j = (i + n - kHalf + k) % n;
+      if (cut[j] == 0) window.push_back(radius[j]);
+    }
+    const auto middle = window.begin() + static_cast<std::ptrdiff_t>(window.size() / 2);
+    std::nth_element(window.begin(), middle, window.end());
+    const double limit = *middle + spike_px;
+    if (radius[i] > limit) points[i] = centre + (points[i] - centre) * (limit / radius[i]);
+  }
 }
 
 // Where a ridge valley lies along the border, the contact edge is invisible (a valley reflects like the
@@ -238,6 +263,7 @@ ContactResult ContactSegmenter::segment(const cv::Mat& image) {
   const double period_px = period_for_frame(image, full_scale);
   result.ridge_period_px = period_px;
   factor_ = options_.downsample > 0 ? options_.downsample
+            : small_contact_pass_   ? std::max(1, static_cast<int>(std::floor(period_px / 11.0)))
                                     : std::max(1, static_cast<int>(std::floor(period_px / 5.5)));
   const int f = factor_;
   if (full_size.width / f < 8 || full_size.height / f < 8) {
@@ -305,6 +331,16 @@ ContactResult ContactSegmenter::segment(const cv::Mat& image) {
     }
   }
   if (largest == 0 || largest_area * mm2_per_working_px < options_.min_area_mm2) return no_contact();
+  // A contact only a few ridge periods across is mostly fading border: redo it at twice the resolution
+  // (automatic resolution only; the cost is that of a half-resolution pass, for small contacts only).
+  const double radius_px = std::sqrt(largest_area / std::numbers::pi) * f;
+  if (options_.downsample == 0 && !small_contact_pass_ && f >= 4 &&
+      radius_px < options_.small_contact_periods * period_px) {
+    small_contact_pass_ = true;
+    ContactResult fine = segment(image);
+    small_contact_pass_ = false;
+    return fine;
+  }
 
   std::uint32_t status = saturated_flag;
   std::vector<std::uint8_t> keep(static_cast<std::size_t>(labels), 0);
@@ -371,13 +407,13 @@ ContactResult ContactSegmenter::segment(const cv::Mat& image) {
   double level_drop_min = 0.0;
   if (use_level_edge) {
     if (polarity < 0) {
-      cv::subtract(1.0, buf_.work, buf_.scratch);
+      cv::subtract(1.0, buf_.work, buf_.bright);
     } else {
-      buf_.work.copyTo(buf_.scratch);
+      buf_.work.copyTo(buf_.bright);
     }
     const int merge_k = odd_at_least(period_w + 1.0, 3);
     const int speck_k = odd_at_least(0.5 * period_w, 3);
-    cv::morphologyEx(buf_.scratch, buf_.level, cv::MORPH_CLOSE,
+    cv::morphologyEx(buf_.bright, buf_.level, cv::MORPH_CLOSE,
                      cv::getStructuringElement(cv::MORPH_RECT, cv::Size(merge_k, merge_k)), cv::Point(-1, -1),
                      1, cv::BORDER_REPLICATE);
     cv::morphologyEx(buf_.level, buf_.scratch, cv::MORPH_OPEN,
@@ -448,9 +484,43 @@ ContactResult ContactSegmenter::segment(const cv::Mat& image) {
             }
           }
           outside /= std::max(1, outside_n);
+          // Pixel noise beyond the edge, from the unmerged ridges-bright image over the outer half of the
+          // window: the levels below must stand clear of it, or a faint crest is lost in the background.
+          double noise_sum = 0.0, noise_sum2 = 0.0;
+          int noise_n = 0;
+          for (double s = crossing + 0.5 * reach; s <= crossing + reach + 1e-9; s += kStep) {
+            const double v = bilinear(buf_.bright, p.x + s * dir.x, p.y + s * dir.y);
+            noise_sum += v;
+            noise_sum2 += v * v;
+            ++noise_n;
+          }
+          const double noise_mean = noise_sum / std::max(1, noise_n);
+          const double noise =
+              std::sqrt(std::max(0.0, noise_sum2 / std::max(1, noise_n) - noise_mean * noise_mean));
           if (inside - outside >= level_drop_min) {
-            const double level = outside + options_.edge_level * (inside - outside);
-            for (int k = peak + 1; k < samples; ++k) {
+            // Ridge contrast fades towards the border, so the outermost crest is fainter than the plateau
+            // and a level relative to the plateau cuts it well inside the edge. Measure that crest instead:
+            // find where the merged level is nearly down to the background (5 % of the plateau, clear of
+            // the noise); the outermost crest lies within half a period inside that point, and the merged
+            // level there is its height. Rays whose window leaves the view keep the plateau.
+            int from = peak;
+            double top = inside, fraction = options_.edge_level;
+            const cv::Point2d a = p + (crossing - reach) * dir, b = p + (crossing + reach) * dir;
+            const bool in_view = std::min({a.x, a.y, b.x, b.y}) >= 0.0 &&
+                                 std::max(a.x, b.x) <= frame_w.width - 1.0 &&
+                                 std::max(a.y, b.y) <= frame_w.height - 1.0;
+            if (in_view) {
+              const double nearly_out = outside + std::max(0.05 * (inside - outside), 3.0 * noise);
+              for (int k = peak + 1; k < samples; ++k)
+                if (ray_[static_cast<std::size_t>(k)] < nearly_out) {
+                  from = std::max(peak, k - static_cast<int>(std::lround(0.5 * period_w / kStep)));
+                  top = ray_[static_cast<std::size_t>(from)];
+                  fraction = options_.crest_edge_level;
+                  break;
+                }
+            }
+            const double level = outside + std::max(fraction * (top - outside), 2.0 * noise);
+            for (int k = from + 1; k < samples; ++k) {
               const float v0 = ray_[static_cast<std::size_t>(k - 1)], v1 = ray_[static_cast<std::size_t>(k)];
               if (v0 >= level && v1 < level) {
                 crossing = crossing - reach + (k - 1 + (v0 - level) / std::max(1e-12f, v0 - v1)) * kStep;
@@ -476,6 +546,7 @@ ContactResult ContactSegmenter::segment(const cv::Mat& image) {
     refined_full.push_back(q);
     cut.push_back(at_cut ? 1 : 0);
   }
+  clip_spikes(refined_full, cut, to_full(centroid, f), options_.spike_periods * period_px);
   bridge_valleys(refined_full, cut, options_.valley_gap_periods * period_px);
   result.outline_px = convex_hull(refined_full);
   result.area_mm2 = polygon_area_px2(result.outline_px) / (options_.px_per_mm * options_.px_per_mm);

@@ -8,15 +8,19 @@
 // threshold, the largest connected region (plus regions >= merge_fraction of it, e.g. a contact split by a
 // sweat patch), convex hull. That decides contact / no contact and gives a coarse outline.
 //
-// The outline is then placed where the contact ends rather than where the texture is half as strong (ridge
-// contrast fades towards the border, where skin only nearly touches, so the texture's half-maximum lies
-// several pixels inside): with ridges made bright, grey closing then opening over one period merges ridges
-// and valleys into a plateau whose outer edge is the outermost crest; along the ray from the centre through
-// each of 200 outline samples the edge is where that level falls to edge_level of the way from the local
-// background to the local plateau. A valley lying along the border is invisible (it reflects like the
-// background); such one-sided dips are found against an outer-envelope ellipse and bridged by it. Convex
-// hull, 50 points equally spaced along its perimeter, area, then the direct ellipse fit and the ridge
-// orientation field.
+// The outline is then placed where the contact ends rather than where the texture is half as strong. With
+// ridges made bright, grey closing then opening over one period merges ridges and valleys into a plateau
+// whose outer edge is the outermost crest; along the ray from the centre through each of 200 outline samples
+// the edge is where that level falls to crest_edge_level of the way from the local background to the
+// outermost crest's own height. Relative to the crest, not to the contact's plateau: ridge contrast fades
+// towards the border (skin only nearly touches there), so the last crest is fainter than the plateau and a
+// plateau-relative level cuts it several pixels inside the edge (the contact's axes came out ~3 % short and a
+// contact two ridge periods across lost a tenth of its radius). Levels stay clear of the pixel noise
+// measured beyond the edge. A valley lying along the border is invisible (it reflects like the background),
+// so there the edge can only be placed statistically: crest_edge_level below one half puts it part-way into
+// that valley, and one-sided dips are found against an outer-envelope ellipse and bridged by it. Single-ray
+// outward spikes (noise) are clipped to their neighbours' median. Convex hull, 50 points equally spaced
+// along its perimeter, area, then the direct ellipse fit and the ridge orientation field.
 //
 // Working resolution (the design choice that sets the speed): everything runs on the frame averaged over
 // f x f blocks with f = floor(ridge period / 5.5 px), i.e. about 5.5-8 working pixels per ridge period
@@ -74,12 +78,22 @@ struct SegmenterOptions {
   double min_energy = 0.003;           // and in absolute terms (fraction of full scale)
   double merge_fraction = 0.1;         // join regions at least this fraction of the largest one
   double saturated_fraction = 0.02;
-  // The outline is where the merged ridge level falls to this fraction of the way from background to the
-  // contact's plateau: low, because ridge contrast fades towards the border where skin only nearly touches.
+  // The outline is where the merged ridge level falls to crest_edge_level of the way from the background to
+  // the outermost crest (ridge contrast fades towards the border where skin only nearly touches, so that
+  // crest is fainter than the contact's plateau). Below one half, because where a valley runs along the
+  // border the edge lies somewhere in that valley, beyond the crest's flank. Rays that cannot see that crest
+  // clearly (window leaving the view, crest lost in noise) use edge_level of the way to the plateau.
+  double crest_edge_level = 0.18;
   double edge_level = 0.14;
   // Outline dips deeper than this (in ridge periods) inside the outer-envelope ellipse are valleys along
   // the border and are bridged by the ellipse (see bridge_valleys in segmenter.cpp).
   double valley_gap_periods = 0.1;
+  // A single ray's edge further out than the median of its neighbours by more than this (in ridge periods)
+  // is a noise spike and is clipped back (see clip_spikes in segmenter.cpp).
+  double spike_periods = 0.1;
+  // With automatic resolution, a contact whose equivalent radius is below this many ridge periods is
+  // segmented again at half the working factor (about 11 working pixels per period).
+  double small_contact_periods = 3.0;
   double low_contrast = 0.02;  // texture energy (≈ 0.6 x ridge amplitude) below this: low contrast
 };
 
@@ -117,7 +131,7 @@ class ContactSegmenter {
 
  private:
   struct Buffers {
-    cv::Mat work, measure, blur_small, blur_large, band, energy, level, scratch, mask, labels, stats,
+    cv::Mat work, bright, measure, blur_small, blur_large, band, energy, level, scratch, mask, labels, stats,
         centroids, hull_mask;
     std::vector<float> row_sum;
   };
@@ -130,6 +144,7 @@ class ContactSegmenter {
   std::optional<double> period_px_;
   bool period_measured_ = false;
   int factor_ = 1;
+  bool small_contact_pass_ = false;
   Buffers buf_;
 };
 

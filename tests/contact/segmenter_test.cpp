@@ -153,6 +153,31 @@ TEST(ContactSegmenter, UniformImageIsNoContact) {
   EXPECT_EQ(segmenter.segment(cv::Mat(3, 3, CV_8UC1, cv::Scalar(9))).status, kNoContact);
 }
 
+// Frames narrower or shorter than one working block (a row or column of the block-averaged image is empty),
+// at every pixel type and working resolution: a defined "no contact", never a crash. Meant to be run under
+// -DTIRSTRAIN_SANITIZE=ON as well (a null-pointer store was once reported in the block averaging).
+TEST(ContactSegmenter, DegenerateFrameSizesAreNoContact) {
+  cv::RNG rng(7);
+  for (const cv::Size size :
+       {cv::Size(1, 1), cv::Size(3, 5), cv::Size(5, 3), cv::Size(40, 1), cv::Size(1, 40), cv::Size(33, 4),
+        cv::Size(4, 33), cv::Size(64, 9), cv::Size(9, 64)}) {
+    for (const int depth : {CV_8U, CV_16U, CV_32F}) {
+      cv::Mat image(size, CV_MAKETYPE(depth, 1));
+      rng.fill(image, cv::RNG::UNIFORM, 0.0, depth == CV_32F ? 1.0 : (depth == CV_8U ? 255.0 : 4095.0));
+      for (const int downsample : {0, 1, 3, 8}) {
+        SegmenterOptions options;
+        options.downsample = downsample;
+        ContactSegmenter segmenter(options);
+        const ContactResult r = segmenter.segment(image);
+        EXPECT_EQ(r.status & kNoContact, kNoContact) << size << " depth " << depth << " f " << downsample;
+        EXPECT_EQ(r.area_mm2, 0.0);
+        EXPECT_TRUE(r.hull_px.empty());
+        expect_finite(r);
+      }
+    }
+  }
+}
+
 TEST(ContactSegmenter, ContactTouchingFrameEdge) {
   TirScene scene;
   scene.contacts = {{90.0, 300.0, 150.0, 110.0, 0.2}};  // a third of it outside the frame
