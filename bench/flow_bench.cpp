@@ -3,7 +3,9 @@
 // spacing and refinement subset, one table in one run. Frames are rendered before timing starts; the time
 // is tracking only (pyramids, LK, refinement, checks, births, plate). Error is against the exact field.
 //
-//   flow_bench [--frames N] [--width W --height H] [--only NAME] [--threads T] [--yaml TRACKING]...
+//   flow_bench [--frames N] [--width W --height H | --scene FILE] [--only NAME] [--threads T]
+//              [--yaml TRACKING]...
+// --scene renders that scene's `synthesis:` section instead (e.g. samples/scenes/default.yaml).
 // --yaml adds a configuration given as a scene `tracking:` section, e.g. --yaml "{subset_radius_px: 18}".
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -56,7 +58,8 @@ synthesis:
 
 int main(int argc, char** argv) {
   int frames = 30, width = 640, height = 512, threads = -1;
-  std::string only;
+  bool frames_given = false;
+  std::string only, scene_file;
   std::vector<std::string> custom;  // extra configurations: a scene `tracking:` section each
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -67,9 +70,10 @@ int main(int argc, char** argv) {
       }
       return std::string(argv[++i]);
     };
-    if (a == "--frames")
+    if (a == "--frames") {
       frames = std::stoi(next());
-    else if (a == "--width")
+      frames_given = true;
+    } else if (a == "--width")
       width = std::stoi(next());
     else if (a == "--height")
       height = std::stoi(next());
@@ -79,21 +83,28 @@ int main(int argc, char** argv) {
       threads = std::stoi(next());
     else if (a == "--yaml")
       custom.push_back(next());
+    else if (a == "--scene")
+      scene_file = next();
     else {
       std::fprintf(stderr,
-                   "usage: flow_bench [--frames N] [--width W --height H] [--only NAME] [--threads T] "
-                   "[--yaml TRACKING]...\n");
+                   "usage: flow_bench [--frames N] [--width W --height H | --scene FILE] [--only NAME] "
+                   "[--threads T] [--yaml TRACKING]...\n");
       return 2;
     }
   }
   if (threads >= 0) cv::setNumThreads(threads);
   using namespace tirstrain;
-  const samples::Trial trial(flow::testing::config_of(bench_scene(width, height, frames)));
-  std::fprintf(stderr, "rendering %d frames of %dx%d...\n", frames, width, height);
+  const Scene scene = scene_file.empty() ? parse_scene(bench_scene(width, height, frames), "flow-bench.yaml")
+                                         : load_scene(scene_file);
+  samples::SynthConfig config = samples::parse_synth_config(scene);
+  if (frames_given) config.timing.frames = frames;
+  const samples::Trial trial(config);
+  frames = trial.frames();
+  std::fprintf(stderr, "rendering %d frames of %dx%d...\n", frames, trial.width(), trial.height());
   const flow::testing::RenderedTrial rendered = flow::testing::render(trial, true);
   if (std::getenv("FLOW_BENCH_DUMP")) cv::imwrite(std::getenv("FLOW_BENCH_DUMP"), rendered.frames.back());
 
-  flow::SceneHints hints;
+  const flow::SceneHints hints = flow::hints_from_scene(scene);
   const TrackerSettings automatic = flow::preset_settings("auto", hints);
   const TrackerSettings paper = flow::preset_settings("delhaye2016", hints);
   std::vector<Config> configs = {{"delhaye2016", paper}, {"auto", automatic}};
@@ -118,6 +129,8 @@ int main(int argc, char** argv) {
   for (int r : {8, 18})
     variant("auto subset_r=" + std::to_string(r), [r](TrackerSettings& s) { s.subset_radius_px = r; });
   variant("auto stride=2", [](TrackerSettings& s) { s.subset_stride = 2; });
+  variant("auto fixed-shape x1", [](TrackerSettings& s) { s.fixed_shape_iterations = 1; });
+  variant("auto no-fixed-shape", [](TrackerSettings& s) { s.fixed_shape_pass = false; });
   variant("auto affine", [](TrackerSettings& s) { s.shape = ShapeFunction::kAffine; });
   variant("auto no-refine", [](TrackerSettings& s) {
     s.refine = false;
@@ -127,9 +140,9 @@ int main(int argc, char** argv) {
   // Given extra configurations, run only those (and the ones named by --only).
   if (!custom.empty()) std::erase_if(configs, [&](const Config& c) { return c.name != only; });
   for (const std::string& y : custom) {
-    Scene scene;
-    scene.tracking = YAML::Load(y);
-    configs.push_back({y, flow::parse_tracking_settings(scene)});
+    Scene with_tracking = scene;
+    with_tracking.tracking = YAML::Load(y);
+    configs.push_back({y, flow::parse_tracking_settings(with_tracking)});
   }
   std::printf("%-24s %7s %8s %10s %8s %9s %9s %7s %7s %8s\n", "config", "tracks", "alive_end", "points/s",
               "frames/s", "rms_px", "max_px", ">1px", "born", "plate_px");
@@ -139,13 +152,6 @@ int main(int argc, char** argv) {
     long tracked = 0;
     for (std::size_t f = 1; f < s.frame_alive.size(); ++f) tracked += s.frame_alive[f];
     const double fps = (frames - 1) / s.seconds;  // frame 0 (seeding) is included in the time
-    // Given extra configurations, run only those (and the ones named by --only).
-    if (!custom.empty()) std::erase_if(configs, [&](const Config& c) { return c.name != only; });
-    for (const std::string& y : custom) {
-      Scene scene;
-      scene.tracking = YAML::Load(y);
-      configs.push_back({y, flow::parse_tracking_settings(scene)});
-    }
     std::printf("%-24s %7d %8d %10.0f %8.2f %9.4f %9.3f %7ld %7d %8.4f\n", c.name.c_str(), s.tracks_started,
                 s.frame_alive.back(), tracked / s.seconds, fps, s.rms_px, s.max_px, s.wrong, s.born,
                 s.plate_rms_px);

@@ -55,6 +55,7 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
     s.pyramid_levels = 2;
     s.refine = false;
     s.neighbour_check = false;
+    s.fixed_shape_pass = false;
     s.fusion_sigma_px = 0.0;
     s.global_prediction = false;
     s.reanchor_interval_frames = 0;
@@ -76,6 +77,8 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
   s.neighbour_radius_px = 3.0 * s.grid_step_px;
   s.fusion_sigma_px = s.grid_step_px;
   s.border_exclusion_px = std::round(0.6 * period);
+  s.fixed_shape_radius_px = static_cast<int>(std::lround(0.85 * period));
+  s.fixed_shape_sigma_grid = 2.5;
   s.border_margin_px = s.border_exclusion_px;
   const double reach_px = 0.25 * s.window_px;  // what one level of LK follows reliably
   const int needed = hints.max_displacement_px > reach_px
@@ -103,6 +106,7 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   s.max_features = static_cast<int>(t.integer("max_features", s.max_features, 1, 1000000));
   s.min_eigen_quality = t.number("min_eigen_quality", s.min_eigen_quality, 0.0, 1.0);
   s.births = t.boolean("births", s.births);
+  s.extrapolate_all_births = t.boolean("extrapolate_all_births", s.extrapolate_all_births);
   s.birth_interval_frames =
       static_cast<int>(t.integer("birth_interval_frames", s.birth_interval_frames, 1, 100000));
   s.window_px = static_cast<int>(t.integer("window_px", s.window_px, 3, 401));
@@ -124,6 +128,13 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   s.max_correction_px = t.number("max_correction_px", s.max_correction_px, 0.01, 1000.0);
   s.min_zncc = t.number("min_zncc", s.min_zncc, -1.0, 1.0);
   s.neighbour_check = t.boolean("neighbour_check", s.neighbour_check);
+  s.fixed_shape_pass = t.boolean("fixed_shape_pass", s.fixed_shape_pass);
+  s.fixed_shape_sigma_grid = t.number("fixed_shape_sigma_grid", s.fixed_shape_sigma_grid, 0.5, 20.0);
+  s.fixed_shape_iterations =
+      static_cast<int>(t.integer("fixed_shape_iterations", s.fixed_shape_iterations, 1, 10));
+  s.smoothed_gradient = t.boolean("smoothed_gradient", s.smoothed_gradient);
+  s.fixed_shape_radius_px =
+      static_cast<int>(t.integer("fixed_shape_radius_px", s.fixed_shape_radius_px, 0, 200));
   s.neighbour_tolerance_px = t.number("neighbour_tolerance_px", s.neighbour_tolerance_px, 0.01, 100.0);
   s.border_exclusion_px = t.number("border_exclusion_px", s.border_exclusion_px, 0.0, 1000.0);
   s.border_margin_px = t.number("border_margin_px", s.border_margin_px, 0.0, 1000.0);

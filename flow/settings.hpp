@@ -31,6 +31,10 @@ struct TrackerSettings {
   int eigen_block_px = 7;           // Shi–Tomasi block side
   bool births = true;
   int birth_interval_frames = 5;  // look for thin coverage every this many frames
+  // Refined tracking gives a newborn whose skin frame 0 saw a frame-0 anchor (its X then is a matched frame-0
+  // pixel). Skin frame 0 did not see gets X by extrapolating the neighbours' map; by default only where the
+  // contact grew beyond frame 0's (true: also skin that slid into an unchanged contact).
+  bool extrapolate_all_births = false;
   double border_margin_px = 3.0;  // seeds and births at least this far inside the contact
   // Subset pixels closer than this to the contact border are not matched: there the ridge contrast fades
   // with the partial contact, a pattern fixed in the image that the skin slides through, so it biases any
@@ -52,6 +56,16 @@ struct TrackerSettings {
   int subset_stride = 1;
   MatchOptions match;
   double min_zncc = 0.6;
+  // Second pass: each refined track is matched again for its translation only, its subset's shape (gradient
+  // and curvature) fixed at the neighbours' smoothed shape. Halves the along-ridge noise of a second-order
+  // subset (its shape terms trade off against the along-ridge translation).
+  bool fixed_shape_pass = true;
+  int fixed_shape_radius_px = 0;  // that pass's subset radius, if larger than subset_radius_px
+  // The shape is a weighted quadratic fit of the neighbours' displacements (Gaussian weights of this σ, in
+  // grid steps, out to 2σ).
+  double fixed_shape_sigma_grid = 1.5;
+  int fixed_shape_iterations = 2;  // fit and match again from the improved positions
+  bool smoothed_gradient = true;   // report (and use) the fitted gradient instead of the subset's own
   // A refined match further than this from its prediction is re-checked against the neighbours.
   double max_correction_px = 3.0;
 

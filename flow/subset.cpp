@@ -115,6 +115,20 @@ void compose_inverse(Warp& warp, const Vector12& dp, ShapeFunction shape, double
        2 * cx[3] / s2, cx[4] / s2, 2 * cx[5] / s2, 2 * cy[3] / s2, cy[4] / s2, 2 * cy[5] / s2};
 }
 
+// W(ξ; p) ← W(ξ − Δ; p) for a translation-only step Δ: the same physical warp, re-expanded about the
+// shifted reference point (exact for every shape function).
+void compose_translation(Warp& warp, double tx, double ty) {
+  auto& p = warp.p;
+  const Vec2 u = warp.displacement_px(-tx, -ty);
+  const Gradient2 g = warp.gradient(-tx, -ty);
+  p[0] = u.x - tx;
+  p[1] = u.y - ty;
+  p[2] = g.xx;
+  p[3] = g.xy;
+  p[4] = g.yx;
+  p[5] = g.yy;
+}
+
 // Pseudo-inverse of a Hessian that ignores the directions its texture leaves undetermined: along
 // straight ridges the SSD is flat, and a plain inverse turns the smallest model error into a large step
 // there (Gauss–Newton then "converges" anywhere along the ridge). Those directions keep their starting
@@ -221,6 +235,7 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
   // The inverse of the translation block of H⁻¹ is the Schur complement: the information on (u, v) once the
   // other parameters are free.
   information_ = h.inverse().topLeftCorner(2, 2).inverse() / sum_ff_;
+  fixed_information_ = h.topLeftCorner(2, 2) / sum_ff_;
   return true;
 }
 
@@ -250,8 +265,12 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
     result.degenerate = true;
     return result;
   }
-  const int n = parameter_count(shape_);
-  for (int i = n; i < 12; ++i) warp.p[static_cast<std::size_t>(i)] = 0.0;
+  const int n_shape = parameter_count(shape_);
+  // A translation-only match keeps the whole shape it is given (even beyond the subset's shape function).
+  if (!options.translation_only)
+    for (int i = n_shape; i < 12; ++i) warp.p[static_cast<std::size_t>(i)] = 0.0;
+  // The parameters solved for: all of the shape function's, or the translation alone.
+  const int n = options.translation_only ? 2 : n_shape;
   const double total = static_cast<double>(points_.size());
   const double r = radius_px_;
   const bool has_mask = !current_mask.empty();
@@ -274,9 +293,9 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
       const double y = centre_.y + dy + q[1] + q[4] * dx + q[5] * dy +
                        (0.5 * q[9] * dx * dx + q[10] * dx * dy + 0.5 * q[11] * dy * dy);
       float g = 0.0f;
-      jacobian(p.dx, p.dy, p.gx, p.gy, j);
-      const Eigen::Map<const Vector12> jv(j);
       if ((has_mask && !mask_allows(current_mask, x, y)) || !sample(current, x, y, g)) {
+        jacobian(p.dx, p.dy, p.gx, p.gy, j);
+        const Eigen::Map<const Vector12> jv(j);
         ++outside;
         h_out.topLeftCorner(n, n).noalias() += jv.head(n) * jv.head(n).transpose();
         sj_out.head(n) += jv.head(n);
@@ -285,7 +304,14 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
         sff_out += static_cast<double>(p.f) * p.f;
         continue;
       }
-      sjg.head(n) += jv.head(n) * g;
+      // Σ J g, unrolled: this loop is the tracker's hot spot.
+      if (n == 2) {
+        sjg[0] += static_cast<double>(p.gx) * g;
+        sjg[1] += static_cast<double>(p.gy) * g;
+      } else {
+        jacobian(p.dx, p.dy, p.gx, p.gy, j);
+        for (int k = 0; k < n; ++k) sjg[k] += j[k] * g;
+      }
       sg += g;
       sgg += static_cast<double>(g) * g;
       sfg += static_cast<double>(p.f) * g;
@@ -309,7 +335,14 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
     const Vector sjf = sum_jf_ - sjf_out;
     const Vector b = (sjf - f_mean * sj) - scale * (sjg - g_mean * sj);
     Vector dp = Vector::Zero();
-    if (outside == 0) {
+    if (options.translation_only) {
+      const Eigen::Matrix2d hv = hessian_.topLeftCorner(2, 2) - h_out.topLeftCorner(2, 2);
+      if (!(hv.determinant() > 1e-12 * hv.trace() * hv.trace())) {
+        result.degenerate = true;
+        return result;
+      }
+      dp.head(2) = -hv.inverse() * b.head(2);
+    } else if (outside == 0) {
       dp.head(n).noalias() = -hessian_inverse_.topLeftCorner(n, n) * b.head(n);
     } else {
       const Eigen::MatrixXd hv = hessian_.topLeftCorner(n, n) - h_out.topLeftCorner(n, n);
@@ -323,7 +356,10 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
       result.degenerate = true;
       return result;
     }
-    compose_inverse(warp, dp, shape_, r);
+    if (options.translation_only)
+      compose_translation(warp, dp[0], dp[1]);
+    else
+      compose_inverse(warp, dp, shape_, r);
     // Size of the step: the largest change of the displacement at the subset's corners.
     Warp step;
     for (int i = 0; i < n; ++i) step.p[static_cast<std::size_t>(i)] = dp[i];
@@ -334,7 +370,10 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
         largest = std::max(largest, std::hypot(d.x, d.y));
       }
     const double ssd_change = dp.head(n).dot(hessian_.topLeftCorner(n, n) * dp.head(n)) / sum_ff_;
-    if (largest < options.convergence_px || ssd_change < options.convergence_ssd) {
+    // The SSD criterion is for the many-parameter solve creeping along the ridges; a translation-only solve
+    // is well posed and cheap, so it iterates until the step itself is small.
+    if (largest < options.convergence_px ||
+        (!options.translation_only && ssd_change < options.convergence_ssd)) {
       result.converged = true;
       return result;
     }

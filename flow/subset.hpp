@@ -74,6 +74,10 @@ struct MatchOptions {
   // texture determines, and what it leaves undetermined is weighted down by translation_information().
   double convergence_ssd = 1e-6;
   double min_valid_fraction = 0.5;
+  // Solve for the translation only and keep the warp's shape (its gradient and curvature terms, e.g. taken
+  // from the neighbours) fixed: the shape terms are correlated with the along-ridge translation, so with
+  // them free the noise of both frames moves a subset along its ridges several times further.
+  bool translation_only = false;
 };
 
 struct MatchResult {
@@ -100,6 +104,9 @@ class Subset {
   // other shape parameters eliminated), normalised by the texture's energy: large across the ridges, small
   // along them.
   const Eigen::Matrix2d& translation_information() const { return information_; }
+  // The same with the shape fixed (the Hessian's translation block, normalised alike): what a
+  // translation_only match pins down.
+  const Eigen::Matrix2d& fixed_shape_information() const { return fixed_information_; }
 
   // Refines `warp` (in/out) so that the subset matches `current` (CV_32F) where `current_mask` (CV_8U, may
   // be empty) allows. The warp's unused parameters (beyond the shape function) are left at zero.
@@ -128,6 +135,7 @@ class Subset {
   Vector sum_jf_ = Vector::Zero();
   double sum_ff_ = 0.0;
   Eigen::Matrix2d information_ = Eigen::Matrix2d::Zero();
+  Eigen::Matrix2d fixed_information_ = Eigen::Matrix2d::Zero();
 };
 
 // The mask a match should test warped pixels against: the contact eroded by the 2 px reach of the bicubic

@@ -8,9 +8,11 @@
 // against its anchor frame (frame 0, or the frame it was born in) by a masked IC-GN subset match with a
 // second-order shape function, so the error never accumulates from frame to frame. Each track is then
 // checked against what its neighbours imply (their positions carried over by their deformation gradients);
-// a disagreeing track is re-matched from that prediction or retired. Tracks leaving the contact are
-// retired; where coverage thins, tracks are born with reference positions mapped back through a local
-// quadratic fit of the neighbours' current → reference map. See docs/flow.md.
+// a disagreeing track is re-matched from that prediction or retired. Each trusted track is then matched
+// again for its translation only, its shape fixed at a fit of its neighbours' displacements (the shape
+// terms otherwise let noise slide a subset along its ridges). Tracks leaving the contact are retired; where
+// coverage thins, tracks are born: X is first mapped back through a local fit of the neighbours' current →
+// reference map, then, where frame 0 saw that skin, matched in frame 0 itself. See docs/flow.md.
 #include <opencv2/core.hpp>
 
 #include <cstdint>

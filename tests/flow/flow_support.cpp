@@ -19,6 +19,16 @@ Score run_and_score(const samples::Trial& trial, const RenderedTrial& frames, co
   double sum2 = 0.0, birth2 = 0.0, plate2 = 0.0;
   int plate_n = 0;
   double seconds = 0.0;
+  // FLOW_DUMP_CSV=path: one row per live track and frame, for diagnosing where the error comes from.
+  std::FILE* dump = nullptr;
+  if (const char* path = std::getenv("FLOW_DUMP_CSV")) {
+    dump = std::fopen(path, "w");
+    if (dump)
+      std::fprintf(
+          dump,
+          "frame,id,born,status,X,Y,x,y,ex,ey,border_px,stick_px,ridge_nx,ridge_ny,zncc,gxx,gxy,gyx,gyy,"
+          "txx,txy,tyx,tyy\n");
+  }
   for (int f = 0; f < n; ++f) {
     const auto t0 = std::chrono::steady_clock::now();
     if (f == 0)
@@ -46,6 +56,37 @@ Score run_and_score(const samples::Trial& trial, const RenderedTrial& frames, co
       const double e =
           std::hypot(t.reference_px.x + u.x - t.position_px.x, t.reference_px.y + u.y - t.position_px.y);
       frame2 += e * e;
+      if (dump) {
+        const Vec2 x_true{t.reference_px.x + u.x, t.reference_px.y + u.y};
+        double stick_px = std::nan("");
+        const samples::LoadState load = trial.load(f);
+        if (field.model() && load.stick_radius_m > 0.0) {
+          const Vec2 pm = field.model_point_m(t.reference_px);
+          stick_px = (std::hypot(pm.x, pm.y) - load.stick_radius_m) * trial.history().px_per_m();
+        }
+        // Ridge normal at X: gradient of the ridge indicator (a unit vector across the ridges).
+        const samples::Fingerprint& fp = trial.fingerprint();
+        const Vec2 X = t.reference_px;
+        double gx = 0.0, gy = 0.0;
+        for (int k = 0; k < 8; ++k) {  // average over a small neighbourhood: orientation, not phase
+          const double a = k * 0.785398, ox = 3.0 * std::cos(a), oy = 3.0 * std::sin(a);
+          const double dx = fp.ridge({X.x + ox + 0.5, X.y + oy}) - fp.ridge({X.x + ox - 0.5, X.y + oy});
+          const double dy = fp.ridge({X.x + ox, X.y + oy + 0.5}) - fp.ridge({X.x + ox, X.y + oy - 0.5});
+          // double-angle average
+          gx += dx * dx - dy * dy;
+          gy += 2.0 * dx * dy;
+        }
+        const double ang = 0.5 * std::atan2(gy, gx);
+        const samples::FieldValue fv = field.evaluate(t.reference_px);
+        std::fprintf(dump,
+                     "%d,%ld,%d,%d,%.3f,%.3f,%.4f,%.4f,%.5f,%.5f,%.2f,%.2f,%.4f,%.4f,%.4f,%.5f,%.5f,%.5f,%."
+                     "5f,%.5f,%.5f,%.5f,%.5f\n",
+                     f, static_cast<long>(t.id), t.born_frame, static_cast<int>(t.status), X.x, X.y,
+                     t.position_px.x, t.position_px.y, t.position_px.x - x_true.x, t.position_px.y - x_true.y,
+                     trial.contact_signed_distance_px(t.position_px), stick_px, std::cos(ang), std::sin(ang),
+                     t.zncc, t.gradient.xx, t.gradient.xy, t.gradient.yx, t.gradient.yy, fv.gradient.xx,
+                     fv.gradient.xy, fv.gradient.yx, fv.gradient.yy);
+      }
       s.max_px = std::max(s.max_px, e);
       if (e > 1.0) ++s.wrong;
       if (e > 2.0 && std::getenv("FLOW_DUMP_WRONG"))
@@ -67,6 +108,14 @@ Score run_and_score(const samples::Trial& trial, const RenderedTrial& frames, co
       s.plate_max_px = std::max(s.plate_max_px, e);
       ++plate_n;
     }
+  }
+  if (dump) {
+    std::fclose(dump);
+    int reasons[16] = {};
+    for (const Track& t : tracker.tracks())
+      if (!is_alive(t.status)) ++reasons[static_cast<int>(t.status) & 15];
+    std::fprintf(stderr, "retired: left_contact %d, fb %d, poor %d, inconsistent %d, left_image %d\n",
+                 reasons[10], reasons[11], reasons[12], reasons[13], reasons[14]);
   }
   s.rms_px = s.samples > 0 ? std::sqrt(sum2 / static_cast<double>(s.samples)) : 0.0;
   s.birth_rms_px = s.born > 0 ? std::sqrt(birth2 / s.born) : 0.0;

@@ -21,6 +21,7 @@ TEST(Settings, Delhaye2016IsThePapersFixedSettings) {
   EXPECT_EQ(s.window_px, 101);
   EXPECT_EQ(s.max_features, 3000);
   EXPECT_FALSE(s.refine);
+  EXPECT_FALSE(s.fixed_shape_pass);
 }
 
 TEST(Settings, AutoIsSizedFromTheRidgePeriod) {
@@ -31,7 +32,9 @@ TEST(Settings, AutoIsSizedFromTheRidgePeriod) {
   EXPECT_EQ(s.window_px, 23);
   EXPECT_EQ(s.subset_radius_px, 13);
   EXPECT_EQ(s.grid_step_px, 8.0);
-  EXPECT_EQ(s.pyramid_levels, 2);  // 12 px needs two levels above a 23 px window's reach of ~6 px
+  EXPECT_TRUE(s.fixed_shape_pass);
+  EXPECT_EQ(s.fixed_shape_radius_px, 20);  // round(0.85 P)
+  EXPECT_EQ(s.pyramid_levels, 2);          // 12 px needs two levels above a 23 px window's reach of ~6 px
   h.max_displacement_px = 2.0;
   EXPECT_EQ(preset_settings("auto", h).pyramid_levels, 0);
   h.max_displacement_px = 200.0;  // capped: ridges must survive the pyramid (23.4 / 2^L >= 4 px)
