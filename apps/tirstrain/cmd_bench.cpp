@@ -171,7 +171,7 @@ std::string write_config_scene(const fs::path& trial, const Config& config, cons
 
 void write_plot(const std::vector<Row>& rows, const std::vector<std::string>& scenes,
                 const std::string& path) {
-  const int panel_w = 520, panel_h = 400, margin_l = 70, margin_b = 50, margin_t = 40, margin_r = 20;
+  const int panel_w = 540, panel_h = 400, margin_l = 100, margin_b = 50, margin_t = 40, margin_r = 20;
   cv::Mat image(panel_h, panel_w * static_cast<int>(scenes.size()), CV_8UC3, cv::Scalar(255, 255, 255));
   for (std::size_t s = 0; s < scenes.size(); ++s) {
     std::vector<const Row*> points;
@@ -179,7 +179,7 @@ void write_plot(const std::vector<Row>& rows, const std::vector<std::string>& sc
       if (r.scene == scenes[s] && std::isfinite(r.frames_per_s) && std::isfinite(r.strain_rms_all))
         points.push_back(&r);
     const int x0 = static_cast<int>(s) * panel_w;
-    cv::putText(image, scenes[s], {x0 + margin_l, 24}, cv::FONT_HERSHEY_SIMPLEX, 0.55, {0, 0, 0}, 1,
+    cv::putText(image, scenes[s], {x0 + margin_l, 18}, cv::FONT_HERSHEY_SIMPLEX, 0.55, {0, 0, 0}, 1,
                 cv::LINE_AA);
     if (points.empty()) continue;
     double fmin = 1e300, fmax = 0, emin = 1e300, emax = 0;
@@ -199,19 +199,20 @@ void write_plot(const std::vector<Row>& rows, const std::vector<std::string>& sc
     };
     cv::rectangle(image, {x0 + margin_l, margin_t}, {x0 + panel_w - margin_r, panel_h - margin_b}, {0, 0, 0});
     char text[64];
-    std::snprintf(text, sizeof text, "%.3g", fmin);
+    // The box's edges are the padded log range: label them with their own values.
+    std::snprintf(text, sizeof text, "%.3g", std::pow(10.0, lf0));
     cv::putText(image, text, {x0 + margin_l, panel_h - margin_b + 16}, cv::FONT_HERSHEY_SIMPLEX, 0.4,
                 {0, 0, 0});
-    std::snprintf(text, sizeof text, "%.3g", fmax);
+    std::snprintf(text, sizeof text, "%.3g", std::pow(10.0, lf1));
     cv::putText(image, text, {x0 + panel_w - margin_r - 40, panel_h - margin_b + 16},
                 cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
     cv::putText(image, "frames/s (log)", {x0 + panel_w / 2 - 40, panel_h - 12}, cv::FONT_HERSHEY_SIMPLEX,
                 0.45, {0, 0, 0});
-    std::snprintf(text, sizeof text, "%.3g", emax);
+    std::snprintf(text, sizeof text, "%.3g", std::pow(10.0, le1));
     cv::putText(image, text, {x0 + 8, margin_t + 10}, cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
-    std::snprintf(text, sizeof text, "%.3g", emin);
+    std::snprintf(text, sizeof text, "%.3g", std::pow(10.0, le0));
     cv::putText(image, text, {x0 + 8, panel_h - margin_b}, cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
-    cv::putText(image, "strain RMS", {x0 + 4, panel_h / 2}, cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
+    cv::putText(image, "strain RMS (log)", {x0 + 2, panel_h / 2}, cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
     // Pareto front: no other configuration is both faster and more accurate.
     std::vector<const Row*> front;
     for (const Row* a : points) {
@@ -238,8 +239,8 @@ void write_plot(const std::vector<Row>& rows, const std::vector<std::string>& sc
                   cv::LINE_AA);
     }
   }
-  cv::putText(image, "filled + orange line: Pareto front (faster and more accurate than every other point)",
-              {10, panel_h - 30}, cv::FONT_HERSHEY_SIMPLEX, 0.35, {0, 100, 200}, 1, cv::LINE_AA);
+  cv::putText(image, "filled + orange line: Pareto front (no other point is both faster and more accurate)",
+              {10, 34}, cv::FONT_HERSHEY_SIMPLEX, 0.35, {0, 100, 200}, 1, cv::LINE_AA);
   const std::string partial = path + ".partial.png";
   if (!cv::imwrite(partial, image)) throw Error("cannot write the plot", {.file = path});
   fs::rename(partial, path);
