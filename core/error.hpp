@@ -26,6 +26,20 @@ class Error : public std::runtime_error {
   ErrorContext context_;
 };
 
+// Runs fn(). An Error it throws that names no file (a library error that knows the parameter but not where
+// the value came from) is thrown again with its context completed by `complete(ErrorContext&)`.
+template <typename Fn, typename Complete>
+auto with_error_context(Fn&& fn, Complete&& complete) -> decltype(fn()) {
+  try {
+    return fn();
+  } catch (const Error& e) {
+    if (!e.context().file.empty()) throw;
+    ErrorContext context = e.context();
+    complete(context);
+    throw Error(e.message(), context);
+  }
+}
+
 // "file: frame 3: row 12: column 'normal_N': key 'x': message" with empty parts left out.
 std::string format_error(const std::string& message, const ErrorContext& context);
 

@@ -554,16 +554,11 @@ class ChannelsStage final : public Stage {
   template <typename Fn>
   auto located(const std::string& file, const std::string& column, const std::string& key, Fn fn) const
       -> decltype(fn()) {
-    try {
-      return fn();
-    } catch (const Error& e) {
-      if (!e.context().file.empty()) throw;
-      ErrorContext ctx = e.context();
+    return with_error_context(fn, [&](ErrorContext& ctx) {
       ctx.file = file;
       if (ctx.column.empty()) ctx.column = column;
       ctx.key = key;
-      throw Error(e.message(), ctx);
-    }
+    });
   }
 
   ts::ClockAlignment align() const {

@@ -68,11 +68,7 @@ ts::ChannelTable load(const Common& c, const std::string& path, std::vector<std:
 // Library errors know the parameter but not the file or option the user typed; add them.
 template <typename Fn>
 auto in_context(const std::string& file, const std::string& column, Fn fn) -> decltype(fn()) {
-  try {
-    return fn();
-  } catch (const Error& e) {
-    if (!e.context().file.empty()) throw;
-    ErrorContext ctx = e.context();
+  return with_error_context(fn, [&](ErrorContext& ctx) {
     ctx.file = file;
     if (ctx.column.empty()) ctx.column = column;
     if (!ctx.key.empty() && ctx.key.rfind("--", 0) != 0) {
@@ -81,8 +77,7 @@ auto in_context(const std::string& file, const std::string& column, Fn fn) -> de
         if (ch == '_') ch = '-';
       ctx.key = "--" + key;
     }
-    throw Error(e.message(), ctx);
-  }
+  });
 }
 
 // One-line description for `tirstrain signals --help`; the full contract goes into the verb's own --help.
