@@ -23,7 +23,9 @@ namespace ts = tirstrain::signals;
 namespace {
 
 std::string tmp_path(const std::string& name) {
-  const std::string dir = std::string(TIRSTRAIN_TEST_TMP) + "/signals_channels";
+  // One folder per test: CTest runs these tests in parallel processes.
+  const std::string dir = std::string(TIRSTRAIN_TEST_TMP) + "/signals_channels/" +
+                          ::testing::UnitTest::GetInstance()->current_test_info()->name();
   std::filesystem::create_directories(dir);
   return dir + "/" + name;
 }

@@ -20,8 +20,11 @@ namespace ts = tirstrain::signals;
 
 namespace {
 
+// One folder per test: CTest runs the tests of this file in parallel processes, and a shared trial.csv was
+// rewritten by one test while another read it.
 std::string dir() {
-  const std::string d = std::string(TIRSTRAIN_TEST_TMP) + "/signals_cli";
+  const std::string d = std::string(TIRSTRAIN_TEST_TMP) + "/signals_cli/" +
+                        ::testing::UnitTest::GetInstance()->current_test_info()->name();
   std::filesystem::create_directories(d);
   return d;
 }
