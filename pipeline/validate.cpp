@@ -282,7 +282,7 @@ ValidationReport run_validate(const ValidateOptions& options) {
       energy_error.add(100.0 * (energy[i] - u_truth[i]) / u_truth[i]);
   // Stick radius: frames in partial slip whose stick zone lies well inside the meshed interior and is not
   // tiny (the mesh resolves neither a stick zone near the border nor one a few triangles wide).
-  const double a_mm = trial.config().scene.px_per_mm > 0 ? trial.history().contact_radius_m() * 1e3 : 0.0;
+  const double a_mm = trial.history().contact_radius_m() * 1e3;
   for (std::size_t i = 0; i < n; ++i) {
     const double c = c_model[i];
     if (c > 0.2 * a_mm && c < a_mm - 2.0 * options.border_exclusion_mm && std::isfinite(c_measured[i]))
