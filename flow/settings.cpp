@@ -87,6 +87,11 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
   const int allowed = std::max(0, static_cast<int>(std::floor(std::log2(period / 4.0))));
   s.pyramid_levels = std::clamp(needed, 0, allowed);
   s.plate_subset_radius_px = 15;
+  s.ridge_period_px = period;
+  // The fixed-shape pass and the fusion decide the final position; the full-shape solve only has to land
+  // within a hundredth of a pixel of it.
+  s.match.convergence_px = 0.01;
+  s.adapt_to_texture = true;
   return s;
 }
 
@@ -121,7 +126,12 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   if (refine == "translation") s.shape = ShapeFunction::kTranslation;
   if (refine == "affine") s.shape = ShapeFunction::kAffine;
   if (refine == "quadratic") s.shape = ShapeFunction::kQuadratic;
+  const bool shaped_by_scene = t.has("refine") || t.has("prefilter_sigma_px") || t.has("subset_radius_px");
+  s.adapt_to_texture = t.boolean("adapt_to_texture", s.adapt_to_texture && !shaped_by_scene);
+  s.min_quadratic_snr = t.number("min_quadratic_snr", s.min_quadratic_snr, 0.0, 1e6);
+  s.min_unfiltered_snr = t.number("min_unfiltered_snr", s.min_unfiltered_snr, 0.0, 1e6);
   s.subset_radius_px = static_cast<int>(t.integer("subset_radius_px", s.subset_radius_px, 3, 200));
+  s.prefilter_sigma_px = t.number("prefilter_sigma_px", s.prefilter_sigma_px, 0.0, 20.0);
   s.subset_stride = static_cast<int>(t.integer("subset_stride", s.subset_stride, 1, 8));
   s.match.max_iterations = static_cast<int>(t.integer("max_iterations", s.match.max_iterations, 1, 1000));
   s.match.convergence_px = t.number("convergence_px", s.match.convergence_px, 1e-6, 1.0);
@@ -135,6 +145,7 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   s.smoothed_gradient = t.boolean("smoothed_gradient", s.smoothed_gradient);
   s.fixed_shape_radius_px =
       static_cast<int>(t.integer("fixed_shape_radius_px", s.fixed_shape_radius_px, 0, 200));
+  s.fixed_shape_stride = static_cast<int>(t.integer("fixed_shape_stride", s.fixed_shape_stride, 1, 8));
   s.neighbour_tolerance_px = t.number("neighbour_tolerance_px", s.neighbour_tolerance_px, 0.01, 100.0);
   s.border_exclusion_px = t.number("border_exclusion_px", s.border_exclusion_px, 0.0, 1000.0);
   s.border_margin_px = t.number("border_margin_px", s.border_margin_px, 0.0, 1000.0);

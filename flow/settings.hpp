@@ -51,6 +51,11 @@ struct TrackerSettings {
 
   // Refinement against the anchor frame (none: the paper's plain frame-to-frame chaining).
   bool refine = true;
+  // Both the anchor and the current frame are smoothed by a Gaussian of this σ before subset matching
+  // (0 = off). Ridges a period P apart keep exp(−2π²σ²/P²) of their contrast (0.92 at σ = P/16), while
+  // pixel noise drops to about 1/(2√π σ) of its level: on noisy frames the reference gradients are then
+  // mostly ridge, not noise, and IC-GN converges instead of creeping.
+  double prefilter_sigma_px = 0.0;
   ShapeFunction shape = ShapeFunction::kQuadratic;
   int subset_radius_px = 13;
   int subset_stride = 1;
@@ -61,6 +66,9 @@ struct TrackerSettings {
   // subset (its shape terms trade off against the along-ridge translation).
   bool fixed_shape_pass = true;
   int fixed_shape_radius_px = 0;  // that pass's subset radius, if larger than subset_radius_px
+  // Every this many pixels of that subset are matched: a translation needs far fewer samples than the
+  // second-order solve, and the wide subset's reach (the ridges' curvature) matters more than its density.
+  int fixed_shape_stride = 1;
   // The shape is a weighted quadratic fit of the neighbours' displacements (Gaussian weights of this σ, in
   // grid steps, out to 2σ).
   double fixed_shape_sigma_grid = 1.5;
@@ -95,6 +103,18 @@ struct TrackerSettings {
 
   // Largest expected skin displacement between consecutive frames (sizes the pyramid).
   double max_displacement_px = 12.0;
+
+  // Model only what the texture supports: frame 0's ridge contrast against its pixel noise is measured
+  // (TextureQuality). Below `min_unfiltered_snr` the frames are
+  // smoothed by P/24 before matching (noise-free frames are matched best unsmoothed); below
+  // `min_quadratic_snr` the subsets also drop the second-order terms (their six curvature parameters then
+  // follow the noise and IC-GN wanders), are smoothed by P/12 and grow to 0.75 P. The curvature still
+  // enters through the fixed-shape pass, from the neighbours. Set by the automatic preset; a scene that
+  // sets refine, prefilter_sigma_px or subset_radius_px itself turns it off.
+  bool adapt_to_texture = false;
+  double min_unfiltered_snr = 30.0;
+  double min_quadratic_snr = 4.0;
+  double ridge_period_px = 0.0;  // what the preset was sized from (0: unknown, the LK window is used)
 };
 
 // What the presets are sized from.

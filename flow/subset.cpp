@@ -5,6 +5,9 @@
 
 #include <algorithm>
 #include <cmath>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace tirstrain::flow {
 namespace {
@@ -13,29 +16,49 @@ using Vector12 = Eigen::Matrix<double, 12, 1>;
 // Directions of the scaled Hessian weaker than this fraction of the strongest are not solved for.
 constexpr double kEigenFloor = 2e-3;
 
-inline void keys_weights(float t, float w[4]) {
-  const float t2 = t * t, t3 = t2 * t;
-  w[0] = -0.5f * t3 + t2 - 0.5f * t;
-  w[1] = 1.5f * t3 - 2.5f * t2 + 1.0f;
-  w[2] = -1.5f * t3 + 2.0f * t2 + 0.5f * t;
-  w[3] = 0.5f * t3 - 0.5f * t2;
+// Keys cubic convolution (a = −0.5) of the 4×4 neighbourhood whose top-left sample is `row[0]`, at the
+// fraction (tx, ty) ∈ [0, 1) past its second row and column. The weights w(t) = ((A t + B) t + C) t + D per
+// tap; the SSE2 path evaluates all four taps of a direction in one vector, and this kernel is most of the
+// tracker's time.
+#if defined(__SSE2__)
+inline __m128 keys_weights(float t) {
+  const __m128 vt = _mm_set1_ps(t);
+  __m128 w = _mm_add_ps(_mm_mul_ps(_mm_setr_ps(-0.5f, 1.5f, -1.5f, 0.5f), vt),
+                        _mm_setr_ps(1.0f, -2.5f, 2.0f, -0.5f));
+  w = _mm_add_ps(_mm_mul_ps(w, vt), _mm_setr_ps(-0.5f, 0.0f, 0.5f, 0.0f));
+  return _mm_add_ps(_mm_mul_ps(w, vt), _mm_setr_ps(0.0f, 1.0f, 0.0f, 0.0f));
 }
 
-inline bool sample(const cv::Mat& image, double x, double y, float& value) {
-  const double fx = std::floor(x), fy = std::floor(y);
-  const int ix = static_cast<int>(fx), iy = static_cast<int>(fy);
-  if (ix < 1 || iy < 1 || ix + 2 >= image.cols || iy + 2 >= image.rows) return false;
-  float wx[4], wy[4];
-  keys_weights(static_cast<float>(x - fx), wx);
-  keys_weights(static_cast<float>(y - fy), wy);
-  const std::size_t step = image.step1();
-  const float* row = image.ptr<float>(iy - 1) + (ix - 1);
-  float sum = 0.0f;
-  for (int j = 0; j < 4; ++j, row += step)
-    sum += wy[j] * (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3]);
-  value = sum;
-  return true;
+inline float interpolate_keys(const float* row, std::size_t step, float tx, float ty) {
+  const __m128 wx = keys_weights(tx), wy = keys_weights(ty);
+  __m128 acc = _mm_mul_ps(_mm_loadu_ps(row), _mm_shuffle_ps(wy, wy, 0x00));
+  acc = _mm_add_ps(acc, _mm_mul_ps(_mm_loadu_ps(row + step), _mm_shuffle_ps(wy, wy, 0x55)));
+  acc = _mm_add_ps(acc, _mm_mul_ps(_mm_loadu_ps(row + 2 * step), _mm_shuffle_ps(wy, wy, 0xAA)));
+  acc = _mm_add_ps(acc, _mm_mul_ps(_mm_loadu_ps(row + 3 * step), _mm_shuffle_ps(wy, wy, 0xFF)));
+  acc = _mm_mul_ps(acc, wx);
+  __m128 swapped = _mm_shuffle_ps(acc, acc, _MM_SHUFFLE(2, 3, 0, 1));
+  const __m128 pairs = _mm_add_ps(acc, swapped);
+  swapped = _mm_movehl_ps(swapped, pairs);
+  return _mm_cvtss_f32(_mm_add_ss(pairs, swapped));
 }
+#else
+inline void keys_weights(float t, float w[4]) {
+  w[0] = ((-0.5f * t + 1.0f) * t - 0.5f) * t;
+  w[1] = ((1.5f * t - 2.5f) * t) * t + 1.0f;
+  w[2] = ((-1.5f * t + 2.0f) * t + 0.5f) * t;
+  w[3] = ((0.5f * t - 0.5f) * t) * t;
+}
+
+inline float interpolate_keys(const float* row, std::size_t step, float tx, float ty) {
+  float wx[4], wy[4];
+  keys_weights(tx, wx);
+  keys_weights(ty, wy);
+  float sum = 0.0f;
+  for (int k = 0; k < 4; ++k, row += step)
+    sum += wy[k] * (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3]);
+  return sum;
+}
+#endif
 
 // Steepest-descent image of one reference pixel: ∇f · ∂W/∂p at p = 0.
 inline void jacobian(float dx, float dy, float gx, float gy, double j[12]) {
@@ -146,17 +169,47 @@ Eigen::MatrixXd truncated_inverse(const Eigen::MatrixXd& h, double relative_floo
          d.asDiagonal();
 }
 
-inline bool mask_allows(const cv::Mat& mask, double x, double y) {
-  if (mask.empty()) return true;
-  const int ix = static_cast<int>(std::lround(x)), iy = static_cast<int>(std::lround(y));
-  if (ix < 0 || iy < 0 || ix >= mask.cols || iy >= mask.rows) return false;
-  return mask.ptr<std::uint8_t>(iy)[ix] != 0;
-}
+// The current frame and its mask, as raw pointers: the match loop samples every subset pixel per
+// iteration, and going through cv::Mat accessors there cost a fifth of the tracker's time.
+class Sampler {
+ public:
+  Sampler(const cv::Mat& image, const cv::Mat& mask)
+      : data_(image.ptr<float>()),
+        step_(image.step1()),
+        cols_(image.cols),
+        rows_(image.rows),
+        mask_(mask.empty() ? nullptr : mask.ptr<std::uint8_t>()),
+        mask_step_(mask.empty() ? 0 : mask.step1()) {
+    CV_Assert(image.type() == CV_32F &&
+              (mask.empty() || (mask.type() == CV_8U && mask.size() == image.size())));
+  }
+
+  // Keys bicubic value at (x, y), if its 4×4 support is inside the image and the nearest pixel inside the
+  // mask. Written for x, y ≥ 1, where truncation is the floor and x + 0.5 truncated the nearest pixel.
+  bool sample(double x, double y, float& value) const {
+    if (!(x >= 1.0 && y >= 1.0)) return false;  // also rejects NaN
+    const int ix = static_cast<int>(x), iy = static_cast<int>(y);
+    if (ix + 2 >= cols_ || iy + 2 >= rows_) return false;
+    if (mask_ && mask_[static_cast<std::size_t>(static_cast<int>(y + 0.5)) * mask_step_ +
+                       static_cast<std::size_t>(static_cast<int>(x + 0.5))] == 0)
+      return false;
+    value = interpolate_keys(data_ + static_cast<std::size_t>(iy - 1) * step_ + (ix - 1), step_,
+                             static_cast<float>(x - ix), static_cast<float>(y - iy));
+    return true;
+  }
+
+ private:
+  const float* data_;
+  std::size_t step_;
+  int cols_, rows_;
+  const std::uint8_t* mask_;
+  std::size_t mask_step_;
+};
 
 }  // namespace
 
 bool sample_bicubic(const cv::Mat& image, double x, double y, float& value) {
-  return sample(image, x, y, value);
+  return Sampler(image, cv::Mat()).sample(x, y, value);
 }
 
 void AnchorImage::assign(const cv::Mat& image, const cv::Mat& mask) {
@@ -242,11 +295,12 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
 double Subset::correlation(const cv::Mat& current, const cv::Mat& current_mask, const Warp& warp) const {
   double sf = 0, sff = 0, sg = 0, sgg = 0, sfg = 0;
   long count = 0;
+  const Sampler image(current, current_mask);
   for (const Pixel& p : points_) {
     const Vec2 u = warp.displacement_px(p.dx, p.dy);
     const double x = centre_.x + p.dx + u.x, y = centre_.y + p.dy + u.y;
     float g;
-    if (!mask_allows(current_mask, x, y) || !sample(current, x, y, g)) continue;
+    if (!image.sample(x, y, g)) continue;
     sf += p.f, sff += static_cast<double>(p.f) * p.f, sg += g, sgg += static_cast<double>(g) * g;
     sfg += static_cast<double>(p.f) * g;
     ++count;
@@ -273,7 +327,7 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
   const int n = options.translation_only ? 2 : n_shape;
   const double total = static_cast<double>(points_.size());
   const double r = radius_px_;
-  const bool has_mask = !current_mask.empty();
+  const Sampler image(current, current_mask);
   double j[12];
   Matrix h_out;
   Vector sj_out, sjf_out, sjg;
@@ -285,37 +339,63 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
     sjg.setZero();
     double sf_out = 0, sff_out = 0, sg = 0, sgg = 0, sfg = 0;
     long outside = 0;
-    const auto& q = warp.p;
-    for (const Pixel& p : points_) {
-      const double dx = p.dx, dy = p.dy;
-      const double x = centre_.x + dx + q[0] + q[2] * dx + q[3] * dy +
-                       (0.5 * q[6] * dx * dx + q[7] * dx * dy + 0.5 * q[8] * dy * dy);
-      const double y = centre_.y + dy + q[1] + q[4] * dx + q[5] * dy +
-                       (0.5 * q[9] * dx * dx + q[10] * dx * dy + 0.5 * q[11] * dy * dy);
-      float g = 0.0f;
-      if ((has_mask && !mask_allows(current_mask, x, y)) || !sample(current, x, y, g)) {
-        jacobian(p.dx, p.dy, p.gx, p.gy, j);
-        const Eigen::Map<const Vector12> jv(j);
-        ++outside;
-        h_out.topLeftCorner(n, n).noalias() += jv.head(n) * jv.head(n).transpose();
-        sj_out.head(n) += jv.head(n);
-        sjf_out.head(n) += jv.head(n) * p.f;
-        sf_out += p.f;
-        sff_out += static_cast<double>(p.f) * p.f;
-        continue;
+    // One pass over the subset for N parameters. The sums live in locals (registers), not in Eigen
+    // vectors: the compiler must otherwise store and reload them for every pixel.
+    const auto accumulate = [&]<int N>() {
+      const auto& q = warp.p;
+      double a[N] = {};
+      double a_g = 0, a_gg = 0, a_fg = 0;
+      for (const Pixel& p : points_) {
+        const double dx = p.dx, dy = p.dy;
+        const double x = centre_.x + dx + q[0] + q[2] * dx + q[3] * dy +
+                         (0.5 * q[6] * dx * dx + q[7] * dx * dy + 0.5 * q[8] * dy * dy);
+        const double y = centre_.y + dy + q[1] + q[4] * dx + q[5] * dy +
+                         (0.5 * q[9] * dx * dx + q[10] * dx * dy + 0.5 * q[11] * dy * dy);
+        float g = 0.0f;
+        if (!image.sample(x, y, g)) {
+          jacobian(p.dx, p.dy, p.gx, p.gy, j);
+          const Eigen::Map<const Vector12> jv(j);
+          ++outside;
+          h_out.topLeftCorner(n, n).noalias() += jv.head(n) * jv.head(n).transpose();
+          sj_out.head(n) += jv.head(n);
+          sjf_out.head(n) += jv.head(n) * p.f;
+          sf_out += p.f;
+          sff_out += static_cast<double>(p.f) * p.f;
+          continue;
+        }
+        const double ggx = static_cast<double>(p.gx) * g, ggy = static_cast<double>(p.gy) * g;
+        a[0] += ggx;
+        a[1] += ggy;
+        if constexpr (N > 2) {
+          a[2] += ggx * dx;
+          a[3] += ggx * dy;
+          a[4] += ggy * dx;
+          a[5] += ggy * dy;
+        }
+        if constexpr (N > 6) {
+          const double hxx = 0.5 * dx * dx, hxy = dx * dy, hyy = 0.5 * dy * dy;
+          a[6] += ggx * hxx;
+          a[7] += ggx * hxy;
+          a[8] += ggx * hyy;
+          a[9] += ggy * hxx;
+          a[10] += ggy * hxy;
+          a[11] += ggy * hyy;
+        }
+        a_g += g;
+        a_gg += static_cast<double>(g) * g;
+        a_fg += static_cast<double>(p.f) * g;
       }
-      // Σ J g, unrolled: this loop is the tracker's hot spot.
-      if (n == 2) {
-        sjg[0] += static_cast<double>(p.gx) * g;
-        sjg[1] += static_cast<double>(p.gy) * g;
-      } else {
-        jacobian(p.dx, p.dy, p.gx, p.gy, j);
-        for (int k = 0; k < n; ++k) sjg[k] += j[k] * g;
-      }
-      sg += g;
-      sgg += static_cast<double>(g) * g;
-      sfg += static_cast<double>(p.f) * g;
-    }
+      for (int k = 0; k < N; ++k) sjg[k] = a[k];
+      sg = a_g;
+      sgg = a_gg;
+      sfg = a_fg;
+    };
+    if (n == 2)
+      accumulate.template operator()<2>();
+    else if (n == 6)
+      accumulate.template operator()<6>();
+    else
+      accumulate.template operator()<12>();
     const double count = total - static_cast<double>(outside);
     result.valid_fraction = count / total;
     if (result.valid_fraction < options.min_valid_fraction || count < 2.0 * n) return result;

@@ -152,6 +152,9 @@ struct FeatureTracker::Impl {
 
   cv::Mat first_mask;  // frame 0's contact
   cv::Mat current_f, current_u8, previous_u8, mask, match_mask, birth_mask, eigen;
+  cv::Mat match_f;  // what subsets are matched in: current_f, smoothed by prefilter_sigma_px
+  TextureQuality texture;
+  bool low_snr = false;
   cv::Rect roi;
   std::vector<cv::Mat> previous_pyramid, current_pyramid;
   cv::Mat previous_hp, current_hp, hp_blur, hp_weight;
@@ -177,6 +180,8 @@ struct FeatureTracker::Impl {
   void check_input(const cv::Mat& image, const cv::Mat& contact_mask) const;
   void prepare(const cv::Mat& image, const cv::Mat& contact_mask);
   void update_roi(bool rebuild_previous);
+  void prepare_matching();
+  void adapt_to_texture();
   void build_pyramid(const cv::Mat& u8, std::vector<cv::Mat>& pyramid) const;
   void high_pass(const cv::Mat& image, cv::Mat& out);
   int add_key_frame();
@@ -232,6 +237,40 @@ void FeatureTracker::Impl::prepare(const cv::Mat& image, const cv::Mat& contact_
   }
 }
 
+// Frame 0 decides how much model the subsets can afford (TrackerSettings::adapt_to_texture).
+void FeatureTracker::Impl::adapt_to_texture() {
+  texture = TextureQuality{};
+  low_snr = false;
+  if (!settings.refine) return;
+  const double period = settings.ridge_period_px > 0.0 ? settings.ridge_period_px : settings.window_px;
+  texture = measure_texture(current_f, mask, period);
+  if (!settings.adapt_to_texture || texture.pixels == 0 || texture.snr >= settings.min_unfiltered_snr) return;
+  // Light smoothing keeps 97 % of the ridge contrast and takes most pixel noise out of the reference
+  // gradients: faster convergence and a lower error on noisy frames (not on noise-free ones).
+  settings.prefilter_sigma_px =
+      std::max(settings.prefilter_sigma_px, std::round(10.0 * period / 24.0) / 10.0);
+  if (texture.snr >= settings.min_quadratic_snr) return;
+  low_snr = true;
+  if (settings.shape == ShapeFunction::kQuadratic) settings.shape = ShapeFunction::kAffine;
+  settings.prefilter_sigma_px =
+      std::max(settings.prefilter_sigma_px, std::round(10.0 * period / 12.0) / 10.0);
+  settings.subset_radius_px =
+      std::max(settings.subset_radius_px, static_cast<int>(std::lround(0.75 * period)));
+}
+
+// After update_roi: the smoothing covers the tracked region only, as the rest is never sampled.
+void FeatureTracker::Impl::prepare_matching() {
+  if (!settings.refine) return;
+  if (settings.prefilter_sigma_px <= 0.0) {
+    match_f = current_f;
+    return;
+  }
+  if (match_f.size() != current_f.size() || match_f.data == current_f.data)
+    match_f.create(current_f.size(), CV_32F);
+  cv::GaussianBlur(current_f(roi), match_f(roi), cv::Size(), settings.prefilter_sigma_px,
+                   settings.prefilter_sigma_px, cv::BORDER_REPLICATE);
+}
+
 void FeatureTracker::Impl::update_roi(bool rebuild_previous) {
   cv::Rect box = cv::boundingRect(mask);
   if (box.area() == 0) box = cv::Rect(0, 0, size.width, size.height);
@@ -276,7 +315,7 @@ int FeatureTracker::Impl::add_key_frame() {
   auto key = std::make_unique<KeyFrame>();
   key->frame = frame;
   if (settings.refine)
-    key->anchor.assign(current_f, match_mask);
+    key->anchor.assign(match_f, match_mask);
   else
     current_u8.copyTo(key->image_u8);
   // Reuse a released slot so the list does not grow over a long trial.
@@ -320,10 +359,11 @@ bool FeatureTracker::Impl::create_track(Vec2 position, Vec2 reference, const Mat
     const int side = 2 * (r / settings.subset_stride) + 1;
     const bool ok = st.subset.build(keys[static_cast<std::size_t>(key)]->anchor, centre, r,
                                     settings.subset_stride, settings.shape, side * side / 3);
-    if (ok && settings.fixed_shape_pass && settings.fixed_shape_radius_px > r) {
-      const int rw = settings.fixed_shape_radius_px;
-      const int wside = 2 * (rw / settings.subset_stride) + 1;
-      st.wide.build(keys[static_cast<std::size_t>(key)]->anchor, centre, rw, settings.subset_stride,
+    const int rw = std::max(r, settings.fixed_shape_radius_px);
+    if (ok && settings.fixed_shape_pass &&
+        (rw > r || settings.fixed_shape_stride != settings.subset_stride)) {
+      const int wside = 2 * (rw / settings.fixed_shape_stride) + 1;
+      st.wide.build(keys[static_cast<std::size_t>(key)]->anchor, centre, rw, settings.fixed_shape_stride,
                     ShapeFunction::kTranslation, wside * wside / 3);
     }
     if (!ok) {
@@ -390,7 +430,7 @@ void FeatureTracker::Impl::match_track(int index, Vec2 guess, const Warp* initia
                               {guess.x - c.x - st.offset.x, guess.y - c.y - st.offset.y});
   st.guess = guess;
   st.fixed_shape = false;
-  st.match = st.subset.match(current_f, match_mask, st.warp, settings.match);
+  st.match = st.subset.match(match_f, match_mask, st.warp, settings.match);
   const Vec2 u = st.warp.displacement_px(st.offset.x, st.offset.y);
   st.candidate = {c.x + st.offset.x + u.x, c.y + st.offset.y + u.y};
   st.matched = st.match.converged && st.match.zncc >= settings.min_zncc;
@@ -713,7 +753,7 @@ void FeatureTracker::Impl::fixed_shape_pass() {
       TrackState& st = states[static_cast<std::size_t>(i)];
       Warp w = shapes[static_cast<std::size_t>(i)];
       const Subset& subset = st.wide.empty() ? st.subset : st.wide;
-      const MatchResult m = subset.match(current_f, match_mask, w, options);
+      const MatchResult m = subset.match(match_f, match_mask, w, options);
       if (!m.converged || m.zncc < settings.min_zncc) continue;
       const cv::Point c = st.subset.centre();
       const Vec2 u = w.displacement_px(st.offset.x, st.offset.y);
@@ -1057,7 +1097,9 @@ void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, do
   m.roi = cv::Rect();
   m.stats = FrameStats{};
   m.prepare(image, contact_mask);
+  m.adapt_to_texture();
   m.update_roi(false);
+  m.prepare_matching();
   m.build_pyramid(m.current_u8, m.previous_pyramid);
   if (m.settings.global_prediction) m.high_pass(m.current_f, m.previous_hp);
   m.add_key_frame();
@@ -1102,6 +1144,7 @@ const FrameStats& FeatureTracker::track(const cv::Mat& image, const cv::Mat& con
   m.stats.frame = m.frame;
   m.prepare(image, contact_mask);
   m.update_roi(true);
+  m.prepare_matching();
   m.build_pyramid(m.current_u8, m.current_pyramid);
   for (Track& t : m.tracks)
     if (t.status == TrackStatus::kBorn || t.status == TrackStatus::kRecovered ||
@@ -1158,6 +1201,12 @@ const FrameStats& FeatureTracker::stats() const {
 }
 const TrackerSettings& FeatureTracker::settings() const {
   return impl_->settings;
+}
+const TextureQuality& FeatureTracker::texture() const {
+  return impl_->texture;
+}
+bool FeatureTracker::low_snr_texture() const {
+  return impl_->low_snr;
 }
 std::optional<Vec2> FeatureTracker::plate_displacement_px() const {
   if (!impl_->plate) return std::nullopt;

@@ -23,6 +23,7 @@
 #include "core/scene.hpp"
 #include "core/tensor2.hpp"
 #include "flow/settings.hpp"
+#include "flow/texture.hpp"
 
 namespace tirstrain::flow {
 
@@ -90,7 +91,12 @@ class FeatureTracker {
   // Every track ever created; tracks()[k].id == k, so K only grows. Alive: is_alive(status).
   const std::vector<Track>& tracks() const;
   const FrameStats& stats() const;
+  // The settings in effect (after adapt_to_texture, once started).
   const TrackerSettings& settings() const;
+  // Frame 0's texture as measured at start() (refined tracking only), and whether it made the subsets
+  // drop to the low-SNR configuration.
+  const TextureQuality& texture() const;
+  bool low_snr_texture() const;
   // Plate displacement since frame 0 (median over the pattern's subsets); nullopt without a pattern ROI.
   std::optional<Vec2> plate_displacement_px() const;
 

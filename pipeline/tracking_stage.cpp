@@ -233,16 +233,27 @@ class TrackingStage final : public Stage {
     cv::fillPoly(mask_, std::vector<std::vector<cv::Point>>{outline}, cv::Scalar(255));
   }
 
+  // The settings in effect: the tracker may have adapted them to frame 0's texture.
   nlohmann::json settings_summary() const {
-    return {{"preset", settings_.preset},
-            {"grid_step_px", settings_.grid_step_px},
-            {"max_features", settings_.max_features},
-            {"window_px", settings_.window_px},
-            {"pyramid_levels", settings_.pyramid_levels},
-            {"refine", settings_.refine ? flow::to_string(settings_.shape) : std::string("none")},
-            {"subset_radius_px", settings_.subset_radius_px},
-            {"border_exclusion_px", settings_.border_exclusion_px},
-            {"max_displacement_px", settings_.max_displacement_px}};
+    const flow::TrackerSettings& s = tracker_ ? tracker_->settings() : settings_;
+    nlohmann::json j = {{"preset", s.preset},
+                        {"grid_step_px", s.grid_step_px},
+                        {"max_features", s.max_features},
+                        {"window_px", s.window_px},
+                        {"pyramid_levels", s.pyramid_levels},
+                        {"refine", s.refine ? flow::to_string(s.shape) : std::string("none")},
+                        {"subset_radius_px", s.subset_radius_px},
+                        {"prefilter_sigma_px", s.prefilter_sigma_px},
+                        {"border_exclusion_px", s.border_exclusion_px},
+                        {"max_displacement_px", s.max_displacement_px}};
+    if (tracker_ && s.refine) {
+      const flow::TextureQuality& q = tracker_->texture();
+      j["texture_snr"] = q.snr;
+      j["texture_noise_sigma"] = q.noise_sigma;
+      j["texture_ridge_rms"] = q.ridge_rms;
+      j["low_snr_texture"] = tracker_->low_snr_texture();
+    }
+    return j;
   }
 
   Scene scene_;
