@@ -126,8 +126,8 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   if (refine == "translation") s.shape = ShapeFunction::kTranslation;
   if (refine == "affine") s.shape = ShapeFunction::kAffine;
   if (refine == "quadratic") s.shape = ShapeFunction::kQuadratic;
-  const bool shaped_by_scene = t.has("refine") || t.has("prefilter_sigma_px") || t.has("subset_radius_px");
-  s.adapt_to_texture = t.boolean("adapt_to_texture", s.adapt_to_texture && !shaped_by_scene);
+  s.pinned = {t.has("refine"), t.has("prefilter_sigma_px"), t.has("subset_radius_px")};
+  s.adapt_to_texture = t.boolean("adapt_to_texture", s.adapt_to_texture);
   s.min_quadratic_snr = t.number("min_quadratic_snr", s.min_quadratic_snr, 0.0, 1e6);
   s.min_unfiltered_snr = t.number("min_unfiltered_snr", s.min_unfiltered_snr, 0.0, 1e6);
   s.subset_radius_px = static_cast<int>(t.integer("subset_radius_px", s.subset_radius_px, 3, 200));

@@ -109,9 +109,12 @@ struct TrackerSettings {
   // smoothed by P/24 before matching (noise-free frames are matched best unsmoothed); below
   // `min_quadratic_snr` the subsets also drop the second-order terms (their six curvature parameters then
   // follow the noise and IC-GN wanders), are smoothed by P/12 and grow to 0.75 P. The curvature still
-  // enters through the fixed-shape pass, from the neighbours. Set by the automatic preset; a scene that
-  // sets refine, prefilter_sigma_px or subset_radius_px itself turns it off.
+  // enters through the fixed-shape pass, from the neighbours. Set by the automatic preset; what a scene sets
+  // itself (refine, prefilter_sigma_px, subset_radius_px) is kept as it is.
   bool adapt_to_texture = false;
+  struct Pinned {
+    bool shape = false, prefilter = false, subset_radius = false;
+  } pinned;
   double min_unfiltered_snr = 30.0;
   double min_quadratic_snr = 4.0;
   double ridge_period_px = 0.0;  // what the preset was sized from (0: unknown, the LK window is used)

@@ -247,15 +247,19 @@ void FeatureTracker::Impl::adapt_to_texture() {
   if (!settings.adapt_to_texture || texture.pixels == 0 || texture.snr >= settings.min_unfiltered_snr) return;
   // Light smoothing keeps 97 % of the ridge contrast and takes most pixel noise out of the reference
   // gradients: faster convergence and a lower error on noisy frames (not on noise-free ones).
-  settings.prefilter_sigma_px =
-      std::max(settings.prefilter_sigma_px, std::round(10.0 * period / 24.0) / 10.0);
+  const auto& pinned = settings.pinned;
+  if (!pinned.prefilter)
+    settings.prefilter_sigma_px =
+        std::max(settings.prefilter_sigma_px, std::round(10.0 * period / 24.0) / 10.0);
   if (texture.snr >= settings.min_quadratic_snr) return;
   low_snr = true;
-  if (settings.shape == ShapeFunction::kQuadratic) settings.shape = ShapeFunction::kAffine;
-  settings.prefilter_sigma_px =
-      std::max(settings.prefilter_sigma_px, std::round(10.0 * period / 12.0) / 10.0);
-  settings.subset_radius_px =
-      std::max(settings.subset_radius_px, static_cast<int>(std::lround(0.75 * period)));
+  if (!pinned.shape && settings.shape == ShapeFunction::kQuadratic) settings.shape = ShapeFunction::kAffine;
+  if (!pinned.prefilter)
+    settings.prefilter_sigma_px =
+        std::max(settings.prefilter_sigma_px, std::round(10.0 * period / 12.0) / 10.0);
+  if (!pinned.subset_radius)
+    settings.subset_radius_px =
+        std::max(settings.subset_radius_px, static_cast<int>(std::lround(0.75 * period)));
 }
 
 // After update_roi: the smoothing covers the tracked region only, as the rest is never sampled.

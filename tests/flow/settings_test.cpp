@@ -48,6 +48,13 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_EQ(s.shape, ShapeFunction::kAffine);
   EXPECT_EQ(s.window_px, 31);
   EXPECT_EQ(parse_tracking_settings(scene_with("{}"), "delhaye2016").window_px, 101);
+  // What the scene sets is pinned: the texture adaptation leaves it alone, and adapts the rest.
+  EXPECT_TRUE(s.adapt_to_texture);
+  EXPECT_TRUE(s.pinned.shape);
+  EXPECT_FALSE(s.pinned.prefilter);
+  EXPECT_FALSE(s.pinned.subset_radius);
+  EXPECT_FALSE(parse_tracking_settings(scene_with("{adapt_to_texture: false}")).adapt_to_texture);
+  EXPECT_FALSE(parse_tracking_settings(scene_with("{}"), "delhaye2016").adapt_to_texture);
 }
 
 TEST(Settings, StrictParsingNamesTheKey) {

@@ -157,6 +157,14 @@ TEST(Tracker, NoisyTextureSwitchesToTheLowSnrSubsets) {
   EXPECT_LT(probe.texture().snr, 4.0);
   EXPECT_EQ(probe.settings().shape, ShapeFunction::kAffine);
   EXPECT_GT(probe.settings().prefilter_sigma_px, 1.5);
+  // A pinned setting is kept.
+  TrackerSettings pinned = auto_settings();
+  pinned.pinned.shape = true;
+  FeatureTracker kept(pinned);
+  kept.start(frames.frames[0], frames.mask, 0.0);
+  EXPECT_TRUE(kept.low_snr_texture());
+  EXPECT_EQ(kept.settings().shape, ShapeFunction::kQuadratic);
+  EXPECT_GT(kept.settings().prefilter_sigma_px, 1.5);
   // Measured: adapted 0.25 px RMS (the noise floor of one subset here), 90 of 94 tracks alive at the end;
   // unadapted, every track is retired within the first frames (67 track-frames scored in all).
   EXPECT_GT(adapted.frame_alive.back(), 0.75 * adapted.tracks_started);
