@@ -187,9 +187,10 @@ class Sampler {
   // Keys bicubic value at (x, y), if its 4×4 support is inside the image and the nearest pixel inside the
   // mask. Written for x, y ≥ 1, where truncation is the floor and x + 0.5 truncated the nearest pixel.
   bool sample(double x, double y, float& value) const {
-    if (!(x >= 1.0 && y >= 1.0)) return false;  // also rejects NaN
+    // Bounds checked on the doubles: a runaway warp's 1e12 must not reach the int conversion (undefined;
+    // INT_MIN on x86, which an integer check would let through). Also rejects NaN.
+    if (!(x >= 1.0 && y >= 1.0 && x < cols_ - 2 && y < rows_ - 2)) return false;
     const int ix = static_cast<int>(x), iy = static_cast<int>(y);
-    if (ix + 2 >= cols_ || iy + 2 >= rows_) return false;
     if (mask_ && mask_[static_cast<std::size_t>(static_cast<int>(y + 0.5)) * mask_step_ +
                        static_cast<std::size_t>(static_cast<int>(x + 0.5))] == 0)
       return false;

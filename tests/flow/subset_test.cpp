@@ -158,6 +158,11 @@ TEST(Subset, BicubicReproducesSmoothSignal) {
   EXPECT_NEAR(v, ridge_texture(10.3, 12.7), 2e-3);
   EXPECT_FALSE(sample_bicubic(img, 0.5, 10.0, v));
   EXPECT_FALSE(sample_bicubic(img, 10.0, 30.2, v));
+  // A runaway warp's coordinates are outside, not an int overflow into a wild read.
+  EXPECT_FALSE(sample_bicubic(img, 1e12, 10.0, v));
+  EXPECT_FALSE(sample_bicubic(img, 10.0, 3e9, v));
+  EXPECT_FALSE(sample_bicubic(img, std::nan(""), 10.0, v));
+  EXPECT_FALSE(sample_bicubic(img, -1e12, 10.0, v));
 }
 
 }  // namespace
