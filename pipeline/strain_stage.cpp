@@ -11,6 +11,7 @@
 #include "strain/evolving_mesh.hpp"
 #include "strain/normalised_map.hpp"
 #include "strain/settings.hpp"
+#include "strain/stick_zone.hpp"
 
 namespace tirstrain::pipeline {
 namespace {
@@ -45,6 +46,7 @@ struct StrainFrame {
   strain::TriangleCounts counts;
   double energy_J = kNaN;
   double stick_ratio = kNaN;
+  strain::StickZoneFit stick_zone;  // stick radius c from the Cattaneo–Mindlin slip-profile fit
   double t_s = kNaN;
 };
 
@@ -72,6 +74,15 @@ class StrainStage final : public Stage {
     if (context.tracking->reference_frame) {
       reference_normalization_ = *context.tracking->reference_normalization;
       reference_has_ellipse_ = context.tracking->reference_has_ellipse;
+      // The reference contact as a disk map for the stick-radius fit: centre, axes and angle of the
+      // normalisation (q = s R(−φ)(X − centre), semi-major 1/s, semi-minor aspect/s).
+      const cv::Matx23d m = reference_normalization_.forward_matrix();
+      const double scale = reference_normalization_.scale_per_px();
+      const cv::Point2d centre = reference_normalization_.denormalize({0.0, 0.0});
+      disk_ = reference_has_ellipse_ ? strain::contact_disk({centre.x, centre.y}, 1.0 / scale,
+                                                            reference_normalization_.aspect() / scale,
+                                                            std::atan2(m(0, 1), m(0, 0)))
+                                     : strain::ContactDisk{};
     }
     reference_px_.resize(tracks.size());
     current_px_.assign(tracks.size(), Vec2{kNaN, kNaN});
@@ -147,6 +158,9 @@ class StrainStage final : public Stage {
     }
     record.energy_J = fs.counts.valid > 0 ? settings_.strain.depth_m * energy : kNaN;
     record.stick_ratio = fs.stick_ratio;
+    if (reference_has_ellipse_)
+      record.stick_zone = strain::fit_stick_zone(reference_px_, current_px_, disk_, settings_.strain.poisson,
+                                                 settings_.stick_zone);
     if (std::isfinite(record.energy_J)) context.strain_energy_J = record.energy_J;
 
     previous_px_ = current_px_;
@@ -190,7 +204,7 @@ class StrainStage final : public Stage {
   }
 
   std::vector<std::string> csv_header() const override {
-    return {"triangles_valid", "triangles_excluded", "strain_energy_J", "stick_ratio"};
+    return {"triangles_valid", "triangles_excluded", "strain_energy_J", "stick_ratio", "stick_radius_mm"};
   }
 
   void csv_row(std::size_t row, std::vector<std::string>& cells) const override {
@@ -199,6 +213,7 @@ class StrainStage final : public Stage {
     cells.push_back(std::to_string(f.counts.excluded()));
     cells.push_back(format_double(f.energy_J));
     cells.push_back(format_double(f.stick_ratio));
+    cells.push_back(format_double(stick_radius_mm(f)));
   }
 
   void write(H5Writer& out) const override {
@@ -215,11 +230,28 @@ class StrainStage final : public Stage {
     std::vector<std::uint8_t> status(n * t_count, kNotInMesh);
     std::vector<std::int8_t> stuck(n * t_count, -1);
     std::vector<double> energy(n, kNaN), stick(n, kNaN), energy_rate(n, kNaN);
+    std::vector<double> radius_mm(n, kNaN), radius_ratio(n, kNaN), slip_px(n, kNaN), residual_px(n, kNaN),
+        shift_px(n * 2, kNaN), amplitude_px(n * 2, kNaN), chi2(n * 2, kNaN);
+    std::vector<std::int8_t> radius_status(n, -1);
     std::vector<std::int32_t> counts(n * 6, 0);
     for (std::size_t i = 0; i < n; ++i) {
       const StrainFrame& f = frames_[i];
       energy[i] = f.energy_J;
       stick[i] = f.stick_ratio;
+      if (f.computed && reference_has_ellipse_) {
+        const strain::StickZoneFit& z = f.stick_zone;
+        radius_mm[i] = stick_radius_mm(f);
+        radius_ratio[i] = z.ratio;
+        slip_px[i] = z.max_slip_px;
+        residual_px[i] = z.residual_rms_px;
+        shift_px[2 * i] = z.shift_px.x;
+        shift_px[2 * i + 1] = z.shift_px.y;
+        amplitude_px[2 * i] = z.amplitude_px.x;
+        amplitude_px[2 * i + 1] = z.amplitude_px.y;
+        radius_status[i] = static_cast<std::int8_t>(z.status);
+        chi2[2 * i] = z.chi2_slip;
+        chi2[2 * i + 1] = z.chi2_stick;
+      }
       const strain::TriangleCounts& c = f.counts;
       const std::int32_t row[6] = {c.valid,       c.missing_vertex, c.small_area,
                                    c.small_angle, c.high_aspect,    c.inverted};
@@ -284,6 +316,26 @@ class StrainStage final : public Stage {
     out.write("/stick/ratio", std::span<const double>(stick), {n});
     out.write("/stick/stuck", std::span<const std::int8_t>(stuck), {n, t_count});
     out.attribute("/stick", "tolerance_px", settings_.strain.stick_tolerance_px);
+    out.write("/stick/radius_mm", std::span<const double>(radius_mm), {n});
+    out.write("/stick/radius_ratio", std::span<const double>(radius_ratio), {n});
+    out.write("/stick/radius_status", std::span<const std::int8_t>(radius_status), {n});
+    out.write("/stick/slip_max_px", std::span<const double>(slip_px), {n});
+    out.write("/stick/fit_residual_px", std::span<const double>(residual_px), {n});
+    out.write("/stick/core_shift_px", std::span<const double>(shift_px), {n, 2});
+    out.write("/stick/slip_amplitude_px", std::span<const double>(amplitude_px), {n, 2});
+    out.write("/stick/fit_chi2", std::span<const double>(chi2), {n, 2});
+    out.attribute(
+        "/stick", "radius_method",
+        "cattaneo_mindlin_fit: least-squares fit of the Cattaneo-Mindlin slip profile (stuck-core shift "
+        "+ slip amplitudes, c/a by 1-D search) to the tracks within stick_fit_extent of the reference "
+        "contact ellipse; c = (c/a) * sqrt(semi_major * semi_minor)");
+    out.attribute(
+        "/stick", "radius_status_codes",
+        "0 fitted (c = 0: full slip); 1 no detectable slip (c = a); 2 too few tracks (NaN); -1 not computed");
+    out.attribute("/stick", "contact_radius_mm",
+                  reference_has_ellipse_ ? disk_.radius_px / settings_.strain.px_per_mm : kNaN);
+    out.attribute("/stick", "fit_extent", settings_.stick_zone.extent);
+    out.attribute("/stick", "fit_significance", settings_.stick_zone.significance);
     write_maps(out);
   }
 
@@ -309,6 +361,7 @@ class StrainStage final : public Stage {
     s["strain_energy_max_J"] = energy_max;
     s["strain_energy_last_J"] = last && std::isfinite(last->energy_J) ? last->energy_J : 0.0;
     if (last && std::isfinite(last->stick_ratio)) s["stick_ratio_last"] = last->stick_ratio;
+    if (last && std::isfinite(stick_radius_mm(*last))) s["stick_radius_last_mm"] = stick_radius_mm(*last);
     s["strain_ms_per_frame"] =
         strained_frames_ > 0 ? 1e3 * strain_s_ / static_cast<double>(strained_frames_) : 0.0;
     s["maps"] = {{"cells", settings_.map_cells}, {"reference_has_ellipse", reference_has_ellipse_}};
@@ -316,6 +369,10 @@ class StrainStage final : public Stage {
   }
 
  private:
+  double stick_radius_mm(const StrainFrame& f) const {
+    return f.computed && reference_has_ellipse_ ? f.stick_zone.radius_px / settings_.strain.px_per_mm : kNaN;
+  }
+
   double overlay_value(const double* v) const {
     const std::string& c = settings_.overlay;
     if (c == "exx") return v[kExx];
@@ -407,6 +464,7 @@ class StrainStage final : public Stage {
   strain::EvolvingMesh mesh_;
   contact::EllipseNormalization reference_normalization_;
   bool reference_has_ellipse_ = false;
+  strain::ContactDisk disk_;
   std::vector<Vec2> reference_px_, current_px_, previous_px_;
   std::vector<std::int32_t> alive_;
   std::vector<Strain2> incremental_;  // per union triangle; NaN until the triangle is first usable

@@ -19,6 +19,7 @@
 #include "samples/synth.hpp"
 #include "samples/trial.hpp"
 #include "strain/deformation.hpp"
+#include "strain/stick_zone.hpp"
 
 namespace tirstrain::pipeline {
 namespace {
@@ -170,6 +171,9 @@ ValidationReport run_validate(const ValidateOptions& options) {
   const std::vector<double> stick_ratio = read(h5, "/stick/ratio", &shape);
   const std::vector<std::int64_t> stuck = h5.read_integers("/stick/stuck");
   const double tolerance_px = h5.attribute_number("/stick", "tolerance_px");
+  // c from the strain stage's slip-profile fit (older results have only the stuck labels).
+  const std::vector<double> c_fit =
+      h5.has("/stick/radius_mm") ? h5.read_doubles("/stick/radius_mm", &shape) : std::vector<double>(n, kNaN);
 
   const double young = scene.tissue.young_Pa, nu = scene.tissue.poisson, depth = scene.tissue.depth_m;
   const double px_per_mm = scene.px_per_mm;
@@ -181,8 +185,14 @@ ValidationReport run_validate(const ValidateOptions& options) {
   const auto key = [](const std::string& q, const std::string& r, const std::string& m) {
     return q + "|" + r + "|" + m;
   };
-  Accumulator displacement, displacement_interior, plate_error, energy_error, stick_error, c_error;
-  std::vector<double> u_truth(n, kNaN), u_truth_contact(n, kNaN), ratio_truth(n, kNaN), c_measured(n, kNaN),
+  double gain_mt = 0.0, gain_tt = 0.0;
+  Accumulator c_exact_error, c_true_contact_error;
+  Accumulator energy_triangle_error, energy_interior_error, energy_contact_error;
+  Accumulator displacement, displacement_interior, plate_error, energy_error, stick_error, c_error,
+      c_label_error, c_all_error;
+  std::vector<double> c_exact_tracks(n, kNaN), c_true_contact(n, kNaN);
+  std::vector<double> u_truth_triangle(n, kNaN), u_interior(n, kNaN), u_truth_interior(n, kNaN);
+  std::vector<double> u_truth(n, kNaN), u_truth_contact(n, kNaN), ratio_truth(n, kNaN), c_labels(n, kNaN),
       c_model(n, kNaN), disp_rms(n, kNaN), exx_rms(n, kNaN);
 
   for (std::size_t i = 0; i < n; ++i) {
@@ -208,6 +218,7 @@ ValidationReport run_validate(const ValidateOptions& options) {
 
     // Triangles.
     double truth_energy = 0.0, stuck_area_mm2 = 0.0, stuck_truth_area = 0.0, valid_area = 0.0;
+    double interior_energy = 0.0, interior_truth_energy = 0.0, truth_triangle_energy = 0.0;
     Accumulator frame_exx;
     for (std::size_t t = 0; t < t_count; ++t) {
       const std::size_t cell = i * t_count + t;
@@ -231,12 +242,15 @@ ValidationReport run_validate(const ValidateOptions& options) {
       if (truth_stuck) stuck_truth_area += area_m2;
       if (stuck[cell] == 1) stuck_area_mm2 += area_m2 * 1e6;
 
+      const Strain2 e_triangle = green_lagrange(strain::displacement_gradient(X, x_true));
+      truth_triangle_energy += plane_strain_energy_density_J_m3(e_triangle, young, nu) * area_m2;
+      const Strain2 measured = {total[cell * 3], total[cell * 3 + 1], total[cell * 3 + 2]};
       const Vec2 current{centroid.x + at.displacement_px.x, centroid.y + at.displacement_px.y};
       if (trial.contact_signed_distance_px(centroid) >= -border_px ||
           trial.contact_signed_distance_px(current) >= -border_px)
         continue;
-      const Strain2 e_triangle = green_lagrange(strain::displacement_gradient(X, x_true));
-      const Strain2 measured = {total[cell * 3], total[cell * 3 + 1], total[cell * 3 + 2]};
+      interior_energy += plane_strain_energy_density_J_m3(measured, young, nu) * area_m2;
+      interior_truth_energy += plane_strain_energy_density_J_m3(e_point, young, nu) * area_m2;
       const Strain2 measured_other = {other[cell * 3], other[cell * 3 + 1], other[cell * 3 + 2]};
       const auto truth_point = components(e_point, young, nu);
       const auto truth_triangle = components(e_triangle, young, nu);
@@ -250,10 +264,21 @@ ValidationReport run_validate(const ValidateOptions& options) {
         }
       }
       frame_exx.add(measured.xx - e_point.xx);
+      // Least-squares gain of the measured strain on the truth (pooled components): 1 when the errors are
+      // unbiased noise; a scale error shows here and in U as 2 × (gain − 1).
+      for (const auto& [m_value, t_value] :
+           {std::pair{measured.xx, e_point.xx}, std::pair{measured.yy, e_point.yy},
+            std::pair{measured.xy, e_point.xy}}) {
+        gain_mt += m_value * t_value;
+        gain_tt += t_value * t_value;
+      }
     }
     exx_rms[i] = frame_exx.stats("", "", "", "").rms;
     if (valid_area > 0.0) {
       u_truth[i] = depth * truth_energy;
+      u_truth_triangle[i] = depth * truth_triangle_energy;
+      u_interior[i] = depth * interior_energy;
+      u_truth_interior[i] = depth * interior_truth_energy;
       ratio_truth[i] = stuck_truth_area / valid_area;
     }
     const samples::GridTruth grid = trial.grid_truth(static_cast<int>(i));
@@ -263,7 +288,27 @@ ValidationReport run_validate(const ValidateOptions& options) {
     for (std::size_t g = 0; g < grid.in_contact.size(); ++g)
       if (grid.in_contact[g]) contact_energy += grid.energy_J_m3[g] * cell_m2;
     u_truth_contact[i] = depth * contact_energy;
-    c_measured[i] = std::sqrt(stuck_area_mm2 / std::numbers::pi);
+    c_labels[i] = std::sqrt(stuck_area_mm2 / std::numbers::pi);
+    // The same slip-profile fit on the exact displacements of the live tracks, with the true contact: what
+    // the estimator gives without tracking error (separates its bias from the tracks').
+    if (field.model()) {
+      std::vector<Vec2> ref_px, exact_px, tracked_px;
+      for (std::size_t j = 0; j < k; ++j) {
+        if (!std::isfinite(position[2 * (i * k + j)])) continue;
+        const Vec2 X = vec(reference, j);
+        const Vec2 u = field.displacement_px(X);
+        ref_px.push_back(X);
+        exact_px.push_back({X.x + u.x, X.y + u.y});
+        tracked_px.push_back(vec(position, i * k + j));
+      }
+      const samples::LoadHistory& history = trial.history();
+      const strain::ContactDisk disk =
+          strain::contact_disk(history.contact_centre_px(), history.contact_semi_axes_px().x,
+                               history.contact_semi_axes_px().y, history.contact_angle_rad());
+      c_exact_tracks[i] = strain::fit_stick_zone(ref_px, exact_px, disk, nu).radius_px / px_per_mm;
+      // ... and on the tracked displacements with the true contact (separates the measured ellipse's share).
+      c_true_contact[i] = strain::fit_stick_zone(ref_px, tracked_px, disk, nu).radius_px / px_per_mm;
+    }
     c_model[i] = load.stick_radius_m * 1e3;
     if (std::isfinite(stick_ratio[i]) && std::isfinite(ratio_truth[i]))
       stick_error.add(stick_ratio[i] - ratio_truth[i]);
@@ -278,15 +323,50 @@ ValidationReport run_validate(const ValidateOptions& options) {
       u_argmax = i;
     }
   for (std::size_t i = 0; i < n; ++i)
-    if (std::isfinite(u_truth[i]) && u_truth[i] >= 0.1 * u_max && std::isfinite(energy[i]))
+    if (std::isfinite(u_truth[i]) && u_truth[i] >= 0.1 * u_max && std::isfinite(energy[i])) {
       energy_error.add(100.0 * (energy[i] - u_truth[i]) / u_truth[i]);
+      energy_triangle_error.add(100.0 * (energy[i] - u_truth_triangle[i]) / u_truth_triangle[i]);
+      if (u_truth_interior[i] > 0.0)
+        energy_interior_error.add(100.0 * (u_interior[i] - u_truth_interior[i]) / u_truth_interior[i]);
+      if (u_truth_contact[i] > 0.0)
+        energy_contact_error.add(100.0 * (energy[i] - u_truth_contact[i]) / u_truth_contact[i]);
+    }
   // Stick radius: frames in partial slip whose stick zone lies well inside the meshed interior and is not
-  // tiny (the mesh resolves neither a stick zone near the border nor one a few triangles wide).
+  // tiny (the tracks resolve neither a stick zone near the border nor one a few track spacings wide). The
+  // fitted c (/stick/radius_mm) is the reference row; the radius of the stuck labels' area is reported next
+  // to it; every frame once the plate moves (full slip c = 0 and c near a included) as an absolute error.
   const double a_mm = trial.history().contact_radius_m() * 1e3;
   for (std::size_t i = 0; i < n; ++i) {
     const double c = c_model[i];
-    if (c > 0.2 * a_mm && c < a_mm - 2.0 * options.border_exclusion_mm && std::isfinite(c_measured[i]))
-      c_error.add(100.0 * (c_measured[i] - c) / c);
+    if (c > 0.2 * a_mm && c < a_mm - 2.0 * options.border_exclusion_mm) {
+      if (std::isfinite(c_fit[i])) c_error.add(100.0 * (c_fit[i] - c) / c);
+      if (std::isfinite(c_labels[i])) c_label_error.add(100.0 * (c_labels[i] - c) / c);
+      if (std::isfinite(c_exact_tracks[i])) c_exact_error.add(100.0 * (c_exact_tracks[i] - c) / c);
+      if (std::isfinite(c_true_contact[i])) c_true_contact_error.add(100.0 * (c_true_contact[i] - c) / c);
+    }
+    if (trial.load(static_cast<int>(i)).tangential_N > 0.0 && std::isfinite(c_fit[i]))
+      c_all_error.add(c_fit[i] - c);
+  }
+
+  // Per track at the map frame: where the displacement errors are (for finding a tracking bias).
+  {
+    const std::size_t frame =
+        options.map_frame >= 0 ? std::min(static_cast<std::size_t>(options.map_frame), n - 1) : u_argmax;
+    const samples::FrameField field = trial.field(static_cast<int>(frame));
+    CsvWriter csv(
+        (out / "validation_tracks.csv").string(),
+        {"frame", "track", "X_px", "Y_px", "border_distance_px", "u_px", "v_px", "u_truth_px", "v_truth_px"});
+    for (std::size_t j = 0; j < k; ++j) {
+      const Vec2 x = vec(position, frame * k + j);
+      if (!std::isfinite(x.x)) continue;
+      const Vec2 X = vec(reference, j);
+      const Vec2 u = field.displacement_px(X);
+      csv.row_text({std::to_string(frame), std::to_string(j), format_double(X.x), format_double(X.y),
+                    format_double(-trial.contact_signed_distance_px(X)), format_double(x.x - X.x),
+                    format_double(x.y - X.y), format_double(u.x), format_double(u.y)});
+    }
+    csv.commit();
+    report.outputs.push_back((out / "validation_tracks.csv").string());
   }
 
   for (const std::string& m : {mode, other_mode})
@@ -298,8 +378,21 @@ ValidationReport run_validate(const ValidateOptions& options) {
   report.rows.push_back(displacement_interior.stats("displacement_interior", "tracks", "", "px"));
   report.rows.push_back(plate_error.stats("plate_displacement", "truth", "", "px"));
   report.rows.push_back(energy_error.stats("U", "same triangles", mode, "%"));
+  {
+    ErrorStats gain{"strain_gain", "point", mode, "", kNaN, kNaN, kNaN, 0};
+    if (gain_tt > 0.0) gain.rms = gain.mean = gain_mt / gain_tt;
+    gain.samples = acc[key("E_xx", "point", mode)].n;
+    report.rows.push_back(gain);
+  }
+  report.rows.push_back(energy_triangle_error.stats("U_triangle_truth", "same triangles", mode, "%"));
+  report.rows.push_back(energy_interior_error.stats("U_interior", "interior triangles", mode, "%"));
+  report.rows.push_back(energy_contact_error.stats("U_whole_contact", "truth grid", mode, "%"));
   report.rows.push_back(stick_error.stats("stick_ratio", "same triangles", "", ""));
   report.rows.push_back(c_error.stats("stick_radius_c", "model", "", "%"));
+  report.rows.push_back(c_label_error.stats("stick_radius_c_labels", "model", "", "%"));
+  report.rows.push_back(c_exact_error.stats("stick_radius_c_exact_tracks", "model", "", "%"));
+  report.rows.push_back(c_true_contact_error.stats("stick_radius_c_true_contact", "model", "", "%"));
+  report.rows.push_back(c_all_error.stats("stick_radius_c_all_frames", "model", "", "mm"));
 
   {
     CsvWriter csv((out / "validation.csv").string(),
@@ -312,14 +405,16 @@ ValidationReport run_validate(const ValidateOptions& options) {
   }
   {
     CsvWriter csv((out / "validation_frames.csv").string(),
-                  {"index", "t_s", "U_J", "U_truth_J", "U_truth_contact_J", "stick_ratio",
-                   "stick_ratio_truth", "c_mm", "c_model_mm", "displacement_rms_px", "E_xx_rms"});
+                  {"index", "t_s", "U_J", "U_truth_J", "U_truth_contact_J", "U_truth_triangle_J",
+                   "U_interior_J", "U_truth_interior_J", "stick_ratio", "stick_ratio_truth", "c_mm",
+                   "c_labels_mm", "c_model_mm", "displacement_rms_px", "E_xx_rms"});
     for (std::size_t i = 0; i < n; ++i)
       csv.row_text({std::to_string(i), format_double(t_s[i]), format_double(energy[i]),
                     format_double(u_truth[i]), format_double(u_truth_contact[i]),
-                    format_double(stick_ratio[i]), format_double(ratio_truth[i]),
-                    format_double(c_measured[i]), format_double(c_model[i]), format_double(disp_rms[i]),
-                    format_double(exx_rms[i])});
+                    format_double(u_truth_triangle[i]), format_double(u_interior[i]),
+                    format_double(u_truth_interior[i]), format_double(stick_ratio[i]),
+                    format_double(ratio_truth[i]), format_double(c_fit[i]), format_double(c_labels[i]),
+                    format_double(c_model[i]), format_double(disp_rms[i]), format_double(exx_rms[i])});
     csv.commit();
     report.outputs.push_back((out / "validation_frames.csv").string());
   }

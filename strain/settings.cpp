@@ -24,6 +24,8 @@ StrainStageSettings parse_strain_settings(const Scene& scene, const std::string&
   }
   s.mode = mode == "incremental" ? StrainMode::kIncremental : StrainMode::kExact;
   s.strain.stick_tolerance_px = y.number("stick_tolerance_px", s.strain.stick_tolerance_px, 0.0, 1000.0);
+  s.stick_zone.extent = y.number("stick_fit_extent", s.stick_zone.extent, 0.1, 1.0);
+  s.stick_zone.significance = y.number("stick_fit_significance", s.stick_zone.significance, 0.0, 1e6);
   s.strain.quality.min_area_px2 = y.number("min_area_px2", s.strain.quality.min_area_px2, 0.0, 1e9);
   s.strain.quality.min_angle_deg = y.number("min_angle_deg", s.strain.quality.min_angle_deg, 0.0, 59.9);
   s.strain.quality.max_aspect = y.number("max_aspect", s.strain.quality.max_aspect, 1.0, 1e6);

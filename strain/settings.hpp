@@ -4,6 +4,9 @@
 //   strain:
 //     mode: exact                 # exact (F against the reference) | incremental (the paper's running sum)
 //     stick_tolerance_px: 0.5     # a triangle is stuck when its centroid follows the plate this closely
+//     stick_fit_extent: 0.95      # stick radius c (strain/stick_zone.hpp): fitted on tracks within this
+//                                 # fraction of the contact radius
+//     stick_fit_significance: 4   # slip detected when the fitted slip exceeds this × the residual RMS
 //     min_area_px2: 2             # triangle quality criteria (strain/mesh.hpp)
 //     min_angle_deg: 15
 //     max_aspect: 10
@@ -14,6 +17,7 @@
 
 #include "core/scene.hpp"
 #include "strain/deformation.hpp"
+#include "strain/stick_zone.hpp"
 
 namespace tirstrain::strain {
 
@@ -21,6 +25,7 @@ enum class StrainMode { kExact, kIncremental };
 
 struct StrainStageSettings {
   StrainSettings strain;  // quality criteria, tissue and calibration, stick tolerance
+  StickZoneSettings stick_zone;
   StrainMode mode = StrainMode::kExact;
   int map_cells = 65;
   std::string overlay = "e1";

@@ -176,6 +176,95 @@ TEST(StrainPipeline, CompressedSideLeadsInEachDirection) {
     // Measured: about -0.064 leading and +0.08 to +0.09 trailing in every direction.
     EXPECT_LT(leading, -0.03) << direction_deg;
     EXPECT_GT(trailing, 0.03) << direction_deg;
+
+    // Stick radius: the Cattaneo–Mindlin slip-profile fit against the model's c on the frames with
+    // 0.2 a < c < a − 0.6 mm (measured 1.5-4.4 %), and c = a (no detectable slip) on the reference frame.
+    const pipeline::ErrorStats* c_fit = report.find("stick_radius_c", "model");
+    ASSERT_NE(c_fit, nullptr);
+    ASSERT_GE(c_fit->samples, 2) << direction_deg;
+    std::printf("  direction %3d deg: stick radius error %.2f %% RMS over %ld frames\n", direction_deg,
+                c_fit->rms, c_fit->samples);
+    EXPECT_LT(c_fit->rms, 5.0) << direction_deg;
+    const std::vector<double> radius_mm = h5.read_doubles("/stick/radius_mm");
+    const std::vector<std::int64_t> status = h5.read_integers("/stick/radius_status");
+    EXPECT_EQ(status[0], 1) << direction_deg;  // no tangential load yet: c = a
+    EXPECT_NEAR(radius_mm[0], 2.93, 0.06) << direction_deg;
+    for (std::size_t i = 0; i < n; ++i) EXPECT_TRUE(std::isfinite(radius_mm[i])) << i;
+  }
+}
+
+// Full slip (c → 0): the plate outruns the Mindlin limit (0.58 mm) after the first frame; the fitted c is 0,
+// not NaN.
+TEST(StrainPipeline, StickRadiusIsZeroInFullSlip) {
+  const pipeline::ValidationReport report = synthesise_and_validate(
+      "full_slip",
+      scene_yaml("{field: cattaneo_mindlin, friction: 1.0, direction_deg: 90, plate_speed_mm_s: 80.0, "
+                 "shear_start_s: 0.0}",
+                 4, 352, 0.02));
+  const H5Reader h5((fs::path(report.result_dir) / "result.h5").string());
+  const std::vector<double> radius_mm = h5.read_doubles("/stick/radius_mm");
+  const std::vector<std::int64_t> status = h5.read_integers("/stick/radius_status");
+  ASSERT_EQ(radius_mm.size(), 4u);
+  EXPECT_EQ(status[0], 1);
+  for (std::size_t i = 1; i < 4; ++i) {
+    EXPECT_EQ(status[i], 0) << i;
+    EXPECT_EQ(radius_mm[i], 0.0) << i;
+  }
+  EXPECT_LT(report.find("stick_radius_c_all_frames", "model")->max_abs, 0.05);  // mm
+}
+
+// Low strain (the 1280×1024 paper-camera scene's level: its 2 N spread over a 4.5 × 5.5 mm ellipse gives
+// p0 ≈ 39 kPa, a third of the default scene's strain) on a small contact, noise-free: 0.5 N on an ellipse
+// with 2.2 × 2.7 mm semi-axes at 10°, or on a circle of the same equivalent radius (R = 46 mm, a = 2.44 mm).
+std::string low_strain_yaml(const std::string& shape) {
+  return "calibration: {px_per_mm: 52, ridge_period_mm: 0.45, ridge_polarity: dark}\n"
+         "compute: [contact, tracking, strain]\n"
+         "synthesis:\n"
+         "  seed: 5\n"
+         "  image: {width_px: 352, height_px: 320, bit_depth: 8}\n"
+         "  timing: {frames: 9, frame_rate_hz: 100, jitter_s: 0}\n"
+         "  contact: {" +
+         shape +
+         ", normal_N: 0.5}\n"
+         "  loading: {field: cattaneo_mindlin, friction: 1.0, direction_deg: 270, plate_speed_mm_s: 3.0, "
+         "shear_start_s: 0.0}\n"
+         "  sensor: {full_well_electrons: 0, read_noise: 0, blur_sigma_px: 0, drift: 0}\n";
+}
+
+// The truth side of U on an elliptical contact: the point truth (exact strain at the triangle centroids,
+// through the ellipse map's chain rule) and the triangle truth (exact vertex displacements only) agree, and
+// the truth grid's integral over the whole contact exceeds both (the untracked border band, where the
+// Cattaneo–Mindlin energy concentrates).
+TEST(StrainPipeline, EnergyTruthOnAnEllipticalContactIsConsistent) {
+  const pipeline::ValidationReport report = synthesise_and_validate(
+      "ellipse_energy_truth", low_strain_yaml("shape: ellipse, semi_axes_mm: [2.2, 2.7], angle_deg: 10"));
+  const auto* u = report.find("U", "same triangles", "exact");
+  const auto* u_triangle = report.find("U_triangle_truth", "same triangles", "exact");
+  const auto* u_contact = report.find("U_whole_contact", "truth grid", "exact");
+  ASSERT_GE(u->samples, 4);
+  std::printf("  ellipse: U error %.1f %% (triangle truth %.1f %%, whole contact %.1f %%)\n", u->mean,
+              u_triangle->mean, u_contact->mean);
+  // Measured: point and triangle truths within 1 % of each other; the whole contact holds about twice the
+  // tracked triangles' energy.
+  EXPECT_NEAR(u->mean - u_triangle->mean, 0.0, 2.0);
+  EXPECT_LT(u_contact->mean, -30.0);
+}
+
+// U within the 5 % at the 1280×1024 scene's strain level. Disabled: it fails on the tracking side
+// (flow/), not on the strain or truth side — tracks within 0.4 mm of the border (the ridge contrast fades
+// there and the fade envelope does not move with the skin) lag by 0.2-0.5 px RMS against 0.03 px inside, and
+// the Cattaneo–Mindlin strain energy is concentrated towards the border, so at low strain those errors
+// dominate U: measured +72 % on the circle (strain gain 1.12) and +8 % on the ellipse. Enable when the
+// tracker's border band is fixed.
+TEST(StrainPipeline, DISABLED_EnergyWithinFivePercentAtLowStrain) {
+  for (const std::string shape :
+       {"shape: ellipse, semi_axes_mm: [2.2, 2.7], angle_deg: 10", "shape: hertz, radius_m: 0.046"}) {
+    const pipeline::ValidationReport report =
+        synthesise_and_validate("low_strain_energy", low_strain_yaml(shape));
+    const auto* u = report.find("U", "same triangles", "exact");
+    ASSERT_GE(u->samples, 4) << shape;
+    EXPECT_LT(u->rms, 5.0) << shape;
+    EXPECT_NEAR(report.find("strain_gain", "point", "exact")->mean, 1.0, 0.02) << shape;
   }
 }
 
