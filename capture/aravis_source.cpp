@@ -1,6 +1,9 @@
 #include "capture/aravis_source.hpp"
 
 #include <arv.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
 #include <opencv2/imgproc.hpp>
 
@@ -11,6 +14,9 @@
 #include <cstring>
 #include <sstream>
 
+#include "capture/camera_settings.hpp"
+#include "capture/libcamera_source.hpp"
+#include "capture/v4l2_source.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
 
@@ -33,7 +39,11 @@ std::int64_t FrameIdUnwrapper::unwrap(std::uint64_t raw_id) {
     const std::uint64_t now = raw_id == 0 ? 0 : raw_id - 1;
     const std::uint64_t before = last_raw_ == 0 ? 0 : last_raw_ - 1;
     delta = static_cast<std::int64_t>((now + kGevPeriod - before) % kGevPeriod);
+    // More than half a period ahead is a frame from the past delivered late (Aravis can hand a frame over
+    // after newer ones, e.g. when its buffer pool ran dry), not a wrap.
+    if (delta > static_cast<std::int64_t>(kGevPeriod / 2)) delta -= static_cast<std::int64_t>(kGevPeriod);
   }
+  if (delta < 0) return last_unwrapped_ + delta;  // late: the newest id stays the reference
   last_raw_ = raw_id;
   last_unwrapped_ += delta;
   return last_unwrapped_;
@@ -174,6 +184,10 @@ class AravisSource final : public FrameSource {
   std::map<std::string, std::string> settings() const override {
     std::map<std::string, std::string> out = readback_;
     for (const auto& [name, value] : statistics()) out["stream_" + name] = std::to_string(value);
+    const int priority = stream_priority_.load();
+    out["stream_thread_priority"] = priority == 1   ? "nice -10"
+                                    : priority == 0 ? "normal (no permission to raise it)"
+                                                    : "not started";
     return out;
   }
 
@@ -191,7 +205,7 @@ class AravisSource final : public FrameSource {
   void software_trigger() {
     if (trigger_ != TriggerMode::kSoftware)
       throw Error("software trigger requested, but the source was not opened with trigger 'software'",
-                  {.file = uri_, .key = "--trigger"});
+                  {.file = uri_, .key = requested_.key("--trigger")});
     fire_software_trigger();
   }
 
@@ -200,6 +214,17 @@ class AravisSource final : public FrameSource {
  private:
   static void on_control_lost(ArvDevice*, gpointer self) {
     static_cast<AravisSource*>(self)->control_lost_.store(true);
+  }
+
+  // Runs on Aravis' stream thread. The thread that reassembles packets must not wait behind writers,
+  // analysis or other programs: when it does, Aravis' packet ring or socket overflows and frames arrive
+  // incomplete. Best effort: nice -10 (needs CAP_SYS_NICE; not real-time, which on a 2-core machine starves
+  // the threads that give the buffers back); the outcome is in settings() ("stream_thread_priority").
+  static void on_stream_event(void* self, ArvStreamCallbackType type, ArvBuffer*) {
+    if (type != ARV_STREAM_CALLBACK_TYPE_INIT) return;
+    const auto tid = static_cast<id_t>(::syscall(SYS_gettid));
+    const bool raised = ::setpriority(PRIO_PROCESS, tid, -10) == 0;
+    static_cast<AravisSource*>(self)->stream_priority_.store(raised ? 1 : 0);
   }
 
   void release() {
@@ -229,14 +254,15 @@ class AravisSource final : public FrameSource {
       guint n = 0;
       const char** formats = arv_camera_dup_available_pixel_formats_as_strings(camera_, &n, &error);
       const std::vector<std::string> offered = take_strings(formats, n);
-      throw_if(error, "cannot list the camera's pixel formats", {.file = uri_, .key = "--pixel-format"});
+      throw_if(error, "cannot list the camera's pixel formats",
+               {.file = uri_, .key = requested_.key("--pixel-format")});
       if (std::find(offered.begin(), offered.end(), s.pixel_format) == offered.end())
         throw Error("pixel format '" + s.pixel_format +
                         "' is not offered by this camera; it offers: " + join(offered),
-                    {.file = uri_, .key = "--pixel-format"});
+                    {.file = uri_, .key = requested_.key("--pixel-format")});
       arv_camera_set_pixel_format_from_string(camera_, s.pixel_format.c_str(), &error);
       throw_if(error, "cannot set pixel format '" + s.pixel_format + "'",
-               {.file = uri_, .key = "--pixel-format"});
+               {.file = uri_, .key = requested_.key("--pixel-format")});
     }
     const ArvPixelFormat format = arv_camera_get_pixel_format(camera_, &error);
     throw_if(error, "cannot read the pixel format", {.file = uri_});
@@ -246,48 +272,49 @@ class AravisSource final : public FrameSource {
     if (!layout_of(format))
       throw Error("pixel format '" + name + "' is not supported (supported: " + kSupportedFormats +
                       "); choose one with --pixel-format",
-                  {.file = uri_, .key = "--pixel-format"});
+                  {.file = uri_, .key = requested_.key("--pixel-format")});
 
     if (s.roi_px) apply_roi(*s.roi_px);
 
     if (s.exposure_us) {
       if (!arv_camera_is_exposure_time_available(camera_, &error))
-        throw Error("this camera has no exposure time control", {.file = uri_, .key = "--exposure-us"});
+        throw Error("this camera has no exposure time control",
+                    {.file = uri_, .key = requested_.key("--exposure-us")});
       double lo = 0, hi = 0;
       arv_camera_get_exposure_time_bounds(camera_, &lo, &hi, &error);
-      throw_if(error, "cannot read exposure bounds", {.file = uri_, .key = "--exposure-us"});
+      throw_if(error, "cannot read exposure bounds", {.file = uri_, .key = requested_.key("--exposure-us")});
       if (!(*s.exposure_us >= lo && *s.exposure_us <= hi))
         throw Error("exposure " + format_double(*s.exposure_us) + " us is outside this camera's range " +
                         range_text(lo, hi) + " us",
-                    {.file = uri_, .key = "--exposure-us"});
+                    {.file = uri_, .key = requested_.key("--exposure-us")});
       arv_camera_set_exposure_time(camera_, *s.exposure_us, &error);
-      throw_if(error, "cannot set exposure", {.file = uri_, .key = "--exposure-us"});
+      throw_if(error, "cannot set exposure", {.file = uri_, .key = requested_.key("--exposure-us")});
     }
     if (s.gain_dB) {
       if (!arv_camera_is_gain_available(camera_, &error))
-        throw Error("this camera has no gain control", {.file = uri_, .key = "--gain-dB"});
+        throw Error("this camera has no gain control", {.file = uri_, .key = requested_.key("--gain-dB")});
       double lo = 0, hi = 0;
       arv_camera_get_gain_bounds(camera_, &lo, &hi, &error);
-      throw_if(error, "cannot read gain bounds", {.file = uri_, .key = "--gain-dB"});
+      throw_if(error, "cannot read gain bounds", {.file = uri_, .key = requested_.key("--gain-dB")});
       if (!(*s.gain_dB >= lo && *s.gain_dB <= hi))
         throw Error(
             "gain " + format_double(*s.gain_dB) + " is outside this camera's range " + range_text(lo, hi),
-            {.file = uri_, .key = "--gain-dB"});
+            {.file = uri_, .key = requested_.key("--gain-dB")});
       arv_camera_set_gain(camera_, *s.gain_dB, &error);
-      throw_if(error, "cannot set gain", {.file = uri_, .key = "--gain-dB"});
+      throw_if(error, "cannot set gain", {.file = uri_, .key = requested_.key("--gain-dB")});
     }
     if (s.frame_rate_hz) {
       if (!arv_camera_is_frame_rate_available(camera_, &error))
-        throw Error("this camera has no frame rate control", {.file = uri_, .key = "--fps"});
+        throw Error("this camera has no frame rate control", {.file = uri_, .key = requested_.key("--fps")});
       double lo = 0, hi = 0;
       arv_camera_get_frame_rate_bounds(camera_, &lo, &hi, &error);
-      throw_if(error, "cannot read frame rate bounds", {.file = uri_, .key = "--fps"});
+      throw_if(error, "cannot read frame rate bounds", {.file = uri_, .key = requested_.key("--fps")});
       if (!(*s.frame_rate_hz >= lo && *s.frame_rate_hz <= hi))
         throw Error("frame rate " + format_double(*s.frame_rate_hz) + " Hz is outside this camera's range " +
                         range_text(lo, hi) + " Hz (at the current exposure and ROI)",
-                    {.file = uri_, .key = "--fps"});
+                    {.file = uri_, .key = requested_.key("--fps")});
       arv_camera_set_frame_rate(camera_, *s.frame_rate_hz, &error);
-      throw_if(error, "cannot set frame rate", {.file = uri_, .key = "--fps"});
+      throw_if(error, "cannot set frame rate", {.file = uri_, .key = requested_.key("--fps")});
     }
     // After the frame rate: Aravis' arv_camera_set_frame_rate() switches triggers off.
     apply_trigger(s.trigger);
@@ -295,14 +322,15 @@ class AravisSource final : public FrameSource {
       if (s.packet_size_bytes) {
         gint64 lo = 0, hi = 0;
         arv_camera_get_integer_bounds(camera_, "GevSCPSPacketSize", &lo, &hi, &error);
-        throw_if(error, "cannot read packet size bounds", {.file = uri_, .key = "--packet-size"});
+        throw_if(error, "cannot read packet size bounds",
+                 {.file = uri_, .key = requested_.key("--packet-size")});
         if (*s.packet_size_bytes < lo || *s.packet_size_bytes > hi)
           throw Error("packet size " + std::to_string(*s.packet_size_bytes) +
                           " B is outside this camera's range [" + std::to_string(lo) + ", " +
                           std::to_string(hi) + "] B",
-                      {.file = uri_, .key = "--packet-size"});
+                      {.file = uri_, .key = requested_.key("--packet-size")});
         arv_camera_gv_set_packet_size(camera_, *s.packet_size_bytes, &error);
-        throw_if(error, "cannot set packet size", {.file = uri_, .key = "--packet-size"});
+        throw_if(error, "cannot set packet size", {.file = uri_, .key = requested_.key("--packet-size")});
       } else {
         // Larger packets mean fewer per frame; the negotiation tests what the path really carries.
         arv_camera_gv_auto_packet_size(camera_, &error);
@@ -315,9 +343,9 @@ class AravisSource final : public FrameSource {
     GError* error = nullptr;
     gint wmin = 0, wmax = 0, hmin = 0, hmax = 0;
     arv_camera_get_width_bounds(camera_, &wmin, &wmax, &error);
-    throw_if(error, "cannot read width bounds", {.file = uri_, .key = "--roi"});
+    throw_if(error, "cannot read width bounds", {.file = uri_, .key = requested_.key("--roi")});
     arv_camera_get_height_bounds(camera_, &hmin, &hmax, &error);
-    throw_if(error, "cannot read height bounds", {.file = uri_, .key = "--roi"});
+    throw_if(error, "cannot read height bounds", {.file = uri_, .key = requested_.key("--roi")});
     gint64 sensor_w = 0, sensor_h = 0;
     sensor_w = arv_camera_get_integer(camera_, "SensorWidth", &error);
     if (error != nullptr) {
@@ -340,20 +368,20 @@ class AravisSource final : public FrameSource {
       throw Error("ROI " + text + " (x,y,width,height) does not fit the sensor: " + std::to_string(sensor_w) +
                       "x" + std::to_string(sensor_h) + " px, width >= " + std::to_string(wmin) +
                       ", height >= " + std::to_string(hmin),
-                  {.file = uri_, .key = "--roi"});
+                  {.file = uri_, .key = requested_.key("--roi")});
     if (roi.width % winc != 0 || roi.height % hinc != 0)
       throw Error("ROI " + text + ": width must be a multiple of " + std::to_string(winc) +
                       " and height of " + std::to_string(hinc) + " on this camera",
-                  {.file = uri_, .key = "--roi"});
+                  {.file = uri_, .key = requested_.key("--roi")});
     arv_camera_set_region(camera_, roi.x, roi.y, roi.width, roi.height, &error);
-    throw_if(error, "cannot set ROI " + text, {.file = uri_, .key = "--roi"});
+    throw_if(error, "cannot set ROI " + text, {.file = uri_, .key = requested_.key("--roi")});
     gint x = 0, y = 0, w = 0, h = 0;
     arv_camera_get_region(camera_, &x, &y, &w, &h, &error);
-    throw_if(error, "cannot read the ROI back", {.file = uri_, .key = "--roi"});
+    throw_if(error, "cannot read the ROI back", {.file = uri_, .key = requested_.key("--roi")});
     if (x != roi.x || y != roi.y || w != roi.width || h != roi.height)
       throw Error("ROI " + text + " was not applied as asked: the camera reports " + std::to_string(x) + "," +
                       std::to_string(y) + "," + std::to_string(w) + "," + std::to_string(h),
-                  {.file = uri_, .key = "--roi"});
+                  {.file = uri_, .key = requested_.key("--roi")});
   }
 
   void apply_trigger(const std::string& trigger) {
@@ -375,29 +403,33 @@ class AravisSource final : public FrameSource {
     }
     if (trigger == "free-run") {
       arv_camera_clear_triggers(camera_, &error);
-      throw_if(error, "cannot switch triggers off", {.file = uri_, .key = "--trigger"});
+      throw_if(error, "cannot switch triggers off", {.file = uri_, .key = requested_.key("--trigger")});
       trigger_ = TriggerMode::kFreeRun;
       return;
     }
     if (trigger == "software") {
       const bool supported = arv_camera_is_software_trigger_supported(camera_, &error);
       g_clear_error(&error);
-      if (!supported) throw Error("this camera has no software trigger", {.file = uri_, .key = "--trigger"});
+      if (!supported)
+        throw Error("this camera has no software trigger",
+                    {.file = uri_, .key = requested_.key("--trigger")});
       arv_camera_set_trigger(camera_, "Software", &error);
-      throw_if(error, "cannot select the software trigger", {.file = uri_, .key = "--trigger"});
+      throw_if(error, "cannot select the software trigger",
+               {.file = uri_, .key = requested_.key("--trigger")});
       trigger_ = TriggerMode::kSoftware;
       return;
     }
     guint n = 0;
     const char** names = arv_camera_dup_available_trigger_sources(camera_, &n, &error);
     const std::vector<std::string> sources = take_strings(names, n);
-    throw_if(error, "cannot list trigger sources", {.file = uri_, .key = "--trigger"});
+    throw_if(error, "cannot list trigger sources", {.file = uri_, .key = requested_.key("--trigger")});
     if (std::find(sources.begin(), sources.end(), trigger) == sources.end())
       throw Error(
           "trigger '" + trigger + "' is not available; use free-run, software or one of: " + join(sources),
-          {.file = uri_, .key = "--trigger"});
+          {.file = uri_, .key = requested_.key("--trigger")});
     arv_camera_set_trigger(camera_, trigger.c_str(), &error);
-    throw_if(error, "cannot select trigger '" + trigger + "'", {.file = uri_, .key = "--trigger"});
+    throw_if(error, "cannot select trigger '" + trigger + "'",
+             {.file = uri_, .key = requested_.key("--trigger")});
     trigger_ = TriggerMode::kHardware;
   }
 
@@ -449,7 +481,7 @@ class AravisSource final : public FrameSource {
     apply_trigger("");  // what the device really does now, not what was asked
     if (trigger_ != requested_trigger)
       throw Error("the trigger mode did not stick: the camera reports a different mode after configuration",
-                  {.file = uri_, .key = "--trigger"});
+                  {.file = uri_, .key = requested_.key("--trigger")});
     readback_["trigger"] = trigger_ == TriggerMode::kFreeRun    ? "free-run"
                            : trigger_ == TriggerMode::kSoftware ? "software"
                                                                 : "hardware";
@@ -459,6 +491,7 @@ class AravisSource final : public FrameSource {
       readback_["packet_size_bytes"] = std::to_string(arv_camera_gv_get_packet_size(camera_, &error));
       g_clear_error(&error);
     }
+    is_gv_ = arv_camera_is_gv_device(camera_);
     payload_bytes_ = arv_camera_get_payload(camera_, &error);
     throw_if(error, "cannot read the payload size", {.file = uri_});
     readback_["payload_bytes"] = std::to_string(payload_bytes_);
@@ -467,7 +500,7 @@ class AravisSource final : public FrameSource {
 
   void start_stream() {
     GError* error = nullptr;
-    stream_ = arv_camera_create_stream(camera_, nullptr, nullptr, &error);
+    stream_ = arv_camera_create_stream(camera_, &AravisSource::on_stream_event, this, &error);
     if (stream_ == nullptr || error != nullptr) {
       const std::string reason = error != nullptr ? error->message : "unknown reason";
       g_clear_error(&error);
@@ -548,14 +581,30 @@ class AravisSource final : public FrameSource {
     const ArvBufferStatus status = arv_buffer_get_status(buffer);
     const bool complete = status == ARV_BUFFER_STATUS_SUCCESS;
 
-    const std::int64_t id = frame_ids_.unwrap(arv_buffer_get_frame_id(buffer));
-    if (have_last_id_ && id > last_id_ + 1) {
-      frame.frames_lost_before = id - last_id_ - 1;
-      lost_ += frame.frames_lost_before;
+    // GigE Vision block id 0 means "no id": Aravis hands over a frame whose leader packet never came with id
+    // 0 (and no timestamp). Such a frame is incomplete and cannot be placed in the sequence; it was received,
+    // so the gap it sits in counts one frame fewer as lost.
+    const guint64 raw_id = arv_buffer_get_frame_id(buffer);
+    if (raw_id == 0 && is_gv_) {
+      frame.device_frame_id = -1;
+      ++unidentified_since_last_;
+    } else {
+      const std::int64_t id = frame_ids_.unwrap(raw_id);
+      if (have_last_id_ && id > last_id_ + 1) {
+        frame.frames_lost_before = std::max<std::int64_t>(0, id - last_id_ - 1 - unidentified_since_last_);
+        lost_ += frame.frames_lost_before;
+      } else if (have_last_id_ && id < last_id_ && id > first_id_) {
+        // Delivered late, out of order: it was counted as lost when a newer frame came first. -1 takes it
+        // back out of the count, so sums of frames_lost_before stay the number of frames never received.
+        frame.frames_lost_before = -1;
+        --lost_;
+      }
+      if (id > last_id_ || !have_last_id_) unidentified_since_last_ = 0;
+      if (!have_last_id_) first_id_ = id;
+      have_last_id_ = true;
+      last_id_ = std::max(last_id_, id);
+      frame.device_frame_id = id;
     }
-    have_last_id_ = true;
-    last_id_ = std::max(last_id_, id);
-    frame.device_frame_id = id;
 
     const guint64 device_ns = arv_buffer_get_timestamp(buffer);
     const guint64 system_ns = arv_buffer_get_system_timestamp(buffer);
@@ -582,7 +631,7 @@ class AravisSource final : public FrameSource {
       frame.image = raw;
     }
 
-    if (!complete || size < expected) {
+    if (!complete || size < expected || frame.device_frame_id < 0) {
       frame.status = FrameStatus::kIncomplete;
       ++incomplete_;
     } else if (frame.frames_lost_before > 0) {
@@ -599,6 +648,7 @@ class AravisSource final : public FrameSource {
   ArvStream* stream_ = nullptr;
   gulong control_lost_handler_ = 0;
   std::atomic<bool> control_lost_{false};
+  std::atomic<int> stream_priority_{-1};
   bool acquiring_ = false;
   std::map<std::string, std::string> readback_;
   ArvPixelFormat format_ = 0;
@@ -615,6 +665,9 @@ class AravisSource final : public FrameSource {
   double started_steady_s_ = 0.0;
   FrameIdUnwrapper frame_ids_;
   bool have_last_id_ = false;
+  std::int64_t first_id_ = 0;
+  std::int64_t unidentified_since_last_ = 0;
+  bool is_gv_ = false;
   std::int64_t last_id_ = 0;
   guint64 last_underruns_ = 0;
   std::int64_t index_ = 0;
@@ -671,12 +724,15 @@ std::unique_ptr<FrameSource> open_source(const std::string& uri, const CameraSet
   if (colon != std::string::npos && colon > 1 && uri.find('/') > colon) {
     const std::string scheme = uri.substr(0, colon);
     if (scheme == "aravis") return open_aravis_source(uri.substr(colon + 1), settings);
-    if (scheme == "v4l2" || scheme == "libcamera") return open_source(uri);
+    if (scheme == "v4l2") return open_v4l2_source(uri.substr(colon + 1), settings);
+    if (scheme == "libcamera") return open_libcamera_source(uri.substr(colon + 1), settings);
   }
-  if (!settings.empty())
+  // A scene's camera: section describes the rig, and replaying a recording with that scene is normal; values
+  // typed on the command line for a file would silently do nothing.
+  if (!command_line_part(settings).empty())
     throw Error(
         "camera settings (pixel format, ROI, exposure, gain, frame rate, trigger) only apply to camera "
-        "sources such as aravis:<id>; this input is a file source",
+        "sources (aravis:<id>, v4l2:/dev/videoN, libcamera:<id>); this input is a file source",
         {.file = uri});
   return open_source(uri);
 }

@@ -7,6 +7,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <utility>
 
@@ -29,8 +30,10 @@ struct Frame {
   double device_time_s = 0.0;         // device timestamp (or the file's timestamp column); the time axis
   double host_time_s = 0.0;           // host clock (steady) when the frame was received
   FrameStatus status = FrameStatus::kOk;
-  std::int64_t frames_lost_before = 0;  // count of frames missing between the previous one and this one
-  std::string origin;                   // file name or device description, for messages
+  // Frames missing between the previous one and this one; -1 on a frame delivered late (out of order) that
+  // an earlier gap had already counted as lost, so that sums over a stream count frames never received.
+  std::int64_t frames_lost_before = 0;
+  std::string origin;  // file name or device description, for messages
 };
 
 class FrameSource {
@@ -69,6 +72,13 @@ struct CameraSettings {
   std::optional<int> packet_size_bytes;  // GigE Vision only; default: negotiated with the device
   int buffer_count = 0;                  // stream buffers; 0 chooses from the frame size
   double frame_timeout_s = 0.0;          // no frame for this long: check the camera is still there; 0 = auto
+
+  // Where values came from, for messages (capture/camera_settings.hpp): the command-line options (e.g.
+  // "--fps") whose value was read from the `camera:` section of `scene_file`. Backends name
+  // key("--fps") in errors about a value: "--fps", or "camera.frame_rate_hz (scene rig.yaml)".
+  std::string scene_file;
+  std::set<std::string> from_scene;
+  std::string key(const std::string& option) const;
 
   bool empty() const {
     return pixel_format.empty() && !roi_px && !exposure_us && !gain_dB && !frame_rate_hz && trigger.empty() &&

@@ -3,7 +3,9 @@
 #include <opencv2/highgui.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstdlib>
 #include <mutex>
@@ -18,6 +20,15 @@ namespace {
 double steady_now_s() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
+
+double realtime_now_s() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+constexpr double kLatencyFloorS = 1e-6;
+constexpr double kLatencyStep = 1.01;
+const double kLogStep = std::log(kLatencyStep);
+constexpr std::size_t kLatencyBins = 2084;  // 1 µs * 1.01^2083 ≈ 1000 s
 
 // Holds only the newest frame: the display takes what is there and never queues behind the camera.
 class Mailbox {
@@ -63,6 +74,32 @@ struct Counters {
 };
 
 }  // namespace
+
+void LatencyHistogram::add(double seconds) {
+  if (bins_.empty()) bins_.assign(kLatencyBins, 0);
+  const double s = std::max(seconds, kLatencyFloorS);
+  const auto bin = static_cast<std::size_t>(std::log(s / kLatencyFloorS) / kLogStep);
+  ++bins_[std::min(bin, kLatencyBins - 1)];
+  ++count_;
+  max_s_ = std::max(max_s_, seconds);
+}
+
+double LatencyHistogram::quantile_ms(double q) const {
+  if (count_ == 0) return 0.0;
+  const auto rank = std::max<std::int64_t>(
+      1, static_cast<std::int64_t>(std::ceil(std::clamp(q, 0.0, 1.0) * static_cast<double>(count_))));
+  std::int64_t seen = 0;
+  for (std::size_t i = 0; i < bins_.size(); ++i) {
+    seen += bins_[i];
+    if (seen >= rank)
+      return std::min(1e3 * kLatencyFloorS * std::pow(kLatencyStep, static_cast<double>(i) + 0.5), max_ms());
+  }
+  return max_ms();
+}
+
+LatencySummary summarize(const LatencyHistogram& histogram) {
+  return {histogram.count(), histogram.quantile_ms(0.5), histogram.quantile_ms(0.95), histogram.max_ms()};
+}
 
 void check_display() {
   // OpenCV's Qt backend aborts the process without a display instead of throwing: check first.
@@ -152,6 +189,8 @@ LiveReport run_live(FrameSource& source, const LiveOptions& options) {
   std::int64_t shown_at_interval = 0;
   double latency_sum_s = 0.0;
   std::int64_t latency_count = 0;
+  LatencyHistogram receive_to_ready, receive_to_shown, device_to_ready;
+  std::optional<bool> device_clock_is_host_clock;  // decided at the first frame shown
   LiveStatus& status = report.status;
   auto fill_counts = [&] {
     status.frames_received = counters.received.load();
@@ -175,12 +214,21 @@ LiveReport run_live(FrameSource& source, const LiveOptions& options) {
         const double scale = std::max(0.5, canvas.cols / 1280.0);
         cv::putText(canvas, text, {10, static_cast<int>(30 * scale)}, cv::FONT_HERSHEY_SIMPLEX, 0.8 * scale,
                     {0, 255, 0}, static_cast<int>(std::max(1.0, 2 * scale)));
+      }
+      // The overlay is ready to show: what the user sees lags the camera by at least this much.
+      const double ready_s = steady_now_s();
+      const double ready_realtime_s = realtime_now_s();
+      receive_to_ready.add(ready_s - frame->host_time_s);
+      latency_sum_s += ready_s - frame->host_time_s;
+      ++latency_count;
+      if (!device_clock_is_host_clock)
+        device_clock_is_host_clock = std::abs(ready_realtime_s - frame->device_time_s) < 1.0;
+      if (*device_clock_is_host_clock) device_to_ready.add(ready_realtime_s - frame->device_time_s);
+      if (options.window) {
         cv::imshow(window, canvas);
+        receive_to_shown.add(steady_now_s() - frame->host_time_s);
       }
       ++status.frames_shown;
-      // Latency is measured after drawing, i.e. what the user sees lags the camera by this much.
-      latency_sum_s += steady_now_s() - frame->host_time_s;
-      ++latency_count;
     }
     if (options.window) {
       const int key = cv::waitKey(1);
@@ -208,6 +256,9 @@ LiveReport run_live(FrameSource& source, const LiveOptions& options) {
   if (report.recorded)
     status.frames_lost = report.record.counts.frames_lost_device + report.record.counts.frames_dropped_host;
   report.error = capture_error;
+  report.receive_to_ready = summarize(receive_to_ready);
+  report.receive_to_shown = summarize(receive_to_shown);
+  report.device_to_ready = summarize(device_to_ready);
   return report;
 }
 

@@ -5,6 +5,8 @@
 #include "capture/aravis_source.hpp"
 #include "capture/file_sources.hpp"
 #include "capture/frame_source.hpp"
+#include "capture/libcamera_source.hpp"
+#include "capture/v4l2_source.hpp"
 #include "core/error.hpp"
 
 namespace tirstrain::capture {
@@ -33,9 +35,8 @@ std::unique_ptr<FrameSource> open_source(const std::string& uri) {
     const std::string rest = uri.substr(colon + 1);
     if (scheme == "file") return open_file_source(rest);
     if (scheme == "aravis") return open_aravis_source(rest, {});
-    if (scheme == "v4l2" || scheme == "libcamera")
-      throw Error("the '" + scheme + "' camera backend is not built yet; use a file, folder or video for now",
-                  {.file = uri});
+    if (scheme == "v4l2") return open_v4l2_source(rest, {});
+    if (scheme == "libcamera") return open_libcamera_source(rest, {});
   }
   return open_file_source(uri);
 }

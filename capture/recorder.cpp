@@ -1,6 +1,7 @@
 #include "capture/recorder.hpp"
 
 #include <fcntl.h>
+#include <sys/uio.h>
 #include <unistd.h>
 
 #include <opencv2/imgcodecs.hpp>
@@ -111,15 +112,23 @@ void encode_pgm(const cv::Mat& image, std::vector<unsigned char>& out) {
   }
 }
 
-// Writes all of `data` to `path` through "<path>.partial" + rename, so a reader never sees half a frame.
+// Writes `head` then `data` to `path` through "<path>.partial" + rename, so a reader never sees half a frame.
 // Returns an empty string on success, else what went wrong (errno text: "No space left on device", ...).
-std::string write_file_atomically(const std::string& path, const unsigned char* data, std::size_t size) {
+std::string write_file_atomically(const std::string& path, const unsigned char* data, std::size_t size,
+                                  const std::string& head = {}) {
   const std::string partial = path + ".partial";
   const int fd = ::open(partial.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) return std::strerror(errno);
+  // One writev for header and pixels: no copy of the frame into an encode buffer.
   std::size_t done = 0;
-  while (done < size) {
-    const ssize_t n = ::write(fd, data + done, size - done);
+  const std::size_t total = head.size() + size;
+  while (done < total) {
+    iovec parts[2];
+    int count = 0;
+    if (done < head.size()) parts[count++] = {const_cast<char*>(head.data()) + done, head.size() - done};
+    const std::size_t data_done = done > head.size() ? done - head.size() : 0;
+    parts[count++] = {const_cast<unsigned char*>(data) + data_done, size - data_done};
+    const ssize_t n = ::writev(fd, parts, count);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
       const std::string reason = n < 0 ? std::strerror(errno) : "short write";
@@ -288,19 +297,35 @@ class Recording {
     ++counts.frames_received;
     counts.frames_lost_device += frame.frames_lost_before;
     if (frame.status == FrameStatus::kIncomplete) ++counts.frames_incomplete;
-    if (!have_first_) {
+    // The time origin comes from the first frame that has a time of its own (an incomplete frame without an
+    // id has no device timestamp either).
+    if (!have_first_ && !(frame.device_frame_id < 0 && frame.status == FrameStatus::kIncomplete)) {
       have_first_ = true;
       first_device_time_s_ = frame.device_time_s;
       first_host_time_s_ = frame.host_time_s;
-      first_device_id_ = frame.device_frame_id;
     }
     // Positions follow the device counter so that lost frames leave holes in the file numbers.
-    std::int64_t position = frame.device_frame_id >= 0 && first_device_id_ >= 0
+    const bool unidentified =
+        frame.device_frame_id < 0 && frame.status == FrameStatus::kIncomplete && have_ids_;
+    if (frame.device_frame_id >= 0 && !have_ids_) {
+      have_ids_ = true;
+      first_device_id_ = frame.device_frame_id - (have_position_ ? last_position_ + 1 : 0);
+    }
+    std::int64_t position = frame.device_frame_id >= 0 && have_ids_
                                 ? frame.device_frame_id - first_device_id_
-                                : last_position_ + 1 + frame.frames_lost_before + pending_host_drops_;
-    if (have_position_ && position <= last_position_) position = last_position_ + 1;
-    have_position_ = true;
-    last_position_ = position;
+                                : last_position_ + 1 + frame.frames_lost_before + pending_lost_;
+    // A frame delivered late (frames_lost_before -1: counted as lost when newer frames came first) takes the
+    // place that was left empty for it; anything else that goes backwards (a camera that restarted its
+    // counter) continues after the last position so that no file is overwritten. An incomplete frame whose
+    // id the camera could not tell (no image is stored for it) gets a negative index of its own.
+    const bool late = frame.frames_lost_before < 0 && position >= 0 && position < last_position_;
+    if (unidentified) {
+      position = -(++unidentified_);
+    } else if (!late) {
+      if (have_position_ && position <= last_position_) position = last_position_ + 1;
+      have_position_ = true;
+      last_position_ = position;
+    }
     if (options_.on_frame) options_.on_frame(frame);
 
     Job job;
@@ -308,9 +333,12 @@ class Recording {
     job.position = position;
     job.save = frame.status != FrameStatus::kIncomplete && !frame.image.empty();
     job.bytes = job.save ? frame.image.total() * frame.image.elemSize() : 0;
-    if (pending_host_drops_ > 0) {
-      frame.frames_lost_before += pending_host_drops_;
-      if (frame.status != FrameStatus::kIncomplete) frame.status = FrameStatus::kOverrun;
+    // Frames dropped here before this one (and the device losses they carried) are reported on it.
+    const bool carries = !late && !unidentified;
+    if (carries && pending_lost_ > 0) {
+      frame.frames_lost_before += pending_lost_;
+      if (pending_host_drops_ > 0 && frame.status != FrameStatus::kIncomplete)
+        frame.status = FrameStatus::kOverrun;
     }
     job.frame = std::move(frame);
     if (!job.save) job.frame.image.release();
@@ -320,10 +348,15 @@ class Recording {
       // The disk cannot keep up: drop here, loudly counted, rather than stall the camera's buffers.
       ++counts.frames_dropped_host;
       ++pending_host_drops_;
+      // Its row is not written: what it reported (itself, and the losses before it) goes to the next row.
+      pending_lost_ = (carries ? 0 : pending_lost_) + job.frame.frames_lost_before + 1;
       --next_sequence_;
       return;
     }
-    pending_host_drops_ = 0;
+    if (carries) {
+      pending_host_drops_ = 0;
+      pending_lost_ = 0;
+    }
     queued_bytes_ += job.bytes;
     queue_.push_back(std::move(job));
     report_.max_queue_frames =
@@ -370,6 +403,7 @@ class Recording {
         std::snprintf(name, sizeof(name), "%06lld", static_cast<long long>(done.job.position));
         done.image_path = (frames_dir_ / (std::string(name) + extension_of(options_.format))).string();
         std::string reason;
+        std::size_t file_bytes = 0;
         try {
           switch (options_.format) {
             case ImageFormat::kPng:
@@ -379,16 +413,29 @@ class Recording {
               cv::imencode(".tiff", done.job.frame.image, encoded, tiff_params);
               break;
             case ImageFormat::kPgm:
-              encode_pgm(done.job.frame.image, encoded);
+              if (done.job.frame.image.depth() == CV_8U && done.job.frame.image.isContinuous()) {
+                encoded.clear();  // 8-bit PGM is a header and the pixels as they are: written in place below
+              } else {
+                encode_pgm(done.job.frame.image, encoded);
+              }
               break;
           }
-          reason = write_file_atomically(done.image_path, encoded.data(), encoded.size());
+          if (options_.format == ImageFormat::kPgm && encoded.empty()) {
+            const cv::Mat& image = done.job.frame.image;
+            const std::string header =
+                "P5\n" + std::to_string(image.cols) + " " + std::to_string(image.rows) + "\n255\n";
+            reason = write_file_atomically(done.image_path, image.data, image.total(), header);
+            file_bytes = header.size() + image.total();
+          } else {
+            reason = write_file_atomically(done.image_path, encoded.data(), encoded.size());
+            file_bytes = encoded.size();
+          }
         } catch (const cv::Exception& e) {
           reason = std::string("cannot encode: ") + e.what();
         }
         if (reason.empty()) {
           done.saved = true;
-          done.bytes = static_cast<std::int64_t>(encoded.size());
+          done.bytes = static_cast<std::int64_t>(file_bytes);
         } else {
           std::lock_guard lock(mutex_);
           if (failure_.empty())
@@ -479,6 +526,13 @@ class Recording {
       first = false;
     }
     json += "\n  },\n";
+    json += "  \"requested_settings\": {";
+    first = true;
+    for (const auto& [key, value] : options_.requested_settings) {
+      json += std::string(first ? "\n" : ",\n") + "    " + json_string(key) + ": " + json_string(value);
+      first = false;
+    }
+    json += first ? "},\n" : "\n  },\n";
     json += "  \"image_format\": " + json_string(extension_of(options_.format) + 1) + ",\n";
     json += "  \"png_level\": " + std::to_string(options_.png_level) + ",\n";
     json += "  \"frames_received\": " + std::to_string(c.frames_received) + ",\n";
@@ -521,6 +575,9 @@ class Recording {
   bool have_position_ = false;
   std::int64_t last_position_ = -1;
   std::int64_t pending_host_drops_ = 0;
+  std::int64_t pending_lost_ = 0;  // frames missing before the next row that no row has reported yet
+  bool have_ids_ = false;          // the source numbers its frames (device_frame_id >= 0)
+  std::int64_t unidentified_ = 0;  // incomplete frames without a device id so far
   std::int64_t next_sequence_ = 0;
 
   std::mutex mutex_;

@@ -9,7 +9,8 @@
 //   DIR/frames.csv             index,t_s,device_frame_id,device_time_s,host_time_s,status,frames_lost_before,
 //                              received,saved — one row per frame received, appended only after its image
 //                              is complete, so the folder is consistent at every instant (even after a crash)
-//   DIR/recording.json         source, every setting read back, options, counters, why the run stopped;
+//   DIR/recording.json         source, every setting read back ("settings") and what was asked for
+//                              ("requested_settings"), options, counters, why the run stopped;
 //                              written last: its absence means the recorder itself died
 //
 // Incomplete frames (missing packets) get a row with status 1 and saved 0 and no image, so nothing
@@ -17,6 +18,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 
 #include "capture/frame_source.hpp"
@@ -48,7 +50,10 @@ struct RecordOptions {
   int png_level = 1;                               // zlib level 0..9: 1 is lossless and fast
   std::size_t queue_bytes = 512u * 1024u * 1024u;  // frames waiting for the writers
   int writer_threads = 2;
-  bool overwrite = false;                   // replace an existing recording in out_dir
+  bool overwrite = false;  // replace an existing recording in out_dir
+  // What was asked of the camera and where each value came from (capture/camera_settings.hpp
+  // describe_requested); written to recording.json next to the values read back from the device.
+  std::map<std::string, std::string> requested_settings;
   const std::atomic<bool>* stop = nullptr;  // e.g. set from a SIGINT handler
   // Called on the capture thread for every frame (live preview); must return quickly.
   std::function<void(const Frame&)> on_frame;

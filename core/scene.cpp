@@ -61,6 +61,7 @@ Scene parse_scene(const YAML::Node& root, const std::string& file) {
   scene.tracking = top.raw("tracking");
   scene.strain = top.raw("strain");
   scene.channels = top.raw("channels");
+  scene.camera = top.raw("camera");
   top.finish();
   return scene;
 }
@@ -96,6 +97,7 @@ YAML::Node scene_to_yaml(const Scene& scene) {
   if (scene.tracking && !scene.tracking.IsNull()) root["tracking"] = scene.tracking;
   if (scene.strain && !scene.strain.IsNull()) root["strain"] = scene.strain;
   if (scene.channels && !scene.channels.IsNull()) root["channels"] = scene.channels;
+  if (scene.camera && !scene.camera.IsNull()) root["camera"] = scene.camera;
   return root;
 }
 

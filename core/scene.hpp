@@ -1,7 +1,7 @@
 #pragma once
 // The scene file (YAML): one trial or one rig. Core parses what every stage shares (calibration, tissue,
 // reference pattern, what to compute); sections owned by one module (synthesis, segmentation, tracking,
-// strain, channels) are kept as raw YAML nodes and parsed strictly by that module with YamlSection.
+// strain, channels, camera) are kept as raw YAML nodes and parsed strictly by that module with YamlSection.
 #include <yaml-cpp/yaml.h>
 
 #include <array>
@@ -35,6 +35,7 @@ struct Scene {
   YAML::Node tracking;
   YAML::Node strain;
   YAML::Node channels;
+  YAML::Node camera;  // camera settings for record/live (capture/camera_settings.cpp)
 };
 
 // Known stage names for `compute`.

@@ -10,8 +10,10 @@
 #include <sstream>
 #include <string>
 
+#include "capture/camera_settings.hpp"
 #include "capture/frame_source.hpp"
 #include "core/error.hpp"
+#include "core/scene.hpp"
 
 namespace tirstrain::cli {
 
@@ -23,7 +25,8 @@ struct CameraArgs {
 
 inline void add_camera_options(CLI::App* sub, const std::shared_ptr<CameraArgs>& args) {
   const std::string group =
-      "Camera (aravis: sources; every value is checked against the device and read back)";
+      "Camera (aravis: sources; override the scene's camera: section; every value is checked against the "
+      "device and read back)";
   sub->add_option("--pixel-format", args->pixel_format,
                   "Mono8, Mono16, BayerRG8, ... (Bayer is stored as grey)")
       ->group(group);
@@ -71,6 +74,13 @@ inline capture::CameraSettings to_settings(const CameraArgs& args) {
     s.frame_timeout_s = *args.frame_timeout_s;
   }
   return s;
+}
+
+// The scene's camera: section (when a scene is given) with every flag given on the command line on top.
+inline capture::CameraSettings camera_settings(const CameraArgs& args, const Scene* scene) {
+  capture::CameraSettings from_scene;
+  if (scene != nullptr) from_scene = capture::parse_camera_settings(*scene);
+  return capture::override_camera_settings(from_scene, to_settings(args));
 }
 
 // Ctrl-C ends a recording cleanly (frames so far saved, summary written) instead of killing it.

@@ -1,53 +1,15 @@
 // `tirstrain cameras`: what each camera backend can see, with the URI to pass to record/live.
-#include <fcntl.h>
-#include <linux/videodev2.h>
-#include <sys/ioctl.h>
-#include <unistd.h>
-
-#include <algorithm>
-#include <filesystem>
 #include <iostream>
 #include <string>
 #include <vector>
 
 #include "capture/aravis_source.hpp"
+#include "capture/libcamera_source.hpp"
+#include "capture/v4l2_source.hpp"
+#include "core/error.hpp"
 #include "tirstrain/commands.hpp"
 
 namespace tirstrain::cli {
-namespace {
-
-// V4L2 capture nodes, asked directly: a /dev/videoN that cannot capture (metadata, output) is left out.
-std::vector<capture::CameraInfo> list_v4l2_devices() {
-  std::vector<capture::CameraInfo> out;
-  std::vector<std::string> nodes;
-  std::error_code ec;
-  for (const auto& entry : std::filesystem::directory_iterator("/dev", ec)) {
-    const std::string name = entry.path().filename().string();
-    if (name.rfind("video", 0) == 0) nodes.push_back(entry.path().string());
-  }
-  std::sort(nodes.begin(), nodes.end());
-  for (const auto& node : nodes) {
-    const int fd = ::open(node.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-    if (fd < 0) continue;
-    v4l2_capability caps{};
-    const bool ok = ::ioctl(fd, VIDIOC_QUERYCAP, &caps) == 0;
-    ::close(fd);
-    if (!ok) continue;
-    const unsigned device_caps =
-        (caps.capabilities & V4L2_CAP_DEVICE_CAPS) ? caps.device_caps : caps.capabilities;
-    if (!(device_caps & V4L2_CAP_VIDEO_CAPTURE)) continue;
-    capture::CameraInfo info;
-    info.backend = "v4l2";
-    info.uri = "v4l2:" + node;
-    info.model = reinterpret_cast<const char*>(caps.card);
-    info.address = reinterpret_cast<const char*>(caps.bus_info);
-    info.protocol = reinterpret_cast<const char*>(caps.driver);
-    out.push_back(info);
-  }
-  return out;
-}
-
-}  // namespace
 
 void add_cameras_command(CLI::App& app) {
   struct Args {
@@ -75,9 +37,16 @@ void add_cameras_command(CLI::App& app) {
     };
     const bool all = args->backend == "all";
     if (all || args->backend == "aravis") print("aravis", capture::list_aravis_cameras(), "");
-    if (all || args->backend == "v4l2")
-      print("v4l2", list_v4l2_devices(), " (capture backend not built yet)");
-    if (all || args->backend == "libcamera") print("libcamera", {}, " (backend not built yet; not searched)");
+    if (all || args->backend == "v4l2") print("v4l2", capture::list_v4l2_cameras(), "");
+    if (all || args->backend == "libcamera") {
+      // libcamera also sees V4L2 sensors behind a media controller (vimc, CSI cameras) that v4l2: cannot
+      // drive directly; a camera manager that cannot start is reported, not fatal for the other backends.
+      try {
+        print("libcamera", capture::list_libcamera_cameras(), "");
+      } catch (const Error& e) {
+        print("libcamera", {}, std::string(" (") + e.message() + ")");
+      }
+    }
   });
 }
 

@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <optional>
+#include <string>
 
 #include "capture/frame_source.hpp"
 #include "capture/live.hpp"
@@ -81,7 +83,10 @@ void add_live_command(CLI::App& app) {
       "the recording never does.\n"
       "Keys: q or Esc quits. Ctrl-C stops cleanly.");
   sub->add_option("URI", args->uri, "Source: aravis:ID, aravis:IP, or a file source")->required();
-  sub->add_option("--scene", args->scene, "Scene file (YAML): calibration and what to compute");
+  sub->add_option(
+      "--scene", args->scene,
+      "Scene file (YAML): calibration, what to compute, and the camera: section (settings that the "
+      "camera flags below override)");
   sub->add_option("--record", args->record, "Also record losslessly into this folder");
   sub->add_option("--format", args->format, "Recording image format: tiff (default), pgm, png")
       ->check(CLI::IsMember({"png", "tiff", "pgm"}));
@@ -94,9 +99,13 @@ void add_live_command(CLI::App& app) {
   sub->callback([args, camera] {
     // Loaded (and its stages built) now, so a bad scene fails before the camera starts.
     std::shared_ptr<LiveAnalysis> analysis;
-    if (!args->scene.empty()) analysis = std::make_shared<LiveAnalysis>(load_scene(args->scene));
+    std::optional<Scene> scene;
+    if (!args->scene.empty()) {
+      scene = load_scene(args->scene);
+      analysis = std::make_shared<LiveAnalysis>(*scene);
+    }
     if (!args->no_window) capture::check_display();  // before the camera starts
-    const capture::CameraSettings settings = to_settings(*camera);
+    const capture::CameraSettings settings = camera_settings(*camera, scene ? &*scene : nullptr);
     capture::LiveOptions options;
     options.window = !args->no_window;
     options.record_dir = args->record;
@@ -120,6 +129,7 @@ void add_live_command(CLI::App& app) {
             static_cast<long long>(s.frames_lost), static_cast<long long>(s.frames_incomplete), s.latency_ms);
       };
     std::unique_ptr<capture::FrameSource> source = capture::open_source(args->uri, settings);
+    if (source->is_live()) options.record.requested_settings = capture::describe_requested(settings);
     if (!args->quiet) std::cerr << "live: " << source->describe() << "\n";
     const capture::LiveReport report = capture::run_live(*source, options);
     const capture::LiveStatus& s = report.status;
@@ -128,6 +138,18 @@ void add_live_command(CLI::App& app) {
     if (report.recorded)
       std::cerr << "; " << report.record.counts.frames_saved << " saved to " << args->record;
     std::cerr << "\n";
+    // One line with the capture -> display latency of the whole run (median / p95 / max, ms).
+    auto latency = [](const char* name, const capture::LatencySummary& l) {
+      return cv::format("%s %.2f / %.2f / %.2f ms (%lld frames)", name, l.median_ms, l.p95_ms, l.max_ms,
+                        static_cast<long long>(l.frames));
+    };
+    std::string line = "live: latency median / p95 / max: " +
+                       latency("host receive -> overlay ready", report.receive_to_ready);
+    if (report.receive_to_shown.frames > 0)
+      line += "; " + latency("host receive -> imshow returned", report.receive_to_shown);
+    if (report.device_to_ready.frames > 0)
+      line += "; " + latency("device timestamp -> overlay ready", report.device_to_ready);
+    std::cerr << line << "\n";
     if (analysis)
       std::cerr << "live: analysis stages: " << analysis->describe() << " (" << analysis->analysed()
                 << " frames analysed)\n";

@@ -3,10 +3,12 @@
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #include "capture/frame_source.hpp"
 #include "capture/recorder.hpp"
 #include "core/error.hpp"
+#include "core/scene.hpp"
 #include "tirstrain/camera_options.hpp"
 #include "tirstrain/commands.hpp"
 
@@ -28,7 +30,7 @@ void print_progress(const capture::RecordProgress& p) {
 
 void add_record_command(CLI::App& app) {
   struct Args {
-    std::string uri, out, format = "tiff";
+    std::string uri, out, scene, format = "tiff";
     std::int64_t frames = -1;
     double seconds = -1;
     int png_level = 1, writers = 2;
@@ -42,10 +44,15 @@ void add_record_command(CLI::App& app) {
       "Record frames losslessly from a camera (aravis:<device id or IP>) or any other source.\n"
       "Writes DIR/frames/NNNNNN.tif (numbered by the camera's frame counter, so lost frames are missing\n"
       "numbers), DIR/frames.csv (index,t_s,device_frame_id,device_time_s,host_time_s,status,...) and\n"
-      "DIR/recording.json (settings read back from the device, counts, why it stopped). DIR is a valid\n"
-      "input for 'tirstrain process'. Ctrl-C stops cleanly. See docs/capture.md.");
+      "DIR/recording.json (settings read back from the device, what was asked, counts, why it stopped).\n"
+      "Camera settings come from the scene's camera: section (--scene) and the flags below, which override\n"
+      "it. DIR is a valid input for 'tirstrain process'. Ctrl-C stops cleanly. See docs/capture.md.");
   sub->add_option("URI", args->uri, "Source: aravis:ID, aravis:IP, or a file source")->required();
   sub->add_option("--out", args->out, "Output folder")->required();
+  sub->add_option(
+      "--scene", args->scene,
+      "Scene file (YAML) whose camera: section sets pixel format, ROI, exposure, gain, frame rate, "
+      "trigger, packet size and buffers");
   auto* frames =
       sub->add_option("--frames", args->frames, "Stop after N frames received")->check(CLI::PositiveNumber);
   auto* seconds =
@@ -62,7 +69,9 @@ void add_record_command(CLI::App& app) {
   sub->add_flag("--quiet", args->quiet, "Only errors and the final summary");
   add_camera_options(sub, camera);
   sub->callback([args, camera] {
-    const capture::CameraSettings settings = to_settings(*camera);
+    std::optional<Scene> scene;
+    if (!args->scene.empty()) scene = load_scene(args->scene);
+    const capture::CameraSettings settings = camera_settings(*camera, scene ? &*scene : nullptr);
     capture::RecordOptions options;
     options.out_dir = args->out;
     options.max_frames = args->frames;
@@ -76,6 +85,8 @@ void add_record_command(CLI::App& app) {
     options.stop = &interrupt_flag();
     if (!args->quiet) options.on_progress = print_progress;
     std::unique_ptr<capture::FrameSource> source = capture::open_source(args->uri, settings);
+    // File sources ignore a scene's camera: section (it describes the camera that made them).
+    if (source->is_live()) options.requested_settings = capture::describe_requested(settings);
     if (!args->quiet) std::cerr << "record: " << source->describe() << "\n";
     const capture::RecordReport report = capture::record(*source, options);
     const capture::RecordProgress& c = report.counts;

@@ -7,6 +7,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstring>
@@ -14,12 +15,15 @@
 #include <fstream>
 #include <functional>
 #include <memory>
+#include <set>
 
 #include "capture/aravis_source.hpp"
+#include "capture/camera_settings.hpp"
 #include "capture/frame_source.hpp"
 #include "capture/recorder.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
+#include "core/scene.hpp"
 #include "tests/capture_aravis/netns.hpp"
 
 namespace tirstrain::capture {
@@ -155,11 +159,19 @@ TEST(FrameIdUnwrapperTest, GigEVisionIdsSkipZeroOnWrap) {
   EXPECT_EQ(u.unwrap(1), 65536);  // 0 is reserved: 65535 -> 1 is one step
   EXPECT_EQ(u.unwrap(2), 65537);
   EXPECT_EQ(u.unwrap(5), 65540);  // two frames lost
-  EXPECT_EQ(u.unwrap(65535), 65535 + 65535);
-  EXPECT_EQ(u.unwrap(3), 65535 + 65535 + 3);  // wrap with a loss (ids 1, 2 lost)
+  EXPECT_EQ(u.unwrap(3), 65538);  // one of them delivered late (Aravis hands incomplete frames over late)
+  EXPECT_EQ(u.unwrap(6), 65541);  // the newest id stays the reference
+  FrameIdUnwrapper v;
+  EXPECT_EQ(v.unwrap(65530), 65530);
+  EXPECT_EQ(v.unwrap(65533), 65533);
+  EXPECT_EQ(v.unwrap(3), 65538);      // wrap with a loss: 65534, 65535, 1, 2 lost
+  EXPECT_EQ(v.unwrap(65534), 65534);  // late across the wrap: not a second wrap
+  EXPECT_EQ(v.unwrap(4), 65539);
   FrameIdUnwrapper wide;
   EXPECT_EQ(wide.unwrap(70000), 70000);  // above 16 bits: taken as is
   EXPECT_EQ(wide.unwrap(70001), 70001);
+  EXPECT_EQ(wide.unwrap(69999), 69999);  // late
+  EXPECT_EQ(wide.unwrap(70002), 70002);
 }
 
 TEST_F(AravisTest, Mono8FramesReadBackExactly) {
@@ -316,6 +328,59 @@ TEST_F(AravisTest, RecordingIsAReadableImageFolder) {
   }
 }
 
+// Writers slower than the camera (PNG level 9, one writer, room for one queued frame): frames are dropped
+// before the queue, counted, and the next stored frame says how many went before it (status 4), so the
+// counts add up and the file numbers keep the holes.
+TEST_F(AravisTest, WritersThatCannotKeepUpDropCountedFrames) {
+  const std::string dir = test_dir("host_drops");
+  CameraSettings s = small("Mono8", 500);
+  s.roi_px = cv::Rect(0, 0, 512, 512);
+  auto source = open_source("aravis:127.0.0.1", s);
+  RecordOptions options;
+  options.out_dir = dir;
+  options.format = ImageFormat::kPng;
+  options.png_level = 9;
+  options.writer_threads = 1;
+  options.queue_bytes = 1;  // one frame waits at most
+  options.max_frames = 200;
+  std::int64_t progress_dropped = 0;
+  options.on_progress = [&](const RecordProgress& p) { progress_dropped = p.frames_dropped_host; };
+  const RecordReport report = record(*source, options);
+  ASSERT_TRUE(report.ok()) << report.error;
+  const RecordProgress& c = report.counts;
+  EXPECT_EQ(c.frames_received, 200);
+  EXPECT_GT(c.frames_dropped_host, 0) << "one PNG-9 writer kept up with 500 frames/s of 512x512";
+  EXPECT_GT(progress_dropped, 0) << "the progress callback (the CLI's WARNING) never saw the drops";
+  EXPECT_EQ(c.frames_received, c.frames_saved + c.frames_dropped_host + c.frames_incomplete);
+  const CsvTable table = read_numeric_csv(dir + "/frames.csv");
+  EXPECT_EQ(static_cast<std::int64_t>(table.rows()), c.frames_received - c.frames_dropped_host);
+  double lost_sum = 0;
+  std::int64_t overruns = 0;
+  for (std::size_t i = 0; i < table.rows(); ++i) {
+    lost_sum += table.column("frames_lost_before")[i];
+    if (table.column("status")[i] == static_cast<int>(FrameStatus::kOverrun)) {
+      ++overruns;
+      EXPECT_GE(table.column("frames_lost_before")[i], 1);
+    }
+  }
+  EXPECT_GT(overruns, 0);
+  // Frames dropped after the last row have no later row to report them: only recording.json counts them.
+  const auto& received = table.column("received");
+  const double after_last_row =
+      static_cast<double>(c.frames_received) - 1 - *std::max_element(received.begin(), received.end());
+  EXPECT_EQ(lost_sum + after_last_row, static_cast<double>(c.frames_lost_device + c.frames_dropped_host));
+  std::int64_t files = 0;
+  for (const auto& entry : fs::directory_iterator(dir + "/frames")) {
+    (void)entry;
+    ++files;
+  }
+  EXPECT_EQ(files, c.frames_saved);
+  const std::string json = read_text(dir + "/recording.json");
+  EXPECT_NE(json.find("\"frames_dropped_host\": " + std::to_string(c.frames_dropped_host) + ","),
+            std::string::npos)
+      << json;
+}
+
 // Disk full: a 1 MiB tmpfs (private to this test's mount namespace) fills after a few frames. The run stops
 // cleanly; every frame listed in frames.csv is complete and readable.
 TEST_F(AravisTest, DiskFullStopsCleanlyWithEarlierFramesReadable) {
@@ -424,6 +489,37 @@ TEST_F(AravisProcessTest, PacketLossMarksFramesIncompleteAndNeverPassesThemOn) {
   EXPECT_GT(good, 0u);
   EXPECT_NE(read_text(dir + "/recording.json").find("\"frames_incomplete\": " + std::to_string(incomplete)),
             std::string::npos);
+  // A frame whose leader packet was lost comes out of Aravis with block id 0 and no timestamp: it must not be
+  // taken for a wrap of the 16-bit counter (which would have made every later frame look "late"), it gets a
+  // negative index of its own, and the losses must still add up: frames never received = the ids missing
+  // from the identified range, minus the frames received without an id.
+  const auto& lost_before = table.column("frames_lost_before");
+  const auto& device_ids = table.column("device_frame_id");
+  double lost_sum = 0, first_id = 1e18, last_id = -1;
+  std::size_t unidentified = 0;
+  std::set<double> places;
+  for (std::size_t i = 0; i < table.rows(); ++i) {
+    lost_sum += lost_before[i];
+    EXPECT_TRUE(places.insert(index[i]).second) << "index " << index[i] << " used twice";
+    if (device_ids[i] < 0) {
+      ++unidentified;
+      EXPECT_EQ(status[i], 1);
+      EXPECT_LT(index[i], 0);
+      continue;
+    }
+    first_id = std::min(first_id, device_ids[i]);
+    last_id = std::max(last_id, device_ids[i]);
+  }
+  for (std::size_t i = 0; i < table.rows(); ++i) {
+    if (device_ids[i] >= 0) {
+      EXPECT_EQ(index[i], device_ids[i] - first_id) << "row " << i;
+    }
+  }
+  EXPECT_EQ(lost_sum, last_id - first_id + 1 - static_cast<double>(table.rows())) << "frames never received";
+  EXPECT_NE(read_text(dir + "/recording.json")
+                .find("\"frames_lost_device\": " + std::to_string(static_cast<long long>(lost_sum)) + ","),
+            std::string::npos)
+      << read_text(dir + "/recording.json");
   // Read back: only the good frames, each exactly the camera's image for its id; the holes are gaps.
   auto folder = open_source(dir);
   std::size_t n = 0;
@@ -506,6 +602,25 @@ TEST_F(AravisProcessTest, LiveHeadlessWithRecording) {
   EXPECT_GE(table.rows(), 40u);
   EXPECT_LE(table.rows(), 110u);
   EXPECT_NE(log.find("saved to " + dir), std::string::npos) << log;
+  // The capture -> display latency summary: every frame shown measured, median <= p95 <= max, and plausible
+  // (the display thread takes each frame as it comes at 40 Hz; seconds would mean frames queue up).
+  for (const std::string what : {"host receive -> overlay ready ", "device timestamp -> overlay ready "}) {
+    const std::size_t at = log.find(what);
+    ASSERT_NE(at, std::string::npos) << what
+                                     << " missing (the fake camera stamps frames with the host clock)\n"
+                                     << log;
+    double median = -1, p95 = -1, max = -1;
+    long long frames = -1;
+    ASSERT_EQ(std::sscanf(log.c_str() + at + what.size(), "%lf / %lf / %lf ms (%lld frames)", &median, &p95,
+                          &max, &frames),
+              4)
+        << log.substr(at, 120);
+    EXPECT_GE(frames, 40);
+    EXPECT_GT(median, 0.0);
+    EXPECT_LE(median, p95);
+    EXPECT_LE(p95, max);
+    EXPECT_LT(median, 500.0) << log.substr(at, 120);
+  }
 }
 
 // Without a display `live` must say so (OpenCV's Qt backend would abort the process instead).
@@ -623,6 +738,191 @@ TEST_F(AravisTest, EndToEndRecordThenProcessMatchesDirectProcessing) {
     for (std::size_t i = 0; i < direct.rows(); ++i)
       EXPECT_EQ(direct.columns[j][i], via_camera.columns[j][i]) << direct.names[j] << " at frame " << i;
   }
+}
+
+}  // namespace
+}  // namespace tirstrain::capture
+
+// ---- Camera settings from the scene file's camera: section ----
+
+namespace tirstrain::capture {
+namespace {
+
+// What the fake camera's image generator was last handed: the device's own exposure, gain and image region
+// (not what the client believes it wrote).
+struct DeviceView {
+  std::atomic<std::uint32_t> exposure_us{0}, gain{0}, frames{0};
+  std::atomic<int> x{-1}, y{-1}, width{-1}, height{-1};
+  std::atomic<std::uint32_t> format{0};
+};
+
+void fill_and_observe(ArvBuffer* buffer, void* data, guint32 exposure_us, guint32 gain,
+                      ArvPixelFormat format) {
+  auto* view = static_cast<DeviceView*>(data);
+  fill_pattern(buffer, nullptr, exposure_us, gain, format);
+  gint x = 0, y = 0, w = 0, h = 0;
+  arv_buffer_get_image_region(buffer, &x, &y, &w, &h);
+  view->exposure_us = exposure_us;
+  view->gain = gain;
+  view->x = x;
+  view->y = y;
+  view->width = w;
+  view->height = h;
+  view->format = format;
+  view->frames.fetch_add(1);
+}
+
+// The value of "key": "value" in a JSON object written by the recorder (flat string values).
+std::string json_value(const std::string& json, const std::string& key) {
+  const std::string tag = "\"" + key + "\": \"";
+  const std::size_t at = json.find(tag);
+  if (at == std::string::npos) return "(missing " + key + ")";
+  const std::size_t end = json.find('"', at + tag.size());
+  return json.substr(at + tag.size(), end - at - tag.size());
+}
+
+double median_step(std::vector<double> t) {
+  std::vector<double> steps;
+  for (std::size_t i = 1; i < t.size(); ++i) steps.push_back(t[i] - t[i - 1]);
+  std::nth_element(steps.begin(), steps.begin() + steps.size() / 2, steps.end());
+  return steps[steps.size() / 2];
+}
+
+constexpr const char* kRigScene = R"(calibration: {px_per_mm: 52}
+camera:
+  pixel_format: Mono16
+  roi_px: [32, 16, 160, 96]
+  exposure_us: 2500
+  gain_dB: 3
+  frame_rate_hz: 80
+  trigger: free-run
+  packet_size_bytes: 4000
+  buffer_count: 12
+)";
+
+// `tirstrain record --scene`: the scene's exposure, gain, ROI, pixel format and frame rate reach the device
+// (seen by its image generator and in its frame timing), and the values read back from it are in
+// recording.json next to what was asked and where it came from.
+TEST_F(AravisTest, SceneCameraSettingsReachTheDeviceAndTheRecording) {
+  DeviceView view;
+  arv_fake_camera_set_fill_pattern(camera_->fake(), fill_and_observe, &view);
+  const std::string dir = test_dir("scene_settings");
+  fs::create_directories(dir);
+  const std::string scene = dir + "/rig.yaml";
+  std::ofstream(scene) << kRigScene;
+  Child cli({TIRSTRAIN_CLI, "record", "aravis:127.0.0.1", "--scene", scene, "--out", dir + "/rec", "--frames",
+             "30", "--format", "pgm", "--quiet"},
+            dir + "/record.log");
+  const int code = cli.wait(60);
+  arv_fake_camera_set_fill_pattern(camera_->fake(), fill_pattern, nullptr);
+  ASSERT_EQ(code, 0) << cli.log();
+
+  // On the device.
+  EXPECT_GE(view.frames.load(), 30u);
+  EXPECT_EQ(view.exposure_us.load(), 2500u);
+  EXPECT_EQ(view.gain.load(), 3u);
+  EXPECT_EQ(view.x.load(), 32);
+  EXPECT_EQ(view.y.load(), 16);
+  EXPECT_EQ(view.width.load(), 160);
+  EXPECT_EQ(view.height.load(), 96);
+  EXPECT_EQ(view.format.load(), static_cast<std::uint32_t>(ARV_PIXEL_FORMAT_MONO_16));
+  guint32 period_us = 0;
+  arv_fake_camera_read_register(camera_->fake(), ARV_FAKE_CAMERA_REGISTER_ACQUISITION_FRAME_PERIOD_US,
+                                &period_us);
+  EXPECT_EQ(period_us, 12500u);  // 80 Hz
+  const CsvTable table = read_numeric_csv(dir + "/rec/frames.csv");
+  ASSERT_EQ(table.rows(), 30u);
+  EXPECT_NEAR(median_step(table.column("device_time_s")), 1.0 / 80, 1e-3);
+
+  // Read back into the recording.
+  const std::string json = read_text(dir + "/rec/recording.json");
+  EXPECT_EQ(json_value(json, "pixel_format"), "Mono16") << json;
+  EXPECT_EQ(json_value(json, "offset_x_px"), "32");
+  EXPECT_EQ(json_value(json, "offset_y_px"), "16");
+  EXPECT_EQ(json_value(json, "width_px"), "160");
+  EXPECT_EQ(json_value(json, "height_px"), "96");
+  EXPECT_EQ(json_value(json, "exposure_us"), "2500");
+  EXPECT_EQ(json_value(json, "gain_dB"), "3");
+  EXPECT_EQ(json_value(json, "frame_rate_hz"), "80");
+  EXPECT_EQ(json_value(json, "trigger"), "free-run");
+  EXPECT_EQ(json_value(json, "packet_size_bytes"), "4000");
+  EXPECT_EQ(json_value(json, "stream_buffers"), "12");
+  const std::size_t requested = json.find("\"requested_settings\": {");
+  ASSERT_NE(requested, std::string::npos) << json;
+  const std::string asked = json.substr(requested);
+  EXPECT_EQ(json_value(asked, "exposure_us"), "2500 (scene " + scene + ")") << json;
+  EXPECT_EQ(json_value(asked, "roi_px"), "32,16,160,96 (scene " + scene + ")");
+  EXPECT_EQ(json_value(asked, "frame_rate_hz"), "80 (scene " + scene + ")");
+  EXPECT_EQ(json_value(asked, "buffer_count"), "12 (scene " + scene + ")");
+
+  // The frames themselves: the ROI's size, 16-bit, the camera's exact pixels.
+  auto folder = open_source(dir + "/rec");
+  const auto& ids = table.column("device_frame_id");
+  for (std::size_t i = 0; i < 30; ++i) {
+    std::optional<Frame> frame = folder->next();
+    ASSERT_TRUE(frame.has_value());
+    Frame as_received = *frame;
+    as_received.device_frame_id = static_cast<std::int64_t>(ids[i]);
+    ASSERT_TRUE(same(frame->image, expected_frame(as_received, "Mono16"))) << "frame " << i;
+  }
+}
+
+// Flags given on the command line win over the scene, and the recording says which value came from where.
+TEST_F(AravisTest, CommandLineFlagsOverrideTheScene) {
+  DeviceView view;
+  arv_fake_camera_set_fill_pattern(camera_->fake(), fill_and_observe, &view);
+  const std::string dir = test_dir("scene_override");
+  fs::create_directories(dir);
+  const std::string scene = dir + "/rig.yaml";
+  std::ofstream(scene) << kRigScene;
+  Child cli({TIRSTRAIN_CLI, "record", "aravis:127.0.0.1", "--scene", scene, "--out", dir + "/rec", "--frames",
+             "20", "--fps", "50", "--exposure-us", "4000", "--pixel-format", "Mono8", "--quiet"},
+            dir + "/record.log");
+  const int code = cli.wait(60);
+  arv_fake_camera_set_fill_pattern(camera_->fake(), fill_pattern, nullptr);
+  ASSERT_EQ(code, 0) << cli.log();
+  EXPECT_EQ(view.exposure_us.load(), 4000u);
+  EXPECT_EQ(view.width.load(), 160);  // still the scene's ROI
+  EXPECT_EQ(view.format.load(), static_cast<std::uint32_t>(ARV_PIXEL_FORMAT_MONO_8));
+  const CsvTable table = read_numeric_csv(dir + "/rec/frames.csv");
+  ASSERT_EQ(table.rows(), 20u);
+  EXPECT_NEAR(median_step(table.column("device_time_s")), 1.0 / 50, 1e-3);
+  const std::string json = read_text(dir + "/rec/recording.json");
+  EXPECT_EQ(json_value(json, "frame_rate_hz"), "50") << json;
+  EXPECT_EQ(json_value(json, "exposure_us"), "4000");
+  EXPECT_EQ(json_value(json, "pixel_format"), "Mono8");
+  const std::string asked = json.substr(json.find("\"requested_settings\": {"));
+  EXPECT_EQ(json_value(asked, "frame_rate_hz"), "50 (--fps)") << json;
+  EXPECT_EQ(json_value(asked, "exposure_us"), "4000 (--exposure-us)");
+  EXPECT_EQ(json_value(asked, "pixel_format"), "Mono8 (--pixel-format)");
+  EXPECT_EQ(json_value(asked, "roi_px"), "32,16,160,96 (scene " + scene + ")");
+}
+
+// A value the scene allows but this camera does not: the message names the scene file and key, the value
+// and the camera's range.
+TEST_F(AravisTest, SceneValueTheCameraRefusesNamesTheSceneKey) {
+  const std::string dir = test_dir("scene_refused");
+  fs::create_directories(dir);
+  const std::string scene = dir + "/rig.yaml";
+  std::ofstream(scene) << "camera:\n  exposure_us: 50000000\n  roi_px: [0, 0, 128, 64]\n";
+  const CameraSettings settings = parse_camera_settings(load_scene(scene));
+  std::string message = error_of([&] { open_source("aravis:127.0.0.1", settings); });
+  EXPECT_NE(message.find("'camera.exposure_us (scene " + scene + ")'"), std::string::npos) << message;
+  EXPECT_NE(message.find("exposure 5e+07 us is outside this camera's range"), std::string::npos) << message;
+  std::ofstream(scene) << "camera:\n  roi_px: [0, 0, 4096, 64]\n";
+  message = error_of([&] { open_source("aravis:127.0.0.1", parse_camera_settings(load_scene(scene))); });
+  EXPECT_NE(message.find("'camera.roi_px (scene " + scene + ")'"), std::string::npos) << message;
+  EXPECT_NE(message.find("does not fit the sensor"), std::string::npos) << message;
+  // Through the CLI: exit 1, nothing recorded.
+  std::ofstream(scene) << "camera:\n  frame_rate_hz: 5000\n";
+  Child cli(
+      {TIRSTRAIN_CLI, "record", "aravis:127.0.0.1", "--scene", scene, "--out", dir + "/rec", "--frames", "5"},
+      dir + "/record.log");
+  EXPECT_EQ(cli.wait(30), 1) << cli.log();
+  EXPECT_NE(cli.log().find("'camera.frame_rate_hz (scene " + scene + ")': frame rate 5000 Hz is outside"),
+            std::string::npos)
+      << cli.log();
+  EXPECT_FALSE(fs::exists(dir + "/rec/frames.csv"));
 }
 
 }  // namespace
