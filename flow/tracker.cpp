@@ -269,8 +269,9 @@ void FeatureTracker::Impl::prepare_matching() {
     match_f = current_f;
     return;
   }
+  // Zeros outside the region: anchors copy (and differentiate) the whole frame.
   if (match_f.size() != current_f.size() || match_f.data == current_f.data)
-    match_f.create(current_f.size(), CV_32F);
+    match_f = cv::Mat::zeros(current_f.size(), CV_32F);
   cv::GaussianBlur(current_f(roi), match_f(roi), cv::Size(), settings.prefilter_sigma_px,
                    settings.prefilter_sigma_px, cv::BORDER_REPLICATE);
 }
