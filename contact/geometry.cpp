@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <utility>
 
 namespace tirstrain::contact {
 
@@ -59,26 +60,36 @@ double polygon_area_px2(const std::vector<cv::Point2d>& polygon) {
 cv::Mat rasterize_polygon(const std::vector<cv::Point2d>& polygon, cv::Size size) {
   cv::Mat mask = cv::Mat::zeros(size, CV_8UC1);
   const std::size_t n = polygon.size();
-  if (n < 3) return mask;
+  if (n < 3 || size.height <= 0) return mask;
   // Even-odd scanline fill at pixel centres: exact to the pixel, unlike cv::fillPoly, which also paints
-  // the pixels its outline passes through and so grows every region by about half a pixel.
-  std::vector<double> crossings;
-  for (int y = 0; y < size.height; ++y) {
-    crossings.clear();
-    const double yc = y;
-    for (std::size_t i = 0; i < n; ++i) {
-      const cv::Point2d& a = polygon[i];
-      const cv::Point2d& b = polygon[(i + 1) % n];
-      if ((a.y <= yc && b.y > yc) || (b.y <= yc && a.y > yc))
-        crossings.push_back(a.x + (yc - a.y) * (b.x - a.x) / (b.y - a.y));
+  // the pixels its outline passes through and so grows every region by about half a pixel. Each edge adds
+  // its crossings with the pixel-centre rows it spans (half-open in y, so a vertex on a row counts once);
+  // sorted by row, then x, consecutive pairs are the inside runs.
+  std::vector<std::pair<int, double>> crossings;
+  crossings.reserve(4 * static_cast<std::size_t>(size.height));
+  for (std::size_t i = 0; i < n; ++i) {
+    const cv::Point2d& a = polygon[i];
+    const cv::Point2d& b = polygon[(i + 1) % n];
+    if (a.y == b.y) continue;
+    const double y_low = std::min(a.y, b.y), y_high = std::max(a.y, b.y);
+    // Rows yc with y_low <= yc < y_high, within the image.
+    const int first = std::max(0, static_cast<int>(std::ceil(y_low)));
+    const int last = std::min(size.height - 1, static_cast<int>(std::ceil(y_high)) - 1);
+    const double slope = (b.x - a.x) / (b.y - a.y);
+    for (int y = first; y <= last; ++y) crossings.emplace_back(y, a.x + (y - a.y) * slope);
+  }
+  std::sort(crossings.begin(), crossings.end());
+  for (std::size_t k = 0; k + 1 < crossings.size();) {
+    const int y = crossings[k].first;
+    if (crossings[k + 1].first != y) {  // an odd crossing count on this row cannot happen; skip it safely
+      ++k;
+      continue;
     }
-    std::sort(crossings.begin(), crossings.end());
     auto* row = mask.ptr<std::uint8_t>(y);
-    for (std::size_t k = 0; k + 1 < crossings.size(); k += 2) {
-      const int x0 = std::max(0, static_cast<int>(std::ceil(crossings[k])));
-      const int x1 = std::min(size.width - 1, static_cast<int>(std::floor(crossings[k + 1])));
-      for (int x = x0; x <= x1; ++x) row[x] = 255;
-    }
+    const int x0 = std::max(0, static_cast<int>(std::ceil(crossings[k].second)));
+    const int x1 = std::min(size.width - 1, static_cast<int>(std::floor(crossings[k + 1].second)));
+    for (int x = x0; x <= x1; ++x) row[x] = 255;
+    k += 2;
   }
   return mask;
 }

@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
+#include <numeric>
 
 #include "contact/geometry.hpp"
 #include "contact/orientation.hpp"
@@ -75,28 +77,117 @@ float bilinear(const cv::Mat& image, double x, double y) {
                             fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]));
 }
 
-template <typename T>
-void block_average(const cv::Mat& src, int factor, double gain, cv::Mat& dst, std::vector<float>& row_sum) {
+// Means of factor x factor blocks, times `gain`, and the number of pixels >= `saturation` over the whole
+// image (counted on the way, so the frame is read once). Columns are summed first in the source's integer
+// type widened to Acc (vectorises; no per-pixel float conversion), then each block's columns.
+template <typename T, typename Acc>
+std::size_t block_average(const cv::Mat& src, int factor, double gain, double saturation, cv::Mat& dst,
+                          std::vector<Acc>& column_sum) {
   const int out_w = src.cols / factor, out_h = src.rows / factor;
   dst.create(out_h, out_w, CV_32FC1);
+  const auto at_full_scale = [&](int y) {
+    const T* in = src.ptr<T>(y);
+    std::size_t count = 0;
+    for (int x = 0; x < src.cols; ++x) count += static_cast<double>(in[x]) >= saturation ? 1 : 0;
+    return count;
+  };
+  std::size_t saturated = 0;
   // Narrower or shorter than one block: nothing to average (and no row pointer of an empty Mat to take).
-  if (out_w <= 0 || out_h <= 0) return;
-  row_sum.assign(static_cast<std::size_t>(src.cols), 0.0f);
+  if (out_w <= 0 || out_h <= 0) {
+    for (int y = 0; y < src.rows; ++y) saturated += at_full_scale(y);
+    return saturated;
+  }
+  const auto limit = static_cast<T>(std::min(saturation, static_cast<double>(std::numeric_limits<T>::max())));
+  const int used_w = out_w * factor;
+  // Per column: the block's sum, and how many of its pixels so far were at full scale (same lane width, so
+  // both loops vectorise).
+  column_sum.resize(2 * static_cast<std::size_t>(src.cols));
+  Acc* acc = column_sum.data();
+  Acc* at_limit = acc + src.cols;
+  std::fill(at_limit, at_limit + src.cols, Acc{0});
   const auto g = static_cast<float>(gain / (factor * factor));
   for (int y = 0; y < out_h; ++y) {
-    std::fill(row_sum.begin(), row_sum.end(), 0.0f);
     for (int r = 0; r < factor; ++r) {
       const T* in = src.ptr<T>(y * factor + r);
-      float* acc = row_sum.data();
-      for (int x = 0; x < src.cols; ++x) acc[x] += static_cast<float>(in[x]);
+      const Acc keep = r == 0 ? 0 : 1;  // the first row of a block starts the sums
+      for (int x = 0; x < src.cols; ++x) {
+        acc[x] = static_cast<Acc>(acc[x] * keep + static_cast<Acc>(in[x]));
+        at_limit[x] = static_cast<Acc>(at_limit[x] + (in[x] >= limit ? 1 : 0));
+      }
+    }
+    // Flush the counts before they could overflow the lane (a 16-bit lane holds 65535 rows).
+    if ((y + 1) % 4096 == 0) {
+      for (int x = 0; x < src.cols; ++x) saturated += at_limit[x];
+      std::fill(at_limit, at_limit + src.cols, Acc{0});
+    }
+    float* out = dst.ptr<float>(y);
+    for (int x = 0, k0 = 0; k0 < used_w; ++x, k0 += factor) {
+      std::uint32_t s = 0;
+      for (int k = 0; k < factor; ++k) s += static_cast<std::uint32_t>(acc[k0 + k]);
+      out[x] = static_cast<float>(s) * g;
+    }
+  }
+  for (int x = 0; x < src.cols; ++x) saturated += at_limit[x];
+  for (int y = out_h * factor; y < src.rows; ++y) saturated += at_full_scale(y);
+  return saturated;
+}
+
+// Float images: the same in float (no saturation: float frames carry no full-scale code).
+void block_average_float(const cv::Mat& src, int factor, double gain, cv::Mat& dst,
+                         std::vector<float>& row_sum) {
+  const int out_w = src.cols / factor, out_h = src.rows / factor;
+  dst.create(out_h, out_w, CV_32FC1);
+  if (out_w <= 0 || out_h <= 0) return;
+  row_sum.resize(static_cast<std::size_t>(src.cols));
+  float* acc = row_sum.data();
+  const auto g = static_cast<float>(gain / (factor * factor));
+  for (int y = 0; y < out_h; ++y) {
+    for (int r = 0; r < factor; ++r) {
+      const float* in = src.ptr<float>(y * factor + r);
+      if (r == 0) {
+        std::copy(in, in + src.cols, acc);
+      } else {
+        for (int x = 0; x < src.cols; ++x) acc[x] += in[x];
+      }
     }
     float* out = dst.ptr<float>(y);
     for (int x = 0; x < out_w; ++x) {
       float s = 0.0f;
-      for (int k = 0; k < factor; ++k) s += row_sum[static_cast<std::size_t>(x * factor + k)];
+      for (int k = 0; k < factor; ++k) s += acc[x * factor + k];
       out[x] = s * g;
     }
   }
+}
+
+// Mean of a float image inside a mask (non-zero) and outside it, in one pass.
+struct MaskedMeans {
+  double inside = 0.0, outside = 0.0, inside_count = 0.0, outside_count = 0.0;
+};
+
+MaskedMeans masked_means(const cv::Mat& image, const cv::Mat& mask) {
+  MaskedMeans m;
+  double inside_sum = 0.0, outside_sum = 0.0;
+  std::size_t inside_n = 0;
+  for (int y = 0; y < image.rows; ++y) {
+    const float* v = image.ptr<float>(y);
+    const std::uint8_t* in = mask.ptr<std::uint8_t>(y);
+    float row_in = 0.0f, row_out = 0.0f;
+    int row_n = 0;
+    for (int x = 0; x < image.cols; ++x) {
+      const bool inside = in[x] != 0;
+      row_in += inside ? v[x] : 0.0f;
+      row_out += inside ? 0.0f : v[x];
+      row_n += inside ? 1 : 0;
+    }
+    inside_sum += row_in;
+    outside_sum += row_out;
+    inside_n += static_cast<std::size_t>(row_n);
+  }
+  m.inside_count = static_cast<double>(inside_n);
+  m.outside_count = static_cast<double>(image.total() - inside_n);
+  if (m.inside_count > 0.0) m.inside = inside_sum / m.inside_count;
+  if (m.outside_count > 0.0) m.outside = outside_sum / m.outside_count;
+  return m;
 }
 
 // Working pixel centre -> full-resolution pixel coordinates.
@@ -203,23 +294,24 @@ ContactSegmenter::ContactSegmenter(SegmenterOptions options) : options_(std::mov
   if (options_.ridge_period_px) period_px_ = *options_.ridge_period_px;
 }
 
-void ContactSegmenter::to_working(const cv::Mat& image, int factor, double full_scale, cv::Mat& out) {
+std::size_t ContactSegmenter::to_working(const cv::Mat& image, int factor, double full_scale, cv::Mat& out) {
   const double gain = 1.0 / full_scale;
-  if (factor == 1) {
-    image.convertTo(out, CV_32F, gain);
-    return;
+  if (factor == 1 || image.depth() == CV_32F) {
+    if (factor == 1) {
+      image.convertTo(out, CV_32F, gain);
+    } else {
+      block_average_float(image, factor, gain, out, buf_.row_sum);
+    }
+    if (image.depth() == CV_32F) return 0;
+    cv::compare(image, full_scale, buf_.scratch_u8, cv::CMP_GE);
+    return static_cast<std::size_t>(cv::countNonZero(buf_.scratch_u8));
   }
-  switch (image.depth()) {
-    case CV_8U:
-      block_average<std::uint8_t>(image, factor, gain, out, buf_.row_sum);
-      break;
-    case CV_16U:
-      block_average<std::uint16_t>(image, factor, gain, out, buf_.row_sum);
-      break;
-    default:
-      block_average<float>(image, factor, gain, out, buf_.row_sum);
-      break;
-  }
+  // 8-bit: a column sum of up to 16 rows fits 16 bits (16 x 255); 16-bit data needs 32.
+  if (image.depth() == CV_8U && factor <= 16)
+    return block_average<std::uint8_t, std::uint16_t>(image, factor, gain, full_scale, out, buf_.sum_u16);
+  if (image.depth() == CV_8U)
+    return block_average<std::uint8_t, std::uint32_t>(image, factor, gain, full_scale, out, buf_.sum_u32);
+  return block_average<std::uint16_t, std::uint32_t>(image, factor, gain, full_scale, out, buf_.sum_u32);
 }
 
 double ContactSegmenter::period_for_frame(const cv::Mat& image, double full_scale) {
@@ -242,6 +334,40 @@ double ContactSegmenter::period_for_frame(const cv::Mat& image, double full_scal
 ContactResult ContactSegmenter::segment(const cv::Mat& image) {
   if (image.channels() != 1 || (image.depth() != CV_8U && image.depth() != CV_16U && image.depth() != CV_32F))
     throw Error("contact segmentation needs a grey 8-bit, 16-bit or float image");
+  const cv::Rect frame(0, 0, image.cols, image.rows);
+  // Tracking: around the last contact, unless a whole frame is due or the region is no longer usable.
+  if (options_.track_region && roi_.area() > 0 && image.size() == roi_frame_ &&
+      frames_since_full_ + 1 < std::max(1, options_.full_frame_every)) {
+    bool left_region = false;
+    ContactResult tracked = segment_region(image, roi_, &left_region);
+    if (!left_region && (tracked.status & (kNoContact | kNoEllipse)) == 0) {
+      ++frames_since_full_;
+      update_region(tracked, frame);
+      return tracked;
+    }
+  }
+  bool unused = false;
+  ContactResult result = segment_region(image, frame, &unused);
+  frames_since_full_ = 0;
+  update_region(result, frame);
+  return result;
+}
+
+void ContactSegmenter::update_region(const ContactResult& result, const cv::Rect& frame) {
+  roi_ = cv::Rect();
+  roi_frame_ = frame.size();
+  if (!options_.track_region || (result.status & (kNoContact | kNoEllipse)) != 0) return;
+  const cv::Rect& box = result.bounding_box_px;
+  const int margin = static_cast<int>(
+      std::ceil(std::max(options_.region_margin_periods * result.ridge_period_px,
+                         options_.region_margin_fraction * std::max(box.width, box.height))));
+  const cv::Rect grown =
+      cv::Rect(box.x - margin, box.y - margin, box.width + 2 * margin, box.height + 2 * margin) & frame;
+  // Not worth it when the region is most of the frame.
+  if (grown.area() <= 0.6 * frame.area()) roi_ = grown;
+}
+
+ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect region, bool* left_region) {
   ContactResult result;
   const cv::Size full_size = image.size();
   const int block_px = std::max(1, options_.block_px);
@@ -252,39 +378,64 @@ ContactResult ContactSegmenter::segment(const cv::Mat& image) {
   if (image.empty()) return result;
 
   const double full_scale = full_scale_of(image);
-  if (image.depth() != CV_32F) {
-    cv::Mat at_full_scale;
-    cv::compare(image, full_scale, at_full_scale, cv::CMP_GE);
-    result.saturated_fraction = cv::countNonZero(at_full_scale) / static_cast<double>(image.total());
-  }
-  const bool saturated = result.saturated_fraction >= options_.saturated_fraction;
-  const std::uint32_t saturated_flag = saturated ? kSaturated : 0u;
-
   const double period_px = period_for_frame(image, full_scale);
   result.ridge_period_px = period_px;
   factor_ = options_.downsample > 0 ? options_.downsample
             : small_contact_pass_   ? std::max(1, static_cast<int>(std::floor(period_px / 11.0)))
                                     : std::max(1, static_cast<int>(std::floor(period_px / 5.5)));
   const int f = factor_;
-  if (full_size.width / f < 8 || full_size.height / f < 8) {
+  // The region snapped outward to whole orientation blocks that are whole working pixels (its origin on
+  // that grid, so blocks and working pixels line up with those of the whole frame).
+  const cv::Rect frame(0, 0, full_size.width, full_size.height);
+  {
+    const int grid = std::lcm(f, block_px);
+    const int x0 = region.x / grid * grid, y0 = region.y / grid * grid;
+    const int x1 = (region.x + region.width + grid - 1) / grid * grid,
+              y1 = (region.y + region.height + grid - 1) / grid * grid;
+    region = cv::Rect(x0, y0, x1 - x0, y1 - y0) & frame;
+  }
+  const bool whole_frame = region == frame;
+  // Region sides that are frame sides: only there is an outline point on the side a cut (elsewhere the
+  // contact has left the region).
+  const bool frame_left = region.x == 0, frame_top = region.y == 0,
+             frame_right = region.x + region.width == full_size.width,
+             frame_bottom = region.y + region.height == full_size.height;
+  const cv::Point2d origin(region.x, region.y);
+  // The working image, and the saturated pixels counted in the same pass over the frame.
+  std::size_t saturated_pixels = to_working(image(region), f, full_scale, buf_.work);
+  if (!whole_frame && image.depth() != CV_32F) {
+    cv::compare(image, full_scale, buf_.scratch_u8, cv::CMP_GE);
+    saturated_pixels = static_cast<std::size_t>(cv::countNonZero(buf_.scratch_u8));
+  }
+  result.saturated_fraction = static_cast<double>(saturated_pixels) / static_cast<double>(image.total());
+  const bool saturated = result.saturated_fraction >= options_.saturated_fraction;
+  const std::uint32_t saturated_flag = saturated ? kSaturated : 0u;
+  if (region.width / f < 8 || region.height / f < 8) {
     result.status = kNoContact | saturated_flag;
     return result;
   }
-  to_working(image, f, full_scale, buf_.work);
   const double period_w = period_px / f;
 
   // Difference of Gaussians centred on the ridge band: sigma_small passes the ridge period with gain
   // exp(-2 pi^2 0.15^2) = 0.64 while cutting pixel noise; sigma_large removes illumination and the
   // contact's mean step (gain 0.007 at the ridge period).
-  cv::GaussianBlur(buf_.work, buf_.blur_small, cv::Size(), 0.15 * period_w, 0.0, cv::BORDER_REFLECT);
-  cv::GaussianBlur(buf_.work, buf_.blur_large, cv::Size(), 0.5 * period_w, 0.0, cv::BORDER_REFLECT);
+  // Kernels truncated at 3 sigma (OpenCV's default for float images is 4 sigma: a third more taps for a
+  // tail of 0.3 % of the weight).
+  const auto gaussian = [](const cv::Mat& in, cv::Mat& out, double sigma) {
+    const int k = 2 * std::max(1, static_cast<int>(std::ceil(3.0 * sigma))) + 1;
+    cv::GaussianBlur(in, out, cv::Size(k, k), sigma, sigma, cv::BORDER_REFLECT);
+  };
+  gaussian(buf_.work, buf_.blur_small, 0.15 * period_w);
+  gaussian(buf_.work, buf_.blur_large, 0.5 * period_w);
   cv::subtract(buf_.blur_small, buf_.blur_large, buf_.band);
-  buf_.energy = cv::abs(buf_.band);
+  cv::absdiff(buf_.band, cv::Scalar::all(0.0), buf_.energy);  // |band| into the reused buffer
   cv::Rect excluded_w;
   if (options_.exclude_px) {
     const cv::Rect& r = *options_.exclude_px;
-    excluded_w = cv::Rect(cv::Point(r.x / f, r.y / f),
-                          cv::Point((r.x + r.width + f - 1) / f, (r.y + r.height + f - 1) / f)) &
+    const auto down = [&](int v) { return static_cast<int>(std::floor(static_cast<double>(v) / f)); };
+    const auto up = [&](int v) { return static_cast<int>(std::ceil(static_cast<double>(v) / f)); };
+    excluded_w = cv::Rect(cv::Point(down(r.x - region.x), down(r.y - region.y)),
+                          cv::Point(up(r.x + r.width - region.x), up(r.y + r.height - region.y))) &
                  cv::Rect(0, 0, buf_.work.cols, buf_.work.rows);
     buf_.energy(excluded_w).setTo(0.0f);
   }
@@ -331,23 +482,37 @@ ContactResult ContactSegmenter::segment(const cv::Mat& image) {
     }
   }
   if (largest == 0 || largest_area * mm2_per_working_px < options_.min_area_mm2) return no_contact();
-  // A contact only a few ridge periods across is mostly fading border: redo it at twice the resolution
-  // (automatic resolution only; the cost is that of a half-resolution pass, for small contacts only).
-  const double radius_px = std::sqrt(largest_area / std::numbers::pi) * f;
-  if (options_.downsample == 0 && !small_contact_pass_ && f >= 4 &&
-      radius_px < options_.small_contact_periods * period_px) {
-    small_contact_pass_ = true;
-    ContactResult fine = segment(image);
-    small_contact_pass_ = false;
-    return fine;
-  }
 
   std::uint32_t status = saturated_flag;
   std::vector<std::uint8_t> keep(static_cast<std::size_t>(labels), 0);
+  cv::Rect kept_box_w;
   for (int i = 1; i < labels; ++i) {
     const int area = buf_.stats.at<int>(i, cv::CC_STAT_AREA);
     if (i != largest && area * mm2_per_working_px >= options_.min_area_mm2) status |= kMultipleBlobs;
-    if (i == largest || area >= options_.merge_fraction * largest_area) keep[static_cast<std::size_t>(i)] = 1;
+    if (i == largest || area >= options_.merge_fraction * largest_area) {
+      keep[static_cast<std::size_t>(i)] = 1;
+      const cv::Rect box(buf_.stats.at<int>(i, cv::CC_STAT_LEFT), buf_.stats.at<int>(i, cv::CC_STAT_TOP),
+                         buf_.stats.at<int>(i, cv::CC_STAT_WIDTH), buf_.stats.at<int>(i, cv::CC_STAT_HEIGHT));
+      kept_box_w = kept_box_w.area() > 0 ? (kept_box_w | box) : box;
+    }
+  }
+  // A contact only a few ridge periods across is mostly fading border: redo it at twice the resolution
+  // (automatic resolution only), on the kept regions' bounding box plus 4 ridge periods, so the extra pass
+  // costs little; if the outline reaches that box's side, on the whole frame.
+  const double radius_px = std::sqrt(largest_area / std::numbers::pi) * f;
+  if (options_.downsample == 0 && !small_contact_pass_ && f >= 4 &&
+      radius_px < options_.small_contact_periods * period_px) {
+    const int margin = static_cast<int>(std::ceil(4.0 * period_px));
+    const cv::Rect box(static_cast<int>(origin.x) + kept_box_w.x * f - margin,
+                       static_cast<int>(origin.y) + kept_box_w.y * f - margin,
+                       kept_box_w.width * f + 2 * margin, kept_box_w.height * f + 2 * margin);
+    small_contact_pass_ = true;
+    bool fine_left = false;
+    ContactResult fine = segment_region(image, box & frame, &fine_left);
+    if (fine_left) fine = segment_region(image, frame, &fine_left);
+    small_contact_pass_ = false;
+    if ((fine.status & kNoContact) == 0) fine.status |= status & kMultipleBlobs;
+    return fine;
   }
   // Outline points of the kept regions: their boundary pixels, found row by row (first and last kept pixel
   // of each run is enough for a convex hull).
@@ -372,10 +537,16 @@ ContactResult ContactSegmenter::segment(const cv::Mat& image) {
   for (const auto& p : hull_w) centroid += p;
   centroid *= 1.0 / static_cast<double>(std::max<std::size_t>(1, hull_w.size()));
   const cv::Rect frame_w(0, 0, buf_.work.cols, buf_.work.rows);
+  const auto near_left = [&](const cv::Point2d& p) { return p.x < 1.0; };
+  const auto near_top = [&](const cv::Point2d& p) { return p.y < 1.0; };
+  const auto near_right = [&](const cv::Point2d& p) { return p.x > frame_w.width - 2.0; };
+  const auto near_bottom = [&](const cv::Point2d& p) { return p.y > frame_w.height - 2.0; };
   const auto on_cut = [&](const cv::Point2d& p) {
     // Within a pixel of the frame border or of the excluded band: the outline there is where the view ends,
     // not where the contact ends.
-    if (p.x < 1.0 || p.y < 1.0 || p.x > frame_w.width - 2.0 || p.y > frame_w.height - 2.0) return true;
+    if ((frame_left && near_left(p)) || (frame_top && near_top(p)) || (frame_right && near_right(p)) ||
+        (frame_bottom && near_bottom(p)))
+      return true;
     if (excluded_w.area() > 0) {
       const cv::Rect grown(excluded_w.x - 2, excluded_w.y - 2, excluded_w.width + 4, excluded_w.height + 4);
       return grown.contains(
@@ -387,12 +558,9 @@ ContactResult ContactSegmenter::segment(const cv::Mat& image) {
   // Polarity: the scene's, or this frame's (mean level inside the coarse hull against outside it).
   buf_.hull_mask = rasterize_polygon(hull_w, buf_.work.size());
   {
-    const int inside_count = cv::countNonZero(buf_.hull_mask);
-    const auto outside_count = static_cast<int>(buf_.work.total()) - inside_count;
-    if (inside_count > 0 && outside_count > static_cast<int>(buf_.work.total() / 100)) {
-      const double inside_mean = cv::mean(buf_.work, buf_.hull_mask)[0];
-      const double outside_mean = (cv::sum(buf_.work)[0] - inside_mean * inside_count) / outside_count;
-      const double difference = inside_mean - outside_mean;
+    const MaskedMeans means = masked_means(buf_.work, buf_.hull_mask);
+    if (means.inside_count > 0 && means.outside_count > static_cast<double>(buf_.work.total() / 100)) {
+      const double difference = means.inside - means.outside;
       if (std::abs(difference) > 0.25 * split.mean_high) result.polarity = difference < 0.0 ? -1 : 1;
     }
   }
@@ -420,13 +588,10 @@ ContactResult ContactSegmenter::segment(const cv::Mat& image) {
                      cv::getStructuringElement(cv::MORPH_RECT, cv::Size(speck_k, speck_k)), cv::Point(-1, -1),
                      1, cv::BORDER_REPLICATE);
     std::swap(buf_.level, buf_.scratch);
-    const int inside_count = cv::countNonZero(buf_.hull_mask);
-    const auto outside_count = static_cast<int>(buf_.work.total()) - inside_count;
-    if (inside_count > 0 && outside_count > 0) {
-      const double inside_mean = cv::mean(buf_.level, buf_.hull_mask)[0];
-      const double outside_mean = (cv::sum(buf_.level)[0] - inside_mean * inside_count) / outside_count;
+    const MaskedMeans means = masked_means(buf_.level, buf_.hull_mask);
+    if (means.inside_count > 0 && means.outside_count > 0) {
       // A step must carry a fair part of the contrast between the contact and the background to count.
-      level_drop_min = 0.25 * (inside_mean - outside_mean);
+      level_drop_min = 0.25 * (means.inside - means.outside);
     }
     use_level_edge = level_drop_min > 0.0;
   }
@@ -441,6 +606,10 @@ ContactResult ContactSegmenter::segment(const cv::Mat& image) {
   std::vector<std::uint8_t> cut;
   refined_full.reserve(dense_w.size());
   for (const auto& p : dense_w) {
+    // On a side of the region that is not a frame side: the contact has outgrown the region.
+    if ((!frame_left && near_left(p)) || (!frame_top && near_top(p)) || (!frame_right && near_right(p)) ||
+        (!frame_bottom && near_bottom(p)))
+      *left_region = true;
     const bool at_cut = on_cut(p);
     cv::Point2d q = p;
     if (!at_cut) {
@@ -532,13 +701,13 @@ ContactResult ContactSegmenter::segment(const cv::Mat& image) {
         q = p + crossing * dir;
       }
     }
-    q = to_full(q, f);
+    q = to_full(q, f) + origin;
     if (at_cut) {
       // Push cut points onto the frame edge (or the excluded band), so the area counts the visible contact.
-      if (p.x < 1.0) q.x = -0.5;
-      if (p.y < 1.0) q.y = -0.5;
-      if (p.x > frame_w.width - 2.0) q.x = full_size.width - 0.5;
-      if (p.y > frame_w.height - 2.0) q.y = full_size.height - 0.5;
+      if (frame_left && near_left(p)) q.x = -0.5;
+      if (frame_top && near_top(p)) q.y = -0.5;
+      if (frame_right && near_right(p)) q.x = full_size.width - 0.5;
+      if (frame_bottom && near_bottom(p)) q.y = full_size.height - 0.5;
       status |= kTouchesEdge;
     }
     q.x = std::clamp(q.x, -0.5, full_size.width - 0.5);
@@ -546,7 +715,7 @@ ContactResult ContactSegmenter::segment(const cv::Mat& image) {
     refined_full.push_back(q);
     cut.push_back(at_cut ? 1 : 0);
   }
-  clip_spikes(refined_full, cut, to_full(centroid, f), options_.spike_periods * period_px);
+  clip_spikes(refined_full, cut, to_full(centroid, f) + origin, options_.spike_periods * period_px);
   bridge_valleys(refined_full, cut, options_.valley_gap_periods * period_px);
   result.outline_px = convex_hull(refined_full);
   result.area_mm2 = polygon_area_px2(result.outline_px) / (options_.px_per_mm * options_.px_per_mm);
@@ -588,12 +757,17 @@ ContactResult ContactSegmenter::segment(const cv::Mat& image) {
   std::vector<cv::Point2d> outline_w;
   outline_w.reserve(result.outline_px.size());
   for (const auto& p : result.outline_px)
-    outline_w.emplace_back((p.x + 0.5) / f - 0.5, (p.y + 0.5) / f - 0.5);
+    outline_w.emplace_back((p.x - origin.x + 0.5) / f - 0.5, (p.y - origin.y + 0.5) / f - 0.5);
   buf_.hull_mask = rasterize_polygon(outline_w, buf_.work.size());
   if (options_.orientation) {
-    OrientationField field = block_orientation(buf_.band, f, full_size, block_px, buf_.hull_mask);
-    result.orientation_rad = field.orientation_rad;
-    result.coherence = field.coherence;
+    // The region's blocks are whole blocks of the frame (its origin is on the block grid).
+    OrientationField field = block_orientation(buf_.band, f, region.size(), block_px, buf_.hull_mask);
+    const cv::Rect target(region.x / block_px, region.y / block_px, field.orientation_rad.cols,
+                          field.orientation_rad.rows);
+    const cv::Rect inside = target & cv::Rect(0, 0, blocks.width, blocks.height);
+    const cv::Rect source(0, 0, inside.width, inside.height);
+    field.orientation_rad(source).copyTo(result.orientation_rad(inside));
+    field.coherence(source).copyTo(result.coherence(inside));
   }
   if (split.mean_high < options_.low_contrast) status |= kLowContrast;
   result.status = status;

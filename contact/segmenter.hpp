@@ -27,9 +27,19 @@
 // (f = 4 at 52 px/mm and a 0.45 mm period: 1280x1024 -> 320x256). That is the coarsest sampling at which
 // the ridge band stays well below the Nyquist limit after block averaging (gain sinc(f/P) > 0.9), so the
 // texture decision is unchanged, while the outline is still found to sub-pixel accuracy by interpolating
-// along the rays. The cost drops ~f^2 and does not depend on where the contact is, so no ROI tracking is
-// needed (an ROI could also miss a second region appearing). `downsample = 1` runs at full resolution, for
-// comparison (see bench/contact_bench.cpp and BENCHMARKS.md).
+// along the rays. The cost drops ~f^2. `downsample = 1` runs at full resolution, for comparison (see
+// bench/contact_bench.cpp and BENCHMARKS.md).
+//
+// Region tracking (the other half of the speed): a contact moves little between frames, so after a frame
+// with a contact the next ones are segmented only in a region around it (bounding box grown by 4 ridge
+// periods or 15 % of its size, snapped to whole orientation blocks; used when at most 60 % of the frame).
+// The block average reads only that part of the frame, and every later step works on the smaller image
+// (1280x1024 with the bench's contact: about 40 % of the frame, half the instructions per frame). The
+// whole frame is segmented again when the contact is lost or its outline reaches a side of the region
+// (same frame: nothing is missed), and every full_frame_every frames, which is when a new region elsewhere
+// (a second blob) is seen. Otsu's threshold is taken over the region, not the frame; the outline moves by
+// ~0.1 px for it (tests/contact/segmenter_test.cpp). A contact smaller than small_contact_periods is
+// segmented again at half the working factor on its own bounding box plus 4 periods, not on the frame.
 #include <opencv2/core.hpp>
 
 #include <cstdint>
@@ -95,6 +105,14 @@ struct SegmenterOptions {
   // segmented again at half the working factor (about 11 working pixels per period).
   double small_contact_periods = 3.0;
   double low_contrast = 0.02;  // texture energy (≈ 0.6 x ridge amplitude) below this: low contrast
+  // Region tracking: after a frame with a contact, the next frames are segmented only around it (its
+  // bounding box grown by the larger of region_margin_periods ridge periods and region_margin_fraction of
+  // its size, when that is at most 60 % of the frame); a whole frame again every full_frame_every frames
+  // (a new region elsewhere is seen then), and at once when the contact is lost or reaches the region's side.
+  bool track_region = true;
+  int full_frame_every = 10;
+  double region_margin_periods = 4.0;
+  double region_margin_fraction = 0.15;
 };
 
 struct ContactResult {
@@ -132,12 +150,20 @@ class ContactSegmenter {
  private:
   struct Buffers {
     cv::Mat work, bright, measure, blur_small, blur_large, band, energy, level, scratch, mask, labels, stats,
-        centroids, hull_mask;
+        centroids, hull_mask, scratch_u8;
     std::vector<float> row_sum;
+    std::vector<std::uint16_t> sum_u16;
+    std::vector<std::uint32_t> sum_u32;
   };
 
   double period_for_frame(const cv::Mat& image, double full_scale);
-  void to_working(const cv::Mat& image, int factor, double full_scale, cv::Mat& out);
+  // One segmentation of `region` (full-resolution pixels; snapped outward to whole orientation blocks);
+  // results in frame coordinates. Sets *left_region when the outline reaches a side of the region that is not
+  // a side of the frame.
+  ContactResult segment_region(const cv::Mat& image, cv::Rect region, bool* left_region);
+  void update_region(const ContactResult& result, const cv::Rect& frame);
+  // Working image of `image` at `factor`; returns the number of pixels at full scale (0 for float images).
+  std::size_t to_working(const cv::Mat& image, int factor, double full_scale, cv::Mat& out);
 
   SegmenterOptions options_;
   std::vector<float> ray_;
@@ -145,6 +171,9 @@ class ContactSegmenter {
   bool period_measured_ = false;
   int factor_ = 1;
   bool small_contact_pass_ = false;
+  cv::Rect roi_;        // region tracked from the last frame (empty: whole frame)
+  cv::Size roi_frame_;  // frame size it belongs to
+  int frames_since_full_ = 0;
   Buffers buf_;
 };
 
