@@ -146,14 +146,7 @@ class AravisSource final : public FrameSource {
   AravisSource(const AravisSource&) = delete;
   AravisSource& operator=(const AravisSource&) = delete;
 
-  std::optional<Frame> next() override {
-    Frame frame;
-    for (;;) {
-      const Poll result = poll(frame, 0.1);
-      if (result == Poll::kFrame) return frame;
-      if (result == Poll::kEnd) return std::nullopt;
-    }
-  }
+  std::optional<Frame> next() override { return next_by_polling(*this); }
 
   Poll poll(Frame& frame, double timeout_s) override {
     if (trigger_ == TriggerMode::kSoftware && auto_trigger_ && !trigger_pending_) fire_software_trigger();

@@ -60,6 +60,17 @@ class FrameSource {
   virtual bool is_live() const { return false; }
 };
 
+// next() of a live source: short polls until a frame arrives or the stream ends (the poll timeout only keeps
+// the wait interruptible; nothing is dropped by it).
+inline std::optional<Frame> next_by_polling(FrameSource& source) {
+  Frame frame;
+  for (;;) {
+    const FrameSource::Poll result = source.poll(frame, 0.1);
+    if (result == FrameSource::Poll::kFrame) return frame;
+    if (result == FrameSource::Poll::kEnd) return std::nullopt;
+  }
+}
+
 // Camera settings from the scene file or the CLI. Unset fields leave the device as it is; every value is
 // checked against the device's bounds before it is written and read back afterwards (see settings()).
 struct CameraSettings {

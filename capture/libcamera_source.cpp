@@ -90,14 +90,7 @@ class LibcameraSource final : public FrameSource {
   LibcameraSource(const LibcameraSource&) = delete;
   LibcameraSource& operator=(const LibcameraSource&) = delete;
 
-  std::optional<Frame> next() override {
-    Frame frame;
-    for (;;) {
-      const Poll result = poll(frame, 0.1);
-      if (result == Poll::kFrame) return frame;
-      if (result == Poll::kEnd) return std::nullopt;
-    }
-  }
+  std::optional<Frame> next() override { return next_by_polling(*this); }
 
   Poll poll(Frame& frame, double timeout_s) override {
     lc::Request* request = nullptr;

@@ -130,14 +130,7 @@ class V4l2Source final : public FrameSource {
   V4l2Source(const V4l2Source&) = delete;
   V4l2Source& operator=(const V4l2Source&) = delete;
 
-  std::optional<Frame> next() override {
-    Frame frame;
-    for (;;) {
-      const Poll result = poll(frame, 0.1);
-      if (result == Poll::kFrame) return frame;
-      if (result == Poll::kEnd) return std::nullopt;
-    }
-  }
+  std::optional<Frame> next() override { return next_by_polling(*this); }
 
   Poll poll(Frame& frame, double timeout_s) override {
     pollfd pfd{fd_, POLLIN, 0};
