@@ -12,13 +12,7 @@
 # after the analysis stages drew), and from the camera's timestamp (Aravis' fake camera stamps a frame with
 # the host's wall clock when it starts generating it) to the same point.
 set -eu
-if [ "${TIRSTRAIN_BENCH_NETNS:-}" != 1 ]; then
-  export TIRSTRAIN_BENCH_NETNS=1
-  exec unshare -n sh -c 'PATH=$PATH:/usr/sbin:/sbin; ip link set lo up && exec "$0" "$@"' "$0" "$@"
-fi
-for ifc in $(ip -o link show | awk -F': ' '{print $2}'); do
-  [ "$ifc" = lo ] || { echo "refusing: interface $ifc visible" >&2; exit 2; }
-done
+. "$(dirname "$0")/loopback_netns.sh"
 cli=$1; out=$2; seconds=${3:-10}
 fake="$(dirname "$cli")/tirstrain_fake_camera"
 mkdir -p "$out"

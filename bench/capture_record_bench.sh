@@ -16,14 +16,7 @@
 # frames received/saved/incomplete/lost/dropped, frames/s and MB/s saved, CPU seconds used by the camera
 # process and by the recorder; the frames are deleted after each run (recording.json and frames.csv stay).
 set -eu
-if [ "${TIRSTRAIN_BENCH_NETNS:-}" != 1 ]; then
-  export TIRSTRAIN_BENCH_NETNS=1
-  exec unshare -n sh -c 'PATH=$PATH:/usr/sbin:/sbin; ip link set lo up && exec "$0" "$@"' "$0" "$@"
-fi
-# /sys/class/net shows the namespace that mounted /sys, so ask the kernel through ip instead.
-for ifc in $(ip -o link show | awk -F': ' '{print $2}'); do
-  [ "$ifc" = lo ] || { echo "refusing: interface $ifc visible" >&2; exit 2; }
-done
+. "$(dirname "$0")/loopback_netns.sh"
 cli=$1; out=$2; fps=${3:-500}; seconds=${4:-10}; shift 2; [ $# -gt 0 ] && shift; [ $# -gt 0 ] && shift
 formats=${*:-"pgm tiff png"}
 kind=${TIRSTRAIN_BENCH_CAMERA:-fast}
