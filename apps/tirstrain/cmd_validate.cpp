@@ -1,4 +1,5 @@
 // `tirstrain validate`: synthesise (or take) a trial, process it, and compare with its exact truth.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -11,12 +12,20 @@ namespace tirstrain::cli {
 namespace {
 
 void print_table(const pipeline::ValidationReport& report) {
-  std::printf("%-22s %-15s %-12s %12s %12s %12s %9s\n", "quantity", "reference", "mode", "rms", "max |err|",
-              "mean err", "samples");
+  // Text columns as wide as their longest entry.
+  int q_width = 8, r_width = 9, m_width = 4;
+  for (const auto& s : report.rows) {
+    q_width = std::max(q_width, static_cast<int>(s.quantity.size()));
+    r_width = std::max(r_width, static_cast<int>(s.reference.size()));
+    m_width = std::max(m_width, static_cast<int>(s.mode.size()));
+  }
+  std::printf("%-*s %-*s %-*s %12s %12s %12s %9s\n", q_width, "quantity", r_width, "reference", m_width,
+              "mode", "rms", "max |err|", "mean err", "samples");
   for (const auto& s : report.rows) {
     const std::string unit = s.unit.empty() ? "" : " " + s.unit;
-    std::printf("%-22s %-15s %-12s %12.4g %12.4g %12.4g %9ld%s\n", s.quantity.c_str(), s.reference.c_str(),
-                s.mode.c_str(), s.rms, s.max_abs, s.mean, s.samples, unit.c_str());
+    std::printf("%-*s %-*s %-*s %12.4g %12.4g %12.4g %9ld%s\n", q_width, s.quantity.c_str(), r_width,
+                s.reference.c_str(), m_width, s.mode.c_str(), s.rms, s.max_abs, s.mean, s.samples,
+                unit.c_str());
   }
 }
 
