@@ -260,6 +260,16 @@ void FeatureTracker::Impl::adapt_to_texture() {
   if (!pinned.subset_radius)
     settings.subset_radius_px =
         std::max(settings.subset_radius_px, static_cast<int>(std::lround(0.75 * period)));
+  // Along its ridges such a subset is pinned down only by the ridges' curvature: at this SNR that leaves
+  // ~0.2 px of noise, which only neighbours further away (beyond the overlapping subsets) average out.
+  // Fusing twice as wide, as strongly as the track's own information and until it settles, halves the
+  // strain noise (hard_heavy_noise: E_yy 0.013 → 0.009, U 5.9 → 4.3 %; the stick radius, whose slip
+  // profile has a kink that the smoothing rounds, 8 → 12 %).
+  if (!pinned.fusion) {
+    settings.fusion_sigma_px = std::max(settings.fusion_sigma_px, 2.0 * settings.grid_step_px);
+    settings.fusion_weight = std::max(settings.fusion_weight, 1.0);
+    settings.fusion_sweeps = std::max(settings.fusion_sweeps, 16);
+  }
 }
 
 // After update_roi: the smoothing covers the tracked region only, as the rest is never sampled.

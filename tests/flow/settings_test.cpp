@@ -53,6 +53,8 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_TRUE(s.pinned.shape);
   EXPECT_FALSE(s.pinned.prefilter);
   EXPECT_FALSE(s.pinned.subset_radius);
+  EXPECT_FALSE(s.pinned.fusion);
+  EXPECT_TRUE(parse_tracking_settings(scene_with("{fusion_weight: 0.1}")).pinned.fusion);
   EXPECT_FALSE(parse_tracking_settings(scene_with("{adapt_to_texture: false}")).adapt_to_texture);
   EXPECT_FALSE(parse_tracking_settings(scene_with("{}"), "delhaye2016").adapt_to_texture);
 }

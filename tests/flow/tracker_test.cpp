@@ -157,6 +157,8 @@ TEST(Tracker, NoisyTextureSwitchesToTheLowSnrSubsets) {
   EXPECT_LT(probe.texture().snr, 4.0);
   EXPECT_EQ(probe.settings().shape, ShapeFunction::kAffine);
   EXPECT_GT(probe.settings().prefilter_sigma_px, 1.5);
+  EXPECT_EQ(probe.settings().fusion_sigma_px, 2.0 * auto_settings().grid_step_px);
+  EXPECT_EQ(probe.settings().fusion_weight, 1.0);
   // A pinned setting is kept.
   TrackerSettings pinned = auto_settings();
   pinned.pinned.shape = true;
@@ -165,6 +167,11 @@ TEST(Tracker, NoisyTextureSwitchesToTheLowSnrSubsets) {
   EXPECT_TRUE(kept.low_snr_texture());
   EXPECT_EQ(kept.settings().shape, ShapeFunction::kQuadratic);
   EXPECT_GT(kept.settings().prefilter_sigma_px, 1.5);
+  TrackerSettings pinned_fusion = auto_settings();
+  pinned_fusion.pinned.fusion = true;
+  FeatureTracker kept_fusion(pinned_fusion);
+  kept_fusion.start(frames.frames[0], frames.mask, 0.0);
+  EXPECT_EQ(kept_fusion.settings().fusion_weight, auto_settings().fusion_weight);
   // Measured: adapted 0.25 px RMS (the noise floor of one subset here), 90 of 94 tracks alive at the end;
   // unadapted, every track is retired within the first frames (67 track-frames scored in all).
   EXPECT_GT(adapted.frame_alive.back(), 0.75 * adapted.tracks_started);
