@@ -187,19 +187,32 @@ TEST(Tracker, RotationOf4Degrees) {
   EXPECT_LT(r.automatic.rms_px, 0.05);
 }
 
-// Known failures, kept visible: 50 % stretch and low contrast with noise are not yet tracked within the
-// issue's limits (see docs/flow.md, "Status"). These tests only print.
-TEST(TrackerKnownLimits, StretchLowContrast) {
+// Known limits, kept visible and bounded (docs/flow.md, "Status"): the issue asks that no live track be
+// silently wrong by more than 1 px, and these two cases still break it for a few track-frames. 50 %
+// stretch of a small contact: tracks 12 px inside the right border lag across their ridges by up to 1.4 px
+// once a quarter of the stretch has carried the skin through the border's contrast fade (their neighbours,
+// one-sided there, lag alike, so the neighbour check passes them and their fitted gradient is 0.12 instead
+// of 0.25). Low contrast with noise: one track-frame of 1066. Regression bounds on the measured values.
+TEST(TrackerKnownLimits, StretchAndLowContrastStayWithinTheirMeasuredBounds) {
   YAML::Node stretch = cm_scene(160, 160, 11, 50.0);
   stretch["synthesis"]["loading"] =
       YAML::Load("{field: affine, translation_px: [0, 0], gradient: [0.5, 0, 0, 0]}");
-  run_both(stretch, false, false);
+  const BothRuns stretched = run_both(stretch, false, false);
+  // Measured: auto 0.150 px RMS, max 1.39 px, 4 of 725 track-frames > 1 px; delhaye2016 4.9 px RMS.
+  EXPECT_LT(stretched.automatic.rms_px, 0.2);
+  EXPECT_LT(stretched.automatic.max_px, 1.6);
+  EXPECT_LE(stretched.automatic.wrong, 8);
+  EXPECT_LT(stretched.automatic.rms_px, 0.1 * stretched.paper.rms_px);
   YAML::Node noisy = cm_scene(200, 180, 12, 50.0);
   noisy["synthesis"]["sensor"] =
       YAML::Load("{full_well_electrons: 5000, read_noise: 0.01, blur_sigma_px: 0.8}");
   noisy["synthesis"]["fingerprint"]["ridge_contrast"] = 0.25;
   noisy["synthesis"]["image"]["bit_depth"] = 8;
-  run_both(noisy, true, false);
+  const BothRuns low_contrast = run_both(noisy, true, false);
+  // Measured: auto 0.161 px RMS, max 1.39 px, 1 of 1066 > 1 px, all 94 tracks alive; delhaye2016 0.63 px.
+  EXPECT_LT(low_contrast.automatic.rms_px, 0.2);
+  EXPECT_LE(low_contrast.automatic.wrong, 4);
+  EXPECT_LT(low_contrast.automatic.rms_px, low_contrast.paper.rms_px);
 }
 
 TEST(Tracker, RejectsFramesOfAnotherSize) {
