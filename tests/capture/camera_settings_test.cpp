@@ -14,6 +14,7 @@
 #include "core/error.hpp"
 #include "core/scene.hpp"
 #include "tests/apps/cli_support.hpp"
+#include "tests/support/scratch.hpp"
 
 namespace tirstrain::capture {
 namespace {
@@ -21,10 +22,7 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "capture_settings" / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return testing::scratch_dir("capture_settings", name);
 }
 
 std::string write_scene(const fs::path& dir, const std::string& yaml) {
@@ -40,14 +38,7 @@ std::string read_text(const fs::path& path) {
   return s.str();
 }
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+using testing::error_of;
 
 constexpr const char* kFullSection = R"(calibration: {px_per_mm: 40}
 camera:

@@ -11,6 +11,7 @@
 #include "capture/file_sources.hpp"
 #include "capture/frame_source.hpp"
 #include "core/error.hpp"
+#include "tests/support/scratch.hpp"
 
 namespace tirstrain::capture {
 namespace {
@@ -18,10 +19,7 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "capture" / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return testing::scratch_dir("capture", name);
 }
 
 cv::Mat frame_image(int i, cv::Size size = {64, 48}, int type = CV_8UC1) {
@@ -33,14 +31,7 @@ void write_text(const fs::path& path, const std::string& text) {
   std::ofstream(path) << text;
 }
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+using testing::error_of;
 
 std::vector<Frame> read_all(FrameSource& source) {
   std::vector<Frame> frames;

@@ -25,6 +25,7 @@
 #include "core/error.hpp"
 #include "core/scene.hpp"
 #include "tests/capture_aravis/netns.hpp"
+#include "tests/support/scratch.hpp"
 
 namespace tirstrain::capture {
 namespace {
@@ -119,14 +120,7 @@ class AravisTest : public ::testing::Test {
   std::unique_ptr<InProcessCamera> camera_;
 };
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+using testing::error_of;
 
 // Acquires n frames and checks size, exact content, consecutive unwrapped ids and rising timestamps.
 void acquire_and_check(FrameSource& source, const std::string& format, int n) {

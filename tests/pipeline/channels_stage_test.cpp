@@ -27,6 +27,7 @@
 #include "pipeline/channels_stage.hpp"
 #include "samples/trial.hpp"
 #include "signals/channels.hpp"
+#include "tests/support/scratch.hpp"
 
 namespace tirstrain::pipeline {
 namespace {
@@ -36,10 +37,7 @@ namespace fs = std::filesystem;
 constexpr double kMu = 0.8, kNormal_N = 1.0, kRadius_m = 0.01, kSpeed_m_s = 5e-3, kShearStart_s = 0.2;
 
 fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "pipeline_channels" / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return testing::scratch_dir("pipeline_channels", name);
 }
 
 // A 1 s trial at 100 fps: at rest until 0.2 s, then the plate moves distally (-y) at 5 mm/s; full slip

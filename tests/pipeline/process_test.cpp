@@ -19,6 +19,7 @@
 #include "core/csv.hpp"
 #include "core/h5_file.hpp"
 #include "tests/contact/tir_render.hpp"
+#include "tests/support/scratch.hpp"
 
 namespace tirstrain {
 namespace {
@@ -26,10 +27,7 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "pipeline" / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return testing::scratch_dir("pipeline", name);
 }
 
 struct CliRun {

@@ -20,6 +20,7 @@
 #include "samples/synth.hpp"
 #include "samples/trial.hpp"
 #include "strain/deformation.hpp"
+#include "tests/support/scratch.hpp"
 
 namespace tirstrain {
 namespace {
@@ -27,10 +28,7 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "strain_pipeline" / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir.parent_path());
-  return dir;
+  return testing::scratch_dir("strain_pipeline", name);
 }
 
 // A small noise-free trial: by default a Hertz contact with R = 5 mm (a = 1.83 mm, 95 px) in a 288x256
