@@ -196,9 +196,9 @@ ValidationReport run_validate(const ValidateOptions& options) {
       c_model(n, kNaN), disp_rms(n, kNaN), exx_rms(n, kNaN);
   // The paper's running sum of increments applied to the exact vertex positions, triangle by triangle and
   // over the same frames as the measured sum (it starts at 0 on the reference frame, or at the exact total
-  // when the triangle joins later, and skips a frame when the triangle was not valid in it or the one
-  // before). Against it, the incremental mode's measurement error; against the point truth, how far the
-  // paper's definition itself lies from the exact Green–Lagrange strain.
+  // when the triangle joins later, and adds no increment for a frame in which the triangle is not valid or
+  // a vertex was not tracked in the frame before). Against it, the incremental mode's measurement error;
+  // against the point truth, how far the paper's definition itself lies from the exact Green–Lagrange strain.
   const auto reference_row = static_cast<std::size_t>(h5.attribute_number("/tracks", "reference_frame_row"));
   std::vector<Strain2> increments_truth(t_count, Strain2{kNaN, kNaN, kNaN});
   std::vector<Vec2> true_now(k), true_before(k);
@@ -227,7 +227,7 @@ ValidationReport run_validate(const ValidateOptions& options) {
     if (std::isfinite(plate[2 * i]))
       plate_error.add(std::hypot(plate[2 * i] - load.plate_px.x, plate[2 * i + 1] - load.plate_px.y));
 
-    // Triangles.
+    // Triangles. Their vertices' true positions, once per track.
     for (std::size_t j = 0; j < k; ++j) {
       const Vec2 X = vec(reference, j);
       const Vec2 u = field.displacement_px(X);
@@ -242,12 +242,10 @@ ValidationReport run_validate(const ValidateOptions& options) {
       const std::size_t cell = i * t_count + t;
       if (!std::isfinite(total[cell * 3])) continue;
       std::array<Vec2, 3> X, x_true;
-      for (int v = 0; v < 3; ++v) {
-        X[static_cast<std::size_t>(v)] =
-            vec(reference, static_cast<std::size_t>(triangles[t * 3 + static_cast<std::size_t>(v)]));
-        const Vec2 u = field.displacement_px(X[static_cast<std::size_t>(v)]);
-        x_true[static_cast<std::size_t>(v)] = {X[static_cast<std::size_t>(v)].x + u.x,
-                                               X[static_cast<std::size_t>(v)].y + u.y};
+      for (std::size_t v = 0; v < 3; ++v) {
+        const auto id = static_cast<std::size_t>(triangles[t * 3 + v]);
+        X[v] = vec(reference, id);
+        x_true[v] = true_now[id];
       }
       const Vec2 centroid{(X[0].x + X[1].x + X[2].x) / 3.0, (X[0].y + X[1].y + X[2].y) / 3.0};
       const samples::FieldValue at = field.evaluate(centroid);
