@@ -97,6 +97,7 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
   // within a hundredth of a pixel of it.
   s.match.convergence_px = 0.01;
   s.adapt_to_texture = true;
+  s.rest_average_frames = 16;
   return s;
 }
 
@@ -160,6 +161,9 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   s.fusion_sweeps = static_cast<int>(t.integer("fusion_sweeps", s.fusion_sweeps, 0, 1000));
   s.reanchor_interval_frames =
       static_cast<int>(t.integer("reanchor_interval_frames", s.reanchor_interval_frames, 0, 100000));
+  s.rest_average_frames = static_cast<int>(t.integer("rest_average_frames", s.rest_average_frames, 1, 10000));
+  s.rest_tolerance_px = t.number("rest_tolerance_px", s.rest_tolerance_px, 0.0, 10.0);
+  s.rest_noise_sigmas = t.number("rest_noise_sigmas", s.rest_noise_sigmas, 0.0, 10.0);
   s.plate_subset_radius_px =
       static_cast<int>(t.integer("plate_subset_radius_px", s.plate_subset_radius_px, 3, 200));
   t.finish();
@@ -186,6 +190,9 @@ void validate(const TrackerSettings& s) {
   if (s.neighbour_check && !s.refine) fail("neighbour_check", "needs refinement");
   if (s.birth_interval_frames < 1) fail("birth_interval_frames", "must be at least 1");
   if (!(s.forward_backward_px > 0.0)) fail("forward_backward_px", "must be positive");
+  if (s.rest_average_frames < 1) fail("rest_average_frames", "must be at least 1");
+  if (!(s.rest_tolerance_px >= 0.0)) fail("rest_tolerance_px", "must not be negative");
+  if (!(s.rest_noise_sigmas >= 0.0)) fail("rest_noise_sigmas", "must not be negative");
   if (s.plate_subset_radius_px < 3) fail("plate_subset_radius_px", "must be at least 3 px");
 }
 

@@ -97,6 +97,19 @@ struct TrackerSettings {
   int reanchor_interval_frames = 0;
   double reanchor_tolerance_px = 2.0;
 
+  // Refined tracking matches every frame against its anchor, so the anchor's pixel noise is in every
+  // frame's error, frame after frame. While the skin has not moved since frame 0 (the hold before the
+  // plate moves), frame 0's anchor becomes the mean of up to `rest_average_frames` such frames; 1 = off.
+  // "Not moved": an affine fit of the frame-0 tracks' displacements since frame 0 has an RMS over the
+  // tracks within `rest_tolerance_px`, or within `rest_noise_sigmas` of that fit's own noise (estimated from
+  // the tracks' scatter about it; on a small noisy contact the fit cannot tell less motion from noise, and
+  // a creep hidden in it blurs the anchor by less than the noise the averaging removes). The first frame
+  // that moves ends the averaging for good. The automatic preset averages up to 16 frames, and only noisy
+  // texture (SNR below min_unfiltered_snr), where the anchor's noise matters.
+  int rest_average_frames = 1;
+  double rest_tolerance_px = 0.05;
+  double rest_noise_sigmas = 3.0;
+
   // Plate motion from the pattern on the glass.
   int plate_subset_radius_px = 15;
   double plate_grid_step_px = 24.0;

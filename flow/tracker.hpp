@@ -63,8 +63,9 @@ struct FrameStats {
   int born = 0;
   int retired = 0;
   int recovered = 0;
-  bool global_jump = false;  // the frame's prediction came from the global shift, not the tracks' motion
-  Vec2 global_shift_px;      // phase-correlation shift of the contact since the previous frame
+  bool global_jump = false;      // the frame's prediction came from the global shift, not the tracks' motion
+  Vec2 global_shift_px;          // phase-correlation shift of the contact since the previous frame
+  int rest_frames_averaged = 0;  // 1: this frame was at rest and joined frame 0's averaged anchor
 };
 
 class PlateTracker;

@@ -75,7 +75,8 @@ class TrackingStage final : public Stage {
       reference_row_ = static_cast<std::int64_t>(frames_.size());
       reference_frame_index_ = context.frame->index;
     } else {
-      tracker_->track(context.frame->image, mask_, context.frame->device_time_s);
+      rest_frames_averaged_ +=
+          tracker_->track(context.frame->image, mask_, context.frame->device_time_s).rest_frames_averaged;
     }
     track_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     ++tracked_frames_;
@@ -198,6 +199,8 @@ class TrackingStage final : public Stage {
     s["settings"] = settings_summary();
     s["started"] = tracker_ != nullptr;
     s["reference_frame_index"] = reference_frame_index_;
+    // Frames at rest averaged into the reference frame's anchor, besides the reference frame itself.
+    s["rest_frames_averaged"] = rest_frames_averaged_;
     s["tracks_total"] = tracker_ ? tracker_->tracks().size() : 0;
     double alive_sum = 0.0;
     int alive_last = 0;
@@ -245,7 +248,8 @@ class TrackingStage final : public Stage {
                         {"subset_radius_px", s.subset_radius_px},
                         {"prefilter_sigma_px", s.prefilter_sigma_px},
                         {"border_exclusion_px", s.border_exclusion_px},
-                        {"max_displacement_px", s.max_displacement_px}};
+                        {"max_displacement_px", s.max_displacement_px},
+                        {"rest_average_frames", s.rest_average_frames}};
     if (tracker_ && s.refine) {
       const flow::TextureQuality& q = tracker_->texture();
       j["texture_snr"] = q.snr;
@@ -270,6 +274,7 @@ class TrackingStage final : public Stage {
   std::vector<std::int64_t> tracker_rows_;
   double track_s_ = 0.0;
   std::int64_t tracked_frames_ = 0;
+  std::int64_t rest_frames_averaged_ = 0;
 };
 
 }  // namespace

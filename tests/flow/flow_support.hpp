@@ -55,7 +55,8 @@ struct Score {
   double birth_max_px = 0.0;
   double plate_rms_px = 0.0;
   double plate_max_px = 0.0;
-  double seconds = 0.0;  // tracking time only (rendering excluded)
+  double seconds = 0.0;          // tracking time only (rendering excluded)
+  int rest_frames_averaged = 0;  // frames that joined frame 0's anchor (FrameStats::rest_frames_averaged)
 };
 
 // Renders every frame first (so timing covers tracking only), then tracks and scores.

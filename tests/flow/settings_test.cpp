@@ -57,6 +57,14 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_TRUE(parse_tracking_settings(scene_with("{fusion_weight: 0.1}")).pinned.fusion);
   EXPECT_FALSE(parse_tracking_settings(scene_with("{adapt_to_texture: false}")).adapt_to_texture);
   EXPECT_FALSE(parse_tracking_settings(scene_with("{}"), "delhaye2016").adapt_to_texture);
+  // The anchor is averaged over the frames at rest by the automatic preset only (the paper has no anchor).
+  EXPECT_EQ(parse_tracking_settings(scene_with("{}")).rest_average_frames, 16);
+  EXPECT_EQ(parse_tracking_settings(scene_with("{}"), "delhaye2016").rest_average_frames, 1);
+  const TrackerSettings rest = parse_tracking_settings(
+      scene_with("{rest_average_frames: 4, rest_tolerance_px: 0.02, rest_noise_sigmas: 2}"));
+  EXPECT_EQ(rest.rest_average_frames, 4);
+  EXPECT_EQ(rest.rest_tolerance_px, 0.02);
+  EXPECT_EQ(rest.rest_noise_sigmas, 2.0);
 }
 
 TEST(Settings, StrictParsingNamesTheKey) {

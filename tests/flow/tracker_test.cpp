@@ -180,6 +180,42 @@ TEST(Tracker, NoisyTextureSwitchesToTheLowSnrSubsets) {
   EXPECT_LT(adapted.rms_px, unadapted.rms_px);
 }
 
+TEST(Tracker, AnchorIsAveragedWhileTheSkinRests) {
+  // Every frame is matched against frame 0, so frame 0's noise is in every frame's error. Here the plate
+  // waits 0.1 s (frames 1-5 at rest) before it moves ~1 px per frame: with the anchor averaged over those
+  // six frames, the anchor's share of the noise falls by sqrt(6); the current frame's share stays, so the
+  // error of the moving frames should fall to about sqrt((1 + 1/6) / 2) = 0.76 of the single-frame anchor's.
+  YAML::Node root = cm_scene(200, 180, 14, 50.0);
+  root["synthesis"]["sensor"] =
+      YAML::Load("{full_well_electrons: 300, read_noise: 0.04, blur_sigma_px: 0.6}");
+  root["synthesis"]["image"]["bit_depth"] = 8;
+  root["synthesis"]["loading"]["shear_start_s"] = 0.1;
+  const samples::Trial trial(config_of(root));
+  const auto frames = render(trial, true);
+  TrackerSettings single = auto_settings();
+  single.rest_average_frames = 1;
+  const Score averaged = run_and_score(trial, frames, auto_settings(), false);
+  const Score plain = run_and_score(trial, frames, single, false);
+  print("auto, anchor averaged at rest", averaged);
+  print("auto, frame-0 anchor", plain);
+  const auto moving_rms = [](const Score& s) {
+    double sum2 = 0.0;
+    for (std::size_t f = 6; f < s.frame_rms_px.size(); ++f) sum2 += s.frame_rms_px[f] * s.frame_rms_px[f];
+    return std::sqrt(sum2 / static_cast<double>(s.frame_rms_px.size() - 6));
+  };
+  std::printf("moving frames: %.4f px averaged, %.4f px single (ratio %.3f)\n", moving_rms(averaged),
+              moving_rms(plain), moving_rms(averaged) / moving_rms(plain));
+  EXPECT_EQ(averaged.rest_frames_averaged, 5);
+  EXPECT_EQ(plain.rest_frames_averaged, 0);
+  EXPECT_LT(moving_rms(averaged), 0.88 * moving_rms(plain));
+
+  // No rest: the plate moves from the first frame on, and nothing is averaged.
+  root["synthesis"]["loading"]["shear_start_s"] = 0.0;
+  const samples::Trial moving(config_of(root));
+  const Score at_once = run_and_score(moving, render(moving, true), auto_settings(), false);
+  EXPECT_EQ(at_once.rest_frames_averaged, 0);
+}
+
 TEST(Tracker, RotationOf4Degrees) {
   const BothRuns r = run_both(rigid_scene(6, 0.0, 0.0, 4.0), false, false);
   // Measured: auto 0.0071 px RMS, max 0.035 px; delhaye2016 1.48 px.
