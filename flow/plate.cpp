@@ -1,5 +1,6 @@
 #include "flow/plate.hpp"
 
+#include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
 #include <algorithm>
@@ -10,7 +11,9 @@
 namespace tirstrain::flow {
 namespace {
 
-constexpr double kWhole = 0.98;  // fraction of a subset's pixels in the band for it to count
+// Zero-count margin kept around the mosaic's data: the bicubic sampler needs 2 px beyond a sample, and
+// the band's footprint moves by up to a few pixels between the guess and the match.
+constexpr int kPad = 16;
 
 double median_of(std::vector<double>& v) {
   const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
@@ -30,54 +33,127 @@ void PlateTracker::start(const cv::Mat& image, const cv::Mat& image_u8, const Ro
                     std::to_string(roi.height) + " px inside the image) is too small for a " +
                     std::to_string(2 * settings.subset_radius_px + 1) + " px plate subset",
                 {.key = "reference_pattern.roi_px"});
-  roi_mask_ = cv::Mat::zeros(image.size(), CV_8U);
-  roi_mask_(roi_).setTo(1);
-  base_px_ = {};
+  band_mask_ = cv::Mat::ones(roi_.size(), CV_8U);
   displacement_px_ = {};
   velocity_px_ = {};
-  rebase(image, image_u8);
-  initial_subsets_ = subsets_.size();
+  build_subsets(image);
   if (subsets_.empty())
     throw Error("the reference pattern band shows no texture to track the plate with",
                 {.key = "reference_pattern.roi_px"});
+  mosaic_sum_.release();
+  mosaic_count_.release();
+  origin_x_ = roi_.x;
+  origin_y_ = roi_.y;
+  add_to_mosaic(image, {});
+  cv::buildOpticalFlowPyramid(image_u8(roi_), previous_pyramid_,
+                              cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels);
   ok_ = true;
 }
 
-void PlateTracker::rebase(const cv::Mat& image, const cv::Mat& image_u8) {
-  anchor_.assign(image, roi_mask_);
+void PlateTracker::build_subsets(const cv::Mat& image) {
+  band_.assign(image(roi_), band_mask_);
   subsets_.clear();
-  warps_.clear();
   const int r = settings_.subset_radius_px;
   const double step = settings_.grid_step_px;
   // Centre the grid in the band so both ends keep the same margin.
   const int nx = std::max(1, static_cast<int>((roi_.width - 2 * r - 1) / step) + 1);
   const int ny = std::max(1, static_cast<int>((roi_.height - 2 * r - 1) / step) + 1);
-  const double x0 = roi_.x + 0.5 * (roi_.width - 1 - (nx - 1) * step);
-  const double y0 = roi_.y + 0.5 * (roi_.height - 1 - (ny - 1) * step);
+  const double x0 = 0.5 * (roi_.width - 1 - (nx - 1) * step);
+  const double y0 = 0.5 * (roi_.height - 1 - (ny - 1) * step);
   for (int j = 0; j < ny; ++j) {
     for (int i = 0; i < nx; ++i) {
       const cv::Point c(static_cast<int>(std::lround(x0 + i * step)),
                         static_cast<int>(std::lround(y0 + j * step)));
       Subset s;
-      if (!s.build(anchor_, c, r, 1, ShapeFunction::kTranslation, (2 * r + 1) * (2 * r + 1) / 2)) continue;
+      if (!s.build(band_, c, r, 1, ShapeFunction::kTranslation, (2 * r + 1) * (2 * r + 1) / 2)) continue;
       subsets_.push_back(std::move(s));
-      warps_.emplace_back();
     }
   }
-  cv::buildOpticalFlowPyramid(image_u8(roi_), previous_pyramid_,
-                              cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels);
+}
+
+void PlateTracker::cover(Vec2 d) {
+  // Plate points the band shows at displacement d: image x minus d.
+  const int x0 = static_cast<int>(std::floor(roi_.x - d.x)) - kPad;
+  const int y0 = static_cast<int>(std::floor(roi_.y - d.y)) - kPad;
+  const int x1 = static_cast<int>(std::ceil(roi_.x + roi_.width - 1 - d.x)) + kPad;
+  const int y1 = static_cast<int>(std::ceil(roi_.y + roi_.height - 1 - d.y)) + kPad;
+  if (mosaic_sum_.empty()) {
+    origin_x_ = x0;
+    origin_y_ = y0;
+    mosaic_sum_ = cv::Mat::zeros(y1 - y0 + 1, x1 - x0 + 1, CV_32F);
+    mosaic_count_ = cv::Mat::zeros(mosaic_sum_.size(), CV_32F);
+    return;
+  }
+  const int left = std::max(0, origin_x_ - x0), top = std::max(0, origin_y_ - y0);
+  const int right = std::max(0, x1 - (origin_x_ + mosaic_sum_.cols - 1));
+  const int bottom = std::max(0, y1 - (origin_y_ + mosaic_sum_.rows - 1));
+  if (left + top + right + bottom == 0) return;
+  // Grow by at least a band's height or width at a time, so a moving plate does not copy every frame.
+  const auto grow = [](int need, int chunk) { return need > 0 ? std::max(need, chunk) : 0; };
+  const int l = grow(left, roi_.width), t = grow(top, roi_.height), rr = grow(right, roi_.width),
+            b = grow(bottom, roi_.height);
+  cv::copyMakeBorder(mosaic_sum_, mosaic_sum_, t, b, l, rr, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::copyMakeBorder(mosaic_count_, mosaic_count_, t, b, l, rr, cv::BORDER_CONSTANT, cv::Scalar(0));
+  origin_x_ -= l;
+  origin_y_ -= t;
+}
+
+void PlateTracker::add_to_mosaic(const cv::Mat& image, Vec2 d) {
+  cover(d);
+  // Every mosaic pixel whose image position lies in the band with the bicubic kernel's 4x4 support.
+  const double lo_x = roi_.x + 1.0, hi_x = roi_.x + roi_.width - 3.0;
+  const double lo_y = roi_.y + 1.0, hi_y = roi_.y + roi_.height - 3.0;
+  const int i0 = std::max(0, static_cast<int>(std::ceil(lo_x - d.x)) - origin_x_);
+  const int i1 = std::min(mosaic_sum_.cols - 1, static_cast<int>(std::floor(hi_x - d.x)) - origin_x_);
+  const int j0 = std::max(0, static_cast<int>(std::ceil(lo_y - d.y)) - origin_y_);
+  const int j1 = std::min(mosaic_sum_.rows - 1, static_cast<int>(std::floor(hi_y - d.y)) - origin_y_);
+  for (int j = j0; j <= j1; ++j) {
+    float* sum = mosaic_sum_.ptr<float>(j);
+    float* count = mosaic_count_.ptr<float>(j);
+    const double y = origin_y_ + j + d.y;
+    for (int i = i0; i <= i1; ++i) {
+      float v = 0.0f;
+      if (!sample_bicubic(image, origin_x_ + i + d.x, y, v)) continue;
+      sum[i] += v;
+      count[i] += 1.0f;
+    }
+  }
+}
+
+void PlateTracker::prepare_mean(Vec2 d) {
+  cover(d);
+  mosaic_mean_.create(mosaic_sum_.size(), CV_32F);
+  scratch_mask_.create(mosaic_sum_.size(), CV_8U);
+  scratch_mask_.setTo(0);
+  mosaic_mean_.setTo(0);
+  // Only around the band's footprint: the rest of a long trial's mosaic is not sampled this frame.
+  const cv::Rect near(static_cast<int>(std::floor(roi_.x - d.x)) - kPad - origin_x_,
+                      static_cast<int>(std::floor(roi_.y - d.y)) - kPad - origin_y_,
+                      roi_.width + 2 * kPad + 2, roi_.height + 2 * kPad + 2);
+  const cv::Rect r = near & cv::Rect(0, 0, mosaic_sum_.cols, mosaic_sum_.rows);
+  for (int j = r.y; j < r.y + r.height; ++j) {
+    const float* sum = mosaic_sum_.ptr<float>(j);
+    const float* count = mosaic_count_.ptr<float>(j);
+    float* mean = mosaic_mean_.ptr<float>(j);
+    std::uint8_t* m = scratch_mask_.ptr<std::uint8_t>(j);
+    for (int i = r.x; i < r.x + r.width; ++i)
+      if (count[i] > 0.0f) {
+        mean[i] = sum[i] / count[i];
+        m[i] = 1;
+      }
+  }
+  erode_for_matching(scratch_mask_, mosaic_mask_);
 }
 
 Vec2 PlateTracker::track(const cv::Mat& image, const cv::Mat& image_u8) {
   cv::buildOpticalFlowPyramid(image_u8(roi_), current_pyramid_,
                               cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels);
-  // Coarse step: LK from the previous frame, starting from the previous motion.
-  const Vec2 local{displacement_px_.x - base_px_.x, displacement_px_.y - base_px_.y};
+  build_subsets(image);
+  // Coarse step: LK from the previous frame on the grid points, starting from the previous motion.
   lk_from_.clear();
   lk_to_.clear();
   for (const Subset& s : subsets_) {
-    const cv::Point2f p(static_cast<float>(s.centre().x + local.x - roi_.x),
-                        static_cast<float>(s.centre().y + local.y - roi_.y));
+    const cv::Point2f p(static_cast<float>(s.centre().x), static_cast<float>(s.centre().y));
     lk_from_.push_back(p);
     lk_to_.emplace_back(p.x + static_cast<float>(velocity_px_.x), p.y + static_cast<float>(velocity_px_.y));
   }
@@ -98,26 +174,25 @@ Vec2 PlateTracker::track(const cv::Mat& image, const cv::Mat& image_u8) {
   }
   std::swap(previous_pyramid_, current_pyramid_);
 
-  // Fine step: every subset against the reference frame.
-  const Vec2 guess{local.x + increment.x, local.y + increment.y};
+  // Fine step: every subset of this frame's band into the mosaic. Band point c is image point c + roi's
+  // corner, plate point that minus d, mosaic pixel that minus the origin: the warp's translation is
+  // corner - d - origin.
+  const Vec2 guess{displacement_px_.x + increment.x, displacement_px_.y + increment.y};
+  prepare_mean(guess);
   MatchOptions options;
-  options.min_valid_fraction = 0.5;
+  options.min_valid_fraction = settings_.min_valid_fraction;
+  const double offset_x = roi_.x - origin_x_, offset_y = roi_.y - origin_y_;
   scratch_x_.clear();
   scratch_y_.clear();
-  std::size_t usable = 0;
-  for (std::size_t i = 0; i < subsets_.size(); ++i) {
-    Warp& w = warps_[i];
-    w.p.fill(0.0);
-    w.p[0] = guess.x;
-    w.p[1] = guess.y;
-    const MatchResult m = subsets_[i].match(image, roi_mask_, w, options);
-    // Only subsets still wholly in the band count: one cut by the band's edge loses part of its dots and
-    // its match is biased (0.5 px was seen on a trial whose plate moved across a 56 px band).
-    if (m.valid_fraction < kWhole) continue;
-    ++usable;
-    if (!m.converged || m.zncc < settings_.min_zncc) continue;
-    scratch_x_.push_back(w.p[0]);
-    scratch_y_.push_back(w.p[1]);
+  for (const Subset& s : subsets_) {
+    Warp w;
+    w.p[0] = offset_x - guess.x;
+    w.p[1] = offset_y - guess.y;
+    const MatchResult m = s.match(mosaic_mean_, mosaic_mask_, w, options);
+    if (!m.converged || m.valid_fraction < settings_.min_valid_fraction || m.zncc < settings_.min_zncc)
+      continue;
+    scratch_x_.push_back(offset_x - w.p[0]);
+    scratch_y_.push_back(offset_y - w.p[1]);
   }
   ok_ = !scratch_x_.empty();
   used_ = 0;
@@ -132,20 +207,15 @@ Vec2 PlateTracker::track(const cv::Mat& image, const cv::Mat& image_u8) {
       sy += scratch_y_[i];
       ++used_;
     }
-    const Vec2 next = used_ > 0 ? Vec2{base_px_.x + sx / used_, base_px_.y + sy / used_}
-                                : Vec2{base_px_.x + mx, base_px_.y + my};
+    const Vec2 next = used_ > 0 ? Vec2{sx / used_, sy / used_} : Vec2{mx, my};
     if (used_ == 0) used_ = 1;
     velocity_px_ = {next.x - displacement_px_.x, next.y - displacement_px_.y};
     displacement_px_ = next;
+    add_to_mosaic(image, displacement_px_);
   } else {
-    displacement_px_ = {displacement_px_.x + increment.x, displacement_px_.y + increment.y};
+    // Not stitched: a frame placed by LK alone would blur the mosaic.
+    displacement_px_ = guess;
     velocity_px_ = increment;
-  }
-  // Half the subsets are no longer wholly in the band: this frame becomes the reference while its estimate
-  // still rests on whole subsets.
-  if (usable * 2 < initial_subsets_) {
-    base_px_ = displacement_px_;
-    rebase(image, image_u8);
   }
   return displacement_px_;
 }
