@@ -24,7 +24,7 @@
 namespace tirstrain::flow {
 
 struct PlateSettings {
-  int subset_radius_px = 15;
+  int subset_radius_px = 0;  // 0: automatic, the largest radius up to 22 px that fits the band
   double grid_step_px = 24.0;
   int window_px = 21;
   int pyramid_levels = 2;

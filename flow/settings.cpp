@@ -91,7 +91,7 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
                          : 0;
   const int allowed = std::max(0, static_cast<int>(std::floor(std::log2(period / 4.0))));
   s.pyramid_levels = std::clamp(needed, 0, allowed);
-  s.plate_subset_radius_px = 15;
+  s.plate_subset_radius_px = 0;
   s.ridge_period_px = period;
   // The fixed-shape pass and the fusion decide the final position; the full-shape solve only has to land
   // within a hundredth of a pixel of it.
@@ -165,7 +165,7 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   s.rest_tolerance_px = t.number("rest_tolerance_px", s.rest_tolerance_px, 0.0, 10.0);
   s.rest_noise_sigmas = t.number("rest_noise_sigmas", s.rest_noise_sigmas, 0.0, 10.0);
   s.plate_subset_radius_px =
-      static_cast<int>(t.integer("plate_subset_radius_px", s.plate_subset_radius_px, 3, 200));
+      static_cast<int>(t.integer("plate_subset_radius_px", s.plate_subset_radius_px, 0, 200));
   t.finish();
   if (s.neighbour_check && !s.refine)
     throw Error(
@@ -193,7 +193,8 @@ void validate(const TrackerSettings& s) {
   if (s.rest_average_frames < 1) fail("rest_average_frames", "must be at least 1");
   if (!(s.rest_tolerance_px >= 0.0)) fail("rest_tolerance_px", "must not be negative");
   if (!(s.rest_noise_sigmas >= 0.0)) fail("rest_noise_sigmas", "must not be negative");
-  if (s.plate_subset_radius_px < 3) fail("plate_subset_radius_px", "must be at least 3 px");
+  if (s.plate_subset_radius_px != 0 && s.plate_subset_radius_px < 3)
+    fail("plate_subset_radius_px", "must be 0 (automatic) or at least 3 px");
 }
 
 }  // namespace tirstrain::flow
