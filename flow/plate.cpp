@@ -151,39 +151,36 @@ void PlateTracker::prepare_mean(Vec2 d) {
   erode_for_matching(scratch_mask_, mosaic_mask_);
 }
 
-Vec2 PlateTracker::track(const cv::Mat& image, const cv::Mat& image_u8) {
-  cv::buildOpticalFlowPyramid(image_u8(roi_), current_pyramid_,
-                              cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels);
-  build_subsets(image);
-  // Coarse step: LK from the previous frame on the grid points, starting from the previous motion.
+// LK from the previous frame on the grid points, started at `initial`: the median of the points' motion
+// (`initial` itself when LK finds nothing).
+Vec2 PlateTracker::lk_increment(Vec2 initial) {
   lk_from_.clear();
   lk_to_.clear();
   for (const Subset& s : subsets_) {
     const cv::Point2f p(static_cast<float>(s.centre().x), static_cast<float>(s.centre().y));
     lk_from_.push_back(p);
-    lk_to_.emplace_back(p.x + static_cast<float>(velocity_px_.x), p.y + static_cast<float>(velocity_px_.y));
+    lk_to_.emplace_back(p.x + static_cast<float>(initial.x), p.y + static_cast<float>(initial.y));
   }
-  Vec2 increment = velocity_px_;
-  if (!lk_from_.empty()) {
-    cv::calcOpticalFlowPyrLK(previous_pyramid_, current_pyramid_, lk_from_, lk_to_, lk_status_, lk_error_,
-                             cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels,
-                             cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 0.01),
-                             cv::OPTFLOW_USE_INITIAL_FLOW);
-    scratch_x_.clear();
-    scratch_y_.clear();
-    for (std::size_t i = 0; i < lk_from_.size(); ++i) {
-      if (!lk_status_[i]) continue;
-      scratch_x_.push_back(lk_to_[i].x - lk_from_[i].x);
-      scratch_y_.push_back(lk_to_[i].y - lk_from_[i].y);
-    }
-    if (!scratch_x_.empty()) increment = {median_of(scratch_x_), median_of(scratch_y_)};
+  if (lk_from_.empty()) return initial;
+  cv::calcOpticalFlowPyrLK(previous_pyramid_, current_pyramid_, lk_from_, lk_to_, lk_status_, lk_error_,
+                           cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels,
+                           cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 0.01),
+                           cv::OPTFLOW_USE_INITIAL_FLOW);
+  scratch_x_.clear();
+  scratch_y_.clear();
+  for (std::size_t i = 0; i < lk_from_.size(); ++i) {
+    if (!lk_status_[i]) continue;
+    scratch_x_.push_back(lk_to_[i].x - lk_from_[i].x);
+    scratch_y_.push_back(lk_to_[i].y - lk_from_[i].y);
   }
-  std::swap(previous_pyramid_, current_pyramid_);
+  if (scratch_x_.empty()) return initial;
+  return {median_of(scratch_x_), median_of(scratch_y_)};
+}
 
-  // Fine step: every subset of this frame's band into the mosaic. Band point c is image point c + roi's
-  // corner, plate point that minus d, mosaic pixel that minus the origin: the warp's translation is
-  // corner - d - origin.
-  const Vec2 guess{displacement_px_.x + increment.x, displacement_px_.y + increment.y};
+// Every subset of this frame's band into the mosaic, from `guess`. Band point c is image point c + roi's
+// corner, plate point that minus d, mosaic pixel that minus the origin: the warp's translation is corner -
+// d - origin. Returns false when no subset matched; else sets displacement_px_ and velocity_px_.
+bool PlateTracker::match_mosaic(Vec2 guess) {
   prepare_mean(guess);
   MatchOptions options;
   options.min_valid_fraction = settings_.min_valid_fraction;
@@ -200,27 +197,47 @@ Vec2 PlateTracker::track(const cv::Mat& image, const cv::Mat& image_u8) {
     scratch_x_.push_back(offset_x - w.p[0]);
     scratch_y_.push_back(offset_y - w.p[1]);
   }
-  ok_ = !scratch_x_.empty();
+  if (scratch_x_.empty()) return false;
+  std::vector<double> xs = scratch_x_, ys = scratch_y_;
+  const double mx = median_of(xs), my = median_of(ys);
+  // Mean of the subsets that agree with the median: robust to a wrong subset, and as precise as a mean.
+  double sx = 0, sy = 0;
   used_ = 0;
+  for (std::size_t i = 0; i < scratch_x_.size(); ++i) {
+    if (std::hypot(scratch_x_[i] - mx, scratch_y_[i] - my) > settings_.max_spread_px) continue;
+    sx += scratch_x_[i];
+    sy += scratch_y_[i];
+    ++used_;
+  }
+  const Vec2 next = used_ > 0 ? Vec2{sx / used_, sy / used_} : Vec2{mx, my};
+  if (used_ == 0) used_ = 1;
+  // Most subsets must agree: a guess a dot spacing off matches a few subsets on the wrong dots.
+  if (2 * used_ < static_cast<int>(subsets_.size()) && 2 * used_ < static_cast<int>(scratch_x_.size()))
+    return false;
+  velocity_px_ = {next.x - displacement_px_.x, next.y - displacement_px_.y};
+  displacement_px_ = next;
+  return true;
+}
+
+Vec2 PlateTracker::track(const cv::Mat& image, const cv::Mat& image_u8) {
+  cv::buildOpticalFlowPyramid(image_u8(roi_), current_pyramid_,
+                              cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels);
+  build_subsets(image);
+  // Coarse step from the previous motion; if nothing matches from there (the plate stopped or reversed
+  // within a frame by more than LK can follow on a dot pattern of ~11 px spacing), again from rest.
+  used_ = 0;
+  const Vec2 increment = lk_increment(velocity_px_);
+  ok_ = match_mosaic({displacement_px_.x + increment.x, displacement_px_.y + increment.y});
+  if (!ok_) {
+    const Vec2 from_rest = lk_increment({0.0, 0.0});
+    ok_ = match_mosaic({displacement_px_.x + from_rest.x, displacement_px_.y + from_rest.y});
+  }
+  std::swap(previous_pyramid_, current_pyramid_);
   if (ok_) {
-    std::vector<double> xs = scratch_x_, ys = scratch_y_;
-    const double mx = median_of(xs), my = median_of(ys);
-    // Mean of the subsets that agree with the median: robust to a wrong subset, and as precise as a mean.
-    double sx = 0, sy = 0;
-    for (std::size_t i = 0; i < scratch_x_.size(); ++i) {
-      if (std::hypot(scratch_x_[i] - mx, scratch_y_[i] - my) > settings_.max_spread_px) continue;
-      sx += scratch_x_[i];
-      sy += scratch_y_[i];
-      ++used_;
-    }
-    const Vec2 next = used_ > 0 ? Vec2{sx / used_, sy / used_} : Vec2{mx, my};
-    if (used_ == 0) used_ = 1;
-    velocity_px_ = {next.x - displacement_px_.x, next.y - displacement_px_.y};
-    displacement_px_ = next;
     add_to_mosaic(image, displacement_px_);
   } else {
     // Not stitched: a frame placed by LK alone would blur the mosaic.
-    displacement_px_ = guess;
+    displacement_px_ = {displacement_px_.x + increment.x, displacement_px_.y + increment.y};
     velocity_px_ = increment;
   }
   return displacement_px_;

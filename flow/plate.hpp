@@ -54,6 +54,8 @@ class PlateTracker {
   void add_to_mosaic(const cv::Mat& image, Vec2 d);
   // The mosaic's mean and its matching mask, around the band's footprint at `d`.
   void prepare_mean(Vec2 d);
+  Vec2 lk_increment(Vec2 initial);
+  bool match_mosaic(Vec2 guess);
 
   PlateSettings settings_;
   cv::Rect roi_;
