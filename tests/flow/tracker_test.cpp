@@ -249,23 +249,30 @@ TEST(Tracker, RotationOf4Degrees) {
 // once a quarter of the stretch has carried the skin through the border's contrast fade (their neighbours,
 // one-sided there, lag alike, so the neighbour check passes them and their fitted gradient is 0.12 instead
 // of 0.25). Low contrast with noise: one track-frame of 1066. Regression bounds on the measured values.
-TEST(TrackerKnownLimits, StretchAndLowContrastStayWithinTheirMeasuredBounds) {
+TEST(Tracker, StretchOf50PercentIsTrackedOrRetiredNeverWrongByAPixel) {
+  // The skin stretches by 50 % over 10 frames and carries tracks through the border band into the border.
+  // Measured: auto 0.091 px RMS, max 0.95 px, none > 1 px (tracks retired once less than 60 % of their
+  // subset is inside the contact; at 50 %: 0.150 px RMS, 4 of 725 track-frames 1.0-1.4 px off);
+  // delhaye2016 4.9 px RMS.
   YAML::Node stretch = cm_scene(160, 160, 11, 50.0);
   stretch["synthesis"]["loading"] =
       YAML::Load("{field: affine, translation_px: [0, 0], gradient: [0.5, 0, 0, 0]}");
   const BothRuns stretched = run_both(stretch, false, false);
-  // Measured: auto 0.150 px RMS, max 1.39 px, 4 of 725 track-frames > 1 px; delhaye2016 4.9 px RMS.
-  EXPECT_LT(stretched.automatic.rms_px, 0.2);
-  EXPECT_LT(stretched.automatic.max_px, 1.6);
-  EXPECT_LE(stretched.automatic.wrong, 8);
+  EXPECT_LT(stretched.automatic.rms_px, 0.12);
+  EXPECT_LT(stretched.automatic.max_px, 1.0);
+  EXPECT_EQ(stretched.automatic.wrong, 0);
+  EXPECT_GT(stretched.automatic.samples, 650);  // retired honestly, not wholesale
   EXPECT_LT(stretched.automatic.rms_px, 0.1 * stretched.paper.rms_px);
+}
+
+TEST(TrackerKnownLimits, LowContrastStaysWithinItsMeasuredBounds) {
   YAML::Node noisy = cm_scene(200, 180, 12, 50.0);
   noisy["synthesis"]["sensor"] =
       YAML::Load("{full_well_electrons: 5000, read_noise: 0.01, blur_sigma_px: 0.8}");
   noisy["synthesis"]["fingerprint"]["ridge_contrast"] = 0.25;
   noisy["synthesis"]["image"]["bit_depth"] = 8;
   const BothRuns low_contrast = run_both(noisy, true, false);
-  // Measured: auto 0.161 px RMS, max 1.39 px, 1 of 1066 > 1 px, all 94 tracks alive; delhaye2016 0.63 px.
+  // Measured: auto 0.162 px RMS, max 1.42 px, 2 of 1062 > 1 px, 92 of 94 tracks alive; delhaye2016 0.63 px.
   EXPECT_LT(low_contrast.automatic.rms_px, 0.2);
   EXPECT_LE(low_contrast.automatic.wrong, 4);
   EXPECT_LT(low_contrast.automatic.rms_px, low_contrast.paper.rms_px);
