@@ -48,6 +48,15 @@ YAML::Node with_plate(YAML::Node root, int band_px) {
   return root;
 }
 
+// The small CM scene with the hard_heavy_noise scene's sensor (300 e⁻ full well, 8 bits): ridge SNR ≈ 2.
+YAML::Node heavy_noise_scene(int frames) {
+  YAML::Node root = cm_scene(200, 180, frames, 50.0);
+  root["synthesis"]["sensor"] =
+      YAML::Load("{full_well_electrons: 300, read_noise: 0.04, blur_sigma_px: 0.6}");
+  root["synthesis"]["image"]["bit_depth"] = 8;
+  return root;
+}
+
 struct BothRuns {
   Score automatic, paper;
 };
@@ -159,10 +168,7 @@ TEST(Tracker, NoisyTextureSwitchesToTheLowSnrSubsets) {
   // Heavy sensor noise (300 e⁻ full well, as the hard_heavy_noise scene): ridge SNR ≈ 2. Second-order
   // subsets wander along the ridges there and nearly every track is retired within a few frames; the
   // automatic preset measures the texture in frame 0 and matches smoothed, affine, larger subsets instead.
-  YAML::Node root = cm_scene(200, 180, 12, 50.0);
-  root["synthesis"]["sensor"] =
-      YAML::Load("{full_well_electrons: 300, read_noise: 0.04, blur_sigma_px: 0.6}");
-  root["synthesis"]["image"]["bit_depth"] = 8;
+  YAML::Node root = heavy_noise_scene(12);
   const samples::Trial trial(config_of(root));
   const auto frames = render(trial, true);
   TrackerSettings fixed = auto_settings();
@@ -205,10 +211,7 @@ TEST(Tracker, AnchorIsAveragedWhileTheSkinRests) {
   // waits 0.1 s (frames 1-5 at rest) before it moves ~1 px per frame: with the anchor averaged over those
   // six frames, the anchor's share of the noise falls by sqrt(6); the current frame's share stays, so the
   // error of the moving frames should fall to about sqrt((1 + 1/6) / 2) = 0.76 of the single-frame anchor's.
-  YAML::Node root = cm_scene(200, 180, 14, 50.0);
-  root["synthesis"]["sensor"] =
-      YAML::Load("{full_well_electrons: 300, read_noise: 0.04, blur_sigma_px: 0.6}");
-  root["synthesis"]["image"]["bit_depth"] = 8;
+  YAML::Node root = heavy_noise_scene(14);
   root["synthesis"]["loading"]["shear_start_s"] = 0.1;
   const samples::Trial trial(config_of(root));
   const auto frames = render(trial, true);
