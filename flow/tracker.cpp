@@ -371,8 +371,8 @@ bool FeatureTracker::Impl::build_subsets(const AnchorImage& anchor, cv::Point ce
 
 // While nothing has moved since frame 0, frame 0's anchor becomes the mean of the frames so far (see
 // TrackerSettings::rest_average_frames): every later match then sees the anchor's pixel noise divided by
-// the square root of their number. Rest is judged on an affine fit of the frame-0 tracks' displacements,
-// which averages their individual noise (~0.2 px on the noisiest scenes, ~0.01 px for the fit) away.
+// the square root of their number. Rest is judged on an affine fit of the frame-0 tracks' displacements
+// since frame 0, against that fit's own noise (below).
 void FeatureTracker::Impl::average_rest_frame() {
   if (rest_count < 1) return;
   const auto stop = [this] {
