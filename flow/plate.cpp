@@ -129,26 +129,30 @@ void PlateTracker::add_to_mosaic(const cv::Mat& image, Vec2 d) {
 void PlateTracker::prepare_mean(Vec2 d) {
   cover(d);
   mosaic_mean_.create(mosaic_sum_.size(), CV_32F);
-  scratch_mask_.create(mosaic_sum_.size(), CV_8U);
-  scratch_mask_.setTo(0);
+  mosaic_mask_.create(mosaic_sum_.size(), CV_8U);
+  mosaic_mask_.setTo(0);
   mosaic_mean_.setTo(0);
-  // Only around the band's footprint: the rest of a long trial's mosaic is not sampled this frame.
+  // Only around the band's footprint: the rest of a long trial's mosaic is not sampled this frame (and a
+  // long trial's mosaic is many bands long, so neither is it eroded).
   const cv::Rect near(static_cast<int>(std::floor(roi_.x - d.x)) - kPad - origin_x_,
                       static_cast<int>(std::floor(roi_.y - d.y)) - kPad - origin_y_,
                       roi_.width + 2 * kPad + 2, roi_.height + 2 * kPad + 2);
   const cv::Rect r = near & cv::Rect(0, 0, mosaic_sum_.cols, mosaic_sum_.rows);
+  scratch_mask_.create(r.size(), CV_8U);
+  scratch_mask_.setTo(0);
   for (int j = r.y; j < r.y + r.height; ++j) {
     const float* sum = mosaic_sum_.ptr<float>(j);
     const float* count = mosaic_count_.ptr<float>(j);
     float* mean = mosaic_mean_.ptr<float>(j);
-    std::uint8_t* m = scratch_mask_.ptr<std::uint8_t>(j);
+    std::uint8_t* m = scratch_mask_.ptr<std::uint8_t>(j - r.y);
     for (int i = r.x; i < r.x + r.width; ++i)
       if (count[i] > 0.0f) {
         mean[i] = sum[i] / count[i];
-        m[i] = 1;
+        m[i - r.x] = 1;
       }
   }
-  erode_for_matching(scratch_mask_, mosaic_mask_);
+  cv::Mat eroded = mosaic_mask_(r);
+  erode_for_matching(scratch_mask_, eroded);
 }
 
 // LK from the previous frame on the grid points, started at `initial`: the median of the points' motion
