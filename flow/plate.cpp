@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 
 #include "core/error.hpp"
 
@@ -24,10 +25,19 @@ double median_of(std::vector<double>& v) {
 
 }  // namespace
 
-void PlateTracker::start(const cv::Mat& image, const cv::Mat& image_u8, const RoiPx& roi,
+const cv::Mat& PlateTracker::smoothed(const cv::Mat& image) {
+  const double sigma = settings_.prefilter_sigma_px;
+  if (sigma <= 0.0) return image;
+  if (smoothed_.size() != image.size()) smoothed_ = cv::Mat::zeros(image.size(), CV_32F);
+  cv::GaussianBlur(image(roi_), smoothed_(roi_), cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+  return smoothed_;
+}
+
+void PlateTracker::start(const cv::Mat& image_in, const cv::Mat& image_u8, const RoiPx& roi,
                          const PlateSettings& settings) {
   settings_ = settings;
-  roi_ = cv::Rect(roi.x, roi.y, roi.width, roi.height) & cv::Rect(0, 0, image.cols, image.rows);
+  roi_ = cv::Rect(roi.x, roi.y, roi.width, roi.height) & cv::Rect(0, 0, image_in.cols, image_in.rows);
+  const cv::Mat& image = smoothed(image_in);
   // Larger subsets average more of the pattern's noise: 22 px was the best measured on the shipped scenes
   // (PlateSettings in settings.hpp); a narrower band gets the largest radius it holds.
   constexpr int kAutomaticRadiusPx = 22;
@@ -223,7 +233,8 @@ bool PlateTracker::match_mosaic(Vec2 guess) {
   return true;
 }
 
-Vec2 PlateTracker::track(const cv::Mat& image, const cv::Mat& image_u8) {
+Vec2 PlateTracker::track(const cv::Mat& image_in, const cv::Mat& image_u8) {
+  const cv::Mat& image = smoothed(image_in);
   cv::buildOpticalFlowPyramid(image_u8(roi_), current_pyramid_,
                               cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels);
   build_subsets(image);

@@ -116,6 +116,7 @@ struct TrackerSettings {
   // 0.034 / 0.038 / 0.023 / 0.021 / 0.022 px).
   int plate_subset_radius_px = 0;
   double plate_grid_step_px = 24.0;
+  double plate_prefilter_sigma_px = 0.7;  // PlateSettings::prefilter_sigma_px
 
   // Largest expected skin displacement between consecutive frames (sizes the pyramid).
   double max_displacement_px = 12.0;

@@ -1232,6 +1232,7 @@ void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, do
     PlateSettings ps;
     ps.subset_radius_px = m.settings.plate_subset_radius_px;
     ps.grid_step_px = m.settings.plate_grid_step_px;
+    ps.prefilter_sigma_px = m.settings.plate_prefilter_sigma_px;
     m.plate.emplace();
     m.plate->start(m.current_f, m.current_u8, *m.plate_roi, ps);
   }

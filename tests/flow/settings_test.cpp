@@ -65,6 +65,11 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_EQ(rest.rest_average_frames, 4);
   EXPECT_EQ(rest.rest_tolerance_px, 0.02);
   EXPECT_EQ(rest.rest_noise_sigmas, 2.0);
+  // The plate's band is smoothed by 0.7 px unless the scene says otherwise; negative is an error.
+  EXPECT_EQ(parse_tracking_settings(scene_with("{}")).plate_prefilter_sigma_px, 0.7);
+  EXPECT_EQ(parse_tracking_settings(scene_with("{plate_prefilter_sigma_px: 0}")).plate_prefilter_sigma_px,
+            0.0);
+  EXPECT_THROW(parse_tracking_settings(scene_with("{plate_prefilter_sigma_px: -1}")), Error);
 }
 
 TEST(Settings, StrictParsingNamesTheKey) {
