@@ -123,6 +123,15 @@ TEST(StrainPipeline, AffineFieldDatasetsAndAccuracy) {
     EXPECT_LT(exact->rms, 0.0055) << component;
   }
   EXPECT_LT(report.find("displacement_interior", "tracks")->rms, 0.05);
+  // The displacement by depth inside the border: every live track-frame in exactly one band.
+  long by_depth = 0;
+  for (const char* band :
+       {"displacement_border_0-0.5mm", "displacement_border_0.5-1mm", "displacement_beyond_1mm"}) {
+    const pipeline::ErrorStats* row = report.find(band, "tracks");
+    ASSERT_NE(row, nullptr) << band;
+    by_depth += row->samples;
+  }
+  EXPECT_EQ(by_depth, report.find("displacement", "tracks")->samples);
   EXPECT_LT(std::abs(report.find("U", "same triangles", "exact")->mean), 3.0);  // %
   // U of the other mode, side by side: the incremental sum is the smaller strain here (its E_xx lags the
   // exact one by the definition, below), so its U is lower.
