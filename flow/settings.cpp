@@ -155,6 +155,8 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   s.fixed_shape_sigma_grid = t.number("fixed_shape_sigma_grid", s.fixed_shape_sigma_grid, 0.5, 20.0);
   s.fixed_shape_iterations =
       static_cast<int>(t.integer("fixed_shape_iterations", s.fixed_shape_iterations, 1, 10));
+  s.fixed_shape_convergence_px =
+      t.number("fixed_shape_convergence_px", s.fixed_shape_convergence_px, 1e-6, 10.0);
   s.smoothed_gradient = t.boolean("smoothed_gradient", s.smoothed_gradient);
   s.fixed_shape_radius_px =
       static_cast<int>(t.integer("fixed_shape_radius_px", s.fixed_shape_radius_px, 0, 200));

@@ -199,7 +199,9 @@ struct FeatureTracker::Impl {
   void gather_neighbours(Vec2 p, double radius, int self);
   bool predict_from_neighbours(int index, Vec2& predicted, Mat2d& deformation);
   void check_neighbours();
-  void fixed_shape_pass();
+  // `last`: the final round, which converges to match.convergence_px (the others stop at
+  // fixed_shape_convergence_px).
+  void fixed_shape_pass(bool last);
   void reanchor();
   void fuse();
   void retire(int index, TrackStatus why);
@@ -771,7 +773,7 @@ void FeatureTracker::Impl::check_neighbours() {
 // σ = one grid step) and carried into the track's anchor frame, the curvature averaged over the neighbours
 // anchored in the same frame. Both are smooth fields that the neighbourhood pins down far better than one
 // subset; with them fixed, the subset's noise no longer leaks into the along-ridge translation.
-void FeatureTracker::Impl::fixed_shape_pass() {
+void FeatureTracker::Impl::fixed_shape_pass(bool last) {
   build_hash(true);
   retry.clear();
   const double sigma = settings.fixed_shape_sigma_grid * settings.grid_step_px;
@@ -847,6 +849,7 @@ void FeatureTracker::Impl::fixed_shape_pass() {
   }
   MatchOptions options = settings.match;
   options.translation_only = true;
+  if (!last) options.convergence_px = std::max(options.convergence_px, settings.fixed_shape_convergence_px);
   cv::parallel_for_(cv::Range(0, static_cast<int>(retry.size())), [&](const cv::Range& range) {
     for (int k = range.start; k < range.end; ++k) {
       const int i = retry[static_cast<std::size_t>(k)];
@@ -1262,7 +1265,8 @@ const FrameStats& FeatureTracker::track(const cv::Mat& image, const cv::Mat& con
   m.predict_and_match();
   if (m.settings.refine && m.settings.neighbour_check) m.check_neighbours();
   if (m.settings.refine && m.settings.fixed_shape_pass)
-    for (int k = 0; k < m.settings.fixed_shape_iterations; ++k) m.fixed_shape_pass();
+    for (int k = 0; k < m.settings.fixed_shape_iterations; ++k)
+      m.fixed_shape_pass(k + 1 == m.settings.fixed_shape_iterations);
   if (m.settings.refine && m.settings.fusion_sigma_px > 0.0) m.fuse();
   if (!m.settings.refine && m.settings.reanchor_interval_frames > 0 &&
       m.frame % m.settings.reanchor_interval_frames == 0)
