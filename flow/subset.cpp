@@ -357,7 +357,8 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
           jacobian(p.dx, p.dy, p.gx, p.gy, j);
           const Eigen::Map<const Vector12> jv(j);
           ++outside;
-          // Fixed-size blocks: a runtime-sized outer product per masked pixel cost ~7 % of the matching.
+          // Fixed-size blocks: as runtime-sized Eigen blocks these took 13 % of a tracking run's
+          // instructions.
           h_out.template topLeftCorner<N, N>().noalias() +=
               jv.template head<N>() * jv.template head<N>().transpose();
           sj_out.template head<N>() += jv.template head<N>();
