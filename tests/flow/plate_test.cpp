@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <random>
 #include <vector>
@@ -31,7 +32,10 @@ class DotPattern {
     double sum = 0.0;
     for (int j = cj - 1; j <= cj + 1; ++j)
       for (int i = ci - 1; i <= ci + 1; ++i) {
-        const std::size_t k = static_cast<std::size_t>(((i * 73856093) ^ (j * 19349663)) & (kCells - 1));
+        // Unsigned: the products overflow an int on wide frames (the low bits are the same).
+        const std::size_t k =
+            ((static_cast<std::uint32_t>(i) * 73856093u) ^ (static_cast<std::uint32_t>(j) * 19349663u)) &
+            (kCells - 1);
         const double dx = x - (i + 0.5) * kSpacing - jitter_[k],
                      dy = y - (j + 0.5) * kSpacing - jitter_[(k + 1) % kCells];
         sum += std::exp(-(dx * dx + dy * dy) / (2.0 * 2.0 * 2.0));
