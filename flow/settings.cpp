@@ -139,7 +139,8 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   if (refine == "affine") s.shape = ShapeFunction::kAffine;
   if (refine == "quadratic") s.shape = ShapeFunction::kQuadratic;
   s.pinned = {t.has("refine"), t.has("prefilter_sigma_px"), t.has("subset_radius_px"),
-              t.has("fusion_sigma_px") || t.has("fusion_weight") || t.has("fusion_sweeps")};
+              t.has("fusion_sigma_px") || t.has("fusion_weight") || t.has("fusion_sweeps"),
+              t.has("subset_stride")};
   s.adapt_to_texture = t.boolean("adapt_to_texture", s.adapt_to_texture);
   s.min_quadratic_snr = t.number("min_quadratic_snr", s.min_quadratic_snr, 0.0, 1e6);
   s.min_unfiltered_snr = t.number("min_unfiltered_snr", s.min_unfiltered_snr, 0.0, 1e6);

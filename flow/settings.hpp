@@ -132,12 +132,13 @@ struct TrackerSettings {
   // smoothed by P/24 before matching (noise-free frames are matched best unsmoothed); below
   // `min_quadratic_snr` the subsets also drop the second-order terms (their six curvature parameters then
   // follow the noise and IC-GN wanders), are smoothed by P/12 and grow to 0.75 P, and the fusion reaches
-  // twice as far, at full weight. The curvature still enters through the fixed-shape pass, from the
-  // neighbours. Set by the automatic preset; what a scene sets
-  // itself (refine, prefilter_sigma_px, subset_radius_px, the fusion keys) is kept.
+  // twice as far, at full weight; once smoothed by 1.5 px or more, they sample every 2nd pixel each way. The
+  // curvature still enters through the fixed-shape pass, from the neighbours. Set by the automatic preset;
+  // what a scene sets itself (refine, prefilter_sigma_px, subset_radius_px, subset_stride, the fusion keys)
+  // is kept.
   bool adapt_to_texture = false;
   struct Pinned {
-    bool shape = false, prefilter = false, subset_radius = false, fusion = false;
+    bool shape = false, prefilter = false, subset_radius = false, fusion = false, subset_stride = false;
   } pinned;
   double min_unfiltered_snr = 30.0;
   double min_quadratic_snr = 4.0;

@@ -246,6 +246,7 @@ class TrackingStage final : public Stage {
                         {"pyramid_levels", s.pyramid_levels},
                         {"refine", s.refine ? flow::to_string(s.shape) : std::string("none")},
                         {"subset_radius_px", s.subset_radius_px},
+                        {"subset_stride", s.subset_stride},
                         {"prefilter_sigma_px", s.prefilter_sigma_px},
                         {"border_exclusion_px", s.border_exclusion_px},
                         {"max_displacement_px", s.max_displacement_px},

@@ -55,6 +55,8 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_FALSE(s.pinned.subset_radius);
   EXPECT_FALSE(s.pinned.fusion);
   EXPECT_TRUE(parse_tracking_settings(scene_with("{fusion_weight: 0.1}")).pinned.fusion);
+  EXPECT_FALSE(s.pinned.subset_stride);
+  EXPECT_TRUE(parse_tracking_settings(scene_with("{subset_stride: 1}")).pinned.subset_stride);
   EXPECT_FALSE(parse_tracking_settings(scene_with("{adapt_to_texture: false}")).adapt_to_texture);
   EXPECT_FALSE(parse_tracking_settings(scene_with("{}"), "delhaye2016").adapt_to_texture);
   // The anchor is averaged over the frames at rest by the automatic preset only (the paper has no anchor).

@@ -185,6 +185,7 @@ TEST(Tracker, NoisyTextureSwitchesToTheLowSnrSubsets) {
   EXPECT_GT(probe.settings().prefilter_sigma_px, 1.5);
   EXPECT_EQ(probe.settings().fusion_sigma_px, 2.0 * auto_settings().grid_step_px);
   EXPECT_EQ(probe.settings().fusion_weight, 1.0);
+  EXPECT_EQ(probe.settings().subset_stride, 2);  // smoothed by > 1.5 px: every 2nd pixel each way
   // A pinned setting is kept.
   TrackerSettings pinned = auto_settings();
   pinned.pinned.shape = true;
@@ -198,7 +199,12 @@ TEST(Tracker, NoisyTextureSwitchesToTheLowSnrSubsets) {
   FeatureTracker kept_fusion(pinned_fusion);
   kept_fusion.start(frames.frames[0], frames.mask, 0.0);
   EXPECT_EQ(kept_fusion.settings().fusion_weight, auto_settings().fusion_weight);
-  // Measured: adapted 0.25 px RMS (the noise floor of one subset here), 90 of 94 tracks alive at the end;
+  TrackerSettings pinned_stride = auto_settings();
+  pinned_stride.pinned.subset_stride = true;
+  FeatureTracker kept_stride(pinned_stride);
+  kept_stride.start(frames.frames[0], frames.mask, 0.0);
+  EXPECT_EQ(kept_stride.settings().subset_stride, 1);
+  // Measured: adapted 0.23 px RMS (the noise floor of one subset here), 84 of 94 tracks alive at the end;
   // unadapted, every track is retired within the first frames (67 track-frames scored in all).
   EXPECT_GT(adapted.frame_alive.back(), 0.75 * adapted.tracks_started);
   EXPECT_GT(adapted.frame_alive.back(), unadapted.frame_alive.back());
@@ -276,7 +282,7 @@ TEST(TrackerKnownLimits, LowContrastStaysWithinItsMeasuredBounds) {
   noisy["synthesis"]["fingerprint"]["ridge_contrast"] = 0.25;
   noisy["synthesis"]["image"]["bit_depth"] = 8;
   const BothRuns low_contrast = run_both(noisy, true, false);
-  // Measured: auto 0.162 px RMS, max 1.42 px, 2 of 1062 > 1 px, 92 of 94 tracks alive; delhaye2016 0.63 px.
+  // Measured: auto 0.147 px RMS, max 1.32 px, 1 of 1039 > 1 px, 90 of 94 tracks alive; delhaye2016 0.63 px.
   EXPECT_LT(low_contrast.automatic.rms_px, 0.2);
   EXPECT_LE(low_contrast.automatic.wrong, 4);
   EXPECT_LT(low_contrast.automatic.rms_px, low_contrast.paper.rms_px);
