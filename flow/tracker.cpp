@@ -439,6 +439,19 @@ void FeatureTracker::Impl::average_rest_frame() {
   if (!(std::sqrt(fitted2 / count) <=
         std::max(settings.rest_tolerance_px, settings.rest_noise_sigmas * fit_sigma)))
     return stop();
+  // At rest each track's own position carries the pixel noise of its subset (≈ 0.3 px along the ridges near
+  // the border of a noisy contact), while the motion is the fit, known to σ_fit: report the fit. A track
+  // further from it than 3 scatter RMS (motion of its own, e.g. a local creep) keeps its measurement.
+  const double keep_px = 3.0 * std::sqrt(scatter2 / count);
+  for (int i : members) {
+    Track& t = tracks[static_cast<std::size_t>(i)];
+    const Eigen::Vector3d b(1.0, t.reference_px.x - X0.x, t.reference_px.y - X0.y);
+    const Eigen::Vector2d fitted = coef.transpose() * b;
+    const Vec2 on_fit{t.reference_px.x + fitted.x(), t.reference_px.y + fitted.y()};
+    if (std::hypot(t.position_px.x - on_fit.x, t.position_px.y - on_fit.y) > keep_px) continue;
+    t.position_px = on_fit;
+    t.gradient = {coef(1, 0), coef(2, 0), coef(1, 1), coef(2, 1)};
+  }
   rest_sum += match_f;
   ++rest_count;
   KeyFrame& key = *keys[0];
