@@ -111,7 +111,8 @@ struct TrackerSettings {
   // the tracks' scatter about it; on a small noisy contact the fit cannot tell less motion from noise, and
   // a creep hidden in it blurs the anchor by less than the noise the averaging removes). The first frame
   // that moves ends the averaging for good. The automatic preset averages up to 16 frames, and only noisy
-  // texture (SNR below min_unfiltered_snr), where the anchor's noise matters.
+  // texture (SNR below min_unfiltered_snr), where the anchor's noise matters. While the skin rests (however
+  // long), the frame-0 tracks report the affine fit of their motion instead of their own matches.
   int rest_average_frames = 1;
   double rest_tolerance_px = 0.05;
   double rest_noise_sigmas = 3.0;

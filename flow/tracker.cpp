@@ -159,7 +159,9 @@ struct FeatureTracker::Impl {
   cv::Rect roi;
   std::vector<cv::Mat> previous_pyramid, current_pyramid;
   cv::Mat previous_hp, current_hp, hp_blur, hp_weight;
-  // Frame 0's anchor averaged over the frames at rest (rest_count 0: averaging over or off).
+  // Until the skin first moves (resting), frame 0's anchor is averaged over the frames so far (rest_count
+  // of them, up to rest_average_frames; 0: averaging over or off) and tracks report the fitted rest motion.
+  bool resting = false;
   cv::Mat rest_sum, rest_mask;
   int rest_count = 0;
 
@@ -210,7 +212,7 @@ struct FeatureTracker::Impl {
   FirstFrameBirth birth_from_first_frame(Vec2 x, Vec2 reference, const Mat2d& dX_dx, Vec2 velocity);
   void finish_frame();
   bool build_subsets(const AnchorImage& anchor, cv::Point centre, Subset& subset, Subset& wide) const;
-  void average_rest_frame();
+  void follow_rest();
   double ridge_reach_px() const { return 0.25 * settings.window_px; }
 };
 
@@ -380,17 +382,21 @@ bool FeatureTracker::Impl::build_subsets(const AnchorImage& anchor, cv::Point ce
 
 // While nothing has moved since frame 0, frame 0's anchor becomes the mean of the frames so far (see
 // TrackerSettings::rest_average_frames): every later match then sees the anchor's pixel noise divided by
-// the square root of their number. Rest is judged on an affine fit of the frame-0 tracks' displacements
-// since frame 0, against that fit's own noise (below).
-void FeatureTracker::Impl::average_rest_frame() {
-  if (rest_count < 1) return;
-  const auto stop = [this] {
+// the square root of their number; and the tracks report the fitted rest motion rather than their own
+// noise. Rest is judged on an affine fit of the frame-0 tracks' displacements since frame 0, against that
+// fit's own noise (below).
+void FeatureTracker::Impl::follow_rest() {
+  if (!resting) return;
+  const auto end_averaging = [this] {
     rest_count = 0;
     rest_sum.release();
     rest_mask.release();
   };
-  if (rest_count >= settings.rest_average_frames || keys.empty() || !keys[0] || keys[0]->frame != 0)
-    return stop();
+  const auto stop = [&] {
+    resting = false;
+    end_averaging();
+  };
+  if (keys.empty() || !keys[0] || keys[0]->frame != 0) return stop();
   // Least squares d = a + B (X - X0) over the live frame-0 tracks.
   Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
   Eigen::Matrix<double, 3, 2> rhs = Eigen::Matrix<double, 3, 2>::Zero();
@@ -452,6 +458,7 @@ void FeatureTracker::Impl::average_rest_frame() {
     t.position_px = on_fit;
     t.gradient = {coef(1, 0), coef(2, 0), coef(1, 1), coef(2, 1)};
   }
+  if (rest_count < 1 || rest_count >= settings.rest_average_frames) return end_averaging();
   rest_sum += match_f;
   ++rest_count;
   KeyFrame& key = *keys[0];
@@ -1230,7 +1237,8 @@ void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, do
   m.rest_count = 0;
   // Noise-free frames gain nothing from a mean anchor, and would only risk the blur of a slow creep.
   const bool noisy = !m.settings.adapt_to_texture || m.texture.snr < m.settings.min_unfiltered_snr;
-  if (m.settings.refine && m.settings.rest_average_frames > 1 && noisy) {
+  m.resting = m.settings.refine && m.settings.rest_average_frames > 1 && noisy;
+  if (m.resting) {
     m.rest_sum = m.match_f.clone();
     m.rest_mask = m.match_mask.clone();
     m.rest_count = 1;
@@ -1310,7 +1318,7 @@ const FrameStats& FeatureTracker::track(const cv::Mat& image, const cv::Mat& con
     if (!m.points_mode && !inside_mask(m.mask, p)) m.retire(i, TrackStatus::kLeftContact);
   }
   m.finish_frame();
-  if (m.rest_count > 0) m.average_rest_frame();
+  m.follow_rest();
   if (!m.points_mode && m.settings.births && m.frame % m.settings.birth_interval_frames == 0) m.births();
   if (m.plate) m.plate->track(m.current_f, m.current_u8);
   // Key frames nobody anchors to any more.

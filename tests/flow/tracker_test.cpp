@@ -247,6 +247,18 @@ TEST(Tracker, AnchorIsAveragedWhileTheSkinRests) {
               rest_rms(plain));
   // Measured: 0.081 px (the fit of 94 tracks, σ_fit ≈ 0.05-0.1 px here) against 0.165 px.
   EXPECT_LT(rest_rms(averaged), 0.6 * rest_rms(plain));
+  // The anchor's mean stops growing at rest_average_frames; the rest motion is still reported after that.
+  TrackerSettings capped = auto_settings();
+  capped.rest_average_frames = 2;
+  const Score short_mean = run_and_score(trial, frames, capped, false);
+  EXPECT_EQ(short_mean.rest_frames_averaged, 1);
+  const auto late_rest_rms = [](const Score& s) {
+    double sum2 = 0.0;
+    for (std::size_t f = 3; f < 6; ++f) sum2 += s.frame_rms_px[f] * s.frame_rms_px[f];
+    return std::sqrt(sum2 / 3.0);
+  };
+  // Measured, frames 3-5: 0.095 px (the fit, against an anchor of two frames) against 0.160 px.
+  EXPECT_LT(late_rest_rms(short_mean), 0.75 * late_rest_rms(plain));
 
   // No rest: the plate moves from the first frame on, and nothing is averaged.
   root["synthesis"]["loading"]["shear_start_s"] = 0.0;
