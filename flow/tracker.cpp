@@ -449,6 +449,7 @@ void FeatureTracker::Impl::follow_rest() {
   // the border of a noisy contact), while the motion is the fit, known to σ_fit: report the fit. A track
   // further from it than 3 scatter RMS (motion of its own, e.g. a local creep) keeps its measurement.
   const double keep_px = 3.0 * std::sqrt(scatter2 / count);
+  stats.at_rest = true;
   for (int i : members) {
     Track& t = tracks[static_cast<std::size_t>(i)];
     const Eigen::Vector3d b(1.0, t.reference_px.x - X0.x, t.reference_px.y - X0.y);

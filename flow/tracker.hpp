@@ -66,6 +66,7 @@ struct FrameStats {
   bool global_jump = false;      // the frame's prediction came from the global shift, not the tracks' motion
   Vec2 global_shift_px;          // phase-correlation shift of the contact since the previous frame
   int rest_frames_averaged = 0;  // 1: this frame was at rest and joined frame 0's averaged anchor
+  bool at_rest = false;  // this frame was at rest: its frame-0 tracks report the affine fit of their motion
 };
 
 class PlateTracker;

@@ -75,8 +75,10 @@ class TrackingStage final : public Stage {
       reference_row_ = static_cast<std::int64_t>(frames_.size());
       reference_frame_index_ = context.frame->index;
     } else {
-      rest_frames_averaged_ +=
-          tracker_->track(context.frame->image, mask_, context.frame->device_time_s).rest_frames_averaged;
+      const flow::FrameStats& stats =
+          tracker_->track(context.frame->image, mask_, context.frame->device_time_s);
+      rest_frames_averaged_ += stats.rest_frames_averaged;
+      rest_frames_on_fit_ += stats.at_rest ? 1 : 0;
     }
     track_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     ++tracked_frames_;
@@ -201,6 +203,8 @@ class TrackingStage final : public Stage {
     s["reference_frame_index"] = reference_frame_index_;
     // Frames at rest averaged into the reference frame's anchor, besides the reference frame itself.
     s["rest_frames_averaged"] = rest_frames_averaged_;
+    // Frames at rest whose frame-0 tracks report the affine fit of their motion (docs/flow.md, step 5).
+    s["rest_frames_on_fit"] = rest_frames_on_fit_;
     s["tracks_total"] = tracker_ ? tracker_->tracks().size() : 0;
     double alive_sum = 0.0;
     int alive_last = 0;
@@ -276,6 +280,7 @@ class TrackingStage final : public Stage {
   double track_s_ = 0.0;
   std::int64_t tracked_frames_ = 0;
   std::int64_t rest_frames_averaged_ = 0;
+  std::int64_t rest_frames_on_fit_ = 0;
 };
 
 }  // namespace

@@ -38,6 +38,7 @@ Score run_and_score(const samples::Trial& trial, const RenderedTrial& frames, co
                     trial.frame_times_s()[static_cast<std::size_t>(f)]);
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     s.rest_frames_averaged += tracker.stats().rest_frames_averaged;
+    s.rest_frames_on_fit += tracker.stats().at_rest ? 1 : 0;
     if (f == 0) s.tracks_started = static_cast<int>(tracker.tracks().size());
     const samples::FrameField field = trial.field(f);
     double frame2 = 0.0;

@@ -57,6 +57,7 @@ struct Score {
   double plate_max_px = 0.0;
   double seconds = 0.0;          // tracking time only (rendering excluded)
   int rest_frames_averaged = 0;  // frames that joined frame 0's anchor (FrameStats::rest_frames_averaged)
+  int rest_frames_on_fit = 0;    // frames reported on the rest motion's fit (FrameStats::at_rest)
 };
 
 // Renders every frame first (so timing covers tracking only), then tracks and scores.

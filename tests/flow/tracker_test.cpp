@@ -236,6 +236,8 @@ TEST(Tracker, AnchorIsAveragedWhileTheSkinRests) {
               moving_rms(plain), moving_rms(averaged) / moving_rms(plain));
   EXPECT_EQ(averaged.rest_frames_averaged, 5);
   EXPECT_EQ(plain.rest_frames_averaged, 0);
+  EXPECT_EQ(averaged.rest_frames_on_fit, 5);
+  EXPECT_EQ(plain.rest_frames_on_fit, 0);
   EXPECT_LT(moving_rms(averaged), 0.88 * moving_rms(plain));
   // At rest the tracks report the affine fit of their motion (known to ~σ_fit), not each subset's noise.
   const auto rest_rms = [](const Score& s) {
@@ -252,6 +254,7 @@ TEST(Tracker, AnchorIsAveragedWhileTheSkinRests) {
   capped.rest_average_frames = 2;
   const Score short_mean = run_and_score(trial, frames, capped, false);
   EXPECT_EQ(short_mean.rest_frames_averaged, 1);
+  EXPECT_EQ(short_mean.rest_frames_on_fit, 5);
   const auto late_rest_rms = [](const Score& s) {
     double sum2 = 0.0;
     for (std::size_t f = 3; f < 6; ++f) sum2 += s.frame_rms_px[f] * s.frame_rms_px[f];

@@ -218,6 +218,12 @@ TEST(Process, StagesAskedForBringWhatTheyNeed) {
   std::ifstream summary_file(out / "summary.json");
   const nlohmann::json summary = nlohmann::json::parse(summary_file);
   EXPECT_EQ(summary["stages_run"], nlohmann::json::array({"contact", "tracking", "strain"}));
+  // Frames after the reference one: at most 2 at rest; the settings in effect include the subset stride.
+  const nlohmann::json& tracking = summary["tracking"];
+  ASSERT_TRUE(tracking.contains("rest_frames_on_fit")) << tracking.dump();
+  EXPECT_LE(tracking["rest_frames_on_fit"].get<int>(), 2);
+  EXPECT_LE(tracking["rest_frames_averaged"].get<int>(), tracking["rest_frames_on_fit"].get<int>());
+  EXPECT_GE(tracking["settings"]["subset_stride"].get<int>(), 1);
   H5Reader h5((out / "result.h5").string());
   EXPECT_DOUBLE_EQ(h5.attribute_number("/contact", "ridge_period_px"), 0.45 * 52.0);
   EXPECT_EQ(h5.attribute_number("/frames", "time_measured"), 0.0);
