@@ -1,8 +1,14 @@
 // Contact segmentation speed next to its accuracy: ms per frame at 640x512 and 1280x1024, for the reduced
 // working resolution chosen automatically (f = floor(ridge period / 5.5 px)) and for full resolution, with
-// the mask IoU against the exact truth of the rendered frame reported as a counter of the same run.
+// the mask IoU against the exact truth of the rendered frame reported as a counter of the same run. The third
+// argument is the pixel noise (per mille of full scale): at 80 the texture SNR falls below
+// SegmenterOptions::border_average_snr and the edge search runs on the frame averaged along the border. The
+// fourth, when 1, turns the flat field and the border averaging off (the segmenter before they were added),
+// for their cost in the same run.
 // Run: contact_bench --benchmark_counters_tabular=true
 #include <benchmark/benchmark.h>
+
+#include <cmath>
 
 #include "contact/geometry.hpp"
 #include "contact/segmenter.hpp"
@@ -26,12 +32,18 @@ tirstrain::test::TirScene scene_for(int width, int height) {
 void BM_Segment(benchmark::State& state) {
   const int width = static_cast<int>(state.range(0)), height = width * 4 / 5;
   const int downsample = static_cast<int>(state.range(1));
-  const tirstrain::test::TirScene scene = scene_for(width, height);
+  tirstrain::test::TirScene scene = scene_for(width, height);
+  scene.noise = static_cast<double>(state.range(2)) / 1000.0;
+  const bool plain = state.range(3) == 1;
   const cv::Mat image = tirstrain::test::render_tir(scene);
   const cv::Mat truth = tirstrain::test::render_truth_mask(scene);
   SegmenterOptions options;
   options.downsample = downsample;
   options.ridge_period_px = scene.period_px;  // as with a scene file; the spectrum is measured once per trial
+  if (plain) {
+    options.flat_field = false;
+    options.border_average_snr = 0.0;
+  }
   ContactSegmenter segmenter(options);
   tirstrain::contact::ContactResult result;
   for (auto _ : state) {
@@ -40,9 +52,20 @@ void BM_Segment(benchmark::State& state) {
   }
   state.counters["IoU"] =
       tirstrain::contact::mask_iou(tirstrain::contact::rasterize_polygon(result.hull_px, scene.size), truth);
+  if (result.ellipse) {
+    const tirstrain::contact::Ellipse& truth_ellipse = scene.contacts.front();
+    state.counters["centre_px"] =
+        std::hypot(result.ellipse->cx_px - truth_ellipse.cx_px, result.ellipse->cy_px - truth_ellipse.cy_px);
+    state.counters["major_%"] = 100.0 * (result.ellipse->semi_major_px / truth_ellipse.semi_major_px - 1.0);
+    state.counters["minor_%"] = 100.0 * (result.ellipse->semi_minor_px / truth_ellipse.semi_minor_px - 1.0);
+  }
   state.counters["factor"] = segmenter.downsample();
+  state.counters["SNR"] = result.texture_snr;
+  state.counters["averaged"] = result.border_averaged ? 1.0 : 0.0;
   state.SetLabel(std::to_string(width) + "x" + std::to_string(height) +
-                 (downsample == 1 ? " full" : " reduced"));
+                 (downsample == 1 ? " full" : " reduced") + ", noise " + std::to_string(state.range(2) / 10) +
+                 "." + std::to_string(state.range(2) % 10) + " %" +
+                 (plain ? ", no flat field or border averaging" : ""));
 }
 
 // Period measured from the spectrum (first frame of a trial without a scene period).
@@ -58,10 +81,16 @@ void BM_MeasurePeriod(benchmark::State& state) {
 }  // namespace
 
 BENCHMARK(BM_Segment)
-    ->Args({640, 0})
-    ->Args({640, 1})
-    ->Args({1280, 0})
-    ->Args({1280, 1})
+    ->Args({640, 0, 20, 0})
+    ->Args({640, 1, 20, 0})
+    ->Args({1280, 0, 20, 0})
+    ->Args({1280, 1, 20, 0})
+    ->Args({640, 0, 80, 0})
+    ->Args({1280, 0, 80, 0})
+    ->Args({640, 0, 20, 1})
+    ->Args({1280, 0, 20, 1})
+    ->Args({640, 0, 80, 1})
+    ->Args({1280, 0, 80, 1})
     ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_MeasurePeriod)->Arg(640)->Arg(1280)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

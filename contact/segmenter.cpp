@@ -77,6 +77,139 @@ float bilinear(const cv::Mat& image, double x, double y) {
                             fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]));
 }
 
+// Ridges near the contact border run along it, so averaging along the border keeps their profile across it
+// while the pixel noise drops by up to sqrt(2 half_taps + 1). "Along the border" is along the ellipse
+// through the pixel that is concentric with and similar to `shape` (2 half_taps + 1 samples about one pixel
+// apart). Only pixels within `band_px` of `shape` (in its normalised radius) are averaged, the others copied:
+// the edge search and the closing before it look no further.
+void average_along_border(const cv::Mat& src, const Ellipse& shape, int half_taps, double band_px,
+                          cv::Mat& dst) {
+  dst.create(src.size(), CV_32F);
+  const double c = std::cos(shape.angle_rad), s = std::sin(shape.angle_rad);
+  const double a = shape.semi_major_px, b = shape.semi_minor_px;
+  const double rho_min = std::max(0.0, 1.0 - band_px / b), rho_max = 1.0 + band_px / b;
+  const double inv_taps = 1.0 / (2 * half_taps + 1);
+  for (int y = 0; y < src.rows; ++y) {
+    float* out = dst.ptr<float>(y);
+    const float* in = src.ptr<float>(y);
+    for (int x = 0; x < src.cols; ++x) {
+      const double dx = x - shape.cx_px, dy = y - shape.cy_px;
+      const double nx = (c * dx + s * dy) / a, ny = (-s * dx + c * dy) / b;
+      const double rho2 = nx * nx + ny * ny;
+      if (rho2 < rho_min * rho_min || rho2 > rho_max * rho_max) {
+        out[x] = in[x];
+        continue;
+      }
+      const double rho = std::sqrt(rho2);
+      const double cos_phi = nx / rho, sin_phi = ny / rho;
+      // One pixel of arc: |d(a cos, b sin)/dphi| = sqrt(a^2 sin^2 + b^2 cos^2) per unit phi at rho = 1. The
+      // step is below 0.2 rad (rho * b >= 5 px), where two Taylor terms are exact to 1e-5.
+      const double step = 1.0 / (rho * std::sqrt(a * a * sin_phi * sin_phi + b * b * cos_phi * cos_phi));
+      const double cs = 1.0 - 0.5 * step * step, sn = step * (1.0 - step * step / 6.0);
+      double sum = in[x];
+      for (int side = -1; side <= 1; side += 2) {
+        double u = cos_phi, v = sin_phi;
+        for (int j = 1; j <= half_taps; ++j) {
+          const double un = u * cs - side * v * sn, vn = v * cs + side * u * sn;
+          u = un;
+          v = vn;
+          const double ex = rho * a * u, ey = rho * b * v;
+          sum += bilinear(src, shape.cx_px + c * ex - s * ey, shape.cy_px + s * ex + c * ey);
+        }
+      }
+      out[x] = static_cast<float>(sum * inv_taps);
+    }
+  }
+}
+
+// A smooth background under the contact: a quadratic surface in x and y (vignetting and the light's tilt),
+// least-squares fitted to every 3rd pixel each way of `image` where `exclude` is zero (a smooth surface needs
+// no more), with the RMS residual of those pixels. Returns nothing when fewer than `min_pixels` are left, or
+// when the background does not surround `centre` (every 45-degree sector around it must hold
+// `min_pixels` / 16 of them): a surface extrapolated across the contact from one side or from the frame's
+// corners is no better a background than the level measured along each ray.
+struct QuadraticSurface {
+  std::array<double, 6> c{};  // 1, u, v, u^2, uv, v^2 with u, v the pixel's position scaled to [-1, 1]
+  double x0 = 0.0, y0 = 0.0, scale = 1.0;
+  double residual_rms = 0.0;
+  double operator()(double x, double y) const {
+    const double u = (x - x0) * scale, v = (y - y0) * scale;
+    return c[0] + c[1] * u + c[2] * v + c[3] * u * u + c[4] * u * v + c[5] * v * v;
+  }
+};
+
+std::optional<QuadraticSurface> fit_background(const cv::Mat& image, const cv::Mat& exclude,
+                                               cv::Point2d centre, int min_pixels) {
+  constexpr int kStride = 3;
+  std::array<int, 8> per_sector{};
+  QuadraticSurface surface;
+  surface.x0 = 0.5 * (image.cols - 1);
+  surface.y0 = 0.5 * (image.rows - 1);
+  surface.scale = 2.0 / std::max(1, std::max(image.cols, image.rows));
+  cv::Matx66d normal = cv::Matx66d::zeros();
+  cv::Vec6d rhs(0, 0, 0, 0, 0, 0);
+  double sum_z2 = 0.0;
+  int count = 0;
+  for (int y = 0; y < image.rows; y += kStride) {
+    const float* row = image.ptr<float>(y);
+    const std::uint8_t* skip = exclude.ptr<std::uint8_t>(y);
+    const double v = (y - surface.y0) * surface.scale;
+    for (int x = 0; x < image.cols; x += kStride) {
+      if (skip[x] != 0) continue;
+      const double u = (x - surface.x0) * surface.scale, z = row[x];
+      const double basis[6] = {1.0, u, v, u * u, u * v, v * v};
+      for (int i = 0; i < 6; ++i) {
+        for (int j = i; j < 6; ++j) normal(i, j) += basis[i] * basis[j];
+        rhs[i] += basis[i] * z;
+      }
+      sum_z2 += z * z;
+      ++count;
+      // Sector of the direction from the centre: octant by the signs and the larger of |dx|, |dy|.
+      const double dx = x - centre.x, dy = y - centre.y;
+      const int octant = (dy < 0 ? 4 : 0) + (dx < 0 ? 2 : 0) + (std::abs(dx) < std::abs(dy) ? 1 : 0);
+      ++per_sector[static_cast<std::size_t>(octant)];
+    }
+  }
+  if (count < min_pixels) return std::nullopt;
+  for (const int n : per_sector)
+    if (n < min_pixels / 16) return std::nullopt;
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < i; ++j) normal(i, j) = normal(j, i);
+  cv::Vec6d solution;
+  if (!cv::solve(normal, rhs, solution, cv::DECOMP_CHOLESKY)) return std::nullopt;
+  for (int i = 0; i < 6; ++i) surface.c[static_cast<std::size_t>(i)] = solution[i];
+  // Least squares: the residual sum of squares is z.z - c.(A^T z).
+  surface.residual_rms = std::sqrt(std::max(0.0, (sum_z2 - solution.dot(rhs)) / count));
+  return surface;
+}
+
+// Ridges made bright on a flat background. Dividing by the background surface removes the illumination's
+// shape from both the background and the ridge contrast it scales; where the background is nearly black
+// (bright ridges on a dark field) the division would amplify noise, and the surface is subtracted instead.
+void flatten(const cv::Mat& work, const QuadraticSurface& background, int polarity, cv::Mat& bright) {
+  bright.create(work.size(), CV_32F);
+  double darkest = std::numeric_limits<double>::infinity();
+  for (const auto& corner :
+       {cv::Point(0, 0), cv::Point(work.cols - 1, 0), cv::Point(0, work.rows - 1),
+        cv::Point(work.cols - 1, work.rows - 1), cv::Point(work.cols / 2, work.rows / 2)})
+    darkest = std::min(darkest, background(corner.x, corner.y));
+  const bool divide = darkest >= 0.05;
+  const float sign = polarity < 0 ? -1.0f : 1.0f;
+  std::vector<float> surface_row(static_cast<std::size_t>(work.cols));
+  for (int y = 0; y < work.rows; ++y) {
+    for (int x = 0; x < work.cols; ++x)
+      surface_row[static_cast<std::size_t>(x)] = static_cast<float>(background(x, y));
+    const float* in = work.ptr<float>(y);
+    const float* b = surface_row.data();
+    float* out = bright.ptr<float>(y);
+    if (divide) {
+      for (int x = 0; x < work.cols; ++x) out[x] = sign * (in[x] / b[x] - 1.0f);
+    } else {
+      for (int x = 0; x < work.cols; ++x) out[x] = sign * (in[x] - b[x]);
+    }
+  }
+}
+
 // Means of factor x factor blocks, times `gain`, and the number of pixels >= `saturation` over the whole
 // image (counted on the way, so the frame is read once). Columns are summed first in the source's integer
 // type widened to Acc (vectorises; no per-pixel float conversion), then each block's columns.
@@ -574,10 +707,41 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
   bool use_level_edge = polarity != 0;
   double level_drop_min = 0.0;
   if (use_level_edge) {
-    if (polarity < 0) {
+    // The background around the contact (clear of it by the rays' reach and a period, outside the excluded
+    // band), for the flat field and its pixel noise.
+    std::optional<QuadraticSurface> background;
+    if (options_.flat_field) {
+      const int grow = odd_at_least(2.0 * (std::max(3.0, 1.5 * period_w) + period_w) + 1.0, 3);
+      cv::dilate(buf_.hull_mask, buf_.scratch_u8,
+                 cv::getStructuringElement(cv::MORPH_RECT, cv::Size(grow, grow)));
+      if (excluded_w.area() > 0) buf_.scratch_u8(excluded_w).setTo(1);
+      // At least 1/40 of the frame, sampled every 3rd pixel each way.
+      background = fit_background(buf_.work, buf_.scratch_u8, centroid,
+                                  std::max(64, static_cast<int>(buf_.work.total() / 360)));
+    }
+    if (background) {
+      flatten(buf_.work, *background, polarity, buf_.bright);
+      // Pixel noise as it would be at the automatic working resolution (5.5 pixels per ridge period; block
+      // averaging over f x f divides white noise by f), so the decision does not depend on the resolution.
+      const double reference_factor = std::max(1.0, period_px / 5.5);
+      const double noise = background->residual_rms * f / reference_factor;
+      result.texture_snr = noise > 0.0 ? std::min(split.mean_high / noise, 1e9) : 1e9;
+    } else if (polarity < 0) {
       cv::subtract(1.0, buf_.work, buf_.bright);
     } else {
       buf_.work.copyTo(buf_.bright);
+    }
+    const int half_taps = static_cast<int>(std::lround(0.5 * options_.border_average_periods * period_w));
+    if (background && result.texture_snr < options_.border_average_snr && half_taps > 0) {
+      // The coarse hull is within a pixel or two of the edge; the rays look 1.5 periods either side of it
+      // and the closing one period further.
+      const std::optional<Ellipse> shape = fit_ellipse_direct(hull_w);
+      if (shape && shape->semi_minor_px >= 5.0) {
+        average_along_border(buf_.bright, *shape, half_taps, std::max(3.0, 1.5 * period_w) + period_w + 2.0,
+                             buf_.scratch);
+        std::swap(buf_.bright, buf_.scratch);
+        result.border_averaged = true;
+      }
     }
     const int merge_k = odd_at_least(period_w + 1.0, 3);
     const int speck_k = odd_at_least(0.5 * period_w, 3);

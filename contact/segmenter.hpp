@@ -8,19 +8,26 @@
 // threshold, the largest connected region (plus regions >= merge_fraction of it, e.g. a contact split by a
 // sweat patch), convex hull. That decides contact / no contact and gives a coarse outline.
 //
-// The outline is then placed where the contact ends rather than where the texture is half as strong. With
-// ridges made bright, grey closing then opening over one period merges ridges and valleys into a plateau
-// whose outer edge is the outermost crest; along the ray from the centre through each of 200 outline samples
-// the edge is where that level falls to crest_edge_level of the way from the local background to the
-// outermost crest's own height. Relative to the crest, not to the contact's plateau: ridge contrast fades
-// towards the border (skin only nearly touches there), so the last crest is fainter than the plateau and a
-// plateau-relative level cuts it several pixels inside the edge (the contact's axes came out ~3 % short and a
-// contact two ridge periods across lost a tenth of its radius). Levels stay clear of the pixel noise
-// measured beyond the edge. A valley lying along the border is invisible (it reflects like the background),
-// so there the edge can only be placed statistically: crest_edge_level below one half puts it part-way into
-// that valley, and one-sided dips are found against an outer-envelope ellipse and bridged by it. Single-ray
-// outward spikes (noise) are clipped to their neighbours' median. Convex hull, 50 points equally spaced
-// along its perimeter, area, then the direct ellipse fit and the ridge orientation field.
+// The outline is then placed where the contact ends rather than where the texture is half as strong. The
+// frame is first flat-fielded: divided by a quadratic surface fitted to the background around the contact
+// (vignetting, the light's tilt; only when that background surrounds the contact), because grey closing
+// flattens a background that rises outward beside the contact and the edge level is then reached too early
+// (30 % vignetting moved a low-contrast contact's axes by 5 %). When the ridge texture's SNR is low (below
+// border_average_snr), the flat-fielded frame is also averaged along the border over 0.7 ridge period:
+// ridges near the border run along it, so the profile across the border is kept and the faint outermost
+// crest rises out of the noise. With ridges made bright, grey closing then opening over one period merges
+// ridges and valleys into a plateau whose outer edge is the outermost crest; along the ray from the centre
+// through each of 200 outline samples the edge is where that level falls to crest_edge_level of the way from
+// the local background to the outermost crest's own height. Relative to the crest, not to the contact's
+// plateau: ridge contrast fades towards the border (skin only nearly touches there), so the last crest is
+// fainter than the plateau and a plateau-relative level cuts it several pixels inside the edge (the contact's
+// axes came out ~3 % short and a contact two ridge periods across lost a tenth of its radius). Levels stay
+// clear of the pixel noise measured beyond the edge. A valley lying along the border is invisible (it
+// reflects like the background), so there the edge can only be placed statistically: crest_edge_level below
+// one half puts it part-way into that valley, and one-sided dips are found against an outer-envelope ellipse
+// and bridged by it. Single-ray outward spikes (noise) are clipped to their neighbours' median. Convex hull,
+// 50 points equally spaced along its perimeter, area, then the direct ellipse fit and the ridge orientation
+// field.
 //
 // Working resolution (the design choice that sets the speed): everything runs on the frame averaged over
 // f x f blocks with f = floor(ridge period / 5.5 px), i.e. about 5.5-8 working pixels per ridge period
@@ -88,6 +95,18 @@ struct SegmenterOptions {
   double min_energy = 0.003;           // and in absolute terms (fraction of full scale)
   double merge_fraction = 0.1;         // join regions at least this fraction of the largest one
   double saturated_fraction = 0.02;
+  // Flat field: the level edge is searched on the frame divided by a quadratic surface fitted to the
+  // background around the contact (vignetting, the light's tilt). Without it, grey closing flattens a
+  // background that rises outward next to the contact, which puts the edge too far in wherever the ridge
+  // contrast is small against that slope (1.4 % on the low-contrast scene's minor axis; BENCHMARKS.md).
+  bool flat_field = true;
+  // Below this texture SNR (band-pass envelope inside the contact over the background's pixel noise, the
+  // noise scaled to the automatic working resolution of 5.5 pixels per ridge period), the ridges-bright image
+  // is averaged along the border over border_average_periods ridge periods before the edge search: ridges
+  // near the border run along it, so its profile across the border is kept while the noise that pulls the
+  // faint outermost crest under the noise margins drops.
+  double border_average_snr = 20.0;
+  double border_average_periods = 0.7;
   // The outline is where the merged ridge level falls to crest_edge_level of the way from the background to
   // the outermost crest (ridge contrast fades towards the border where skin only nearly touches, so that
   // crest is fainter than the contact's plateau). Below one half, because where a valley runs along the
@@ -129,6 +148,9 @@ struct ContactResult {
   double texture_energy = 0.0;          // mean band-pass envelope inside the contact, fraction of full scale
   double energy_ratio = 0.0;            // inside over outside
   double saturated_fraction = 0.0;
+  // Texture SNR behind the border averaging (0 when the background could not be fitted) and whether it ran.
+  double texture_snr = 0.0;
+  bool border_averaged = false;
   int polarity = 0;  // -1: contact darker than background (dark ridges), +1 brighter, 0 unknown
 };
 

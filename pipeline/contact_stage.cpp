@@ -2,6 +2,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <numbers>
@@ -18,6 +19,8 @@ struct ContactRecord {
   double area_mm2 = 0.0;
   std::vector<cv::Point2d> hull_px;
   std::array<double, 5> ellipse{};  // cx, cy, semi-major, semi-minor, angle; zeros without an ellipse
+  double texture_snr = 0.0;
+  bool border_averaged = false;
   cv::Mat orientation_rad, coherence;
 };
 
@@ -50,6 +53,8 @@ class ContactStage final : public Stage {
     record.status = result.status;
     record.area_mm2 = result.area_mm2;
     record.hull_px = result.hull_px;
+    record.texture_snr = result.texture_snr;
+    record.border_averaged = result.border_averaged;
     if (result.ellipse) {
       const auto& e = *result.ellipse;
       record.ellipse = {e.cx_px, e.cy_px, e.semi_major_px, e.semi_minor_px, e.angle_rad};
@@ -120,12 +125,15 @@ class ContactStage final : public Stage {
     const auto hull_points = static_cast<std::size_t>(options_.hull_points);
     const auto by = static_cast<std::size_t>(blocks_.height), bx = static_cast<std::size_t>(blocks_.width);
     std::vector<std::int32_t> status(n);
-    std::vector<double> area(n), hull(n * hull_points * 2, 0.0), ellipse(n * 5, 0.0);
+    std::vector<double> area(n), hull(n * hull_points * 2, 0.0), ellipse(n * 5, 0.0), snr(n);
+    std::vector<std::int8_t> averaged(n);
     std::vector<float> orientation(n * by * bx, 0.0f), coherence(n * by * bx, 0.0f);
     for (std::size_t i = 0; i < n; ++i) {
       const ContactRecord& r = records_[i];
       status[i] = static_cast<std::int32_t>(r.status);
       area[i] = r.area_mm2;
+      snr[i] = r.texture_snr;
+      averaged[i] = r.border_averaged ? 1 : 0;
       for (std::size_t k = 0; k < r.hull_px.size() && k < hull_points; ++k) {
         hull[(i * hull_points + k) * 2] = r.hull_px[k].x;
         hull[(i * hull_points + k) * 2 + 1] = r.hull_px[k].y;
@@ -144,6 +152,8 @@ class ContactStage final : public Stage {
     out.write("/contact/ellipse", std::span<const double>(ellipse), {n, 5});
     out.write("/contact/orientation_rad", std::span<const float>(orientation), {n, by, bx});
     out.write("/contact/coherence", std::span<const float>(coherence), {n, by, bx});
+    out.write("/contact/texture_snr", std::span<const double>(snr), {n});
+    out.write("/contact/border_averaged", std::span<const std::int8_t>(averaged), {n});
     out.attribute("/contact", "px_per_mm", options_.px_per_mm);
     out.attribute("/contact", "ridge_period_px", period_px());
     out.attribute("/contact", "ridge_period_source", period_source());
@@ -161,9 +171,13 @@ class ContactStage final : public Stage {
     std::int64_t with_contact = 0;
     double area_sum = 0.0, area_max = 0.0;
     std::map<std::string, std::int64_t> flags;
+    std::int64_t border_averaged = 0;
+    std::vector<double> snr;
     for (const auto& r : records_) {
       if ((r.status & (contact::kNoContact | contact::kFrameSkipped)) == 0) {
         ++with_contact;
+        if (r.border_averaged) ++border_averaged;
+        if (r.texture_snr > 0.0) snr.push_back(r.texture_snr);
         area_sum += r.area_mm2;
         area_max = std::max(area_max, r.area_mm2);
       }
@@ -179,6 +193,13 @@ class ContactStage final : public Stage {
     c["ridge_period_source"] = period_source();
     c["ridge_polarity"] = polarity();
     c["working_downsample"] = segmenter_.downsample();
+    if (!snr.empty()) {
+      std::nth_element(snr.begin(), snr.begin() + static_cast<std::ptrdiff_t>(snr.size() / 2), snr.end());
+      c["texture_snr_median"] = snr[snr.size() / 2];
+    } else {
+      c["texture_snr_median"] = nullptr;
+    }
+    c["frames_border_averaged"] = border_averaged;
     c["segment_ms_per_frame"] = segmented_ > 0 ? 1e3 * segment_s_ / static_cast<double>(segmented_) : 0.0;
     summary["contact"] = c;
   }
@@ -219,9 +240,13 @@ contact::SegmenterOptions segmenter_options_for(const Scene& scene) {
     const RoiPx& r = *scene.reference_pattern_roi;
     options.exclude_px = cv::Rect(r.x, r.y, r.width, r.height);
   }
-  // segmentation: {downsample: 0}  — working-resolution factor; 0 automatic (from the ridge period), 1 full.
+  // segmentation: {downsample: 0, flat_field: true, border_average_snr: 20}  — working-resolution factor (0
+  // automatic from the ridge period, 1 full); the background flat field; the texture SNR below which the edge
+  // is searched on the frame averaged along the border (0: never). See contact/segmenter.hpp.
   YamlSection s(scene.segmentation, scene.file, "segmentation");
   options.downsample = static_cast<int>(s.integer("downsample", options.downsample, 0, 16));
+  options.flat_field = s.boolean("flat_field", options.flat_field);
+  options.border_average_snr = s.number("border_average_snr", options.border_average_snr, 0.0, 1e9);
   s.finish();
   return options;
 }

@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 
 #include <opencv2/imgproc.hpp>
@@ -30,21 +31,38 @@ struct Tolerance {
   double min_iou;
   double centre_px;
   double axis_relative;
+  bool border_averaged;  // texture SNR below SegmenterOptions::border_average_snr
 };
 
-// Renders samples/scenes/<name>.yaml with two frames and segments both.
-void check_scene(const std::string& name, const Tolerance& tolerance) {
+// Renders samples/scenes/<scene>.yaml, changed by `edit`, into test-tmp/contact_synth/<name>.
+void render(const std::string& scene, const std::string& name, const std::function<void(YAML::Node&)>& edit,
+            fs::path* out) {
   const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "contact_synth" / name;
   fs::remove_all(dir);
   fs::create_directories(dir.parent_path());
   YAML::Node scene_yaml =
-      YAML::LoadFile(std::string(TIRSTRAIN_SOURCE_DIR) + "/samples/scenes/" + name + ".yaml");
-  scene_yaml["synthesis"]["timing"]["frames"] = 2;
+      YAML::LoadFile(std::string(TIRSTRAIN_SOURCE_DIR) + "/samples/scenes/" + scene + ".yaml");
+  edit(scene_yaml);
   const fs::path scene_path = dir.string() + ".yaml";
   std::ofstream(scene_path) << scene_yaml << "\n";
   const std::string command = std::string(TIRSTRAIN_CLI) + " synth --scene " + scene_path.string() +
                               " --out " + dir.string() + " > " + dir.string() + ".log 2>&1";
   ASSERT_EQ(std::system(command.c_str()), 0) << command;
+  *out = dir;
+}
+
+cv::Mat frame_image(const fs::path& dir, std::size_t frame) {
+  char file[32];
+  std::snprintf(file, sizeof file, "%06zu.png", frame);
+  return cv::imread((dir / "frames" / file).string(), cv::IMREAD_UNCHANGED);
+}
+
+// Renders samples/scenes/<name>.yaml with two frames and segments both.
+void check_scene(const std::string& name, const Tolerance& tolerance) {
+  fs::path dir;
+  render(
+      name, name, [](YAML::Node& yaml) { yaml["synthesis"]["timing"]["frames"] = 2; }, &dir);
+  if (dir.empty()) return;
 
   const Scene scene = load_scene((dir / "scene.yaml").string());
   ContactSegmenter segmenter(pipeline::segmenter_options_for(scene));
@@ -58,9 +76,7 @@ void check_scene(const std::string& name, const Tolerance& tolerance) {
   const double major_nominal = std::max(a1, a2), minor_nominal = std::min(a1, a2);
   const int height = static_cast<int>(shape[1]), width = static_cast<int>(shape[2]);
   for (std::size_t f = 0; f < shape[0]; ++f) {
-    char file[32];
-    std::snprintf(file, sizeof file, "%06zu.png", f);
-    const cv::Mat image = cv::imread((dir / "frames" / file).string(), cv::IMREAD_UNCHANGED);
+    const cv::Mat image = frame_image(dir, f);
     ASSERT_FALSE(image.empty());
     const ContactResult r = segmenter.segment(image);
     cv::Mat truth_mask(height, width, CV_8UC1);
@@ -92,7 +108,9 @@ void check_scene(const std::string& name, const Tolerance& tolerance) {
     const double minor_error = r.ellipse->semi_minor_px / minor - 1.0;
     std::cout << "  " << name << " frame " << f << ": status " << contact_status_text(r.status) << ", IoU "
               << iou << ", centre error " << centre_error << " px, axes " << major_error << ", "
-              << minor_error << "\n";
+              << minor_error << ", texture SNR " << r.texture_snr
+              << (r.border_averaged ? " (averaged along the border)" : "") << "\n";
+    EXPECT_EQ(r.border_averaged, tolerance.border_averaged) << name << " texture SNR " << r.texture_snr;
     EXPECT_GE(iou, tolerance.min_iou) << name;
     EXPECT_LE(centre_error, tolerance.centre_px) << name;
     EXPECT_LE(std::abs(major_error), tolerance.axis_relative) << name;
@@ -102,27 +120,98 @@ void check_scene(const std::string& name, const Tolerance& tolerance) {
 }
 
 // Issue targets: IoU >= 0.97 on the default scene and >= 0.93 on hard cases with contact; centre <= 1 px and
-// axes <= 2 % of the truth's ellipse. Asserted at those tolerances where they are met (default, sweat blobs;
-// IoU everywhere; the tiny contact's axes). Not met, asserted at the measured value plus a small margin so
-// that a regression fails (see BENCHMARKS.md): where a ridge valley runs along the border the edge is
-// invisible (a valley reflects like the background) and can only be placed statistically, so one semi-axis
-// comes out 2.4-3.5 % short in the low-contrast and heavy-noise scenes; noise moves the centre of the
-// low-contrast scene by 1.02 px, the heavy-noise scene (frame 0) by 1.33 px and the tiny contact by 1.37 px
-// (measured with the sweat-pore texture, pore_depth 0.7, the generator's default).
+// axes <= 2 % of the truth's ellipse. Asserted at those tolerances where they are met: everywhere except the
+// tiny contact's centre, asserted at its measured 1.44 px plus a small margin so that a regression fails
+// (see BENCHMARKS.md). Where a ridge valley runs along the border the edge is invisible (a valley reflects
+// like the background) and can only be placed statistically; on a contact two ridge periods in radius,
+// which valleys happen to lie along which side moves the centre by that much. The noisy and low-contrast
+// scenes meet the targets with the outline searched on the flat-fielded frame averaged along the border.
 TEST(SynthAccuracy, DefaultScene) {
-  check_scene("default", {0.97, 1.0, 0.02});
+  check_scene("default", {0.97, 1.0, 0.02, false});
 }
 TEST(SynthAccuracy, SweatBlobs) {
-  check_scene("hard_sweat_blobs", {0.93, 1.0, 0.02});
+  check_scene("hard_sweat_blobs", {0.93, 1.0, 0.02, false});
 }
 TEST(SynthAccuracy, LowContrast) {
-  check_scene("hard_low_contrast", {0.93, 1.15, 0.04});
+  check_scene("hard_low_contrast", {0.93, 1.0, 0.02, true});
 }
 TEST(SynthAccuracy, HeavyNoise) {
-  check_scene("hard_heavy_noise", {0.93, 1.5, 0.033});
+  check_scene("hard_heavy_noise", {0.93, 1.0, 0.02, true});
 }
 TEST(SynthAccuracy, TinyContact) {
-  check_scene("hard_tiny_contact", {0.93, 1.55, 0.02});
+  check_scene("hard_tiny_contact", {0.93, 1.5, 0.02, false});
+}
+
+// The outline must not depend on the light's shape. The low-contrast scene, noise-free and in 16 bits so
+// that only the illumination differs, rendered with flat light and with strong vignetting (30 % at the
+// corners): with the flat field the two ellipses agree; without it the vignetted one is measured smaller
+// (grey closing flattens the background that rises outward beside the contact, so the edge level is
+// reached too early).
+TEST(SynthAccuracy, OutlineDoesNotDependOnVignetting) {
+  const auto edit = [](double vignetting) {
+    return [vignetting](YAML::Node& yaml) {
+      yaml["synthesis"]["timing"]["frames"] = 1;
+      yaml["synthesis"]["image"]["bit_depth"] = 16;
+      yaml["synthesis"]["sensor"]["full_well_electrons"] = 1e9;
+      yaml["synthesis"]["sensor"]["read_noise"] = 0.0;
+      yaml["synthesis"]["sensor"]["drift"] = 0.0;
+      yaml["synthesis"]["fingerprint"]["vignetting"] = vignetting;
+    };
+  };
+  fs::path flat_dir, vignetted_dir;
+  render("hard_low_contrast", "vignetting_0", edit(0.0), &flat_dir);
+  render("hard_low_contrast", "vignetting_30", edit(0.3), &vignetted_dir);
+  if (flat_dir.empty() || vignetted_dir.empty()) return;
+  const cv::Mat flat_image = frame_image(flat_dir, 0), vignetted_image = frame_image(vignetted_dir, 0);
+  ASSERT_FALSE(flat_image.empty());
+  ASSERT_FALSE(vignetted_image.empty());
+  const Scene scene = load_scene((flat_dir / "scene.yaml").string());
+  for (const bool flat_field : {true, false}) {
+    SegmenterOptions options = pipeline::segmenter_options_for(scene);
+    options.flat_field = flat_field;
+    const ContactResult flat = ContactSegmenter(options).segment(flat_image);
+    const ContactResult vignetted = ContactSegmenter(options).segment(vignetted_image);
+    ASSERT_TRUE(flat.ellipse.has_value());
+    ASSERT_TRUE(vignetted.ellipse.has_value());
+    const double centre_px = std::hypot(vignetted.ellipse->cx_px - flat.ellipse->cx_px,
+                                        vignetted.ellipse->cy_px - flat.ellipse->cy_px);
+    const double major = vignetted.ellipse->semi_major_px / flat.ellipse->semi_major_px - 1.0;
+    const double minor = vignetted.ellipse->semi_minor_px / flat.ellipse->semi_minor_px - 1.0;
+    std::cout << "  flat field " << (flat_field ? "on" : "off") << ": vignetted - flat light: centre "
+              << centre_px << " px, axes " << major << ", " << minor << "\n";
+    if (flat_field) {
+      EXPECT_LE(centre_px, 0.2);
+      EXPECT_LE(std::abs(major), 0.002);
+      EXPECT_LE(std::abs(minor), 0.002);
+    } else {
+      // The effect the flat field removes is there to be removed (the test can fail).
+      EXPECT_GT(std::max(std::abs(major), std::abs(minor)), 0.01);
+    }
+  }
+}
+
+// The scene's `segmentation:` keys reach the segmenter; a value out of range names the key.
+TEST(SynthAccuracy, SegmentationSceneKeys) {
+  const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "contact_synth";
+  fs::create_directories(dir);
+  const fs::path path = dir / "segmentation_keys.yaml";
+  std::ofstream(path) << "calibration: {px_per_mm: 52}\n"
+                         "segmentation: {downsample: 2, flat_field: false, border_average_snr: 0}\n";
+  const SegmenterOptions options = pipeline::segmenter_options_for(load_scene(path.string()));
+  EXPECT_EQ(options.downsample, 2);
+  EXPECT_FALSE(options.flat_field);
+  EXPECT_EQ(options.border_average_snr, 0.0);
+  const SegmenterOptions defaults = pipeline::segmenter_options_for(
+      load_scene((fs::path(TIRSTRAIN_SOURCE_DIR) / "samples/scenes/default.yaml").string()));
+  EXPECT_TRUE(defaults.flat_field);
+  EXPECT_EQ(defaults.border_average_snr, 20.0);
+  std::ofstream(path) << "calibration: {px_per_mm: 52}\nsegmentation: {border_average_snr: -1}\n";
+  try {
+    pipeline::segmenter_options_for(load_scene(path.string()));
+    ADD_FAILURE() << "a negative border_average_snr was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("border_average_snr"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

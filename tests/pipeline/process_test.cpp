@@ -92,6 +92,8 @@ TEST(Process, WritesDocumentedResults) {
   EXPECT_EQ(h5.shape("/contact/ellipse"), (H5Shape{n, 5}));
   EXPECT_EQ(h5.shape("/contact/orientation_rad"), (H5Shape{n, 16, 20}));
   EXPECT_EQ(h5.shape("/contact/coherence"), (H5Shape{n, 16, 20}));
+  EXPECT_EQ(h5.shape("/contact/texture_snr"), (H5Shape{n}));
+  EXPECT_EQ(h5.shape("/contact/border_averaged"), (H5Shape{n}));
   EXPECT_NE(h5.attribute_text("/", "software_version").find("tirstrain"), std::string::npos);
   EXPECT_NE(h5.attribute_text("/", "scene_yaml").find("px_per_mm"), std::string::npos);
   EXPECT_NEAR(h5.attribute_number("/contact", "ridge_period_px"), 23.4, 1.0);
@@ -100,6 +102,9 @@ TEST(Process, WritesDocumentedResults) {
   const auto status = h5.read_integers("/contact/status");
   const auto ellipse = h5.read_doubles("/contact/ellipse");
   const auto area = h5.read_doubles("/contact/area_mm2");
+  // The bench renderer's 2 % noise on 0.45 contrast: SNR 26 (contact_bench), above the border averaging's 20.
+  const auto snr = h5.read_doubles("/contact/texture_snr");
+  const auto averaged = h5.read_integers("/contact/border_averaged");
   const double truth_area_mm2 = M_PI * 150.0 * 110.0 / (52.0 * 52.0);
   for (int i = 0; i < kFrames; ++i) {
     EXPECT_DOUBLE_EQ(t_s[static_cast<std::size_t>(i)], frame_time_s(i));
@@ -111,6 +116,9 @@ TEST(Process, WritesDocumentedResults) {
     EXPECT_LE(std::hypot(dx, dy), 2.0) << "frame " << i;
     EXPECT_NEAR(ellipse[static_cast<std::size_t>(i) * 5 + 2] / 150.0, 1.0, 0.02);
     EXPECT_NEAR(area[static_cast<std::size_t>(i)] / truth_area_mm2, 1.0, 0.04);
+    EXPECT_GT(snr[static_cast<std::size_t>(i)], 20.0) << "frame " << i;
+    EXPECT_LT(snr[static_cast<std::size_t>(i)], 40.0) << "frame " << i;
+    EXPECT_EQ(averaged[static_cast<std::size_t>(i)], 0) << "frame " << i;
   }
 
   const CsvTable csv = read_numeric_csv((out / "frames.csv").string());
@@ -124,6 +132,8 @@ TEST(Process, WritesDocumentedResults) {
   const nlohmann::json summary = nlohmann::json::parse(summary_file);
   EXPECT_EQ(summary["frames"]["total"], kFrames);
   EXPECT_EQ(summary["contact"]["frames_with_contact"], kFrames);
+  EXPECT_EQ(summary["contact"]["frames_border_averaged"], 0);
+  EXPECT_GT(summary["contact"]["texture_snr_median"].get<double>(), 20.0);
   EXPECT_EQ(summary["time_measured"], true);
 
   cv::VideoCapture overlay((out / "overlay.mp4").string());
