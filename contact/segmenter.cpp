@@ -177,6 +177,8 @@ std::optional<QuadraticSurface> fit_background(const cv::Mat& image, const cv::M
     for (int j = 0; j < i; ++j) normal(i, j) = normal(j, i);
   cv::Vec6d solution;
   if (!cv::solve(normal, rhs, solution, cv::DECOMP_CHOLESKY)) return std::nullopt;
+  for (int i = 0; i < 6; ++i)
+    if (!std::isfinite(solution[i])) return std::nullopt;  // non-finite pixels (float frames): no surface
   for (int i = 0; i < 6; ++i) surface.c[static_cast<std::size_t>(i)] = solution[i];
   // Least squares: the residual sum of squares is z.z - c.(A^T z).
   surface.residual_rms = std::sqrt(std::max(0.0, (sum_z2 - solution.dot(rhs)) / count));
