@@ -165,6 +165,7 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   s.neighbour_tolerance_px = t.number("neighbour_tolerance_px", s.neighbour_tolerance_px, 0.01, 100.0);
   s.border_exclusion_px = t.number("border_exclusion_px", s.border_exclusion_px, 0.0, 1000.0);
   s.border_margin_px = t.number("border_margin_px", s.border_margin_px, 0.0, 1000.0);
+  s.contact_inset_px = t.number("contact_inset_px", s.contact_inset_px, 0.0, 100.0);
   s.fusion_sigma_px = t.number("fusion_sigma_px", s.fusion_sigma_px, 0.0, 1000.0);
   s.fusion_weight = t.number("fusion_weight", s.fusion_weight, 0.0, 1000.0);
   s.fusion_sweeps = static_cast<int>(t.integer("fusion_sweeps", s.fusion_sweeps, 0, 1000));

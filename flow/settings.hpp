@@ -40,6 +40,12 @@ struct TrackerSettings {
   // with the partial contact, a pattern fixed in the image that the skin slides through, so it biases any
   // match towards zero motion. Tracks whose subsets lose most of their pixels this way are retired.
   double border_exclusion_px = 0.0;
+  // The pipeline's tracking stage insets the measured contact by this much before it is the tracker's contact
+  // mask (above). The measured outline lies on the outer flank of the last crest (contact/segmenter.hpp:
+  // crest_edge_level < 1/2), on average ~1 px outside where skin fully touches and 2-3 px where a crest is
+  // cut; a subset pixel on background pulls the match towards zero motion, a lost skin pixel only costs a
+  // little information. End to end, 1 px: default scene 0.054 -> 0.048 px (BENCHMARKS.md, flow section).
+  double contact_inset_px = 1.0;
 
   // Frame-to-frame pyramidal Lucas–Kanade (the prediction).
   int window_px = 21;

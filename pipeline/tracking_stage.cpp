@@ -238,6 +238,11 @@ class TrackingStage final : public Stage {
     for (const auto& p : context.contact->outline_px)
       outline.emplace_back(static_cast<int>(std::lround(p.x)), static_cast<int>(std::lround(p.y)));
     cv::fillPoly(mask_, std::vector<std::vector<cv::Point>>{outline}, cv::Scalar(255));
+    // Kept clear of the measured outline (flow/settings.hpp, contact_inset_px).
+    const int inset = static_cast<int>(std::lround(settings_.contact_inset_px));
+    if (inset > 0)
+      cv::erode(mask_, mask_,
+                cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * inset + 1, 2 * inset + 1)));
   }
 
   // The settings in effect: the tracker may have adapted them to frame 0's texture.
@@ -253,6 +258,7 @@ class TrackingStage final : public Stage {
                         {"subset_stride", s.subset_stride},
                         {"prefilter_sigma_px", s.prefilter_sigma_px},
                         {"border_exclusion_px", s.border_exclusion_px},
+                        {"contact_inset_px", s.contact_inset_px},
                         {"max_displacement_px", s.max_displacement_px},
                         {"rest_average_frames", s.rest_average_frames}};
     if (tracker_ && s.refine) {

@@ -76,6 +76,11 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_EQ(
       parse_tracking_settings(scene_with("{fixed_shape_convergence_px: 0.01}")).fixed_shape_convergence_px,
       0.01);
+  // The measured contact is inset by 1 px for tracking (both presets) unless the scene says otherwise.
+  EXPECT_EQ(parse_tracking_settings(scene_with("{}")).contact_inset_px, 1.0);
+  EXPECT_EQ(parse_tracking_settings(scene_with("{}"), "delhaye2016").contact_inset_px, 1.0);
+  EXPECT_EQ(parse_tracking_settings(scene_with("{contact_inset_px: 0}")).contact_inset_px, 0.0);
+  EXPECT_THROW(parse_tracking_settings(scene_with("{contact_inset_px: -1}")), Error);
 }
 
 TEST(Settings, StrictParsingNamesTheKey) {

@@ -9,11 +9,13 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "core/csv.hpp"
@@ -249,6 +251,56 @@ TEST(Process, StagesAskedForBringWhatTheyNeed) {
       run_cli("process " + trial.string() + " --out " + out.string() + " --compute straim");
   EXPECT_EQ(unknown.exit_code, 1);
   EXPECT_NE(unknown.output.find("straim"), std::string::npos) << unknown.output;
+}
+
+// Distance from p to a closed polygon's edges.
+double distance_to_outline(const cv::Point2d& p, const std::vector<cv::Point2d>& polygon) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < polygon.size(); ++i) {
+    const cv::Point2d a = polygon[i], b = polygon[(i + 1) % polygon.size()];
+    const cv::Point2d ab = b - a;
+    const double t = std::clamp((p - a).dot(ab) / std::max(1e-12, ab.dot(ab)), 0.0, 1.0);
+    best = std::min(best, cv::norm(p - (a + t * ab)));
+  }
+  return best;
+}
+
+// The tracker works inside the measured contact inset by `tracking.contact_inset_px` (1 px unless the scene
+// says otherwise): its seeds keep border_margin_px from the inset mask, so from the outline they keep that
+// plus the inset. With the inset at 0 the seeds come closer to the outline.
+TEST(Process, TrackingKeepsClearOfTheMeasuredOutline) {
+  const fs::path trial = write_trial("inset_trial", 2);
+  double nearest_px[2] = {0.0, 0.0};
+  for (const int inset : {0, 1}) {
+    const fs::path scene = trial / ("scene_inset_" + std::to_string(inset) + ".yaml");
+    std::ofstream(scene) << "calibration: {px_per_mm: 52, ridge_period_mm: 0.45}\ncompute: [tracking]\n"
+                         << "tracking: {contact_inset_px: " << inset << "}\n";
+    const fs::path out = scratch("inset_out_" + std::to_string(inset));
+    const CliRun run = run_cli("process " + trial.string() + " --scene " + scene.string() + " --out " +
+                               out.string() + " --overlay none --quiet");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    std::ifstream summary_file(out / "summary.json");
+    const nlohmann::json summary = nlohmann::json::parse(summary_file);
+    EXPECT_EQ(summary["tracking"]["settings"]["contact_inset_px"].get<double>(), inset);
+    const double margin_px = summary["tracking"]["settings"]["border_exclusion_px"].get<double>();
+    H5Reader h5((out / "result.h5").string());
+    const auto hull = h5.read_doubles("/contact/hull_px");  // row 0: the reference frame
+    std::vector<cv::Point2d> outline;
+    for (std::size_t k = 0; k < 50; ++k) outline.emplace_back(hull[2 * k], hull[2 * k + 1]);
+    const auto reference = h5.read_doubles("/tracks/reference_px");
+    const auto born = h5.read_integers("/tracks/born_frame");
+    double nearest = std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k < born.size(); ++k)
+      if (born[k] == 0)
+        nearest = std::min(nearest, distance_to_outline({reference[2 * k], reference[2 * k + 1]}, outline));
+    std::printf("  contact_inset_px %d: nearest seed %.2f px from the outline (border margin %.0f px)\n",
+                inset, nearest, margin_px);
+    // The 50-point hull cuts corners of the filled outline by a fraction of a pixel; the mask's pixel centres
+    // lie within half a pixel of the polygon.
+    EXPECT_GE(nearest, margin_px + inset - 1.0);
+    nearest_px[inset] = nearest;
+  }
+  EXPECT_GT(nearest_px[1], nearest_px[0] + 0.3);
 }
 
 TEST(Process, KilledHalfwayLeavesNoResult) {
