@@ -550,6 +550,8 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
     return result;
   }
   const double period_w = period_px / f;
+  // How far each outline ray looks either side of the coarse hull (working pixels).
+  const double reach_w = std::max(3.0, 1.5 * period_w);
 
   // Difference of Gaussians centred on the ridge band: sigma_small passes the ridge period with gain
   // exp(-2 pi^2 0.15^2) = 0.64 while cutting pixel noise; sigma_large removes illumination and the
@@ -713,7 +715,7 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
     // band), for the flat field and its pixel noise.
     std::optional<QuadraticSurface> background;
     if (options_.flat_field) {
-      const int grow = odd_at_least(2.0 * (std::max(3.0, 1.5 * period_w) + period_w) + 1.0, 3);
+      const int grow = odd_at_least(2.0 * (reach_w + period_w) + 1.0, 3);
       cv::dilate(buf_.hull_mask, buf_.scratch_u8,
                  cv::getStructuringElement(cv::MORPH_RECT, cv::Size(grow, grow)));
       if (excluded_w.area() > 0) buf_.scratch_u8(excluded_w).setTo(1);
@@ -739,8 +741,7 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
       // and the closing one period further.
       const std::optional<Ellipse> shape = fit_ellipse_direct(hull_w);
       if (shape && shape->semi_minor_px >= 5.0) {
-        average_along_border(buf_.bright, *shape, half_taps, std::max(3.0, 1.5 * period_w) + period_w + 2.0,
-                             buf_.scratch);
+        average_along_border(buf_.bright, *shape, half_taps, reach_w + period_w + 2.0, buf_.scratch);
         std::swap(buf_.bright, buf_.scratch);
         result.border_averaged = true;
       }
@@ -800,20 +801,19 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
           // Local levels along this ray: the merged crest plateau inside, the background beyond; the edge is
           // where the level falls to edge_level of the way from background to plateau. Local, so vignetting
           // and illumination drift do not move it; low, because ridge contrast fades towards the border.
-          const double reach = std::max(3.0, 1.5 * period_w);
-          const int samples = static_cast<int>(std::lround(2.0 * reach / kStep)) + 1;
+          const int samples = static_cast<int>(std::lround(2.0 * reach_w / kStep)) + 1;
           double inside = -1e30, outside = 0.0;
           int outside_n = 0, peak = 0;
           ray_.resize(static_cast<std::size_t>(samples));
           for (int k = 0; k < samples; ++k) {
-            const double s = crossing - reach + k * kStep;
+            const double s = crossing - reach_w + k * kStep;
             const float v = bilinear(buf_.level, p.x + s * dir.x, p.y + s * dir.y);
             ray_[static_cast<std::size_t>(k)] = v;
             if (s <= crossing && v > inside) {
               inside = v;
               peak = k;
             }
-            if (s >= crossing + reach - 1.0) {
+            if (s >= crossing + reach_w - 1.0) {
               outside += v;
               ++outside_n;
             }
@@ -823,7 +823,7 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
           // window: the levels below must stand clear of it, or a faint crest is lost in the background.
           double noise_sum = 0.0, noise_sum2 = 0.0;
           int noise_n = 0;
-          for (double s = crossing + 0.5 * reach; s <= crossing + reach + 1e-9; s += kStep) {
+          for (double s = crossing + 0.5 * reach_w; s <= crossing + reach_w + 1e-9; s += kStep) {
             const double v = bilinear(buf_.bright, p.x + s * dir.x, p.y + s * dir.y);
             noise_sum += v;
             noise_sum2 += v * v;
@@ -840,7 +840,7 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
             // level there is its height. Rays whose window leaves the view keep the plateau.
             int from = peak;
             double top = inside, fraction = options_.edge_level;
-            const cv::Point2d a = p + (crossing - reach) * dir, b = p + (crossing + reach) * dir;
+            const cv::Point2d a = p + (crossing - reach_w) * dir, b = p + (crossing + reach_w) * dir;
             const bool in_view = std::min({a.x, a.y, b.x, b.y}) >= 0.0 &&
                                  std::max(a.x, b.x) <= frame_w.width - 1.0 &&
                                  std::max(a.y, b.y) <= frame_w.height - 1.0;
@@ -858,7 +858,7 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
             for (int k = from + 1; k < samples; ++k) {
               const float v0 = ray_[static_cast<std::size_t>(k - 1)], v1 = ray_[static_cast<std::size_t>(k)];
               if (v0 >= level && v1 < level) {
-                crossing = crossing - reach + (k - 1 + (v0 - level) / std::max(1e-12f, v0 - v1)) * kStep;
+                crossing = crossing - reach_w + (k - 1 + (v0 - level) / std::max(1e-12f, v0 - v1)) * kStep;
                 break;
               }
             }
