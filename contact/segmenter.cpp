@@ -81,13 +81,14 @@ float bilinear(const cv::Mat& image, double x, double y) {
 // while the pixel noise drops by up to sqrt(2 half_taps + 1). "Along the border" is along the ellipse
 // through the pixel that is concentric with and similar to `shape` (2 half_taps + 1 samples about one pixel
 // apart). Only pixels within `band_px` of `shape` (in its normalised radius) are averaged, the others copied:
-// the edge search and the closing before it look no further.
+// the edge search and the closing before it look no further. Never closer to the centre than 0.3 of the
+// radius: there the arcs are short and, at the centre itself, undefined.
 void average_along_border(const cv::Mat& src, const Ellipse& shape, int half_taps, double band_px,
                           cv::Mat& dst) {
   dst.create(src.size(), CV_32F);
   const double c = std::cos(shape.angle_rad), s = std::sin(shape.angle_rad);
   const double a = shape.semi_major_px, b = shape.semi_minor_px;
-  const double rho_min = std::max(0.0, 1.0 - band_px / b), rho_max = 1.0 + band_px / b;
+  const double rho_min = std::max(0.3, 1.0 - band_px / b), rho_max = 1.0 + band_px / b;
   const double inv_taps = 1.0 / (2 * half_taps + 1);
   for (int y = 0; y < src.rows; ++y) {
     float* out = dst.ptr<float>(y);
@@ -102,10 +103,11 @@ void average_along_border(const cv::Mat& src, const Ellipse& shape, int half_tap
       }
       const double rho = std::sqrt(rho2);
       const double cos_phi = nx / rho, sin_phi = ny / rho;
-      // One pixel of arc: |d(a cos, b sin)/dphi| = sqrt(a^2 sin^2 + b^2 cos^2) per unit phi at rho = 1. The
-      // step is below 0.2 rad (rho * b >= 5 px), where two Taylor terms are exact to 1e-5.
+      // One pixel of arc: |d(a cos, b sin)/dphi| = sqrt(a^2 sin^2 + b^2 cos^2) per unit phi at rho = 1. Below
+      // 0.2 rad (the usual case) two Taylor terms are exact to 1e-5; small contacts near rho_min take more.
       const double step = 1.0 / (rho * std::sqrt(a * a * sin_phi * sin_phi + b * b * cos_phi * cos_phi));
-      const double cs = 1.0 - 0.5 * step * step, sn = step * (1.0 - step * step / 6.0);
+      const double cs = step < 0.2 ? 1.0 - 0.5 * step * step : std::cos(step);
+      const double sn = step < 0.2 ? step * (1.0 - step * step / 6.0) : std::sin(step);
       double sum = in[x];
       for (int side = -1; side <= 1; side += 2) {
         double u = cos_phi, v = sin_phi;
