@@ -4,12 +4,19 @@
 // is tracking only (pyramids, LK, refinement, checks, births, plate). Error is against the exact field.
 //
 //   flow_bench [--frames N] [--width W --height H | --scene FILE] [--only NAME] [--threads T]
-//              [--yaml TRACKING]...
+//              [--yaml TRACKING]... [--mesh E,S,B,SIGMA,INSET,UPDATE,CONV]...
 // --scene renders that scene's `synthesis:` section instead (e.g. samples/scenes/default.yaml).
 // --yaml adds a configuration given as a scene `tracking:` section, e.g. --yaml "{subset_radius_px: 18}".
+// --mesh E,S,B,SIGMA,INSET,UPDATE,CONV runs the global (mesh) correlation experiment instead (flow/
+// mesh_correlation.hpp; not used by the tracker): element E px, smoothness S, brightness fields B (0/1),
+// prefilter SIGMA px, region inset INSET px, full Gauss–Newton UPDATE (0/1), convergence CONV px; trailing
+// fields may be left out. MESH_VERBOSE=1 prints each frame's error (all, and deeper than 26 px).
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
+#include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -17,7 +24,9 @@
 #include <vector>
 
 #include "../tests/flow/flow_support.hpp"
+#include "flow/mesh_correlation.hpp"
 #include "flow/settings.hpp"
+#include "flow/subset.hpp"
 
 namespace {
 
@@ -54,13 +63,93 @@ synthesis:
   return root;
 }
 
+// Global (mesh) correlation of the frame-0 material against frame 0, frame after frame, each frame started
+// from the last two frames' fields extrapolated; scored on a grid of reference points.
+void run_mesh(const tirstrain::samples::Trial& trial, const tirstrain::flow::testing::RenderedTrial& rendered,
+              const tirstrain::flow::MeshCorrelationOptions& options, double sigma_px, int inset_px,
+              double grid_px) {
+  using namespace tirstrain;
+  const auto to_float = [&](const cv::Mat& m) {
+    cv::Mat f;
+    m.convertTo(f, CV_32F, m.depth() == CV_16U ? 1.0 / 65535.0 : 1.0 / 255.0);
+    if (sigma_px > 0) cv::GaussianBlur(f, f, cv::Size(), sigma_px);
+    return f;
+  };
+  cv::Mat region, current_mask;
+  cv::erode(rendered.mask, region,
+            cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * inset_px + 1, 2 * inset_px + 1)));
+  flow::erode_for_matching(region, current_mask);
+  cv::Mat depth;
+  cv::distanceTransform(rendered.mask, depth, cv::DIST_L2, 3);
+  const auto t0 = std::chrono::steady_clock::now();
+  flow::MeshCorrelation mesh(to_float(rendered.frames[0]), region, options);
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::vector<Vec2> u(static_cast<std::size_t>(mesh.node_count())), last = u, before = u;
+  std::vector<Vec2> points;
+  for (double y = 0; y < region.rows; y += grid_px)
+    for (double x = 0; x < region.cols; x += grid_px)
+      if (region.at<std::uint8_t>(static_cast<int>(y), static_cast<int>(x))) points.push_back({x, y});
+  double sum2 = 0.0, max_e = 0.0;
+  long scored = 0, iterations = 0, wrong = 0;
+  for (int f = 1; f < trial.frames(); ++f) {
+    const cv::Mat current = to_float(rendered.frames[static_cast<std::size_t>(f)]);
+    const auto t1 = std::chrono::steady_clock::now();
+    for (std::size_t n = 0; n < u.size(); ++n)
+      u[n] = {2.0 * last[n].x - before[n].x, 2.0 * last[n].y - before[n].y};
+    const flow::MeshCorrelationResult r = mesh.solve(current, current_mask, u);
+    seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+    iterations += r.iterations;
+    const bool verbose = std::getenv("MESH_VERBOSE") != nullptr;
+    double frame2 = 0.0, inner2 = 0.0;
+    long frame_n = 0, inner_n = 0;
+    before = last;
+    last = u;
+    const samples::FrameField field = trial.field(f);
+    for (const Vec2& X : points) {
+      Vec2 d;
+      if (!mesh.displacement_at(u, X, d)) continue;
+      const int cx = static_cast<int>(X.x + d.x + 0.5), cy = static_cast<int>(X.y + d.y + 0.5);
+      if (cx < 0 || cy < 0 || cx >= region.cols || cy >= region.rows || !region.at<std::uint8_t>(cy, cx))
+        continue;
+      const Vec2 t = field.displacement_px(X);
+      const double e = std::hypot(d.x - t.x, d.y - t.y);
+      sum2 += e * e;
+      max_e = std::max(max_e, e);
+      if (e > 1.0) ++wrong;
+      ++scored;
+      frame2 += e * e;
+      ++frame_n;
+      if (depth.at<float>(static_cast<int>(X.y), static_cast<int>(X.x)) > 26.0f) {
+        inner2 += e * e;
+        ++inner_n;
+      }
+    }
+    if (verbose)
+      std::fprintf(stderr,
+                   "frame %d: %d iterations (%s), %d refactorisations, residual %.4f, %d px, rms %.4f, >26px "
+                   "deep %.4f\n",
+                   f, r.iterations, r.converged ? "converged" : "not converged", r.refactorisations,
+                   r.rms_residual, r.pixels_used, std::sqrt(frame2 / std::max(1L, frame_n)),
+                   std::sqrt(inner2 / std::max(1L, inner_n)));
+  }
+  std::printf("%-24s %7s %8s %10s %8s %9s %9s %7s\n", "mesh config", "points", "scored", "points/s",
+              "frames/s", "rms_px", "max_px", ">1px");
+  std::printf("mesh h=%d s=%.3g b=%d  %7zu %8ld %10.0f %8.2f %9.4f %9.3f %7ld  iter %.1f nodes %d\n",
+              options.element_px, options.smoothness, options.brightness ? 1 : 0, points.size(),
+              scored / (trial.frames() - 1), scored / seconds, (trial.frames() - 1) / seconds,
+              std::sqrt(sum2 / std::max(1L, scored)), max_e, wrong,
+              static_cast<double>(iterations) / (trial.frames() - 1), mesh.node_count());
+  std::fflush(stdout);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   int frames = 30, width = 640, height = 512, threads = -1;
   bool frames_given = false;
   std::string only, scene_file;
-  std::vector<std::string> custom;  // extra configurations: a scene `tracking:` section each
+  std::vector<std::string> custom;        // extra configurations: a scene `tracking:` section each
+  std::vector<std::string> mesh_configs;  // "element_px,smoothness,brightness,sigma_px,inset_px"
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const auto next = [&] {
@@ -85,10 +174,12 @@ int main(int argc, char** argv) {
       custom.push_back(next());
     else if (a == "--scene")
       scene_file = next();
+    else if (a == "--mesh")
+      mesh_configs.push_back(next());
     else {
       std::fprintf(stderr,
                    "usage: flow_bench [--frames N] [--width W --height H | --scene FILE] [--only NAME] "
-                   "[--threads T] [--yaml TRACKING]...\n");
+                   "[--threads T] [--yaml TRACKING]... [--mesh E,S,B,SIGMA,INSET,UPDATE,CONV]...\n");
       return 2;
     }
   }
@@ -104,6 +195,17 @@ int main(int argc, char** argv) {
   const flow::testing::RenderedTrial rendered = flow::testing::render(trial, true);
   if (std::getenv("FLOW_BENCH_DUMP")) cv::imwrite(std::getenv("FLOW_BENCH_DUMP"), rendered.frames.back());
 
+  for (const std::string& m : mesh_configs) {
+    flow::MeshCorrelationOptions o;
+    int brightness = 1, inset = 3, update = 0;
+    double sigma = 1.0;
+    std::sscanf(m.c_str(), "%d,%lf,%d,%lf,%d,%d,%lf", &o.element_px, &o.smoothness, &brightness, &sigma,
+                &inset, &update, &o.convergence_px);
+    o.update_gradient = update != 0;
+    o.brightness = brightness != 0;
+    run_mesh(trial, rendered, o, sigma, inset, 9.0);
+  }
+  if (!mesh_configs.empty() && only.empty()) return 0;
   const flow::SceneHints hints = flow::hints_from_scene(scene);
   const TrackerSettings automatic = flow::preset_settings("auto", hints);
   const TrackerSettings paper = flow::preset_settings("delhaye2016", hints);
