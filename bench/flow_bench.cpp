@@ -7,6 +7,7 @@
 //              [--yaml TRACKING]... [--mesh E,S,B,SIGMA,INSET,UPDATE,CONV]...
 // --scene renders that scene's `synthesis:` section instead (e.g. samples/scenes/default.yaml).
 // --yaml adds a configuration given as a scene `tracking:` section, e.g. --yaml "{subset_radius_px: 18}".
+// --crb prints the Cramér–Rao bound of the automatic preset's subsets on this trial's frame 0 instead.
 // --mesh E,S,B,SIGMA,INSET,UPDATE,CONV runs the global (mesh) correlation experiment instead (flow/
 // mesh_correlation.hpp; not used by the tracker): element E px, smoothness S, brightness fields B (0/1),
 // prefilter SIGMA px, region inset INSET px, full Gauss–Newton UPDATE (0/1), convergence CONV px; trailing
@@ -23,7 +24,9 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Dense>
 #include "../tests/flow/flow_support.hpp"
+
 #include "flow/mesh_correlation.hpp"
 #include "flow/settings.hpp"
 #include "flow/subset.hpp"
@@ -142,6 +145,77 @@ void run_mesh(const tirstrain::samples::Trial& trial, const tirstrain::flow::tes
   std::fflush(stdout);
 }
 
+// Cramér–Rao bound of a translation-only match (shape known) on frame 0's noise-free image, with the
+// sensor's exact per-pixel noise (shot, read, 8/16-bit quantisation) in the current frame and 1/averaged of
+// it in the anchor: the smallest displacement noise any unbiased estimator from those pixels can reach. Per
+// seed on the tracker's grid, square subsets of the given radius restricted to the contact eroded by
+// `exclusion_px` (what the tracker's subsets may use), RMS by depth inside the true border.
+void run_crb(const tirstrain::samples::Trial& trial, double grid_px, double exclusion_px,
+             const std::vector<int>& radii, int anchor_frames_averaged) {
+  using namespace tirstrain;
+  const samples::SensorConfig& sensor = trial.config().sensor;
+  cv::Mat f = trial.render_clean(0);
+  if (sensor.blur_sigma_px > 0)
+    cv::GaussianBlur(f, f, cv::Size(0, 0), sensor.blur_sigma_px, sensor.blur_sigma_px, cv::BORDER_REFLECT);
+  f *= sensor.gain;
+  const double full_scale = trial.config().image.bit_depth == 16 ? 65535.0 : 255.0;
+  cv::Mat gx, gy;
+  cv::Sobel(f, gx, CV_32F, 1, 0, 1, 0.5);  // central differences
+  cv::Sobel(f, gy, CV_32F, 0, 1, 1, 0.5);
+  const auto variance = [&](double v) {
+    double var = 1.0 / (12.0 * full_scale * full_scale);
+    if (sensor.full_well_electrons > 0) var += std::max(0.0, v) / sensor.full_well_electrons;
+    return var + sensor.read_noise * sensor.read_noise;
+  };
+  const double both = 1.0 + 1.0 / std::max(1, anchor_frames_averaged);
+  std::printf(
+      "Cramér–Rao bound, translation with known shape, frame 0, exclusion %.0f px, anchor averaged over %d\n",
+      exclusion_px, anchor_frames_averaged);
+  std::printf("%8s %12s %8s %10s %10s %10s\n", "radius", "depth_px", "seeds", "total_px", "along_px",
+              "across_px");
+  const double bins[4] = {13.0, 26.0, 52.0, 1e9};
+  for (int r : radii) {
+    double sum_t[3] = {}, sum_a[3] = {}, sum_c[3] = {};
+    int count[3] = {};
+    for (double y = 0; y < trial.height(); y += grid_px)
+      for (double x = 0; x < trial.width(); x += grid_px) {
+        const double depth = -trial.contact_signed_distance_px({x, y});
+        if (depth < bins[0]) continue;
+        int b = 0;
+        while (depth >= bins[b + 1]) ++b;
+        Eigen::Matrix2d info = Eigen::Matrix2d::Zero();
+        for (int dy = -r; dy <= r; ++dy)
+          for (int dx = -r; dx <= r; ++dx) {
+            const int px = static_cast<int>(x) + dx, py = static_cast<int>(y) + dy;
+            if (px < 1 || py < 1 || px >= trial.width() - 1 || py >= trial.height() - 1) continue;
+            if (-trial.contact_signed_distance_px({double(px), double(py)}) < exclusion_px) continue;
+            const double ax = gx.at<float>(py, px), ay = gy.at<float>(py, px);
+            const double w = 1.0 / (both * variance(f.at<float>(py, px)));
+            info(0, 0) += w * ax * ax;
+            info(0, 1) += w * ax * ay;
+            info(1, 1) += w * ay * ay;
+          }
+        info(1, 0) = info(0, 1);
+        if (info.determinant() <= 0) continue;
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(info.inverse());
+        sum_a[b] += eig.eigenvalues()(1);
+        sum_c[b] += eig.eigenvalues()(0);
+        sum_t[b] += eig.eigenvalues().sum();
+        ++count[b];
+      }
+    const char* names[3] = {"13-26", "26-52", ">52"};
+    for (int b = 0; b < 3; ++b)
+      std::printf("%8d %12s %8d %10.4f %10.4f %10.4f\n", r, names[b], count[b],
+                  std::sqrt(sum_t[b] / std::max(1, count[b])), std::sqrt(sum_a[b] / std::max(1, count[b])),
+                  std::sqrt(sum_c[b] / std::max(1, count[b])));
+    const int all = count[0] + count[1] + count[2];
+    std::printf("%8d %12s %8d %10.4f %10.4f %10.4f\n", r, "all >=13", all,
+                std::sqrt((sum_t[0] + sum_t[1] + sum_t[2]) / std::max(1, all)),
+                std::sqrt((sum_a[0] + sum_a[1] + sum_a[2]) / std::max(1, all)),
+                std::sqrt((sum_c[0] + sum_c[1] + sum_c[2]) / std::max(1, all)));
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -149,6 +223,7 @@ int main(int argc, char** argv) {
   bool frames_given = false;
   std::string only, scene_file;
   std::vector<std::string> custom;        // extra configurations: a scene `tracking:` section each
+  bool crb = false;                       // print the Cramér–Rao bound of the tracker's subsets instead
   std::vector<std::string> mesh_configs;  // "element_px,smoothness,brightness,sigma_px,inset_px"
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -174,12 +249,14 @@ int main(int argc, char** argv) {
       custom.push_back(next());
     else if (a == "--scene")
       scene_file = next();
+    else if (a == "--crb")
+      crb = true;
     else if (a == "--mesh")
       mesh_configs.push_back(next());
     else {
       std::fprintf(stderr,
                    "usage: flow_bench [--frames N] [--width W --height H | --scene FILE] [--only NAME] "
-                   "[--threads T] [--yaml TRACKING]... [--mesh E,S,B,SIGMA,INSET,UPDATE,CONV]...\n");
+                   "[--threads T] [--yaml TRACKING]... [--mesh E,S,B,SIGMA,INSET,UPDATE,CONV]... [--crb]\n");
       return 2;
     }
   }
@@ -195,6 +272,13 @@ int main(int argc, char** argv) {
   const flow::testing::RenderedTrial rendered = flow::testing::render(trial, true);
   if (std::getenv("FLOW_BENCH_DUMP")) cv::imwrite(std::getenv("FLOW_BENCH_DUMP"), rendered.frames.back());
 
+  if (crb) {
+    const flow::TrackerSettings a = flow::preset_settings("auto", flow::hints_from_scene(scene));
+    run_crb(trial, a.grid_step_px, a.border_exclusion_px + 2.0,
+            {a.subset_radius_px, a.fixed_shape_radius_px, 30}, a.rest_average_frames);
+    run_crb(trial, a.grid_step_px, 0.0, {a.fixed_shape_radius_px}, a.rest_average_frames);
+    return 0;
+  }
   for (const std::string& m : mesh_configs) {
     flow::MeshCorrelationOptions o;
     int brightness = 1, inset = 3, update = 0;
