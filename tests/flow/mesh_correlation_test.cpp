@@ -10,17 +10,14 @@
 
 #include "core/error.hpp"
 #include "flow/mesh_correlation.hpp"
+#include "ridge_texture.hpp"
 
 namespace tirstrain::flow {
 namespace {
 
-double ridge_texture(double x, double y) {
-  const double r1 = std::hypot(x + 40.0, y + 30.0), r2 = std::hypot(x - 150.0, y + 60.0);
-  return 0.5 + 0.25 * std::cos(2.0 * std::numbers::pi * r1 / 23.0) +
-         0.12 * std::cos(2.0 * std::numbers::pi * r2 / 17.0);
-}
+using testing::ridge_texture;
 
-// Renders the current frame for the forward map x = X + u(X), by Newton inversion per pixel.
+// Renders the current frame for the forward map x = X + u(X), inverted per pixel by fixed-point iteration.
 cv::Mat render(int size, const std::function<Vec2(Vec2)>& u, double gain = 1.0, double offset = 0.0) {
   cv::Mat img(size, size, CV_32F);
   for (int y = 0; y < size; ++y)
@@ -118,24 +115,23 @@ TEST(MeshCorrelation, PixelsOutsideTheCurrentMaskDoNotPullTheField) {
   std::vector<Vec2> nodal(static_cast<std::size_t>(mesh.node_count()));
   const MeshCorrelationResult r = mesh.solve(cur, mask, nodal);
   EXPECT_TRUE(r.converged);
-  double worst = 0.0;
-  for (int y = 40; y < 150; y += 5) {
-    Vec2 d;
-    ASSERT_TRUE(mesh.displacement_at(nodal, {110.0, static_cast<double>(y)}, d));
-    worst = std::max(worst, std::hypot(d.x - shift.x, d.y - shift.y));
-  }
-  EXPECT_LT(worst, 0.02);
+  // Largest error of the field next to the cut, at x = 110.
+  const auto worst = [&](const MeshCorrelation& m, const std::vector<Vec2>& field) {
+    double largest = 0.0;
+    for (int y = 40; y < 150; y += 5) {
+      Vec2 d;
+      if (!m.displacement_at(field, {110.0, static_cast<double>(y)}, d)) return 1e9;
+      largest = std::max(largest, std::hypot(d.x - shift.x, d.y - shift.y));
+    }
+    return largest;
+  };
+  EXPECT_LT(worst(mesh, nodal), 0.02);
   // The test can fail: without the mask the background pulls the same points off.
   MeshCorrelation unmasked(ref, region, {});
   std::vector<Vec2> pulled(static_cast<std::size_t>(unmasked.node_count()));
   unmasked.solve(cur, cv::Mat(), pulled);
-  double pulled_worst = 0.0;
-  for (int y = 40; y < 150; y += 5) {
-    Vec2 d;
-    ASSERT_TRUE(unmasked.displacement_at(pulled, {110.0, static_cast<double>(y)}, d));
-    pulled_worst = std::max(pulled_worst, std::hypot(d.x - shift.x, d.y - shift.y));
-  }
-  EXPECT_GT(pulled_worst, 0.1);
+  EXPECT_GT(worst(unmasked, pulled), 0.1);
+  EXPECT_LT(worst(unmasked, pulled), 1e9);
 }
 
 TEST(MeshCorrelation, RejectsAnEmptyRegionAndMismatchedInput) {
