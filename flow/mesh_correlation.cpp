@@ -259,9 +259,10 @@ MeshCorrelationResult MeshCorrelation::solve(const cv::Mat& current, const cv::M
         a[k] = dofs == 4 ? state(nodes[k] * dofs + 2) : 0.0;
         b[k] = dofs == 4 ? state(nodes[k] * dofs + 3) : 0.0;
       }
-      // Current image gradient at the warped pixel ≈ F⁻ᵀ ∇f (F of the element's bilinear field at its
-      // centre): with a single ridge system the along-ridge information is small, and the reference
-      // gradient rotated by the skin's local rotation leaks across-ridge information into it.
+      // Optionally the current image's gradient at the warped pixel ≈ F⁻ᵀ ∇f (F of the element's bilinear
+      // field at its centre), for the case where the skin's rotation turns across-ridge information into the
+      // weak along-ridge direction; on the goal trial it changed nothing (BENCHMARKS.md). A folded element
+      // keeps the reference gradient.
       auto& t = element_transform_[e];
       if (options_.update_gradient) {
         const double h = options_.element_px;
@@ -271,7 +272,8 @@ MeshCorrelationResult MeshCorrelation::solve(const cv::Mat& current, const cv::M
                      vyy = 1.0 + ((v[2] - v[0]) + (v[3] - v[1])) / (2 * h);
         const double det = uxx * vyy - uxy * vxx;
         // F = [[uxx, uxy], [vxx, vyy]]; F⁻ᵀ = [[vyy, −vxx], [−uxy, uxx]] / det
-        t = {vyy / det, -vxx / det, -uxy / det, uxx / det};
+        t = det > 0.1 ? std::array<double, 4>{vyy / det, -vxx / det, -uxy / det, uxx / det}
+                      : std::array<double, 4>{1.0, 0.0, 0.0, 1.0};
       }
       double local[16] = {};
       bool any_valid = false;
