@@ -4,7 +4,7 @@
 // is tracking only (pyramids, LK, refinement, checks, births, plate). Error is against the exact field.
 //
 //   flow_bench [--frames N] [--width W --height H | --scene FILE] [--only NAME] [--threads T]
-//              [--yaml TRACKING]... [--mesh E,S,B,SIGMA,INSET,UPDATE,CONV]...
+//              [--yaml TRACKING]... [--mesh E,S,B,SIGMA,INSET,UPDATE,CONV]... [--crb]
 // --scene renders that scene's `synthesis:` section instead (e.g. samples/scenes/default.yaml).
 // --yaml adds a configuration given as a scene `tracking:` section, e.g. --yaml "{subset_radius_px: 18}".
 // --crb prints the Cramér–Rao bound of the automatic preset's subsets on this trial's frame 0 instead.
