@@ -108,8 +108,10 @@ TEST(Tracker, MotionBlurFrameDoesNotBreakTracks) {
 
 TEST(Tracker, CattaneoMindlinAndPlate) {
   const BothRuns r = run_both(with_plate(cm_scene(200, 220, 12, 50.0), 40), false, true);
-  // Measured: auto 0.055 px RMS (max 0.72 px, none > 1 px), delhaye2016 0.59 px; plate 0.0058 px RMS.
-  EXPECT_LT(r.automatic.rms_px, 0.08);  // regression bound (target 0.05, not met yet)
+  // Measured: auto 0.047 px RMS (max 0.58 px, none > 1 px; 0.052 / 0.72 px while a border track's shape fit
+  // fell back to affine), delhaye2016 0.59 px; plate 0.0049 px RMS.
+  EXPECT_LT(r.automatic.rms_px, 0.05);  // the target
+  EXPECT_LT(r.automatic.max_px, 0.65);  // regression bound
   EXPECT_EQ(r.automatic.wrong, 0);
   EXPECT_LT(r.automatic.rms_px, r.paper.rms_px);
   EXPECT_LT(r.automatic.plate_rms_px, 0.02);
