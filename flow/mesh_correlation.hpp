@@ -30,14 +30,15 @@ struct MeshCorrelationOptions {
   int element_px = 9;  // side of a square element (node spacing)
   int max_iterations = 30;
   double convergence_px = 1e-3;  // largest nodal displacement step
-  // Penalty on the field's second differences along mesh lines, relative to a node's mean data weight.
-  double smoothness = 0.02;
+  // Penalty on the field's second differences along mesh lines, relative to a node's mean data weight. On the
+  // goal trial 0.002 / 0.02 / 0.2 / 2 gave 0.48 / 0.26 / 0.16 / 0.13 px over 8 frames (BENCHMARKS.md).
+  double smoothness = 0.2;
   double brightness_smoothness = 1.0;  // the same for the gain and offset fields
   bool brightness = true;              // solve for a gain and an offset field as well
-  int min_element_pixels = 8;
+  int min_element_pixels = 8;          // elements with fewer usable pixels hold no data of their own
   // Re-evaluate the Jacobian with the reference gradient carried by each element's deformation every
   // iteration (full Gauss–Newton; costs a re-assembly and factorisation per iteration).
-  bool update_gradient = false;  // elements with fewer usable pixels hold no data of their own
+  bool update_gradient = false;
 };
 
 struct MeshCorrelationResult {

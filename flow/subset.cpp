@@ -1,12 +1,12 @@
 #include "flow/subset.hpp"
 
-#include "flow/bicubic.hpp"
-
 #include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cmath>
+
+#include "flow/bicubic.hpp"
 
 namespace tirstrain::flow {
 namespace {
