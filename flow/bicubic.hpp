@@ -1,7 +1,10 @@
 #pragma once
-// Keys bicubic interpolation kernel shared by the subset matcher and the mesh correlation (internal to
-// flow/).
+// Keys bicubic interpolation kernel shared by the subset matcher, the resampled shape pass and the mesh
+// correlation (internal to flow/).
+#include <opencv2/core.hpp>
+
 #include <cstddef>
+#include <cstdint>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -51,5 +54,43 @@ inline float interpolate_keys(const float* row, std::size_t step, float tx, floa
   return sum;
 }
 #endif
+
+// The current frame and its mask, as raw pointers: the match loop samples every subset pixel per
+// iteration, and going through cv::Mat accessors there cost a fifth of the tracker's time.
+class Sampler {
+ public:
+  Sampler(const cv::Mat& image, const cv::Mat& mask)
+      : data_(image.ptr<float>()),
+        step_(image.step1()),
+        cols_(image.cols),
+        rows_(image.rows),
+        mask_(mask.empty() ? nullptr : mask.ptr<std::uint8_t>()),
+        mask_step_(mask.empty() ? 0 : mask.step1()) {
+    CV_Assert(image.type() == CV_32F &&
+              (mask.empty() || (mask.type() == CV_8U && mask.size() == image.size())));
+  }
+
+  // Keys bicubic value at (x, y), if its 4×4 support is inside the image and the nearest pixel inside the
+  // mask. Written for x, y ≥ 1, where truncation is the floor and x + 0.5 truncated the nearest pixel.
+  bool sample(double x, double y, float& value) const {
+    // Bounds checked on the doubles: a runaway warp's 1e12 must not reach the int conversion (undefined;
+    // INT_MIN on x86, which an integer check would let through). Also rejects NaN.
+    if (!(x >= 1.0 && y >= 1.0 && x < cols_ - 2 && y < rows_ - 2)) return false;
+    const int ix = static_cast<int>(x), iy = static_cast<int>(y);
+    if (mask_ && mask_[static_cast<std::size_t>(static_cast<int>(y + 0.5)) * mask_step_ +
+                       static_cast<std::size_t>(static_cast<int>(x + 0.5))] == 0)
+      return false;
+    value = detail::interpolate_keys(data_ + static_cast<std::size_t>(iy - 1) * step_ + (ix - 1), step_,
+                                     static_cast<float>(x - ix), static_cast<float>(y - iy));
+    return true;
+  }
+
+ private:
+  const float* data_;
+  std::size_t step_;
+  int cols_, rows_;
+  const std::uint8_t* mask_;
+  std::size_t mask_step_;
+};
 
 }  // namespace tirstrain::flow::detail

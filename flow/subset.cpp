@@ -124,48 +124,10 @@ Eigen::MatrixXd truncated_inverse(const Eigen::MatrixXd& h, double relative_floo
          d.asDiagonal();
 }
 
-// The current frame and its mask, as raw pointers: the match loop samples every subset pixel per
-// iteration, and going through cv::Mat accessors there cost a fifth of the tracker's time.
-class Sampler {
- public:
-  Sampler(const cv::Mat& image, const cv::Mat& mask)
-      : data_(image.ptr<float>()),
-        step_(image.step1()),
-        cols_(image.cols),
-        rows_(image.rows),
-        mask_(mask.empty() ? nullptr : mask.ptr<std::uint8_t>()),
-        mask_step_(mask.empty() ? 0 : mask.step1()) {
-    CV_Assert(image.type() == CV_32F &&
-              (mask.empty() || (mask.type() == CV_8U && mask.size() == image.size())));
-  }
-
-  // Keys bicubic value at (x, y), if its 4×4 support is inside the image and the nearest pixel inside the
-  // mask. Written for x, y ≥ 1, where truncation is the floor and x + 0.5 truncated the nearest pixel.
-  bool sample(double x, double y, float& value) const {
-    // Bounds checked on the doubles: a runaway warp's 1e12 must not reach the int conversion (undefined;
-    // INT_MIN on x86, which an integer check would let through). Also rejects NaN.
-    if (!(x >= 1.0 && y >= 1.0 && x < cols_ - 2 && y < rows_ - 2)) return false;
-    const int ix = static_cast<int>(x), iy = static_cast<int>(y);
-    if (mask_ && mask_[static_cast<std::size_t>(static_cast<int>(y + 0.5)) * mask_step_ +
-                       static_cast<std::size_t>(static_cast<int>(x + 0.5))] == 0)
-      return false;
-    value = detail::interpolate_keys(data_ + static_cast<std::size_t>(iy - 1) * step_ + (ix - 1), step_,
-                                     static_cast<float>(x - ix), static_cast<float>(y - iy));
-    return true;
-  }
-
- private:
-  const float* data_;
-  std::size_t step_;
-  int cols_, rows_;
-  const std::uint8_t* mask_;
-  std::size_t mask_step_;
-};
-
 }  // namespace
 
 bool sample_bicubic(const cv::Mat& image, double x, double y, float& value) {
-  return Sampler(image, cv::Mat()).sample(x, y, value);
+  return detail::Sampler(image, cv::Mat()).sample(x, y, value);
 }
 
 void AnchorImage::assign(const cv::Mat& image, const cv::Mat& mask) {
@@ -196,6 +158,7 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
   const cv::Mat& img = anchor.image();
   const cv::Mat& mask = anchor.mask();
   stride = std::max(1, stride);
+  stride_ = stride;
   for (int dy = -radius_px; dy <= radius_px; dy += stride) {
     const int y = centre.y + dy;
     if (y < 1 || y >= img.rows - 1) continue;
@@ -216,6 +179,7 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
   double mean = 0.0;
   for (const Pixel& p : points_) mean += p.f;
   mean /= static_cast<double>(points_.size());
+  mean_ = mean;
   hessian_.setZero();
   sum_j_.setZero();
   sum_jf_.setZero();
@@ -251,7 +215,7 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
 double Subset::correlation(const cv::Mat& current, const cv::Mat& current_mask, const Warp& warp) const {
   double sf = 0, sff = 0, sg = 0, sgg = 0, sfg = 0;
   long count = 0;
-  const Sampler image(current, current_mask);
+  const detail::Sampler image(current, current_mask);
   for (const Pixel& p : points_) {
     const Vec2 u = warp.displacement_px(p.dx, p.dy);
     const double x = centre_.x + p.dx + u.x, y = centre_.y + p.dy + u.y;
@@ -283,7 +247,7 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
   const int n = options.translation_only ? 2 : n_shape;
   const double total = static_cast<double>(points_.size());
   const double r = radius_px_;
-  const Sampler image(current, current_mask);
+  const detail::Sampler image(current, current_mask);
   double j[12];
   Matrix h_out;
   Vector sj_out, sjf_out, sjg;
@@ -419,6 +383,96 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
     // A step of several ridge periods means the iteration is running away, not converging.
     if (largest > 4.0 * r + 20.0) return result;
   }
+  return result;
+}
+
+MatchResult Subset::translation_step(const AnchorImage& anchor, const cv::Mat& resampled,
+                                     const cv::Mat& valid, double min_valid_fraction, Vec2& step_px) const {
+  MatchResult result;
+  step_px = {};
+  if (points_.empty()) {
+    result.degenerate = true;
+    return result;
+  }
+  const cv::Mat& img = anchor.image();
+  CV_Assert(resampled.type() == CV_32F && valid.type() == CV_8U && valid.size() == resampled.size() &&
+            resampled.size() == img.size());
+  const double total = static_cast<double>(points_.size());
+  double h_xx = 0, h_xy = 0, h_yy = 0, sj_x = 0, sj_y = 0, sjf_x = 0, sjf_y = 0, sf_out = 0, sff_out = 0;
+  double sjg_x = 0, sjg_y = 0, sg = 0, sgg = 0, sfg = 0;
+  long outside = 0, seen = 0;
+  const float mean = static_cast<float>(mean_);
+  // The same pixels as build() took, in the same order.
+  for (int dy = -radius_px_; dy <= radius_px_; dy += stride_) {
+    const int y = centre_.y + dy;
+    if (y < 1 || y >= img.rows - 1) continue;
+    const float* rrow = img.ptr<float>(y);
+    const float* gxr = anchor.gx().ptr<float>(y);
+    const float* gyr = anchor.gy().ptr<float>(y);
+    const std::uint8_t* mrow = anchor.mask().ptr<std::uint8_t>(y);
+    const float* grow = resampled.ptr<float>(y);
+    const std::uint8_t* vrow = valid.ptr<std::uint8_t>(y);
+    for (int dx = -radius_px_; dx <= radius_px_; dx += stride_) {
+      const int x = centre_.x + dx;
+      if (x < 1 || x >= img.cols - 1 || mrow[x] == 0) continue;
+      ++seen;
+      const float f = rrow[x] - mean, gx = gxr[x], gy = gyr[x];
+      if (!vrow[x]) {
+        ++outside;
+        h_xx += static_cast<double>(gx) * gx;
+        h_xy += static_cast<double>(gx) * gy;
+        h_yy += static_cast<double>(gy) * gy;
+        sj_x += gx;
+        sj_y += gy;
+        sjf_x += static_cast<double>(gx) * f;
+        sjf_y += static_cast<double>(gy) * f;
+        sf_out += f;
+        sff_out += static_cast<double>(f) * f;
+        continue;
+      }
+      const double g = grow[x];
+      sjg_x += gx * g;
+      sjg_y += gy * g;
+      sg += g;
+      sgg += g * g;
+      sfg += f * g;
+    }
+  }
+  if (seen != static_cast<long>(points_.size())) {  // not the anchor this subset was built from
+    result.degenerate = true;
+    return result;
+  }
+  const double count = total - static_cast<double>(outside);
+  result.valid_fraction = count / total;
+  result.iterations = 1;
+  if (result.valid_fraction < min_valid_fraction || count < 4.0) return result;
+  // As in match(): f has zero mean over the whole subset, so over the visible pixels −Σ_out f / count.
+  const double f_mean = -sf_out / count;
+  const double df2 = (sum_ff_ - sff_out) - count * f_mean * f_mean;
+  const double g_mean = sg / count;
+  const double dg2 = sgg - count * g_mean * g_mean;
+  if (df2 <= 1e-12 || dg2 <= 1e-12) {
+    result.degenerate = true;
+    return result;
+  }
+  const double scale = std::sqrt(df2 / dg2);
+  result.zncc = (sfg - count * f_mean * g_mean) / std::sqrt(df2 * dg2);
+  const double vj_x = sum_j_[0] - sj_x, vj_y = sum_j_[1] - sj_y;
+  const double b_x = ((sum_jf_[0] - sjf_x) - f_mean * vj_x) - scale * (sjg_x - g_mean * vj_x);
+  const double b_y = ((sum_jf_[1] - sjf_y) - f_mean * vj_y) - scale * (sjg_y - g_mean * vj_y);
+  Eigen::Matrix2d hv;
+  hv << hessian_(0, 0) - h_xx, hessian_(0, 1) - h_xy, hessian_(1, 0) - h_xy, hessian_(1, 1) - h_yy;
+  if (!(hv.determinant() > 1e-12 * hv.trace() * hv.trace())) {
+    result.degenerate = true;
+    return result;
+  }
+  const Eigen::Vector2d dp = -hv.inverse() * Eigen::Vector2d(b_x, b_y);
+  if (!dp.allFinite()) {
+    result.degenerate = true;
+    return result;
+  }
+  step_px = {dp.x(), dp.y()};
+  result.converged = true;
   return result;
 }
 

@@ -112,6 +112,15 @@ class Subset {
   // be empty) allows. The warp's unused parameters (beyond the shape function) are left at zero.
   MatchResult match(const cv::Mat& current, const cv::Mat& current_mask, Warp& warp,
                     const MatchOptions& options) const;
+  // One translation-only Gauss–Newton step of a match whose shape is already applied: `resampled` (CV_32F,
+  // anchor coordinates) holds the current frame at each anchor pixel's warped position and `valid` (CV_8U)
+  // says where it has one (resample_through, flow/shape_field.hpp). `step_px` is the inverse-compositional
+  // step Δ: the warp's argument moves by it, W(ξ) ← W(ξ − Δ). `converged` in the result: a step was
+  // computed (its zncc is at the warp before the step). The reference pixels are read from `anchor`, which
+  // must be the one the subset was built from (else: degenerate): overlapping subsets then share them in
+  // cache instead of each streaming its own copy.
+  MatchResult translation_step(const AnchorImage& anchor, const cv::Mat& resampled, const cv::Mat& valid,
+                               double min_valid_fraction, Vec2& step_px) const;
   // ZNCC of the subset against `current` at `warp`, without iterating.
   double correlation(const cv::Mat& current, const cv::Mat& current_mask, const Warp& warp) const;
 
@@ -127,6 +136,8 @@ class Subset {
   std::vector<Pixel> points_;
   cv::Point centre_{0, 0};
   int radius_px_ = 0;
+  int stride_ = 1;
+  double mean_ = 0.0;  // of the reference pixels (points_ hold them minus this)
   ShapeFunction shape_ = ShapeFunction::kAffine;
   // Sums over the whole reference subset, so the common case (nothing masked) needs no per-match setup.
   Matrix hessian_ = Matrix::Zero();

@@ -1,0 +1,307 @@
+#include "flow/shape_field.hpp"
+
+#include <Eigen/Dense>
+#include <opencv2/core/utility.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "flow/bicubic.hpp"
+
+namespace tirstrain::flow {
+namespace {
+
+using Coef = Eigen::Matrix<double, 6, 2>;
+using Vector6 = Eigen::Matrix<double, 6, 1>;
+
+// u(a, b) of a node polynomial and its derivatives in a and b.
+inline Vec2 evaluate(const Coef& c, double a, double b) {
+  return {c(0, 0) + c(1, 0) * a + c(2, 0) * b + c(3, 0) * a * a + c(4, 0) * a * b + c(5, 0) * b * b,
+          c(0, 1) + c(1, 1) * a + c(2, 1) * b + c(3, 1) * a * a + c(4, 1) * a * b + c(5, 1) * b * b};
+}
+
+}  // namespace
+
+void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, double spacing_px,
+                         double sigma_px) {
+  region_ = region;
+  spacing_ = std::max(1.0, spacing_px);
+  sigma_ = sigma_px;
+  anchors_ = anchor_px;
+  const double radius = 2.0 * sigma_px;
+  scale_ = radius;
+  cols_ = static_cast<int>(std::ceil(region.width / spacing_)) + 1;
+  rows_ = static_cast<int>(std::ceil(region.height / spacing_)) + 1;
+  const std::size_t node_count = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
+  term_start_.assign(node_count + 1, 0);
+  terms_.clear();
+  if (anchor_px.empty() || region.area() <= 0 || !(sigma_px > 0.0)) return;
+  // Samples in buckets one fit radius wide: a node's samples lie in its bucket and the eight around it.
+  const int bcols = static_cast<int>(std::ceil((region.width + 2.0 * radius) / radius)) + 1;
+  const int brows = static_cast<int>(std::ceil((region.height + 2.0 * radius) / radius)) + 1;
+  const auto bucket_of = [&](double x, double y, int& bx, int& by) {
+    bx = static_cast<int>(std::floor((x - region.x + radius) / radius));
+    by = static_cast<int>(std::floor((y - region.y + radius) / radius));
+    return bx >= 0 && by >= 0 && bx < bcols && by < brows;
+  };
+  std::vector<int> start(static_cast<std::size_t>(bcols * brows) + 1, 0), items(anchor_px.size());
+  std::vector<int> bucket(anchor_px.size(), -1);
+  for (std::size_t s = 0; s < anchor_px.size(); ++s) {
+    int bx, by;
+    const Vec2 p = anchor_px[s];
+    if (!(std::isfinite(p.x) && std::isfinite(p.y)) || !bucket_of(p.x, p.y, bx, by)) continue;
+    bucket[s] = by * bcols + bx;
+    ++start[static_cast<std::size_t>(bucket[s]) + 1];
+  }
+  for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
+  std::vector<int> fill(start.begin(), start.end() - 1);
+  for (std::size_t s = 0; s < anchor_px.size(); ++s)
+    if (bucket[s] >= 0)
+      items[static_cast<std::size_t>(fill[static_cast<std::size_t>(bucket[s])]++)] = static_cast<int>(s);
+
+  // Each row of nodes in parallel into its own list, joined in order afterwards.
+  std::vector<std::vector<Term>> row_terms(static_cast<std::size_t>(rows_));
+  std::vector<std::vector<int>> row_counts(static_cast<std::size_t>(rows_));
+  cv::parallel_for_(cv::Range(0, rows_), [&](const cv::Range& range) {
+    Eigen::Matrix<double, 6, 6> normal;
+    std::vector<Vector6> basis;
+    std::vector<int> members;
+    for (int r = range.start; r < range.end; ++r) {
+      auto& out = row_terms[static_cast<std::size_t>(r)];
+      auto& counts = row_counts[static_cast<std::size_t>(r)];
+      out.clear();
+      counts.assign(static_cast<std::size_t>(cols_), 0);
+      for (int c = 0; c < cols_; ++c) {
+        const double nx = region.x + c * spacing_, ny = region.y + r * spacing_;
+        int bx, by;
+        if (!bucket_of(nx, ny, bx, by)) continue;
+        members.clear();
+        int quadrants = 0;
+        for (int y = std::max(0, by - 1); y <= std::min(brows - 1, by + 1); ++y)
+          for (int x = std::max(0, bx - 1); x <= std::min(bcols - 1, bx + 1); ++x) {
+            const std::size_t b = static_cast<std::size_t>(y * bcols + x);
+            for (int k = start[b]; k < start[b + 1]; ++k) {
+              const int s = items[static_cast<std::size_t>(k)];
+              const double dx = anchor_px[static_cast<std::size_t>(s)].x - nx;
+              const double dy = anchor_px[static_cast<std::size_t>(s)].y - ny;
+              if (dx * dx + dy * dy > radius * radius) continue;
+              members.push_back(s);
+              quadrants |= 1 << ((dx >= 0.0 ? 1 : 0) + (dy >= 0.0 ? 2 : 0));
+            }
+          }
+        const int count = static_cast<int>(members.size());
+        if (count < 6) continue;
+        basis.resize(static_cast<std::size_t>(count));
+        normal.setZero();
+        for (int k = 0; k < count; ++k) {
+          const Vec2 p = anchor_px[static_cast<std::size_t>(members[static_cast<std::size_t>(k)])];
+          const double dx = p.x - nx, dy = p.y - ny;
+          const double w = std::exp(-0.5 * (dx * dx + dy * dy) / (sigma_px * sigma_px));
+          const double a = dx / scale_, bb = dy / scale_;
+          Vector6& v = basis[static_cast<std::size_t>(k)];
+          v << 1.0, a, bb, a * a, a * bb, bb * bb;
+          normal.selfadjointView<Eigen::Upper>().rankUpdate(v, w);
+          v *= w;
+        }
+        normal.triangularView<Eigen::StrictlyLower>() = normal.transpose();
+        const int sides =
+            (quadrants & 1) + ((quadrants >> 1) & 1) + ((quadrants >> 2) & 1) + ((quadrants >> 3) & 1);
+        // The operator rows: coef = N⁻¹ Σ w_k b_k u_k, so a_k = N⁻¹ (w_k b_k).
+        Eigen::Matrix<double, 6, 6> inverse = Eigen::Matrix<double, 6, 6>::Zero();
+        bool solved = false;
+        if (count >= 10 && sides >= 2) {
+          const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> f(normal);
+          if (f.info() == Eigen::Success && f.isPositive() && f.rcond() >= 1e-8) {
+            inverse = f.solve(Eigen::Matrix<double, 6, 6>::Identity());
+            solved = true;
+          }
+        }
+        if (!solved) {  // affine; e.g. samples along one line, where the quadratic is ill-posed
+          const Eigen::LDLT<Eigen::Matrix3d> f(normal.topLeftCorner<3, 3>());
+          if (!(f.info() == Eigen::Success && f.isPositive() && f.rcond() >= 1e-8)) continue;
+          inverse.topLeftCorner<3, 3>() = f.solve(Eigen::Matrix3d::Identity());
+        }
+        if (!inverse.allFinite()) continue;
+        for (int k = 0; k < count; ++k) {
+          Term t;
+          t.sample = members[static_cast<std::size_t>(k)];
+          const Vector6 a = inverse * basis[static_cast<std::size_t>(k)];
+          for (int i = 0; i < 6; ++i) t.a[static_cast<std::size_t>(i)] = a[i];
+          out.push_back(t);
+        }
+        counts[static_cast<std::size_t>(c)] = count;
+      }
+    }
+  });
+  for (int r = 0; r < rows_; ++r) {
+    for (int c = 0; c < cols_; ++c) {
+      const std::size_t node = static_cast<std::size_t>(r * cols_ + c);
+      term_start_[node + 1] =
+          term_start_[node] + row_counts[static_cast<std::size_t>(r)][static_cast<std::size_t>(c)];
+    }
+    terms_.insert(terms_.end(), row_terms[static_cast<std::size_t>(r)].begin(),
+                  row_terms[static_cast<std::size_t>(r)].end());
+  }
+}
+
+void ShapeField::fit(const std::vector<Vec2>& anchor_px, const std::vector<Vec2>& displacement_px,
+                     cv::Rect region, double spacing_px, double sigma_px) {
+  CV_Assert(anchor_px.size() == displacement_px.size());
+  const auto same = [](const std::vector<Vec2>& a, const std::vector<Vec2>& b) {
+    return a.size() == b.size() &&
+           std::equal(a.begin(), a.end(), b.begin(), [](Vec2 p, Vec2 q) { return p.x == q.x && p.y == q.y; });
+  };
+  if (region != region_ || spacing_px != spacing_ || sigma_px != sigma_ || !same(anchor_px, anchors_) ||
+      term_start_.empty())
+    prepare(anchor_px, region, spacing_px, sigma_px);
+  nodes_.assign(static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_), Node{});
+  fitted_ = 0;
+  for (std::size_t node = 0; node < nodes_.size(); ++node) {
+    if (term_start_[node + 1] == term_start_[node]) continue;
+    Eigen::Matrix<double, 6, 2> coef = Eigen::Matrix<double, 6, 2>::Zero();
+    for (int k = term_start_[node]; k < term_start_[node + 1]; ++k) {
+      const Term& t = terms_[static_cast<std::size_t>(k)];
+      const Vec2 u = displacement_px[static_cast<std::size_t>(t.sample)];
+      for (int i = 0; i < 6; ++i) {
+        coef(i, 0) += t.a[static_cast<std::size_t>(i)] * u.x;
+        coef(i, 1) += t.a[static_cast<std::size_t>(i)] * u.y;
+      }
+    }
+    if (!coef.allFinite()) continue;
+    nodes_[node].coef = coef;
+    nodes_[node].fitted = true;
+    ++fitted_;
+  }
+}
+
+bool ShapeField::displacement(double x, double y, Vec2& u, Eigen::Matrix2d* gradient) const {
+  if (nodes_.empty()) return false;
+  const double fx = (x - region_.x) / spacing_, fy = (y - region_.y) / spacing_;
+  if (!(fx >= 0.0 && fy >= 0.0 && fx <= cols_ - 1 && fy <= rows_ - 1)) return false;
+  const int c = std::min(static_cast<int>(fx), cols_ - 2 < 0 ? 0 : cols_ - 2);
+  const int r = std::min(static_cast<int>(fy), rows_ - 2 < 0 ? 0 : rows_ - 2);
+  const double tx = fx - c, ty = fy - r;
+  double wsum = 0.0;
+  Vec2 sum;
+  Eigen::Matrix2d g = Eigen::Matrix2d::Zero();
+  for (int k = 0; k < 4; ++k) {
+    const int nc = c + (k & 1), nr = r + (k >> 1);
+    if (nc >= cols_ || nr >= rows_) continue;
+    const Node& node = nodes_[static_cast<std::size_t>(nr * cols_ + nc)];
+    if (!node.fitted) continue;
+    const double w = ((k & 1) ? tx : 1.0 - tx) * ((k >> 1) ? ty : 1.0 - ty);
+    const double a = (x - (region_.x + nc * spacing_)) / scale_,
+                 b = (y - (region_.y + nr * spacing_)) / scale_;
+    const Vec2 v = evaluate(node.coef, a, b);
+    sum.x += w * v.x;
+    sum.y += w * v.y;
+    if (gradient) {
+      const Coef& q = node.coef;
+      g(0, 0) += w * (q(1, 0) + 2.0 * q(3, 0) * a + q(4, 0) * b) / scale_;
+      g(0, 1) += w * (q(2, 0) + q(4, 0) * a + 2.0 * q(5, 0) * b) / scale_;
+      g(1, 0) += w * (q(1, 1) + 2.0 * q(3, 1) * a + q(4, 1) * b) / scale_;
+      g(1, 1) += w * (q(2, 1) + q(4, 1) * a + 2.0 * q(5, 1) * b) / scale_;
+    }
+    wsum += w;
+  }
+  if (!(wsum > 1e-9)) return false;
+  u = {sum.x / wsum, sum.y / wsum};
+  if (gradient) *gradient = g / wsum;
+  return true;
+}
+
+void ShapeField::displacement_row(int y, int x_begin, int x_end, Vec2* u, std::uint8_t* ok) const {
+  if (x_end <= x_begin) return;
+  std::fill(ok, ok + (x_end - x_begin), std::uint8_t{0});
+  if (nodes_.empty()) return;
+  const double fy = (y - region_.y) / spacing_;
+  if (!(fy >= 0.0 && fy <= rows_ - 1)) return;
+  const int last_c = cols_ - 2 < 0 ? 0 : cols_ - 2;
+  const int r = std::min(static_cast<int>(fy), rows_ - 2 < 0 ? 0 : rows_ - 2);
+  const double ty = fy - r;
+  // Per node of the current cell: its polynomial on this row as p0 + p1 a + p2 a², a = (x − node x) / scale.
+  struct RowPolynomial {
+    bool on = false;
+    double wy = 0.0, node_x = 0.0;
+    double u0 = 0.0, u1 = 0.0, u2 = 0.0, v0 = 0.0, v1 = 0.0, v2 = 0.0;
+  };
+  int x = x_begin;
+  while (x < x_end) {
+    const double fx = (x - region_.x) / spacing_;
+    if (fx < 0.0) {
+      ++x;
+      continue;
+    }
+    if (fx > cols_ - 1) break;
+    const int c = std::min(static_cast<int>(fx), last_c);
+    RowPolynomial poly[4];
+    for (int k = 0; k < 4; ++k) {
+      const int nc = c + (k & 1), nr = r + (k >> 1);
+      if (nc >= cols_ || nr >= rows_) continue;
+      const Node& node = nodes_[static_cast<std::size_t>(nr * cols_ + nc)];
+      if (!node.fitted) continue;
+      RowPolynomial& p = poly[k];
+      p.on = true;
+      p.wy = (k >> 1) ? ty : 1.0 - ty;
+      p.node_x = region_.x + nc * spacing_;
+      const double b = (y - (region_.y + nr * spacing_)) / scale_;
+      const Coef& q = node.coef;
+      p.u0 = q(0, 0) + q(2, 0) * b + q(5, 0) * b * b;
+      p.u1 = q(1, 0) + q(4, 0) * b;
+      p.u2 = q(3, 0);
+      p.v0 = q(0, 1) + q(2, 1) * b + q(5, 1) * b * b;
+      p.v1 = q(1, 1) + q(4, 1) * b;
+      p.v2 = q(3, 1);
+    }
+    // The pixels of this cell: fx < c + 1, or up to the last node column in the last cell.
+    for (; x < x_end; ++x) {
+      const double fxx = (x - region_.x) / spacing_;
+      if (c < last_c ? fxx >= c + 1 : fxx > cols_ - 1) break;
+      const double tx = fxx - c;
+      double wsum = 0.0, sx = 0.0, sy = 0.0;
+      for (int k = 0; k < 4; ++k) {
+        const RowPolynomial& p = poly[k];
+        if (!p.on) continue;
+        const double w = ((k & 1) ? tx : 1.0 - tx) * p.wy;
+        const double a = (x - p.node_x) / scale_;
+        sx += w * (p.u0 + (p.u1 + p.u2 * a) * a);
+        sy += w * (p.v0 + (p.v1 + p.v2 * a) * a);
+        wsum += w;
+      }
+      if (!(wsum > 1e-9)) continue;
+      u[x - x_begin] = {sx / wsum, sy / wsum};
+      ok[x - x_begin] = 1;
+    }
+  }
+}
+
+void resample_through(const cv::Mat& current, const cv::Mat& current_mask, const ShapeField& field,
+                      const cv::Mat& anchor_mask, cv::Rect region, cv::Mat& out, cv::Mat& valid) {
+  CV_Assert(current.type() == CV_32F && anchor_mask.type() == CV_8U && anchor_mask.size() == current.size());
+  out.create(current.size(), CV_32F);
+  valid.create(current.size(), CV_8U);
+  valid.setTo(cv::Scalar(0));
+  region &= cv::Rect(0, 0, current.cols, current.rows);
+  const detail::Sampler image(current, current_mask);
+  cv::parallel_for_(cv::Range(region.y, region.y + region.height), [&](const cv::Range& range) {
+    std::vector<Vec2> u(static_cast<std::size_t>(region.width));
+    std::vector<std::uint8_t> defined(static_cast<std::size_t>(region.width));
+    for (int y = range.start; y < range.end; ++y) {
+      const std::uint8_t* m = anchor_mask.ptr<std::uint8_t>(y);
+      float* o = out.ptr<float>(y);
+      std::uint8_t* v = valid.ptr<std::uint8_t>(y);
+      field.displacement_row(y, region.x, region.x + region.width, u.data(), defined.data());
+      for (int x = region.x; x < region.x + region.width; ++x) {
+        const std::size_t k = static_cast<std::size_t>(x - region.x);
+        if (m[x] == 0 || !defined[k]) continue;
+        float g;
+        if (!image.sample(x + u[k].x, y + u[k].y, g)) continue;
+        o[x] = g;
+        v[x] = 1;
+      }
+    }
+  });
+}
+
+}  // namespace tirstrain::flow

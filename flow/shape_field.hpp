@@ -1,0 +1,73 @@
+#pragma once
+// A smooth displacement field over an anchor frame, made from scattered tracks, and the current frame
+// resampled through it into the anchor's coordinates.
+//
+// Why: the fixed-shape pass matches each track's wide subset for its translation alone, the shape taken
+// from a fit of its neighbours. Done subset by subset, every contact pixel is interpolated once per
+// overlapping subset and iteration (≈ 25 subsets of 41×41 px on a 8 px grid). Resampling the current frame
+// once through the neighbours' fitted field and reading every subset from that image does the
+// interpolation once per pixel; the translation step of a subset is then a sum over stored values (see
+// Subset::translation_step and docs/flow.md, step 7).
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "core/tensor2.hpp"
+
+namespace tirstrain::flow {
+
+class ShapeField {
+ public:
+  // Fits the displacement at the nodes of a grid `spacing_px` apart covering `region` (anchor px): at each
+  // node a Gaussian-weighted (σ = sigma_px, out to 2σ) least-squares polynomial of the samples (anchor
+  // positions and their displacements, same length), quadratic where at least 10 samples lie in two
+  // quadrants around the node or more, affine where at least 6 do (or the quadratic is ill-posed), none
+  // otherwise. The fit is linear in the displacements: called again with the same positions, region and
+  // spacing (the rounds of one frame), only the displacements are summed.
+  void fit(const std::vector<Vec2>& anchor_px, const std::vector<Vec2>& displacement_px, cv::Rect region,
+           double spacing_px, double sigma_px);
+  // u at anchor point (x, y): the polynomials of the (up to four) fitted nodes around it, blended with
+  // bilinear weights. False where no surrounding node has a fit. `gradient` (optional): the nodes' du/dX
+  // blended alike. That is not the derivative of the blend, which adds the nodes' disagreement divided by
+  // their spacing: noise, and the fusion carries positions with this gradient (hard_heavy_noise 0.1331 px
+  // with the blend of gradients, 0.1394 px with the exact derivative).
+  bool displacement(double x, double y, Vec2& u, Eigen::Matrix2d* gradient = nullptr) const;
+  // displacement() along image row y for x = x_begin … x_end − 1, into u[x − x_begin], with ok[…] = 0
+  // where it is undefined: the per-pixel cost of resampling a frame (each node polynomial is reduced to
+  // one in x once per row and cell).
+  void displacement_row(int y, int x_begin, int x_end, Vec2* u, std::uint8_t* ok) const;
+  int fitted_nodes() const { return fitted_; }
+
+ private:
+  void prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, double spacing_px, double sigma_px);
+
+  // Per node, the rows of its least-squares operator: coef = Σ_k a_k u_k over its samples.
+  struct Term {
+    int sample = 0;
+    std::array<double, 6> a{};
+  };
+  struct Node {
+    bool fitted = false;
+    // u and v as polynomials in (X − node) / scale: 1, a, b, a², ab, b².
+    Eigen::Matrix<double, 6, 2> coef = Eigen::Matrix<double, 6, 2>::Zero();
+  };
+  cv::Rect region_;
+  double spacing_ = 1.0, sigma_ = 0.0, scale_ = 1.0;
+  int cols_ = 0, rows_ = 0, fitted_ = 0;
+  std::vector<Vec2> anchors_;    // what the operators were built for
+  std::vector<int> term_start_;  // per node, into terms_ (size nodes + 1)
+  std::vector<Term> terms_;
+  std::vector<Node> nodes_;
+};
+
+// `out` (CV_32F) and `valid` (CV_8U), the size of `current`: at every anchor pixel X of `region` where
+// `anchor_mask` is set, the Keys bicubic value of `current` at X + u(X), valid where the field is defined
+// there, the 4×4 support lies in the image and the nearest pixel in `current_mask` (if not empty). Pixels
+// outside `region` or `anchor_mask` are left invalid.
+void resample_through(const cv::Mat& current, const cv::Mat& current_mask, const ShapeField& field,
+                      const cv::Mat& anchor_mask, cv::Rect region, cv::Mat& out, cv::Mat& valid);
+
+}  // namespace tirstrain::flow
