@@ -83,6 +83,17 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
   // and strain E_xx/E_yy/E_xy 0.0024/0.0044/0.0028 → 0.0021/0.0042/0.0027, for 4 % more time end to end
   // (U 2.9 → 3.2 %, stick radius 3.7 → 4.1 %: the smoother field rounds the slip front a little).
   s.fixed_shape_iterations = 3;
+  // The frame-0 tracks' rounds run on the frame resampled once per round through the neighbours' fitted
+  // field (flow/shape_field.hpp), three rounds as above. The rounds then set the final positions, and the
+  // main match only has to seed them: an affine subset on every 2nd pixel does (session 10, one run each,
+  // tracking only: default scene 5.4 → 16.6 frames/s at 0.0379 px both; the 640×512 goal trial 2.8 → 8.0
+  // frames/s, 0.0363 → 0.0341 px; hard_heavy_noise 5.8 → 10.5 frames/s, 0.1315 → 0.1331 px; end to end
+  // on the default scene 0.0460 → 0.0472 px, E_yy RMS 0.00366 → 0.00363, U 2.8 → 3.0 %, stick radius
+  // 3.5 → 2.7 %; BENCHMARKS.md).
+  s.fixed_shape_resampled = true;
+  s.fixed_shape_resampled_rounds = 3;
+  s.shape = ShapeFunction::kAffine;
+  s.subset_stride = 2;
   s.fusion_weight = 0.1;
   s.border_margin_px = s.border_exclusion_px;
   const double reach_px = 0.25 * s.window_px;  // what one level of LK follows reliably
@@ -131,6 +142,8 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
     throw Error("the LK window side must be odd", {.file = scene.file, .key = t.path_of("window_px")});
   s.pyramid_levels = static_cast<int>(t.integer("pyramid_levels", s.pyramid_levels, 0, 8));
   s.forward_backward_px = t.number("forward_backward_px", s.forward_backward_px, 0.0, 1000.0);
+  s.lk_max_iterations = static_cast<int>(t.integer("lk_max_iterations", s.lk_max_iterations, 1, 1000));
+  s.lk_epsilon = t.number("lk_epsilon", s.lk_epsilon, 1e-6, 10.0);
   s.global_prediction = t.boolean("global_prediction", s.global_prediction);
   const std::string refine = t.choice("refine", s.refine ? to_string(s.shape) : "none",
                                       {"none", "translation", "affine", "quadratic"});
@@ -158,6 +171,9 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
       static_cast<int>(t.integer("fixed_shape_iterations", s.fixed_shape_iterations, 1, 10));
   s.fixed_shape_convergence_px =
       t.number("fixed_shape_convergence_px", s.fixed_shape_convergence_px, 1e-6, 10.0);
+  s.fixed_shape_resampled = t.boolean("fixed_shape_resampled", s.fixed_shape_resampled);
+  s.fixed_shape_resampled_rounds =
+      static_cast<int>(t.integer("fixed_shape_resampled_rounds", s.fixed_shape_resampled_rounds, 1, 100));
   s.smoothed_gradient = t.boolean("smoothed_gradient", s.smoothed_gradient);
   s.fixed_shape_radius_px =
       static_cast<int>(t.integer("fixed_shape_radius_px", s.fixed_shape_radius_px, 0, 200));

@@ -85,6 +85,13 @@ struct TrackerSettings {
   // template's exact Hessian lands almost on it. A loose criterion in every round gave identical errors on
   // the shipped scenes but left one track of the 50 % stretch 1.007 px off.
   double fixed_shape_convergence_px = 0.1;
+  // The fixed-shape rounds of the tracks anchored in frame 0 itself run on the current frame resampled
+  // through the neighbours' fitted field (flow/shape_field.hpp), once per round for all of them, instead of
+  // interpolating every overlapping subset on its own; each round is one translation step per track, up to
+  // this many rounds or until no track moves by match.convergence_px. Other tracks (anchored later) keep
+  // the subset-by-subset rounds.
+  bool fixed_shape_resampled = false;
+  int fixed_shape_resampled_rounds = 8;
   bool smoothed_gradient = true;  // report (and use) the fitted gradient instead of the subset's own
   // A refined match further than this from its prediction is re-checked against the neighbours.
   double max_correction_px = 3.0;
@@ -140,7 +147,9 @@ struct TrackerSettings {
   // `min_quadratic_snr` the subsets also drop the second-order terms (their six curvature parameters then
   // follow the noise and IC-GN wanders), are smoothed by P/12 and grow to 0.75 P, and the fusion reaches
   // twice as far, at full weight; once smoothed by 1.5 px or more, they sample every 2nd pixel each way. The
-  // curvature still enters through the fixed-shape pass, from the neighbours. Set by the automatic preset;
+  // curvature still enters through the fixed-shape pass, from the neighbours. With the resampled rounds
+  // (fixed_shape_resampled), a contact of fewer than 300 grid points (mostly border tracks, whose main match
+  // counts on its own) keeps a second-order main match on every pixel. Set by the automatic preset;
   // what a scene sets itself (refine, prefilter_sigma_px, subset_radius_px, subset_stride, the fusion keys)
   // is kept.
   bool adapt_to_texture = false;

@@ -17,6 +17,7 @@
 
 #include "core/error.hpp"
 #include "flow/plate.hpp"
+#include "flow/shape_field.hpp"
 
 namespace tirstrain::flow {
 namespace {
@@ -53,6 +54,9 @@ struct TrackState {
                                 // this frame's position comes from the fixed-shape pass
   MatchResult match;
 };
+
+// A contact with fewer grid points than this is small enough to be mostly border (adapt_to_texture).
+constexpr double kFewTracks = 300.0;
 
 bool inside_mask(const cv::Mat& mask, Vec2 p) {
   const long ix = std::lround(p.x), iy = std::lround(p.y);
@@ -158,7 +162,7 @@ struct FeatureTracker::Impl {
   bool low_snr = false;
   cv::Rect roi;
   std::vector<cv::Mat> previous_pyramid, current_pyramid;
-  cv::Mat previous_hp, current_hp, hp_blur, hp_weight;
+  cv::Mat previous_hp, current_hp, hp_blur, hp_weight, hp_small, hp_mask;
   // Until the skin first moves (resting), frame 0's anchor is averaged over the frames so far (rest_count
   // of them, up to rest_average_frames; 0: averaging over or off) and tracks report the fitted rest motion.
   bool resting = false;
@@ -182,12 +186,21 @@ struct FeatureTracker::Impl {
   std::vector<std::uint8_t> lattice_taken;
   std::vector<int> neighbours, exact;
   std::vector<cv::Mat> anchor_pyramid;
+  ShapeField shape_field;
+  cv::Mat resampled, resampled_valid;
+  std::vector<Vec2> field_anchor, field_displacement;
+  std::vector<std::uint8_t> resampled_done;
+  std::vector<Vec2> resampled_position;
+  std::vector<MatchResult> resampled_match;
+  std::vector<double> resampled_moved;
+  std::vector<int> eligible, others;
 
   void check_input(const cv::Mat& image, const cv::Mat& contact_mask) const;
   void prepare(const cv::Mat& image, const cv::Mat& contact_mask);
   void update_roi(bool rebuild_previous);
   void prepare_matching();
-  void adapt_to_texture();
+  // `expected_tracks`: the points given, or the grid points the contact holds.
+  void adapt_to_texture(double expected_tracks);
   void build_pyramid(const cv::Mat& u8, std::vector<cv::Mat>& pyramid) const;
   void high_pass(const cv::Mat& image, cv::Mat& out);
   int add_key_frame();
@@ -204,6 +217,7 @@ struct FeatureTracker::Impl {
   // `last`: the final round, which converges to match.convergence_px (the others stop at
   // fixed_shape_convergence_px).
   void fixed_shape_pass(bool last);
+  void resampled_shape_pass();
   void reanchor();
   void fuse();
   void retire(int index, TrackStatus why);
@@ -214,6 +228,7 @@ struct FeatureTracker::Impl {
   bool build_subsets(const AnchorImage& anchor, cv::Point centre, Subset& subset, Subset& wide) const;
   void follow_rest();
   double ridge_reach_px() const { return 0.25 * settings.window_px; }
+  int high_pass_factor() const { return 4.0 * ridge_reach_px() >= 16.0 ? 2 : 1; }
 };
 
 void FeatureTracker::Impl::check_input(const cv::Mat& image, const cv::Mat& contact_mask) const {
@@ -248,11 +263,19 @@ void FeatureTracker::Impl::prepare(const cv::Mat& image, const cv::Mat& contact_
 }
 
 // Frame 0 decides how much model the subsets can afford (TrackerSettings::adapt_to_texture).
-void FeatureTracker::Impl::adapt_to_texture() {
+void FeatureTracker::Impl::adapt_to_texture(double expected_tracks) {
   texture = TextureQuality{};
   low_snr = false;
   if (!settings.refine) return;
   const double period = settings.ridge_period_px > 0.0 ? settings.ridge_period_px : settings.window_px;
+  // The resampled rounds (step 7) carry a track where neighbours surround it; on a contact of a few hundred
+  // grid points most tracks are border tracks, whose main match counts on its own, so there the main match
+  // keeps the second-order subset on every pixel (hard_tiny_contact, 31 tracks: 0.149 px, against 0.186
+  // with the affine seed on every 2nd pixel).
+  if (settings.adapt_to_texture && settings.fixed_shape_resampled && expected_tracks < kFewTracks) {
+    if (!settings.pinned.shape) settings.shape = ShapeFunction::kQuadratic;
+    if (!settings.pinned.subset_stride) settings.subset_stride = 1;
+  }
   texture = measure_texture(current_f, mask, period);
   if (!settings.adapt_to_texture || texture.pixels == 0 || texture.snr >= settings.min_unfiltered_snr) return;
   // Light smoothing keeps 97 % of the ridge contrast and takes most pixel noise out of the reference
@@ -331,13 +354,24 @@ void FeatureTracker::Impl::build_pyramid(const cv::Mat& u8, std::vector<cv::Mat>
 }
 
 // Ridges only, faded out towards the contact border: the border stays put while the skin moves, so its
-// step would otherwise dominate the correlation and pull the global shift to zero.
+// step would otherwise dominate the correlation and pull the global shift to zero. At half resolution when
+// the ridges are at least 16 px apart (8 px there, well clear of the pyramid's smoothing): the shift only
+// has to reveal jumps of more than a quarter period, and the full-resolution filtering (a Gaussian of
+// σ = P/2 over the ROI) took ≈ 15 ms of a 640×512 frame.
 void FeatureTracker::Impl::high_pass(const cv::Mat& image, cv::Mat& out) {
-  const double period = 4.0 * ridge_reach_px();
-  const cv::Mat view = image(roi);
+  const int factor = high_pass_factor();
+  const double period = 4.0 * ridge_reach_px() / factor;
+  cv::Mat view = image(roi);
+  if (factor == 2) {
+    cv::pyrDown(view, hp_small);
+    view = hp_small;
+    cv::resize(mask(roi), hp_mask, view.size(), 0.0, 0.0, cv::INTER_NEAREST);
+  } else {
+    hp_mask = mask(roi);
+  }
   cv::GaussianBlur(view, hp_blur, cv::Size(0, 0), 0.5 * period);
   cv::subtract(view, hp_blur, out);
-  mask(roi).convertTo(hp_weight, CV_32F);
+  hp_mask.convertTo(hp_weight, CV_32F);
   cv::erode(hp_weight, hp_weight, cv::Mat(), cv::Point(-1, -1), static_cast<int>(0.5 * period));
   cv::GaussianBlur(hp_weight, hp_weight, cv::Size(0, 0), 0.5 * period);
   cv::multiply(out, hp_weight, out);
@@ -585,7 +619,8 @@ void FeatureTracker::Impl::predict_and_match() {
     high_pass(current_f, current_hp);
     if (previous_hp.size() == current_hp.size()) {
       double response = 0.0;
-      const cv::Point2d s = cv::phaseCorrelate(previous_hp, current_hp, cv::noArray(), &response);
+      const cv::Point2d s = cv::phaseCorrelate(previous_hp, current_hp, cv::noArray(), &response) *
+                            static_cast<double>(high_pass_factor());
       stats.global_shift_px = {s.x, s.y};
       scratch_x.clear();
       scratch_y.clear();
@@ -813,6 +848,7 @@ void FeatureTracker::Impl::fixed_shape_pass(bool last) {
   for (int i : alive) {
     TrackState& st = states[static_cast<std::size_t>(i)];
     if (!is_alive(tracks[static_cast<std::size_t>(i)].status) || !st.matched || st.suspect) continue;
+    if (!resampled_done.empty() && resampled_done[static_cast<std::size_t>(i)]) continue;
     const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
     gather_neighbours(st.candidate, radius, -1);  // includes the track itself
     if (neighbours.size() < 6) continue;
@@ -908,6 +944,116 @@ void FeatureTracker::Impl::fixed_shape_pass(bool last) {
       st.fixed_information = subset.fixed_shape_information();
     }
   });
+}
+
+// The fixed-shape rounds (above) for the tracks anchored in frame 0 itself, on the current frame resampled
+// once per round through the neighbours' fitted field (flow/shape_field.hpp) rather than subset by subset.
+// Each round fits the field to the tracks' positions, resamples the frame into frame 0's coordinates, and
+// moves every track by one translation-only Gauss-Newton step of its wide subset: x = (X − Δ) + u(X − Δ).
+// The shape is the blend of the nodes' neighbourhood fits instead of the track's own, and fit and match
+// iterate together.
+void FeatureTracker::Impl::resampled_shape_pass() {
+  resampled_done.assign(states.size(), 0);
+  if (keys.empty() || !keys[0] || keys[0]->frame != 0) return;
+  eligible.clear();
+  others.clear();
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+  for (int i : alive) {
+    const TrackState& st = states[static_cast<std::size_t>(i)];
+    if (!is_alive(tracks[static_cast<std::size_t>(i)].status) || !st.matched || st.suspect) continue;
+    // Tracks anchored later take part in the fit (their reference positions are frame 0's too) but are
+    // matched subset by subset.
+    if (st.key != 0 || !st.exact_reference) {
+      others.push_back(i);
+      continue;
+    }
+    eligible.push_back(i);
+    const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
+    x0 = std::min(x0, X.x), y0 = std::min(y0, X.y), x1 = std::max(x1, X.x), y1 = std::max(y1, X.y);
+  }
+  if (eligible.size() < 6) return;
+  // The field's nodes on the seeding lattice (multiples of the grid step): there a node's fit is the
+  // seeded track's own neighbourhood fit, as in the subset-by-subset rounds.
+  const int reach = std::max(settings.subset_radius_px, settings.fixed_shape_radius_px) + 2;
+  const double step = settings.grid_step_px;
+  const int left = static_cast<int>(std::lround(std::max(0.0, std::floor((x0 - reach) / step)) * step));
+  const int top = static_cast<int>(std::lround(std::max(0.0, std::floor((y0 - reach) / step)) * step));
+  const cv::Rect region =
+      cv::Rect(cv::Point(left, top), cv::Point(static_cast<int>(std::ceil(x1)) + reach + 1,
+                                               static_cast<int>(std::ceil(y1)) + reach + 1)) &
+      cv::Rect(0, 0, size.width, size.height);
+  const double sigma = settings.fixed_shape_sigma_grid * settings.grid_step_px;
+  const std::size_t n = eligible.size();
+  resampled_position.resize(states.size());
+  resampled_match.assign(n, MatchResult{});
+  resampled_moved.assign(n, 0.0);
+  for (int i : eligible)
+    resampled_position[static_cast<std::size_t>(i)] = states[static_cast<std::size_t>(i)].candidate;
+  for (int round = 0; round < settings.fixed_shape_resampled_rounds; ++round) {
+    field_anchor.clear();
+    field_displacement.clear();
+    for (int i : eligible) {
+      const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
+      const Vec2 x = resampled_position[static_cast<std::size_t>(i)];
+      field_anchor.push_back(X);
+      field_displacement.push_back({x.x - X.x, x.y - X.y});
+    }
+    for (int i : others) {
+      const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
+      const Vec2 x = states[static_cast<std::size_t>(i)].candidate;
+      field_anchor.push_back(X);
+      field_displacement.push_back({x.x - X.x, x.y - X.y});
+    }
+    shape_field.fit(field_anchor, field_displacement, region, settings.grid_step_px, sigma);
+    resample_through(match_f, match_mask, shape_field, keys[0]->anchor.mask(), region, resampled,
+                     resampled_valid);
+    cv::parallel_for_(cv::Range(0, static_cast<int>(n)), [&](const cv::Range& range) {
+      for (int k = range.start; k < range.end; ++k) {
+        const int i = eligible[static_cast<std::size_t>(k)];
+        const TrackState& st = states[static_cast<std::size_t>(i)];
+        const Subset& subset = st.wide.empty() ? st.subset : st.wide;
+        Vec2 step;
+        MatchResult& m = resampled_match[static_cast<std::size_t>(k)];
+        m = subset.translation_step(keys[0]->anchor, resampled, resampled_valid,
+                                    settings.match.min_valid_fraction, step);
+        resampled_moved[static_cast<std::size_t>(k)] = 0.0;
+        if (!m.converged) continue;
+        const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
+        const Vec2 q{X.x - step.x, X.y - step.y};
+        Vec2 u;
+        if (!shape_field.displacement(q.x, q.y, u)) {
+          m.converged = false;
+          continue;
+        }
+        Vec2& x = resampled_position[static_cast<std::size_t>(i)];
+        const Vec2 p{q.x + u.x, q.y + u.y};
+        resampled_moved[static_cast<std::size_t>(k)] = std::hypot(p.x - x.x, p.y - x.y);
+        x = p;
+      }
+    });
+    // The rounds are not iterated to their fixed point: where the fit passes a pattern that the subsets
+    // average out (scales between the fit's σ and the subset's width) it amplifies the noise there, and a
+    // few rounds (like the subset-by-subset passes' three) regularise it. Stop early only once nothing moves.
+    if (*std::max_element(resampled_moved.begin(), resampled_moved.end()) < 1e-3) break;
+  }
+  for (std::size_t k = 0; k < n; ++k) {
+    const int i = eligible[k];
+    TrackState& st = states[static_cast<std::size_t>(i)];
+    const MatchResult& m = resampled_match[k];
+    if (!m.converged || m.zncc < settings.min_zncc) continue;
+    const Vec2 p = resampled_position[static_cast<std::size_t>(i)];
+    if (std::hypot(p.x - st.candidate.x, p.y - st.candidate.y) > settings.neighbour_tolerance_px) continue;
+    const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
+    Vec2 u;
+    Mat2d gradient;
+    if (!shape_field.displacement(X.x, X.y, u, &gradient)) continue;
+    st.candidate = p;
+    st.match = m;
+    st.fixed_shape = true;
+    if (settings.smoothed_gradient) st.deformation = Mat2d::Identity() + gradient;
+    st.fixed_information = (st.wide.empty() ? st.subset : st.wide).fixed_shape_information();
+    resampled_done[static_cast<std::size_t>(i)] = 1;
+  }
 }
 
 // Unrefined tracks only: LK from each anchor frame straight to the current frame, started at the chained
@@ -1237,7 +1383,9 @@ void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, do
   m.roi = cv::Rect();
   m.stats = FrameStats{};
   m.prepare(image, contact_mask);
-  m.adapt_to_texture();
+  m.adapt_to_texture(!points_px.empty()
+                         ? static_cast<double>(points_px.size())
+                         : cv::countNonZero(m.mask) / (m.settings.grid_step_px * m.settings.grid_step_px));
   m.update_roi(false);
   m.prepare_matching();
   m.build_pyramid(m.current_u8, m.previous_pyramid);
@@ -1302,6 +1450,9 @@ const FrameStats& FeatureTracker::track(const cv::Mat& image, const cv::Mat& con
       t.status = TrackStatus::kTracked;
   m.predict_and_match();
   if (m.settings.refine && m.settings.neighbour_check) m.check_neighbours();
+  m.resampled_done.clear();
+  if (m.settings.refine && m.settings.fixed_shape_pass && m.settings.fixed_shape_resampled)
+    m.resampled_shape_pass();
   if (m.settings.refine && m.settings.fixed_shape_pass)
     for (int k = 0; k < m.settings.fixed_shape_iterations; ++k)
       m.fixed_shape_pass(k + 1 == m.settings.fixed_shape_iterations);
