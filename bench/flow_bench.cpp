@@ -314,10 +314,26 @@ int main(int argc, char** argv) {
             [g](TrackerSettings& s) { s.grid_step_px = g; });
   for (int r : {8, 18})
     variant("auto subset_r=" + std::to_string(r), [r](TrackerSettings& s) { s.subset_radius_px = r; });
-  variant("auto stride=2", [](TrackerSettings& s) { s.subset_stride = 2; });
-  variant("auto fixed-shape x1", [](TrackerSettings& s) { s.fixed_shape_iterations = 1; });
+  variant("auto stride=1", [](TrackerSettings& s) {
+    s.subset_stride = 1;
+    s.pinned.subset_stride = true;
+  });
+  variant("auto quadratic", [](TrackerSettings& s) {
+    s.shape = ShapeFunction::kQuadratic;
+    s.pinned.shape = true;
+  });
+  for (int r : {2, 4})
+    variant("auto rounds=" + std::to_string(r),
+            [r](TrackerSettings& s) { s.fixed_shape_resampled_rounds = r; });
   variant("auto no-fixed-shape", [](TrackerSettings& s) { s.fixed_shape_pass = false; });
-  variant("auto affine", [](TrackerSettings& s) { s.shape = ShapeFunction::kAffine; });
+  // The automatic preset before session 10: second-order main match on every pixel, fixed-shape rounds
+  // subset by subset.
+  variant("auto subset-by-subset", [](TrackerSettings& s) {
+    s.fixed_shape_resampled = false;
+    s.shape = ShapeFunction::kQuadratic;
+    s.subset_stride = 1;
+    s.pinned.shape = s.pinned.subset_stride = true;
+  });
   variant("auto no-refine", [](TrackerSettings& s) {
     s.refine = false;
     s.neighbour_check = false;
