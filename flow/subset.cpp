@@ -124,6 +124,33 @@ Eigen::MatrixXd truncated_inverse(const Eigen::MatrixXd& h, double relative_floo
          d.asDiagonal();
 }
 
+// The zero-normalised statistics of a match over its visible pixels: f has zero mean over the whole
+// subset, so over the visible pixels its mean is −Σ_out f / count; false when either side has no texture
+// left there.
+struct Normalisation {
+  double f_mean = 0.0, g_mean = 0.0, scale = 0.0, zncc = 0.0;
+};
+
+bool normalise(double count, double sum_ff, double sf_out, double sff_out, double sg, double sgg, double sfg,
+               Normalisation& n) {
+  n.f_mean = -sf_out / count;
+  const double df2 = (sum_ff - sff_out) - count * n.f_mean * n.f_mean;
+  n.g_mean = sg / count;
+  const double dg2 = sgg - count * n.g_mean * n.g_mean;
+  if (df2 <= 1e-12 || dg2 <= 1e-12) return false;
+  n.scale = std::sqrt(df2 / dg2);
+  // ZNCC: Σ(f − f̄)(g − ḡ) with Σ f g taken over the visible pixels only.
+  n.zncc = (sfg - count * n.f_mean * n.g_mean) / std::sqrt(df2 * dg2);
+  return true;
+}
+
+// The translation step −H⁻¹ b of a 2×2 Hessian, unless it is (nearly) singular.
+bool translation_step_of(const Eigen::Matrix2d& h, const Eigen::Vector2d& b, Eigen::Vector2d& dp) {
+  if (!(h.determinant() > 1e-12 * h.trace() * h.trace())) return false;
+  dp = -h.inverse() * b;
+  return dp.allFinite();
+}
+
 }  // namespace
 
 bool sample_bicubic(const cv::Mat& image, double x, double y, float& value) {
@@ -322,29 +349,23 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
     const double count = total - static_cast<double>(outside);
     result.valid_fraction = count / total;
     if (result.valid_fraction < options.min_valid_fraction || count < 2.0 * n) return result;
-    // f has zero mean over the whole subset; over the pixels still visible its mean is −Σ_out f / count.
-    const double f_mean = -sf_out / count;
-    const double df2 = (sum_ff_ - sff_out) - count * f_mean * f_mean;
-    const double g_mean = sg / count;
-    const double dg2 = sgg - count * g_mean * g_mean;
-    if (df2 <= 1e-12 || dg2 <= 1e-12) {
+    Normalisation norm;
+    if (!normalise(count, sum_ff_, sf_out, sff_out, sg, sgg, sfg, norm)) {
       result.degenerate = true;
       return result;
     }
-    const double scale = std::sqrt(df2 / dg2);
-    // ZNCC at the current parameters: Σ(f − f̄)(g − ḡ) with Σ f g taken over visible pixels only.
-    result.zncc = (sfg - count * f_mean * g_mean) / std::sqrt(df2 * dg2);
+    result.zncc = norm.zncc;  // at the current parameters
     const Vector sj = sum_j_ - sj_out;
     const Vector sjf = sum_jf_ - sjf_out;
-    const Vector b = (sjf - f_mean * sj) - scale * (sjg - g_mean * sj);
+    const Vector b = (sjf - norm.f_mean * sj) - norm.scale * (sjg - norm.g_mean * sj);
     Vector dp = Vector::Zero();
     if (options.translation_only) {
-      const Eigen::Matrix2d hv = hessian_.topLeftCorner(2, 2) - h_out.topLeftCorner(2, 2);
-      if (!(hv.determinant() > 1e-12 * hv.trace() * hv.trace())) {
+      Eigen::Vector2d step;
+      if (!translation_step_of(hessian_.topLeftCorner(2, 2) - h_out.topLeftCorner(2, 2), b.head(2), step)) {
         result.degenerate = true;
         return result;
       }
-      dp.head(2) = -hv.inverse() * b.head(2);
+      dp.head(2) = step;
     } else if (outside == 0) {
       dp.head(n).noalias() = -hessian_inverse_.topLeftCorner(n, n) * b.head(n);
     } else {
@@ -446,28 +467,20 @@ MatchResult Subset::translation_step(const AnchorImage& anchor, const cv::Mat& r
   result.valid_fraction = count / total;
   result.iterations = 1;
   if (result.valid_fraction < min_valid_fraction || count < 4.0) return result;
-  // As in match(): f has zero mean over the whole subset, so over the visible pixels −Σ_out f / count.
-  const double f_mean = -sf_out / count;
-  const double df2 = (sum_ff_ - sff_out) - count * f_mean * f_mean;
-  const double g_mean = sg / count;
-  const double dg2 = sgg - count * g_mean * g_mean;
-  if (df2 <= 1e-12 || dg2 <= 1e-12) {
+  Normalisation norm;
+  if (!normalise(count, sum_ff_, sf_out, sff_out, sg, sgg, sfg, norm)) {
     result.degenerate = true;
     return result;
   }
-  const double scale = std::sqrt(df2 / dg2);
-  result.zncc = (sfg - count * f_mean * g_mean) / std::sqrt(df2 * dg2);
+  result.zncc = norm.zncc;
   const double vj_x = sum_j_[0] - sj_x, vj_y = sum_j_[1] - sj_y;
-  const double b_x = ((sum_jf_[0] - sjf_x) - f_mean * vj_x) - scale * (sjg_x - g_mean * vj_x);
-  const double b_y = ((sum_jf_[1] - sjf_y) - f_mean * vj_y) - scale * (sjg_y - g_mean * vj_y);
+  const Eigen::Vector2d b(
+      ((sum_jf_[0] - sjf_x) - norm.f_mean * vj_x) - norm.scale * (sjg_x - norm.g_mean * vj_x),
+      ((sum_jf_[1] - sjf_y) - norm.f_mean * vj_y) - norm.scale * (sjg_y - norm.g_mean * vj_y));
   Eigen::Matrix2d hv;
   hv << hessian_(0, 0) - h_xx, hessian_(0, 1) - h_xy, hessian_(1, 0) - h_xy, hessian_(1, 1) - h_yy;
-  if (!(hv.determinant() > 1e-12 * hv.trace() * hv.trace())) {
-    result.degenerate = true;
-    return result;
-  }
-  const Eigen::Vector2d dp = -hv.inverse() * Eigen::Vector2d(b_x, b_y);
-  if (!dp.allFinite()) {
+  Eigen::Vector2d dp;
+  if (!translation_step_of(hv, b, dp)) {
     result.degenerate = true;
     return result;
   }
