@@ -124,6 +124,28 @@ Eigen::MatrixXd truncated_inverse(const Eigen::MatrixXd& h, double relative_floo
          d.asDiagonal();
 }
 
+// Visits the anchor pixels of a subset window, every `stride`-th, inside the image less its 1 px border (the
+// gradient's reach) and inside the anchor's mask, in row order: visit(dx, dy, x, y, value, gx, gy). Subset
+// building and the translation step on a resampled frame must agree on exactly these pixels.
+template <class Visit>
+void for_each_window_pixel(const AnchorImage& anchor, cv::Point centre, int radius, int stride,
+                           Visit&& visit) {
+  const cv::Mat& img = anchor.image();
+  for (int dy = -radius; dy <= radius; dy += stride) {
+    const int y = centre.y + dy;
+    if (y < 1 || y >= img.rows - 1) continue;
+    const float* row = img.ptr<float>(y);
+    const float* gxr = anchor.gx().ptr<float>(y);
+    const float* gyr = anchor.gy().ptr<float>(y);
+    const std::uint8_t* mrow = anchor.mask().ptr<std::uint8_t>(y);
+    for (int dx = -radius; dx <= radius; dx += stride) {
+      const int x = centre.x + dx;
+      if (x < 1 || x >= img.cols - 1 || mrow[x] == 0) continue;
+      visit(dx, dy, x, y, row[x], gxr[x], gyr[x]);
+    }
+  }
+}
+
 // The zero-normalised statistics of a match over its visible pixels: f has zero mean over the whole
 // subset, so over the visible pixels its mean is −Σ_out f / count; false when either side has no texture
 // left there.
@@ -182,23 +204,12 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
   radius_px_ = radius_px;
   shape_ = shape;
   const int n = parameter_count(shape);
-  const cv::Mat& img = anchor.image();
-  const cv::Mat& mask = anchor.mask();
   stride = std::max(1, stride);
   stride_ = stride;
-  for (int dy = -radius_px; dy <= radius_px; dy += stride) {
-    const int y = centre.y + dy;
-    if (y < 1 || y >= img.rows - 1) continue;
-    const float* row = img.ptr<float>(y);
-    const float* gxr = anchor.gx().ptr<float>(y);
-    const float* gyr = anchor.gy().ptr<float>(y);
-    const std::uint8_t* mrow = mask.ptr<std::uint8_t>(y);
-    for (int dx = -radius_px; dx <= radius_px; dx += stride) {
-      const int x = centre.x + dx;
-      if (x < 1 || x >= img.cols - 1 || mrow[x] == 0) continue;
-      points_.push_back({static_cast<float>(dx), static_cast<float>(dy), row[x], gxr[x], gyr[x]});
-    }
-  }
+  for_each_window_pixel(anchor, centre, radius_px, stride,
+                        [&](int dx, int dy, int, int, float f, float gx, float gy) {
+                          points_.push_back({static_cast<float>(dx), static_cast<float>(dy), f, gx, gy});
+                        });
   if (static_cast<int>(points_.size()) < std::max(min_pixels, 2 * n)) {
     points_.clear();
     return false;
@@ -424,41 +435,30 @@ MatchResult Subset::translation_step(const AnchorImage& anchor, const cv::Mat& r
   long outside = 0, seen = 0;
   const float mean = static_cast<float>(mean_);
   // The same pixels as build() took, in the same order.
-  for (int dy = -radius_px_; dy <= radius_px_; dy += stride_) {
-    const int y = centre_.y + dy;
-    if (y < 1 || y >= img.rows - 1) continue;
-    const float* rrow = img.ptr<float>(y);
-    const float* gxr = anchor.gx().ptr<float>(y);
-    const float* gyr = anchor.gy().ptr<float>(y);
-    const std::uint8_t* mrow = anchor.mask().ptr<std::uint8_t>(y);
-    const float* grow = resampled.ptr<float>(y);
-    const std::uint8_t* vrow = valid.ptr<std::uint8_t>(y);
-    for (int dx = -radius_px_; dx <= radius_px_; dx += stride_) {
-      const int x = centre_.x + dx;
-      if (x < 1 || x >= img.cols - 1 || mrow[x] == 0) continue;
-      ++seen;
-      const float f = rrow[x] - mean, gx = gxr[x], gy = gyr[x];
-      if (!vrow[x]) {
-        ++outside;
-        h_xx += static_cast<double>(gx) * gx;
-        h_xy += static_cast<double>(gx) * gy;
-        h_yy += static_cast<double>(gy) * gy;
-        sj_x += gx;
-        sj_y += gy;
-        sjf_x += static_cast<double>(gx) * f;
-        sjf_y += static_cast<double>(gy) * f;
-        sf_out += f;
-        sff_out += static_cast<double>(f) * f;
-        continue;
-      }
-      const double g = grow[x];
-      sjg_x += gx * g;
-      sjg_y += gy * g;
-      sg += g;
-      sgg += g * g;
-      sfg += f * g;
-    }
-  }
+  for_each_window_pixel(anchor, centre_, radius_px_, stride_,
+                        [&](int, int, int x, int y, float reference, float gx, float gy) {
+                          ++seen;
+                          const float f = reference - mean;
+                          if (!valid.ptr<std::uint8_t>(y)[x]) {
+                            ++outside;
+                            h_xx += static_cast<double>(gx) * gx;
+                            h_xy += static_cast<double>(gx) * gy;
+                            h_yy += static_cast<double>(gy) * gy;
+                            sj_x += gx;
+                            sj_y += gy;
+                            sjf_x += static_cast<double>(gx) * f;
+                            sjf_y += static_cast<double>(gy) * f;
+                            sf_out += f;
+                            sff_out += static_cast<double>(f) * f;
+                            return;
+                          }
+                          const double g = resampled.ptr<float>(y)[x];
+                          sjg_x += gx * g;
+                          sjg_y += gy * g;
+                          sg += g;
+                          sgg += g * g;
+                          sfg += f * g;
+                        });
   if (seen != static_cast<long>(points_.size())) {  // not the anchor this subset was built from
     result.degenerate = true;
     return result;
