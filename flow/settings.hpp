@@ -87,11 +87,12 @@ struct TrackerSettings {
   double fixed_shape_convergence_px = 0.1;
   // The fixed-shape rounds of the tracks anchored in frame 0 itself run on the current frame resampled
   // through the neighbours' fitted field (flow/shape_field.hpp), once per round for all of them, instead of
-  // interpolating every overlapping subset on its own; each round is one translation step per track, up to
-  // this many rounds or until no track moves by match.convergence_px. Other tracks (anchored later) keep
-  // the subset-by-subset rounds.
+  // interpolating every overlapping subset on its own; each round refits the field and takes one
+  // translation step per track, this many rounds (fewer only once no track moves by 0.001 px: run to their
+  // fixed point the rounds amplify noise, docs/flow.md step 7). Other tracks (anchored later) keep the
+  // subset-by-subset rounds.
   bool fixed_shape_resampled = false;
-  int fixed_shape_resampled_rounds = 8;
+  int fixed_shape_resampled_rounds = 3;
   bool smoothed_gradient = true;  // report (and use) the fitted gradient instead of the subset's own
   // A refined match further than this from its prediction is re-checked against the neighbours.
   double max_correction_px = 3.0;

@@ -35,6 +35,11 @@ TEST(Settings, AutoIsSizedFromTheRidgePeriod) {
   EXPECT_TRUE(s.fixed_shape_pass);
   EXPECT_EQ(s.fixed_shape_radius_px, 20);  // round(0.85 P)
   EXPECT_EQ(s.pyramid_levels, 2);          // 12 px needs two levels above a 23 px window's reach of ~6 px
+  // The fixed-shape rounds on the resampled frame, seeded by an affine match on every 2nd pixel.
+  EXPECT_TRUE(s.fixed_shape_resampled);
+  EXPECT_EQ(s.fixed_shape_resampled_rounds, 3);
+  EXPECT_EQ(s.shape, ShapeFunction::kAffine);
+  EXPECT_EQ(s.subset_stride, 2);
   h.max_displacement_px = 2.0;
   EXPECT_EQ(preset_settings("auto", h).pyramid_levels, 0);
   h.max_displacement_px = 200.0;  // capped: ridges must survive the pyramid (23.4 / 2^L >= 4 px)
@@ -76,6 +81,15 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_EQ(
       parse_tracking_settings(scene_with("{fixed_shape_convergence_px: 0.01}")).fixed_shape_convergence_px,
       0.01);
+  const TrackerSettings rounds =
+      parse_tracking_settings(scene_with("{fixed_shape_resampled: false, fixed_shape_resampled_rounds: 5, "
+                                         "lk_max_iterations: 10, lk_epsilon: 0.05}"));
+  EXPECT_FALSE(rounds.fixed_shape_resampled);
+  EXPECT_EQ(rounds.fixed_shape_resampled_rounds, 5);
+  EXPECT_EQ(rounds.lk_max_iterations, 10);
+  EXPECT_EQ(rounds.lk_epsilon, 0.05);
+  EXPECT_THROW(parse_tracking_settings(scene_with("{fixed_shape_resampled_rounds: 0}")), Error);
+  EXPECT_THROW(parse_tracking_settings(scene_with("{lk_epsilon: 0}")), Error);
   // The measured contact is inset by 1 px for tracking (both presets) unless the scene says otherwise.
   EXPECT_EQ(parse_tracking_settings(scene_with("{}")).contact_inset_px, 1.0);
   EXPECT_EQ(parse_tracking_settings(scene_with("{}"), "delhaye2016").contact_inset_px, 1.0);
