@@ -1,5 +1,7 @@
 #include "flow/plate.hpp"
 
+#include <optional>
+
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
@@ -51,6 +53,9 @@ void PlateTracker::start(const cv::Mat& image_in, const cv::Mat& image_u8, const
   band_mask_ = cv::Mat::ones(roi_.size(), CV_8U);
   displacement_px_ = {};
   velocity_px_ = {};
+  base_px_ = {};
+  base_gap_ = 1;
+  status_ = PlateStatus::kMatched;
   build_subsets(image);
   if (subsets_.empty())
     throw Error("the reference pattern band shows no texture to track the plate with",
@@ -59,10 +64,25 @@ void PlateTracker::start(const cv::Mat& image_in, const cv::Mat& image_u8, const
   mosaic_count_.release();
   origin_x_ = roi_.x;
   origin_y_ = roi_.y;
-  add_to_mosaic(image, {});
+  add_to_mosaic(image, {}, false);
   cv::buildOpticalFlowPyramid(image_u8(roi_), previous_pyramid_,
                               cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels);
+  image(roi_).copyTo(previous_band_);
+  cv::createHanningWindow(hann_, roi_.size(), CV_32F);
   ok_ = true;
+}
+
+// The band's shift since the previous frame by phase correlation (Hann-windowed), if its peak is clear.
+std::optional<Vec2> PlateTracker::band_shift(const cv::Mat& band) {
+  if (previous_band_.size() != band.size()) return std::nullopt;
+  // On copies: where the size is already DFT-friendly, phaseCorrelate applies the window in place.
+  previous_band_.copyTo(correlate_previous_);
+  band.copyTo(correlate_current_);
+  double response = 0.0;
+  const cv::Point2d s = cv::phaseCorrelate(correlate_previous_, correlate_current_, hann_, &response);
+  if (!(response > settings_.min_shift_response) || !std::isfinite(s.x) || !std::isfinite(s.y))
+    return std::nullopt;
+  return Vec2{s.x, s.y};
 }
 
 void PlateTracker::build_subsets(const cv::Mat& image) {
@@ -113,7 +133,7 @@ void PlateTracker::cover(Vec2 d) {
   origin_y_ -= t;
 }
 
-void PlateTracker::add_to_mosaic(const cv::Mat& image, Vec2 d) {
+void PlateTracker::add_to_mosaic(const cv::Mat& image, Vec2 d, bool only_empty) {
   cover(d);
   // Every mosaic pixel whose image position lies in the band with the bicubic kernel's 4x4 support.
   const double lo_x = roi_.x + 1.0, hi_x = roi_.x + roi_.width - 3.0;
@@ -128,6 +148,7 @@ void PlateTracker::add_to_mosaic(const cv::Mat& image, Vec2 d) {
     const double y = origin_y_ + j + d.y;
     for (int i = i0; i <= i1; ++i) {
       float v = 0.0f;
+      if (only_empty && count[i] > 0.0f) continue;
       if (!sample_bicubic(image, origin_x_ + i + d.x, y, v)) continue;
       sum[i] += v;
       count[i] += 1.0f;
@@ -162,6 +183,22 @@ void PlateTracker::prepare_mean(Vec2 d) {
   }
   cv::Mat eroded = mosaic_mask_(r);
   erode_for_matching(scratch_mask_, eroded);
+}
+
+// The share of the band's pixels (sampled every 4 px) that land on mosaic data at displacement d.
+double PlateTracker::mosaic_coverage(Vec2 d) const {
+  if (mosaic_count_.empty()) return 0.0;
+  int covered = 0, total = 0;
+  for (int y = 0; y < roi_.height; y += 4)
+    for (int x = 0; x < roi_.width; x += 4) {
+      ++total;
+      const int i = static_cast<int>(std::lround(roi_.x + x - d.x)) - origin_x_;
+      const int j = static_cast<int>(std::lround(roi_.y + y - d.y)) - origin_y_;
+      if (i >= 0 && j >= 0 && i < mosaic_count_.cols && j < mosaic_count_.rows &&
+          mosaic_count_.at<float>(j, i) > 0.0f)
+        ++covered;
+    }
+  return total > 0 ? static_cast<double>(covered) / total : 0.0;
 }
 
 // LK from the previous frame on the grid points, started at `initial`: the median of the points' motion
@@ -237,23 +274,57 @@ Vec2 PlateTracker::track(const cv::Mat& image_in, const cv::Mat& image_u8) {
   cv::buildOpticalFlowPyramid(image_u8(roi_), current_pyramid_,
                               cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels);
   build_subsets(image);
-  // Coarse step from the previous motion; if nothing matches from there (the plate stopped or reversed
-  // within a frame by more than LK can follow on a dot pattern of ~11 px spacing), again from rest.
+  // LK and the phase correlation run from the last frame that was not bridged (see below), `base_gap_`
+  // frames back. The coarse step is the last motion over that gap, unless the band's phase correlation
+  // says the plate moved by more than LK follows from there (a quarter of its window: it starts, stops or
+  // jumps by more than that within a frame). On a pattern with dots every ~11 px, LK and the subsets
+  // started a dot spacing off settle on a nearby dot configuration; the pattern is random, so the
+  // correlation's peak is unique (hard_large_displacement: a start at 12.8 px per frame left the plate
+  // 83.5 px behind).
   used_ = 0;
-  const Vec2 increment = lk_increment(velocity_px_);
-  ok_ = match_mosaic({displacement_px_.x + increment.x, displacement_px_.y + increment.y});
+  const Vec2 before = displacement_px_, before_velocity = velocity_px_;
+  const Vec2 predicted{before.x + before_velocity.x, before.y + before_velocity.y};
+  Vec2 coarse{base_gap_ * before_velocity.x, base_gap_ * before_velocity.y};
+  if (const auto shift = band_shift(image(roi_)))
+    if (std::hypot(shift->x - coarse.x, shift->y - coarse.y) > 0.25 * settings_.window_px) coarse = *shift;
+  const Vec2 increment = lk_increment(coarse);
+  ok_ = match_mosaic({base_px_.x + increment.x, base_px_.y + increment.y});
+  // Then from the last motion alone, then from rest.
+  if (!ok_) ok_ = match_mosaic(predicted);
   if (!ok_) {
     const Vec2 from_rest = lk_increment({0.0, 0.0});
-    ok_ = match_mosaic({displacement_px_.x + from_rest.x, displacement_px_.y + from_rest.y});
+    ok_ = match_mosaic({base_px_.x + from_rest.x, base_px_.y + from_rest.y});
+  }
+  const Vec2 flow_only{base_px_.x + increment.x, base_px_.y + increment.y};
+  const bool loose = ok_ && 4 * used_ < 3 * static_cast<int>(subsets_.size());
+  if (loose || (!ok_ && mosaic_coverage(flow_only) >= kCoveredToMatch)) {
+    // Most subsets disagree (normally all agree), or none matched where the mosaic covers the band: the
+    // band is motion blurred (or hidden), and a loose match is off along the motion (hard_motion_blur: 3.8
+    // px, 11 of 25 subsets). It is neither stitched (that biased every later frame by 0.17 px) nor
+    // trusted, nor the base of the next frame's LK (from a blurred frame LK is off by 0.7-2.4 px along a
+    // 15.6 px streak): the plate is where its last motion takes it.
+    displacement_px_ = predicted;
+    velocity_px_ = before_velocity;
+    ok_ = false;
+    status_ = PlateStatus::kPredicted;
+    ++base_gap_;
+    return displacement_px_;
+  }
+  status_ = ok_ ? PlateStatus::kMatched : PlateStatus::kFlowOnly;
+  if (ok_) {
+    add_to_mosaic(image, displacement_px_, false);
+  } else {
+    // The band has left the mosaic (the plate moved faster than the band's overlap allows, or frames in
+    // between were not stitched): placed by LK alone and stitched only where the mosaic has no data yet,
+    // which would otherwise never match again; where it has data, a frame placed by LK would blur it.
+    displacement_px_ = flow_only;
+    velocity_px_ = {displacement_px_.x - before.x, displacement_px_.y - before.y};
+    add_to_mosaic(image, displacement_px_, true);
   }
   std::swap(previous_pyramid_, current_pyramid_);
-  if (ok_) {
-    add_to_mosaic(image, displacement_px_);
-  } else {
-    // Not stitched: a frame placed by LK alone would blur the mosaic.
-    displacement_px_ = {displacement_px_.x + increment.x, displacement_px_.y + increment.y};
-    velocity_px_ = increment;
-  }
+  image(roi_).copyTo(previous_band_);
+  base_px_ = displacement_px_;
+  base_gap_ = 1;
   return displacement_px_;
 }
 

@@ -4,7 +4,8 @@
 // coordinates (frame 0's image coordinates of each pattern point), stitched from every frame at its
 // measured displacement and averaged where frames overlap: each frame's band is cut into subsets on a grid,
 // each matched into the mosaic by translation-only IC-GN (masked to where the mosaic has data), seeded by
-// the previous motion refined with pyramidal LK; the displacement is the mean of the subsets that agree
+// the previous motion (or the band's phase correlation with the previous band, where the plate started,
+// stopped or jumped) refined with pyramidal LK; the displacement is the mean of the subsets that agree
 // with their median; then the frame joins the mosaic.
 //
 // Why a mosaic: the plate carries its pattern across the band in a few frames (56 px at 2.6 px/frame on
@@ -15,6 +16,8 @@
 // all of the pattern it shares with them, so the chain's steps are smaller and the noise averages out.
 #include <opencv2/core.hpp>
 
+#include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "core/scene.hpp"
@@ -22,6 +25,14 @@
 #include "flow/subset.hpp"
 
 namespace tirstrain::flow {
+
+// How a frame's plate displacement was obtained; written per frame as /plate/status.
+enum class PlateStatus : std::int8_t {
+  kMatched = 0,    // matched into the mosaic, most subsets agreeing (the frame joins the mosaic)
+  kPredicted = 1,  // most subsets disagree, or none matched where the mosaic covers the band (a motion-
+                   // blurred band): the last motion carried over
+  kFlowOnly = 2,   // nothing matched, the band having left the mosaic: placed by LK alone
+};
 
 struct PlateSettings {
   int subset_radius_px = 0;  // 0: automatic, the largest radius up to 22 px that fits the band
@@ -31,24 +42,33 @@ struct PlateSettings {
   double max_spread_px = 0.5;  // subsets further than this from the median are left out of it
   double min_zncc = 0.6;
   // A subset counts when at least this share of it lands where the mosaic has data (the mask keeps the
-  // bicubic kernel clear of the edge, so a partly covered subset is unbiased, only noisier).
-  double min_valid_fraction = 0.6;
+  // bicubic kernel clear of the edge, so a partly covered subset is unbiased, only noisier). 0.4, not 0.6:
+  // the frame after an unstitched (motion-blurred) one at 10.4 px per frame overlaps a 56-row band's mosaic
+  // by 35 rows, too little for 45 px subsets at 0.6.
+  double min_valid_fraction = 0.4;
   // Both the band and the mosaic are smoothed by a Gaussian of this σ before matching (0: off). Pixel noise
   // resampled by the bicubic kernel varies with the sub-pixel phase and pulls the match; a σ of 0.7 px
   // takes most of it out and keeps the dots (measured 0 / 0.5 / 0.7 / 1.0 / 1.5 px: hard_heavy_noise
   // 0.0212 / 0.0189 / 0.0183 / 0.0188 / 0.0367 px RMS, default 0.0043 / 0.0042 / 0.0041 / - / - px).
   double prefilter_sigma_px = 0.7;
+  // The band's phase correlation with the previous frame's replaces the last motion as LK's start when its
+  // peak is at least this strong and further than a quarter of the LK window from that motion. Measured
+  // peaks: 0.76-1.3 on sharp frames (lowest on hard_large_displacement), 0.54-0.58 where a frame is motion
+  // blurred (hard_motion_blur), where the box blur's sign-flipping spectrum moves the peak ~5 px off.
+  double min_shift_response = 0.7;
 };
 
 class PlateTracker {
  public:
   // `image` CV_32F (full scale 1), `image_u8` the same frame in 8 bits (for LK).
   void start(const cv::Mat& image, const cv::Mat& image_u8, const RoiPx& roi, const PlateSettings& settings);
-  // Returns the displacement since the first frame; keeps the last value if no subset could be matched
-  // (then ok() is false for this frame).
+  // Returns the displacement since the first frame. Where no subset matched, the previous frame's LK
+  // motion is added; where most subsets disagree (a motion-blurred band), the last motion is; either way
+  // ok() is false for this frame and the frame does not join the mosaic.
   Vec2 track(const cv::Mat& image, const cv::Mat& image_u8);
   Vec2 displacement_px() const { return displacement_px_; }
   bool ok() const { return ok_; }
+  PlateStatus status() const { return status_; }
   int subsets_used() const { return used_; }
 
  private:
@@ -58,10 +78,16 @@ class PlateTracker {
   const cv::Mat& smoothed(const cv::Mat& image);
   // Makes the mosaic cover the band's footprint at displacement `d` (plus a margin); grows it as needed.
   void cover(Vec2 d);
-  void add_to_mosaic(const cv::Mat& image, Vec2 d);
+  // `only_empty`: into mosaic pixels that have no data yet.
+  void add_to_mosaic(const cv::Mat& image, Vec2 d, bool only_empty);
   // The mosaic's mean and its matching mask, around the band's footprint at `d`.
   void prepare_mean(Vec2 d);
   Vec2 lk_increment(Vec2 initial);
+  double mosaic_coverage(Vec2 d) const;
+  // A band at least this much on mosaic data should match it (the subsets need min_valid_fraction of
+  // theirs); when none does, the frame's content is at fault (motion blur), not the mosaic's extent.
+  static constexpr double kCoveredToMatch = 0.6;
+  std::optional<Vec2> band_shift(const cv::Mat& band);
   bool match_mosaic(Vec2 guess);
 
   PlateSettings settings_;
@@ -75,11 +101,17 @@ class PlateTracker {
   std::vector<cv::Point2f> lk_from_, lk_to_;
   std::vector<unsigned char> lk_status_;
   std::vector<float> lk_error_;
+  cv::Mat previous_band_, hann_;  // the previous frame's (smoothed) band, and the correlation's window
+  cv::Mat correlate_previous_, correlate_current_;
   // Mosaic pixel (i, j) holds plate point (origin_x_ + i, origin_y_ + j).
   cv::Mat mosaic_sum_, mosaic_count_, mosaic_mean_, mosaic_mask_, scratch_mask_;
   int origin_x_ = 0, origin_y_ = 0;
   Vec2 displacement_px_;  // since frame 0
   Vec2 velocity_px_;
+  PlateStatus status_ = PlateStatus::kMatched;
+  // The displacement of the frame the previous pyramid and band are from, and how many frames back it is.
+  Vec2 base_px_;
+  int base_gap_ = 1;
   bool ok_ = false;
   int used_ = 0;
 };

@@ -1551,4 +1551,9 @@ std::optional<Vec2> FeatureTracker::plate_displacement_px() const {
   return impl_->plate->displacement_px();
 }
 
+std::optional<std::int8_t> FeatureTracker::plate_status() const {
+  if (!impl_->plate) return std::nullopt;
+  return static_cast<std::int8_t>(impl_->plate->status());
+}
+
 }  // namespace tirstrain::flow

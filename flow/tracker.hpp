@@ -101,6 +101,9 @@ class FeatureTracker {
   bool low_snr_texture() const;
   // Plate displacement since frame 0 (median over the pattern's subsets); nullopt without a pattern ROI.
   std::optional<Vec2> plate_displacement_px() const;
+  // How this frame's plate displacement was obtained (a flow/plate.hpp PlateStatus); nullopt without a
+  // pattern ROI.
+  std::optional<std::int8_t> plate_status() const;
 
  private:
   struct Impl;

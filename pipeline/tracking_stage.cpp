@@ -2,6 +2,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -23,6 +24,7 @@ struct TrackFrame {
   std::vector<Vec2> position_px;
   std::vector<std::int8_t> status;
   std::optional<Vec2> plate_px;
+  std::int8_t plate_status = kAbsent;  // flow::PlateStatus, kAbsent where not measured
   int alive = 0, born = 0, retired = 0;
 };
 
@@ -101,6 +103,8 @@ class TrackingStage final : public Stage {
       }
     }
     record.plate_px = tracker_->plate_displacement_px();
+    record.plate_status = tracker_->plate_status().value_or(kAbsent);
+    if (record.plate_status > 0) ++plate_frames_not_matched_[record.plate_status == 1 ? 0 : 1];
     context.tracking =
         FrameContext::Tracking{&tracks, frame, frame == 0, &reference_normalization_, reference_has_ellipse_};
     context.plate_displacement_px = record.plate_px;
@@ -143,7 +147,7 @@ class TrackingStage final : public Stage {
   }
 
   std::vector<std::string> csv_header() const override {
-    return {"tracks_alive", "tracks_born", "tracks_retired", "plate_dx_px", "plate_dy_px"};
+    return {"tracks_alive", "tracks_born", "tracks_retired", "plate_dx_px", "plate_dy_px", "plate_status"};
   }
 
   void csv_row(std::size_t row, std::vector<std::string>& cells) const override {
@@ -153,12 +157,14 @@ class TrackingStage final : public Stage {
     cells.push_back(std::to_string(f.retired));
     cells.push_back(format_double(f.plate_px ? f.plate_px->x : kNaN));
     cells.push_back(format_double(f.plate_px ? f.plate_px->y : kNaN));
+    cells.push_back(std::to_string(f.plate_status));
   }
 
   void write(H5Writer& out) const override {
     const std::size_t n = frames_.size();
     const std::size_t k = tracker_ ? tracker_->tracks().size() : 0;
     std::vector<double> reference(k * 2), position(n * k * 2, kNaN), plate(n * 2, kNaN);
+    std::vector<std::int8_t> plate_status(n, kAbsent);
     std::vector<std::int8_t> status(n * k, kAbsent);
     std::vector<std::int32_t> born(k), retired(k);
     for (std::size_t j = 0; j < k; ++j) {
@@ -176,6 +182,7 @@ class TrackingStage final : public Stage {
         position[(i * k + j) * 2 + 1] = f.position_px[j].y;
         status[i * k + j] = f.status[j];
       }
+      plate_status[i] = f.plate_status;
       if (f.plate_px) {
         plate[2 * i] = f.plate_px->x;
         plate[2 * i + 1] = f.plate_px->y;
@@ -194,6 +201,11 @@ class TrackingStage final : public Stage {
     out.attribute("/tracks", "settings", settings_summary().dump());
     out.write("/plate/displacement_px", std::span<const double>(plate), {n, 2});
     out.attribute("/plate", "measured", scene_.reference_pattern_roi ? 1.0 : 0.0);
+    out.write("/plate/status", std::span<const std::int8_t>(plate_status), {n});
+    out.attribute("/plate", "status_codes",
+                  "-1 not measured; 0 matched into the pattern mosaic; 1 predicted from the last motion (the "
+                  "subsets disagree or none matched: a motion-blurred band); 2 LK only (the band left the "
+                  "mosaic)");
   }
 
   void summarize(nlohmann::json& summary) const override {
@@ -217,6 +229,8 @@ class TrackingStage final : public Stage {
     s["track_ms_per_frame"] =
         tracked_frames_ > 0 ? 1e3 * track_s_ / static_cast<double>(tracked_frames_) : 0.0;
     s["plate_measured"] = scene_.reference_pattern_roi.has_value();
+    s["plate_frames_predicted"] = plate_frames_not_matched_[0];
+    s["plate_frames_flow_only"] = plate_frames_not_matched_[1];
     if (!frames_.empty() && frames_.back().plate_px)
       s["plate_displacement_last_px"] = {frames_.back().plate_px->x, frames_.back().plate_px->y};
     summary["tracking"] = s;
@@ -285,6 +299,7 @@ class TrackingStage final : public Stage {
   std::vector<std::int64_t> tracker_rows_;
   double track_s_ = 0.0;
   std::int64_t tracked_frames_ = 0;
+  std::array<std::int64_t, 2> plate_frames_not_matched_{};  // predicted, LK only (/plate/status 1, 2)
   std::int64_t rest_frames_averaged_ = 0;
   std::int64_t rest_frames_on_fit_ = 0;
 };

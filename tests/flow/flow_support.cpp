@@ -107,6 +107,9 @@ Score run_and_score(const samples::Trial& trial, const RenderedTrial& frames, co
       const Vec2 truth = trial.load(f).plate_px;
       const double e = std::hypot(d.x - truth.x, d.y - truth.y);
       plate2 += e * e;
+      if (std::getenv("PLATE_VERBOSE"))
+        std::fprintf(stderr, "plate frame %d d %.3f %.3f truth %.3f %.3f err %.3f\n", f, d.x, d.y, truth.x,
+                     truth.y, e);
       s.plate_max_px = std::max(s.plate_max_px, e);
       ++plate_n;
     }
