@@ -137,9 +137,11 @@ class TrackingStage final : public Stage {
     }
     const TrackFrame& f = frames_.back();
     char text[200];
+    // A plate displacement that was not matched into the pattern mosaic says how it was obtained.
+    const char* plate_how = f.plate_status == 1 ? " predicted" : f.plate_status == 2 ? " LK only" : "";
     if (f.plate_px)
-      std::snprintf(text, sizeof text, "tracks: %d alive (+%d, -%d)  plate (%.2f, %.2f) px", f.alive, f.born,
-                    f.retired, f.plate_px->x, f.plate_px->y);
+      std::snprintf(text, sizeof text, "tracks: %d alive (+%d, -%d)  plate (%.2f, %.2f) px%s", f.alive,
+                    f.born, f.retired, f.plate_px->x, f.plate_px->y, plate_how);
     else
       std::snprintf(text, sizeof text, "tracks: %d alive (+%d, -%d)", f.alive, f.born, f.retired);
     cv::putText(bgr, text, cv::Point(8, static_cast<int>(68 * scale)), cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale,
