@@ -35,7 +35,7 @@ const cv::Mat& PlateTracker::smoothed(const cv::Mat& image) {
 }
 
 void PlateTracker::start(const cv::Mat& image_in, const cv::Mat& image_u8, const RoiPx& roi,
-                         const PlateSettings& settings) {
+                         const PlateSettings& settings, double t_s) {
   settings_ = settings;
   roi_ = cv::Rect(roi.x, roi.y, roi.width, roi.height) & cv::Rect(0, 0, image_in.cols, image_in.rows);
   const cv::Mat& image = smoothed(image_in);
@@ -52,9 +52,10 @@ void PlateTracker::start(const cv::Mat& image_in, const cv::Mat& image_u8, const
                 {.key = "reference_pattern.roi_px"});
   band_mask_ = cv::Mat::ones(roi_.size(), CV_8U);
   displacement_px_ = {};
-  velocity_px_ = {};
+  velocity_px_per_s_ = {};
   base_px_ = {};
-  base_gap_ = 1;
+  time_s_ = base_time_s_ = std::isfinite(t_s) ? t_s : 0.0;
+  interval_s_ = 1.0;
   status_ = PlateStatus::kMatched;
   build_subsets(image);
   if (subsets_.empty())
@@ -229,7 +230,7 @@ Vec2 PlateTracker::lk_increment(Vec2 initial) {
 
 // Every subset of this frame's band into the mosaic, from `guess`. Band point c is image point c + roi's
 // corner, plate point that minus d, mosaic pixel that minus the origin: the warp's translation is corner -
-// d - origin. Returns false when no subset matched; else sets displacement_px_ and velocity_px_.
+// d - origin. Returns false when no subset matched; else sets displacement_px_.
 bool PlateTracker::match_mosaic(Vec2 guess) {
   prepare_mean(guess);
   MatchOptions options;
@@ -264,27 +265,30 @@ bool PlateTracker::match_mosaic(Vec2 guess) {
   // Most subsets must agree: a guess a dot spacing off matches a few subsets on the wrong dots.
   if (2 * used_ < static_cast<int>(subsets_.size()) && 2 * used_ < static_cast<int>(scratch_x_.size()))
     return false;
-  velocity_px_ = {next.x - displacement_px_.x, next.y - displacement_px_.y};
   displacement_px_ = next;
   return true;
 }
 
-Vec2 PlateTracker::track(const cv::Mat& image_in, const cv::Mat& image_u8) {
+Vec2 PlateTracker::track(const cv::Mat& image_in, const cv::Mat& image_u8, double t_s) {
   const cv::Mat& image = smoothed(image_in);
   cv::buildOpticalFlowPyramid(image_u8(roi_), current_pyramid_,
                               cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels);
   build_subsets(image);
-  // LK and the phase correlation run from the last frame that was not bridged (see below), `base_gap_`
-  // frames back. The coarse step is the last motion over that gap, unless the band's phase correlation
-  // says the plate moved by more than LK follows from there (a quarter of its window: it starts, stops or
-  // jumps by more than that within a frame). On a pattern with dots every ~11 px, LK and the subsets
-  // started a dot spacing off settle on a nearby dot configuration; the pattern is random, so the
-  // correlation's peak is unique (hard_large_displacement: a start at 12.8 px per frame left the plate
-  // 83.5 px behind).
+  // Motion is extrapolated in time, not per frame: frame intervals jitter (0.2 ms at 100 frames/s on the
+  // shipped trials is 0.2 px of plate travel at 20 mm/s). Without increasing times, one interval per frame.
+  const double t = std::isfinite(t_s) && t_s > time_s_ ? t_s : time_s_ + interval_s_;
+  interval_s_ = t - time_s_;
+  // LK and the phase correlation run from the last frame that was not bridged (see below). The coarse step
+  // is the last motion over the time since then, unless the band's phase correlation says the plate moved
+  // by more than LK follows from there (a quarter of its window: it starts, stops or jumps by more than
+  // that within a frame). On a pattern with dots every ~11 px, LK and the subsets started a dot spacing
+  // off settle on a nearby dot configuration; the pattern is random, so the correlation's peak is unique
+  // (hard_large_displacement: a start at 12.8 px per frame left the plate 83.5 px behind).
   used_ = 0;
-  const Vec2 before = displacement_px_, before_velocity = velocity_px_;
-  const Vec2 predicted{before.x + before_velocity.x, before.y + before_velocity.y};
-  Vec2 coarse{base_gap_ * before_velocity.x, base_gap_ * before_velocity.y};
+  const Vec2 before = displacement_px_, velocity = velocity_px_per_s_;
+  const double dt = t - time_s_, base_dt = t - base_time_s_;
+  const Vec2 predicted{before.x + velocity.x * dt, before.y + velocity.y * dt};
+  Vec2 coarse{velocity.x * base_dt, velocity.y * base_dt};
   if (const auto shift = band_shift(image(roi_)))
     if (std::hypot(shift->x - coarse.x, shift->y - coarse.y) > 0.25 * settings_.window_px) coarse = *shift;
   const Vec2 increment = lk_increment(coarse);
@@ -295,6 +299,7 @@ Vec2 PlateTracker::track(const cv::Mat& image_in, const cv::Mat& image_u8) {
     const Vec2 from_rest = lk_increment({0.0, 0.0});
     ok_ = match_mosaic({base_px_.x + from_rest.x, base_px_.y + from_rest.y});
   }
+  time_s_ = t;
   const Vec2 flow_only{base_px_.x + increment.x, base_px_.y + increment.y};
   const bool loose = ok_ && 4 * used_ < 3 * static_cast<int>(subsets_.size());
   if (loose || (!ok_ && mosaic_coverage(flow_only) >= kCoveredToMatch)) {
@@ -304,10 +309,8 @@ Vec2 PlateTracker::track(const cv::Mat& image_in, const cv::Mat& image_u8) {
     // trusted, nor the base of the next frame's LK (from a blurred frame LK is off by 0.7-2.4 px along a
     // 15.6 px streak): the plate is where its last motion takes it.
     displacement_px_ = predicted;
-    velocity_px_ = before_velocity;
     ok_ = false;
     status_ = PlateStatus::kPredicted;
-    ++base_gap_;
     return displacement_px_;
   }
   status_ = ok_ ? PlateStatus::kMatched : PlateStatus::kFlowOnly;
@@ -318,13 +321,13 @@ Vec2 PlateTracker::track(const cv::Mat& image_in, const cv::Mat& image_u8) {
     // between were not stitched): placed by LK alone and stitched only where the mosaic has no data yet,
     // which would otherwise never match again; where it has data, a frame placed by LK would blur it.
     displacement_px_ = flow_only;
-    velocity_px_ = {displacement_px_.x - before.x, displacement_px_.y - before.y};
     add_to_mosaic(image, displacement_px_, true);
   }
+  velocity_px_per_s_ = {(displacement_px_.x - before.x) / dt, (displacement_px_.y - before.y) / dt};
   std::swap(previous_pyramid_, current_pyramid_);
   image(roi_).copyTo(previous_band_);
   base_px_ = displacement_px_;
-  base_gap_ = 1;
+  base_time_s_ = t;
   return displacement_px_;
 }
 

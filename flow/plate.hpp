@@ -17,6 +17,7 @@
 #include <opencv2/core.hpp>
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -61,11 +62,15 @@ struct PlateSettings {
 class PlateTracker {
  public:
   // `image` CV_32F (full scale 1), `image_u8` the same frame in 8 bits (for LK).
-  void start(const cv::Mat& image, const cv::Mat& image_u8, const RoiPx& roi, const PlateSettings& settings);
+  // `t_s`: the frame's time (s); the plate's motion is extrapolated in time. NaN, or times that do not
+  // increase: one unit per frame.
+  void start(const cv::Mat& image, const cv::Mat& image_u8, const RoiPx& roi, const PlateSettings& settings,
+             double t_s = std::numeric_limits<double>::quiet_NaN());
   // Returns the displacement since the first frame. Where no subset matched, the previous frame's LK
   // motion is added; where most subsets disagree (a motion-blurred band), the last motion is; either way
   // ok() is false for this frame and the frame does not join the mosaic.
-  Vec2 track(const cv::Mat& image, const cv::Mat& image_u8);
+  Vec2 track(const cv::Mat& image, const cv::Mat& image_u8,
+             double t_s = std::numeric_limits<double>::quiet_NaN());
   Vec2 displacement_px() const { return displacement_px_; }
   bool ok() const { return ok_; }
   PlateStatus status() const { return status_; }
@@ -106,12 +111,13 @@ class PlateTracker {
   // Mosaic pixel (i, j) holds plate point (origin_x_ + i, origin_y_ + j).
   cv::Mat mosaic_sum_, mosaic_count_, mosaic_mean_, mosaic_mask_, scratch_mask_;
   int origin_x_ = 0, origin_y_ = 0;
-  Vec2 displacement_px_;  // since frame 0
-  Vec2 velocity_px_;
+  Vec2 displacement_px_;    // since frame 0
+  Vec2 velocity_px_per_s_;  // over the last interval (px per `t_s` unit)
+  double time_s_ = 0.0, interval_s_ = 1.0;
   PlateStatus status_ = PlateStatus::kMatched;
-  // The displacement of the frame the previous pyramid and band are from, and how many frames back it is.
+  // The displacement and time of the frame the previous pyramid and band are from.
   Vec2 base_px_;
-  int base_gap_ = 1;
+  double base_time_s_ = 0.0;
   bool ok_ = false;
   int used_ = 0;
 };

@@ -1410,7 +1410,7 @@ void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, do
   impl_->points_mode = false;
 }
 
-void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, double /*t_s*/,
+void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, double t_s,
                            const std::vector<Vec2>& points_px) {
   Impl& m = *impl_;
   m.frame = -1;
@@ -1463,7 +1463,7 @@ void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, do
     ps.grid_step_px = m.settings.plate_grid_step_px;
     ps.prefilter_sigma_px = m.settings.plate_prefilter_sigma_px;
     m.plate.emplace();
-    m.plate->start(m.current_f, m.current_u8, *m.plate_roi, ps);
+    m.plate->start(m.current_f, m.current_u8, *m.plate_roi, ps, t_s);
   }
   if (m.keys[0]->users == 0 && !m.settings.births) m.keys[0].reset();
   std::swap(m.previous_u8, m.current_u8);
@@ -1473,7 +1473,7 @@ void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, do
   m.stats.born = m.stats.alive;
 }
 
-const FrameStats& FeatureTracker::track(const cv::Mat& image, const cv::Mat& contact_mask, double /*t_s*/) {
+const FrameStats& FeatureTracker::track(const cv::Mat& image, const cv::Mat& contact_mask, double t_s) {
   Impl& m = *impl_;
   if (m.frame < 0) throw Error("FeatureTracker::track called before start");
   m.check_input(image, contact_mask);
@@ -1521,7 +1521,7 @@ const FrameStats& FeatureTracker::track(const cv::Mat& image, const cv::Mat& con
   m.finish_frame();
   m.follow_rest();
   if (!m.points_mode && m.settings.births && m.frame % m.settings.birth_interval_frames == 0) m.births();
-  if (m.plate) m.plate->track(m.current_f, m.current_u8);
+  if (m.plate) m.plate->track(m.current_f, m.current_u8, t_s);
   // Key frames nobody anchors to any more.
   for (auto& k : m.keys)
     if (k && k->users == 0) k.reset();

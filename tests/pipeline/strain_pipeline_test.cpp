@@ -400,8 +400,9 @@ TEST(StrainPipeline, MotionBlurredPlateFrameIsMarkedAndBridged) {
   // The plate at 20 mm/s (10.4 px per frame) under a 56-row pattern band, frame 9 exposed over 15 ms
   // (15.6 px of motion; the hard_motion_blur scene, shortened). The blurred band's loose match was 3.8 px
   // off on that scene and, stitched into the mosaic, biased every later frame by 0.17 px. Now its plate
-  // displacement is the last motion carried over, /plate/status says so (1), and the later frames match.
-  // Measured: blurred frame 0.06 px off, the other frames 0.005 px RMS.
+  // displacement is the last motion carried over in time (the frame times jitter by 0.2 ms, 0.2 px of plate
+  // travel), /plate/status says so (1), and the later frames match. Measured: blurred frame 0.0093 px off,
+  // the other frames 0.0107 px RMS.
   const int frames = 14, blurred = 9;
   const std::string yaml =
       "calibration: {px_per_mm: 52, ridge_period_mm: 0.45, ridge_polarity: dark}\n"
@@ -410,7 +411,7 @@ TEST(StrainPipeline, MotionBlurredPlateFrameIsMarkedAndBridged) {
       "synthesis:\n"
       "  seed: 5\n"
       "  image: {width_px: 320, height_px: 288, bit_depth: 8}\n"
-      "  timing: {frames: 14, frame_rate_hz: 100, jitter_s: 0}\n"
+      "  timing: {frames: 14, frame_rate_hz: 100, jitter_s: 0.0002}\n"
       "  contact: {shape: hertz, normal_N: 2.0, radius_m: 0.005}\n"
       "  loading: {field: cattaneo_mindlin, friction: 1.0, direction_deg: 270, plate_speed_mm_s: 20.0,\n"
       "            shear_start_s: 0.02}\n"
@@ -431,7 +432,8 @@ TEST(StrainPipeline, MotionBlurredPlateFrameIsMarkedAndBridged) {
     const double e = std::hypot(plate[2 * f] - truth.x, plate[2 * f + 1] - truth.y);
     if (f == blurred) {
       EXPECT_EQ(status[f], 1) << "the blurred frame is marked predicted";
-      EXPECT_LT(e, 0.3) << "blurred frame";
+      std::printf("plate: blurred frame %.4f px off\n", e);
+      EXPECT_LT(e, 0.05) << "blurred frame";
     } else {
       EXPECT_EQ(status[f], 0) << "frame " << f;
       sharp2 += e * e;
