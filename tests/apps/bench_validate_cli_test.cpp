@@ -79,20 +79,30 @@ std::map<std::string, std::string> single_row(const std::string& csv_path) {
   return values;
 }
 
-// A shipped 60-frame scene cut to `frames` frames, as OUT/scenes/NAME.yaml; returns OUT/scenes.
-fs::path shortened_scene(const std::string& out, const std::string& shipped, const std::string& name,
-                         int frames) {
+// `tirstrain bench --configs default` on a shipped 60-frame scene cut to `frames` frames (in a fresh
+// directory `dir_name`); the one row of its bench.csv, empty if the run failed.
+std::map<std::string, std::string> bench_shortened(const std::string& dir_name, const std::string& shipped,
+                                                   int frames) {
+  const std::string out = fresh_dir(dir_name);
   const fs::path scenes = fs::path(out) / "scenes";
   fs::create_directories(scenes);
-  std::ifstream in(std::string(TIRSTRAIN_SOURCE_SCENES_DIR) + "/" + shipped + ".yaml");
-  std::ofstream scene(scenes / (name + ".yaml"));
-  std::string line;
-  while (std::getline(in, line)) {
-    const auto at = line.find("frames: 60");
-    if (at != std::string::npos) line.replace(at, 10, "frames: " + std::to_string(frames));
-    scene << line << "\n";
+  {
+    std::ifstream in(std::string(TIRSTRAIN_SOURCE_SCENES_DIR) + "/" + shipped + ".yaml");
+    std::ofstream scene(scenes / "short.yaml");
+    std::string line;
+    while (std::getline(in, line)) {
+      const auto at = line.find("frames: 60");
+      if (at != std::string::npos) line.replace(at, 10, "frames: " + std::to_string(frames));
+      scene << line << "\n";
+    }
   }
-  return scenes;
+  const auto run = run_cli("bench --scenes-dir " + scenes.string() +
+                           " --scenes short --configs default --out " + out + "/bench");
+  EXPECT_EQ(run.exit_code, 0) << run.output;
+  if (run.exit_code != 0) return {};
+  auto values = single_row(out + "/bench/bench.csv");
+  EXPECT_EQ(values["frames"], std::to_string(frames)) << "the scene was not cut";
+  return values;
 }
 
 TEST(BenchCli, NoiseFreeRigidTranslationReportsNearZeroError) {
@@ -100,13 +110,8 @@ TEST(BenchCli, NoiseFreeRigidTranslationReportsNearZeroError) {
   // translation scene (12, −30) px, cut to 12 frames. A wrong reference, sign or frame pairing in the error
   // computation would show as errors of pixels and strains of percent; the truth here is zero strain and a
   // displacement any tracker follows to a few hundredths of a pixel (measured 0.046 px, strain 0.0022).
-  const std::string out = fresh_dir("bench_rigid");
-  const fs::path scenes = shortened_scene(out, "rigid_translation", "rigid_short", 12);
-  const auto run = run_cli("bench --scenes-dir " + scenes.string() +
-                           " --scenes rigid_short --configs default --out " + out + "/bench");
-  ASSERT_EQ(run.exit_code, 0) << run.output;
-  auto values = single_row(out + "/bench/bench.csv");
-  EXPECT_EQ(values["frames"], "12") << "the scene was not cut";
+  auto values = bench_shortened("bench_rigid", "rigid_translation", 12);
+  ASSERT_FALSE(values.empty());
   const auto number = [&](const char* column) { return std::strtod(values[column].c_str(), nullptr); };
   EXPECT_LT(number("disp_rms_px"), 0.1);
   EXPECT_GT(number("disp_rms_px"), 0.0);
@@ -121,13 +126,8 @@ TEST(BenchCli, RigidRotationHasNoRelativeEnergyError) {
   // A 10° rotation: the true Green–Lagrange strain is zero, but computed from cos and sin it is rounding
   // (true energy ~1e-30 J), and relative to that the energy error read 1e28 %. Below the energy of a
   // uniform 1e-4 strain the relative error is not computed.
-  const std::string out = fresh_dir("bench_rotation");
-  const fs::path scenes = shortened_scene(out, "rigid_rotation", "rotation_short", 6);
-  const auto run = run_cli("bench --scenes-dir " + scenes.string() +
-                           " --scenes rotation_short --configs default --out " + out + "/bench");
-  ASSERT_EQ(run.exit_code, 0) << run.output;
-  auto values = single_row(out + "/bench/bench.csv");
-  EXPECT_EQ(values["frames"], "6") << "the scene was not cut";
+  auto values = bench_shortened("bench_rotation", "rigid_rotation", 6);
+  ASSERT_FALSE(values.empty());
   EXPECT_LT(std::strtod(values["disp_rms_px"].c_str(), nullptr), 0.05);
   EXPECT_EQ(values["energy_err_pct"], "nan");
 }
