@@ -677,7 +677,9 @@ int run_cli(const std::vector<std::string>& args, const std::string& log, double
 }
 
 // A synthesised trial served by the camera, recorded, then processed, gives the same per-frame results as
-// processing the synthesised frames directly (only the time axis differs: the camera's clock).
+// processing the synthesised frames directly. Only the time axis differs (the camera's clock), and with it
+// the plate's start: the plate tracker extrapolates its last velocity over each frame's real interval, so
+// its converged answer may move in the last digits, far below its 0.02 px accuracy target.
 TEST_F(AravisTest, EndToEndRecordThenProcessMatchesDirectProcessing) {
   const std::string dir = test_dir("end_to_end");
   fs::create_directories(dir);
@@ -736,9 +738,15 @@ TEST_F(AravisTest, EndToEndRecordThenProcessMatchesDirectProcessing) {
   ASSERT_EQ(direct.names, via_camera.names);
   ASSERT_EQ(direct.rows(), via_camera.rows());
   for (std::size_t j = 0; j < direct.names.size(); ++j) {
-    if (direct.names[j] == "t_s") continue;  // the camera's clock, not the synthetic one
-    for (std::size_t i = 0; i < direct.rows(); ++i)
-      EXPECT_EQ(direct.columns[j][i], via_camera.columns[j][i]) << direct.names[j] << " at frame " << i;
+    const std::string& name = direct.names[j];
+    if (name == "t_s") continue;  // the camera's clock, not the synthetic one
+    const bool plate_position = name == "plate_dx_px" || name == "plate_dy_px";
+    for (std::size_t i = 0; i < direct.rows(); ++i) {
+      if (plate_position)
+        EXPECT_NEAR(direct.columns[j][i], via_camera.columns[j][i], 1e-3) << name << " at frame " << i;
+      else
+        EXPECT_EQ(direct.columns[j][i], via_camera.columns[j][i]) << name << " at frame " << i;
+    }
   }
 }
 
