@@ -15,6 +15,7 @@ import sys
 import h5py
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
+from scipy.signal import savgol_filter
 
 WINDOWS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32)  # half-lengths, frames
 
@@ -103,6 +104,20 @@ def main():
     print(f'displacement RMS px: measured {rms(err[1:]):.4f}, smoothed in time {rms(smoothed[1:]):.4f} '
           f'(gamma {gamma}, order {order})')
     print(f'  of which constant per track (anchor noise, ridge-phase bias): {rms(per_track_mean[None]):.4f}')
+    # How much is averageable at all: the error's own whiteness, and the error series smoothed alone.
+    fluct = err[1:, alive_once] - per_track_mean[None]
+    a, b = fluct[1:], fluct[:-1]
+    both = np.isfinite(a[..., 0]) & np.isfinite(b[..., 0])
+    lag1 = [np.corrcoef(a[both][:, c], b[both][:, c])[0, 1] for c in range(2)]
+    print(f'  lag-1 correlation of the error about its track mean: x {lag1[0]:.2f}, y {lag1[1]:.2f}')
+    for w in (5, 15):
+        alone = err.copy()
+        for k in range(len(tracks)):
+            alive = np.where(np.isfinite(err[:, k, 0]))[0]
+            for run in np.split(alive, np.where(np.diff(alive) != 1)[0] + 1):
+                if len(run) >= w:
+                    alone[run, k] = savgol_filter(err[run, k], w, 2, axis=0, mode='interp')
+        print(f'  the error series alone smoothed over {w} frames (the motion known exactly): {rms(alone[1:]):.4f}')
     print('frame: measured -> smoothed')
     for f in range(1, len(t), 6):
         print(f'  {f:3d}: {rms(err[f:f + 1]):.3f} -> {rms(smoothed[f:f + 1]):.3f}')
