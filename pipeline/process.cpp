@@ -127,8 +127,19 @@ void remove_stale(const fs::path& path) {
   fs::remove(path, ec);
 }
 
-Scene scene_with_overrides(const ProcessOptions& options) {
-  Scene scene = options.scene_path ? load_scene(*options.scene_path) : Scene{};
+// A trial folder carries its own scene (`tirstrain synth` writes DIR/scene.yaml next to DIR/frames/):
+// without --scene it is the one that describes these frames, so it is used rather than the defaults, which
+// would know nothing of the folder's reference-pattern band and segment its dots as contact.
+std::optional<std::string> scene_path_for(const ProcessOptions& options) {
+  if (options.scene_path) return options.scene_path;
+  std::error_code ec;
+  const fs::path beside = fs::path(options.input) / "scene.yaml";
+  if (fs::is_directory(options.input, ec) && fs::is_regular_file(beside, ec)) return beside.string();
+  return std::nullopt;
+}
+
+Scene scene_with_overrides(const ProcessOptions& options, const std::optional<std::string>& scene_path) {
+  Scene scene = scene_path ? load_scene(*scene_path) : Scene{};
   for (const std::string& name : options.compute) {
     const auto& known = known_stages();
     if (std::find(known.begin(), known.end(), name) == known.end())
@@ -158,7 +169,11 @@ ProcessReport run_process(const ProcessOptions& options) {
     if (!options.quiet) std::fprintf(options.log, "tirstrain: warning: %s\n", message.c_str());
   };
 
-  const Scene scene = scene_with_overrides(options);
+  const std::optional<std::string> scene_path = scene_path_for(options);
+  if (scene_path && !options.scene_path && !options.quiet)
+    std::fprintf(options.log, "tirstrain: scene from the input folder: %s (--scene overrides it)\n",
+                 scene_path->c_str());
+  const Scene scene = scene_with_overrides(options, scene_path);
   StagePlan plan = plan_stages(scene);
   for (const auto& name : plan.unavailable) {
     const std::string message = "stage '" + name +

@@ -14,8 +14,10 @@ namespace tirstrain::pipeline {
 enum class OverlayMode { kNone, kMp4, kPng };
 
 struct ProcessOptions {
-  std::string input;                      // folder, pattern, video file or source URI
-  std::optional<std::string> scene_path;  // absent: documented defaults, the rest measured from the images
+  std::string input;  // folder, pattern, video file or source URI
+  // Absent: INPUT/scene.yaml when INPUT is a folder holding one (a synthesised or saved trial), otherwise
+  // the documented defaults with the rest measured from the images.
+  std::optional<std::string> scene_path;
   std::string out_dir;
   bool quiet = false;
   // Stop at the first corrupt frame, at a requested stage that is not available, or when the input has

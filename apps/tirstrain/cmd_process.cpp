@@ -24,8 +24,9 @@ void add_process_command(CLI::App& app) {
       "or\n"
       "glob pattern ('run/img_%05d.tif', 'run/*.png'), or a video file. Time comes from frames.csv "
       "(index,t_s)\n"
-      "or the video's timestamps. Without --scene: 52 px/mm, E = 1 MPa, nu = 0.4, depth 2 mm; ridge period,\n"
-      "polarity and contact are measured from the images.\n"
+      "or the video's timestamps. Without --scene: INPUT/scene.yaml if INPUT is a folder holding one (as\n"
+      "tirstrain synth writes), else 52 px/mm, E = 1 MPa, nu = 0.4, depth 2 mm, and ridge period, polarity\n"
+      "and contact measured from the images.\n"
       "Writes DIR/result.h5, DIR/frames.csv, DIR/summary.json and DIR/overlay.mp4 (see docs/formats.md).");
   sub->add_option("INPUT", args->input, "Frames folder, image pattern or video file")->required();
   sub->add_option("--scene", args->scene, "Scene file (YAML) for calibration and what to compute");

@@ -253,6 +253,37 @@ TEST(Process, StagesAskedForBringWhatTheyNeed) {
   EXPECT_NE(unknown.output.find("straim"), std::string::npos) << unknown.output;
 }
 
+// A trial folder's own scene.yaml (as `tirstrain synth` writes) is used without --scene, and --scene
+// overrides it. The two scenes differ only in px_per_mm (ridge period the same in pixels), so the same
+// contact pixels must give areas in the ratio (60 / 40)^2.
+TEST(Process, UsesTheInputFoldersSceneUnlessGivenOne) {
+  const fs::path trial = write_trial("own_scene_trial", 2);
+  std::ofstream(trial / "scene.yaml") << "calibration: {px_per_mm: 40, ridge_period_mm: 0.585}\n"
+                                         "compute: [contact]\n";
+  const fs::path other = scratch("own_scene_other") / "other.yaml";
+  std::ofstream(other) << "calibration: {px_per_mm: 60, ridge_period_mm: 0.39}\ncompute: [contact]\n";
+  const auto run = [&](const std::string& name, const std::string& scene_option) {
+    const fs::path out = scratch(name);
+    const CliRun r =
+        run_cli("process " + trial.string() + scene_option + " --out " + out.string() + " --overlay none");
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    std::ifstream summary_file(out / "summary.json");
+    return std::make_pair(r.output, nlohmann::json::parse(summary_file));
+  };
+  const auto [own_log, own] = run("own_scene_out", "");
+  EXPECT_NE(own_log.find("scene from the input folder"), std::string::npos) << own_log;
+  EXPECT_EQ(own["scene"], (trial / "scene.yaml").string());
+  EXPECT_EQ(own["px_per_mm"].get<double>(), 40.0);
+  const auto [given_log, given] = run("own_scene_given_out", " --scene " + other.string());
+  EXPECT_EQ(given_log.find("scene from the input folder"), std::string::npos) << given_log;
+  EXPECT_EQ(given["scene"], other.string());
+  EXPECT_EQ(given["px_per_mm"].get<double>(), 60.0);
+  const double own_area = own["contact"]["area_mm2_mean"].get<double>();
+  const double given_area = given["contact"]["area_mm2_mean"].get<double>();
+  ASSERT_GT(given_area, 0.0);
+  EXPECT_NEAR(own_area / given_area, 2.25, 2.25e-3);
+}
+
 // Distance from p to a closed polygon's edges.
 double distance_to_outline(const cv::Point2d& p, const std::vector<cv::Point2d>& polygon) {
   double best = std::numeric_limits<double>::infinity();
