@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 
 #include "flow/bicubic.hpp"
 
@@ -420,8 +421,8 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
 
 MatchResult Subset::translation_step(const AnchorImage& anchor, const cv::Mat& resampled,
                                      const cv::Mat& valid, double min_valid_fraction, Vec2& step_px) const {
-  MatchResult result;
   step_px = {};
+  MatchResult result;
   if (points_.empty()) {
     result.degenerate = true;
     return result;
@@ -429,14 +430,12 @@ MatchResult Subset::translation_step(const AnchorImage& anchor, const cv::Mat& r
   const cv::Mat& img = anchor.image();
   CV_Assert(resampled.type() == CV_32F && valid.type() == CV_8U && valid.size() == resampled.size() &&
             resampled.size() == img.size());
-  const double total = static_cast<double>(points_.size());
-  double h_xx = 0, h_xy = 0, h_yy = 0, sj_x = 0, sj_y = 0, sjf_x = 0, sjf_y = 0, sf_out = 0, sff_out = 0;
-  double sjg_x = 0, sjg_y = 0, sg = 0, sgg = 0, sfg = 0;
-  long outside = 0, seen = 0;
+  StepSums s;
+  long seen = 0;
   const float mean = static_cast<float>(mean_);
   // The same pixels as build() took (for_each_window_pixel's), row by row, summed in float within a row
-  // (at most 2·radius + 1 terms) and in double across rows: this loop is a fifth of the automatic preset's
-  // tracking time, and the per-pixel double conversions were most of it.
+  // (at most 2·radius + 1 terms) and in double across rows: per-pixel double conversions were most of this
+  // loop's time when every subset ran it (WindowSums now serves most).
   const int rows = img.rows, cols = img.cols;
   for (int dy = -radius_px_; dy <= radius_px_; dy += stride_) {
     const int y = centre_.y + dy;
@@ -454,16 +453,16 @@ MatchResult Subset::translation_step(const AnchorImage& anchor, const cv::Mat& r
       ++seen;
       const float f = row[x] - mean, gx = gxr[x], gy = gyr[x];
       if (!vrow[x]) {  // rare: the subset's part outside the resampled field, subtracted from its sums
-        ++outside;
-        h_xx += static_cast<double>(gx) * gx;
-        h_xy += static_cast<double>(gx) * gy;
-        h_yy += static_cast<double>(gy) * gy;
-        sj_x += gx;
-        sj_y += gy;
-        sjf_x += static_cast<double>(gx) * f;
-        sjf_y += static_cast<double>(gy) * f;
-        sf_out += f;
-        sff_out += static_cast<double>(f) * f;
+        ++s.outside;
+        s.h_xx += static_cast<double>(gx) * gx;
+        s.h_xy += static_cast<double>(gx) * gy;
+        s.h_yy += static_cast<double>(gy) * gy;
+        s.sj_x += gx;
+        s.sj_y += gy;
+        s.sjf_x += static_cast<double>(gx) * f;
+        s.sjf_y += static_cast<double>(gy) * f;
+        s.sf_out += f;
+        s.sff_out += static_cast<double>(f) * f;
         continue;
       }
       const float g = grow[x];
@@ -473,32 +472,55 @@ MatchResult Subset::translation_step(const AnchorImage& anchor, const cv::Mat& r
       r_gg += g * g;
       r_fg += f * g;
     }
-    sjg_x += r_jg_x;
-    sjg_y += r_jg_y;
-    sg += r_g;
-    sgg += r_gg;
-    sfg += r_fg;
+    s.sjg_x += r_jg_x;
+    s.sjg_y += r_jg_y;
+    s.sg += r_g;
+    s.sgg += r_gg;
+    s.sfg += r_fg;
   }
   if (seen != static_cast<long>(points_.size())) {  // not the anchor this subset was built from
     result.degenerate = true;
     return result;
   }
-  const double count = total - static_cast<double>(outside);
+  return solve_translation(s, min_valid_fraction, step_px);
+}
+
+MatchResult Subset::translation_step(const WindowSums& sums, const AnchorImage& anchor,
+                                     const cv::Mat& resampled, const cv::Mat& valid,
+                                     double min_valid_fraction, Vec2& step_px) const {
+  WindowSums::Window w;
+  if (points_.empty() || sums.stride() != stride_ || !sums.window(centre_, radius_px_, w) ||
+      w.mask != static_cast<double>(points_.size()) || w.outside != 0.0)
+    return translation_step(anchor, resampled, valid, min_valid_fraction, step_px);
+  step_px = {};
+  StepSums s;
+  s.sjg_x = w.gxg;
+  s.sjg_y = w.gyg;
+  s.sg = w.g;
+  s.sgg = w.gg;
+  s.sfg = w.ig - mean_ * w.g;  // f is the anchor's intensity less the subset's mean
+  return solve_translation(s, min_valid_fraction, step_px);
+}
+
+MatchResult Subset::solve_translation(const StepSums& s, double min_valid_fraction, Vec2& step_px) const {
+  MatchResult result;
+  const double total = static_cast<double>(points_.size());
+  const double count = total - static_cast<double>(s.outside);
   result.valid_fraction = count / total;
   result.iterations = 1;
   if (result.valid_fraction < min_valid_fraction || count < 4.0) return result;
   Normalisation norm;
-  if (!normalise(count, sum_ff_, sf_out, sff_out, sg, sgg, sfg, norm)) {
+  if (!normalise(count, sum_ff_, s.sf_out, s.sff_out, s.sg, s.sgg, s.sfg, norm)) {
     result.degenerate = true;
     return result;
   }
   result.zncc = norm.zncc;
-  const double vj_x = sum_j_[0] - sj_x, vj_y = sum_j_[1] - sj_y;
+  const double vj_x = sum_j_[0] - s.sj_x, vj_y = sum_j_[1] - s.sj_y;
   const Eigen::Vector2d b(
-      ((sum_jf_[0] - sjf_x) - norm.f_mean * vj_x) - norm.scale * (sjg_x - norm.g_mean * vj_x),
-      ((sum_jf_[1] - sjf_y) - norm.f_mean * vj_y) - norm.scale * (sjg_y - norm.g_mean * vj_y));
+      ((sum_jf_[0] - s.sjf_x) - norm.f_mean * vj_x) - norm.scale * (s.sjg_x - norm.g_mean * vj_x),
+      ((sum_jf_[1] - s.sjf_y) - norm.f_mean * vj_y) - norm.scale * (s.sjg_y - norm.g_mean * vj_y));
   Eigen::Matrix2d hv;
-  hv << hessian_(0, 0) - h_xx, hessian_(0, 1) - h_xy, hessian_(1, 0) - h_xy, hessian_(1, 1) - h_yy;
+  hv << hessian_(0, 0) - s.h_xx, hessian_(0, 1) - s.h_xy, hessian_(1, 0) - s.h_xy, hessian_(1, 1) - s.h_yy;
   Eigen::Vector2d dp;
   if (!translation_step_of(hv, b, dp)) {
     result.degenerate = true;
@@ -507,6 +529,89 @@ MatchResult Subset::translation_step(const AnchorImage& anchor, const cv::Mat& r
   step_px = {dp.x(), dp.y()};
   result.converged = true;
   return result;
+}
+
+void WindowSums::build(const AnchorImage& anchor, const cv::Mat& resampled, const cv::Mat& valid,
+                       cv::Rect region, int stride) {
+  const cv::Mat& img = anchor.image();
+  CV_Assert(resampled.type() == CV_32F && valid.type() == CV_8U && valid.size() == resampled.size() &&
+            resampled.size() == img.size() && stride >= 1);
+  image_ = img.size();
+  region_ = region & cv::Rect(0, 0, img.cols, img.rows);
+  stride_ = stride;
+  width_ = region_.width + stride;
+  const int height = region_.height + stride;
+  sums_.assign(static_cast<std::size_t>(width_) * static_cast<std::size_t>(height) * kChannels, 0.0);
+  // S(y, x) = v(y, x) + S(y − s, x) + S(y, x − s) − S(y − s, x − s): an integral image over each of the
+  // stride² interleaved lattices at once.
+  const std::ptrdiff_t row_step = static_cast<std::ptrdiff_t>(width_) * kChannels;
+  const std::ptrdiff_t back = static_cast<std::ptrdiff_t>(stride) * kChannels;
+  const std::ptrdiff_t up = static_cast<std::ptrdiff_t>(stride) * row_step;
+  for (int ry = 0; ry < region_.height; ++ry) {
+    const int y = region_.y + ry;
+    const bool row_inside = y >= 1 && y < img.rows - 1;
+    const float* irow = img.ptr<float>(y);
+    const float* gxr = anchor.gx().ptr<float>(y);
+    const float* gyr = anchor.gy().ptr<float>(y);
+    const std::uint8_t* mrow = anchor.mask().ptr<std::uint8_t>(y);
+    const std::uint8_t* vrow = valid.ptr<std::uint8_t>(y);
+    const float* grow = resampled.ptr<float>(y);
+    double* cell = sums_.data() + static_cast<std::ptrdiff_t>(ry + stride) * row_step + back;
+    for (int rx = 0; rx < region_.width; ++rx, cell += kChannels) {
+      const int x = region_.x + rx;
+      double v[kChannels] = {0, 0, 0, 0, 0, 0, 0};
+      if (row_inside && x >= 1 && x < img.cols - 1 && mrow[x] != 0) {
+        v[0] = 1.0;
+        if (vrow[x]) {
+          const double g = grow[x];
+          v[2] = g;
+          v[3] = g * g;
+          v[4] = irow[x] * g;
+          v[5] = gxr[x] * g;
+          v[6] = gyr[x] * g;
+        } else {
+          v[1] = 1.0;
+        }
+      }
+      const double* above = cell - up;
+      const double* before = cell - back;
+      const double* corner = above - back;
+      for (int c = 0; c < kChannels; ++c) cell[c] = v[c] + above[c] + before[c] - corner[c];
+    }
+  }
+}
+
+bool WindowSums::window(cv::Point centre, int radius, Window& out) const {
+  if (stride_ < 1) return false;
+  // The window's lattice, [x0, x1] × [y0, y1], cut to the region where the region's side is the image's
+  // (nothing lies beyond it); past a side inside the image the table has not seen those pixels.
+  int x0 = centre.x - radius, x1 = centre.x - radius + stride_ * ((2 * radius) / stride_);
+  int y0 = centre.y - radius, y1 = centre.y - radius + stride_ * ((2 * radius) / stride_);
+  const int left = region_.x, top = region_.y, right = region_.x + region_.width - 1,
+            bottom = region_.y + region_.height - 1;
+  const auto cut_low = [&](int& a, int side, bool image_side) {
+    if (a >= side) return true;
+    if (!image_side) return false;
+    a += stride_ * ((side - a + stride_ - 1) / stride_);
+    return true;
+  };
+  const auto cut_high = [&](int& b, int side, bool image_side) {
+    if (b <= side) return true;
+    if (!image_side) return false;
+    b -= stride_ * ((b - side + stride_ - 1) / stride_);
+    return true;
+  };
+  if (!cut_low(x0, left, left == 0) || !cut_low(y0, top, top == 0) ||
+      !cut_high(x1, right, right == image_.width - 1) || !cut_high(y1, bottom, bottom == image_.height - 1))
+    return false;
+  out = Window{};
+  if (x1 < x0 || y1 < y0) return true;
+  // Table coordinates: shifted by the region's corner and the stride's padding.
+  const int tx1 = x1 - left + stride_, tx0 = x0 - left, ty1 = y1 - top + stride_, ty0 = y0 - top;
+  double* fields[kChannels] = {&out.mask, &out.outside, &out.g, &out.gg, &out.ig, &out.gxg, &out.gyg};
+  for (int c = 0; c < kChannels; ++c)
+    *fields[c] = at(ty1, tx1, c) - at(ty0, tx1, c) - at(ty1, tx0, c) + at(ty0, tx0, c);
+  return true;
 }
 
 }  // namespace tirstrain::flow

@@ -190,6 +190,7 @@ struct FeatureTracker::Impl {
   std::vector<cv::Mat> anchor_pyramid;
   ShapeField shape_field;
   cv::Mat resampled, resampled_valid;
+  WindowSums window_sums;  // of each round's resampled frame, for the subsets' translation steps
   std::vector<Vec2> field_anchor, field_displacement;
   std::vector<std::uint8_t> resampled_done;
   std::vector<Vec2> resampled_position;
@@ -1042,6 +1043,7 @@ void FeatureTracker::Impl::resampled_shape_pass() {
     shape_field.fit(field_anchor, field_displacement, region, settings.grid_step_px, sigma);
     resample_through(match_f, match_mask, shape_field, keys[0]->anchor.mask(), region, resampled,
                      resampled_valid);
+    window_sums.build(keys[0]->anchor, resampled, resampled_valid, region, settings.fixed_shape_stride);
     cv::parallel_for_(cv::Range(0, static_cast<int>(n)), [&](const cv::Range& range) {
       for (int k = range.start; k < range.end; ++k) {
         const int i = eligible[static_cast<std::size_t>(k)];
@@ -1049,7 +1051,7 @@ void FeatureTracker::Impl::resampled_shape_pass() {
         const Subset& subset = st.wide.empty() ? st.subset : st.wide;
         Vec2 step;
         MatchResult& m = resampled_match[static_cast<std::size_t>(k)];
-        m = subset.translation_step(keys[0]->anchor, resampled, resampled_valid,
+        m = subset.translation_step(window_sums, keys[0]->anchor, resampled, resampled_valid,
                                     settings.match.min_valid_fraction, step);
         resampled_moved[static_cast<std::size_t>(k)] = 0.0;
         if (!m.converged) continue;

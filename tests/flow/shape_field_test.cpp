@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <functional>
+#include <iostream>
 #include <random>
 
 #include "flow/shape_field.hpp"
@@ -252,6 +253,71 @@ TEST(SubsetTranslationStep, ReportsTooFewValidPixels) {
   AnchorImage other;
   other.assign(reference, half);
   EXPECT_TRUE(subset.translation_step(other, reference, valid, 0.3, step).degenerate);
+}
+
+// The translation step from a window's box sums (WindowSums, one table per round) against the pass over the
+// subset's own pixels: the same sums to rounding, on strides 1 and 2, near the image's edges, beside the
+// table region's inner sides (where the table must refuse) and where part of a window has no resampled value
+// (where the step falls back to the pass).
+TEST(WindowSums, StepFromTheSumsEqualsThePassOverTheWindow) {
+  const int size = 200;
+  const cv::Mat reference = render(size, [](Vec2) { return Vec2{}; });
+  const cv::Mat current = render(size, quadratic_field);
+  cv::Mat mask = cv::Mat::zeros(size, size, CV_8U);
+  cv::ellipse(mask, {100, 100}, {97, 88}, 20.0, 0.0, 360.0, cv::Scalar(1), cv::FILLED);
+  AnchorImage anchor;
+  anchor.assign(reference, mask);
+  const std::vector<Vec2> points = scattered_points(0.0, 200.0, 5);
+  std::vector<Vec2> shifted = displacements(points, quadratic_field);
+  for (Vec2& d : shifted) d = {d.x + 0.3, d.y - 0.2};
+  ShapeField field;
+  field.fit(points, shifted, cv::Rect(0, 0, size, size), 8.0, 20.0);
+  cv::Mat current_mask(size, size, CV_8U, cv::Scalar(1));
+  current_mask(cv::Rect(0, 150, size, 50)).setTo(0);  // the lower rows' pixels get no resampled value
+  cv::Mat out, valid;
+  resample_through(current, current_mask, field, anchor.mask(), cv::Rect(0, 0, size, size), out, valid);
+  // The table's region touches the image's left and top sides and ends inside it on the right and bottom.
+  const cv::Rect region(0, 0, 160, 190);
+  for (int stride : {1, 2}) {
+    WindowSums sums;
+    sums.build(anchor, out, valid, region, stride);
+    int from_sums = 0, refused = 0, partly_invalid = 0;
+    double worst_step = 0.0, worst_zncc = 0.0;
+    for (int cy = 3; cy < size; cy += 7)
+      for (int cx = 3; cx < size; cx += 7) {
+        const int radius = stride == 1 ? 20 : 21;
+        Subset subset;
+        if (!subset.build(anchor, {cx, cy}, radius, stride, ShapeFunction::kTranslation, 40)) continue;
+        WindowSums::Window w;
+        const bool inside = cx + radius < region.x + region.width && cy + radius < region.y + region.height;
+        ASSERT_EQ(sums.window({cx, cy}, radius, w), inside) << cx << "," << cy;
+        if (!inside) {
+          ++refused;
+          continue;
+        }
+        EXPECT_EQ(w.mask, static_cast<double>(subset.pixel_count())) << cx << "," << cy;
+        if (w.outside > 0)
+          ++partly_invalid;
+        else
+          ++from_sums;
+        Vec2 pass_step, sums_step;
+        const MatchResult pass = subset.translation_step(anchor, out, valid, 0.3, pass_step);
+        const MatchResult boxed = subset.translation_step(sums, anchor, out, valid, 0.3, sums_step);
+        ASSERT_EQ(pass.converged, boxed.converged) << cx << "," << cy;
+        EXPECT_EQ(pass.valid_fraction, boxed.valid_fraction);
+        worst_step = std::max(worst_step, std::hypot(pass_step.x - sums_step.x, pass_step.y - sums_step.y));
+        worst_zncc = std::max(worst_zncc, std::abs(pass.zncc - boxed.zncc));
+      }
+    // Float row sums in the pass against double products in the table: measured below 1e-6 px.
+    EXPECT_LT(worst_step, 1e-5) << "stride " << stride;
+    EXPECT_LT(worst_zncc, 1e-6) << "stride " << stride;
+    EXPECT_GT(from_sums, 200) << "stride " << stride;
+    EXPECT_GT(refused, 100) << "stride " << stride;
+    EXPECT_GT(partly_invalid, 20) << "stride " << stride;
+    std::cout << "  stride " << stride << ": " << from_sums << " from the sums, " << partly_invalid
+              << " partly invalid, " << refused << " refused; worst step difference " << worst_step
+              << " px, zncc " << worst_zncc << "\n";
+  }
 }
 
 }  // namespace
