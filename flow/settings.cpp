@@ -115,6 +115,7 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
   s.match.min_valid_fraction = 0.6;
   s.adapt_to_texture = true;
   s.rest_average_frames = 16;
+  s.smooth_in_time = "auto";
   return s;
 }
 
@@ -190,6 +191,8 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   s.rest_average_frames = static_cast<int>(t.integer("rest_average_frames", s.rest_average_frames, 1, 10000));
   s.rest_tolerance_px = t.number("rest_tolerance_px", s.rest_tolerance_px, 0.0, 10.0);
   s.rest_noise_sigmas = t.number("rest_noise_sigmas", s.rest_noise_sigmas, 0.0, 10.0);
+  s.smooth_in_time = t.choice("smooth_in_time", s.smooth_in_time, {"auto", "on", "off"});
+  s.smooth_in_time_gamma = t.number("smooth_in_time_gamma", s.smooth_in_time_gamma, 0.1, 100.0);
   s.plate_subset_radius_px =
       static_cast<int>(t.integer("plate_subset_radius_px", s.plate_subset_radius_px, 0, 200));
   s.plate_prefilter_sigma_px = t.number("plate_prefilter_sigma_px", s.plate_prefilter_sigma_px, 0.0, 10.0);

@@ -131,6 +131,13 @@ struct TrackerSettings {
   double rest_tolerance_px = 0.05;
   double rest_noise_sigmas = 3.0;
 
+  // Positions smoothed in time once the whole trial is tracked (flow/temporal_smoothing.hpp; `process`
+  // applies it, the strain is then computed from the smoothed tracks): "auto" only where the texture is
+  // noisy (the low-SNR subsets, SNR below min_quadratic_snr; there each frame's match is at its bound and
+  // its error is white in time), "on", "off". The automatic preset: auto; delhaye2016: off.
+  std::string smooth_in_time = "off";
+  double smooth_in_time_gamma = 1.5;  // TemporalSmoothing::gamma
+
   // Plate motion from the pattern on the glass.
   // 0: automatic, the largest radius up to 22 px that fits the band (measured on the shipped scenes, 15 /
   // 18 / 20 / 22 / 25 px: default 0.0053 / 0.0053 / 0.0049 / 0.0043 / 0.0044 px RMS, hard_heavy_noise

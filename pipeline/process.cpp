@@ -159,6 +159,46 @@ Scene scene_with_overrides(const ProcessOptions& options, const std::optional<st
   return scene;
 }
 
+// What the frame loop kept of each frame, for replaying the trial without its images.
+struct FrameRows {
+  const std::vector<std::int64_t>& index;
+  const std::vector<std::int64_t>& device_id;
+  const std::vector<std::int64_t>& lost_before;
+  const std::vector<double>& t_s;
+  const std::vector<std::int32_t>& status;
+  const std::vector<char>& usable;
+};
+
+// Lets each stage finish; where one revises its results (finish() returns true), the stages after it are
+// made afresh and run again over the trial replayed from the stages up to it.
+void finish_stages(const Scene& scene, const TrialInfo& trial, const FrameRows& rows,
+                   std::vector<std::unique_ptr<Stage>>& stages, const ProcessOptions& options) {
+  for (std::size_t s = 0; s < stages.size(); ++s) {
+    if (!stages[s]->finish() || s + 1 == stages.size()) continue;
+    if (!options.quiet)
+      std::fprintf(options.log, "tirstrain: %s revised; running the later stages again\n",
+                   stages[s]->name().c_str());
+    StagePlan fresh = plan_stages(scene);
+    for (std::size_t j = s + 1; j < stages.size(); ++j) {
+      stages[j] = std::move(fresh.stages[j]);
+      stages[j]->start(trial);
+    }
+    for (std::size_t row = 0; row < rows.index.size(); ++row) {
+      capture::Frame frame;
+      frame.index = rows.index[row];
+      frame.device_frame_id = rows.device_id[row];
+      frame.frames_lost_before = rows.lost_before[row];
+      frame.device_time_s = rows.t_s[row];
+      frame.status = static_cast<capture::FrameStatus>(rows.status[row]);
+      FrameContext context;
+      context.frame = &frame;
+      context.usable = rows.usable[row] != 0;
+      for (std::size_t j = 0; j <= s; ++j) stages[j]->replay(context, row);
+      for (std::size_t j = s + 1; j < stages.size(); ++j) stages[j]->process(context);
+    }
+  }
+}
+
 }  // namespace
 
 ProcessReport run_process(const ProcessOptions& options) {
@@ -211,6 +251,7 @@ ProcessReport run_process(const ProcessOptions& options) {
   std::vector<std::int64_t> index, device_id, lost_before;
   std::vector<double> t_s;
   std::vector<std::int32_t> frame_status;
+  std::vector<char> usable;
   std::optional<TrialInfo> trial;
   cv::Size display_size;
 
@@ -241,6 +282,7 @@ ProcessReport run_process(const ProcessOptions& options) {
       lost_before.push_back(frame->frames_lost_before);
       t_s.push_back(frame->device_time_s);
       frame_status.push_back(static_cast<std::int32_t>(frame->status));
+      usable.push_back(context.usable ? 1 : 0);
       if (context.contact && (context.contact->status & contact::kNoContact) == 0)
         ++report.frames_with_contact;
 
@@ -262,6 +304,8 @@ ProcessReport run_process(const ProcessOptions& options) {
   }
   progress.finish();
   if (!trial) throw Error("no frame of the input could be decoded", {.file = options.input});
+  finish_stages(scene, *trial, {index, device_id, lost_before, t_s, frame_status, usable}, plan.stages,
+                options);
 
   const std::size_t n = t_s.size();
   // Outputs in order of increasing importance; result.h5 last, so its presence means a complete run.

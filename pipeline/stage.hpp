@@ -73,6 +73,14 @@ class Stage {
   // Per-frame columns appended to frames.csv, and the row for frame `row` (0-based, in processing order).
   virtual std::vector<std::string> csv_header() const { return {}; }
   virtual void csv_row(std::size_t /*row*/, std::vector<std::string>& /*cells*/) const {}
+  // After the last frame, before anything is written. A stage that revises its per-frame results now, with
+  // the whole trial in hand (the tracking stage smooths its tracks in time), returns true: the stages after
+  // it are then made afresh and run over contexts from replay(), so that what they derive follows the
+  // revision (the overlay, drawn while the frames were read, is not redrawn).
+  virtual bool finish() { return false; }
+  // Puts into `context` what process() put there for result row `row`, as revised by finish(): what later
+  // stages read (tracks, plate). Called only on a stage whose finish() returned true, or one before it.
+  virtual void replay(FrameContext& /*context*/, std::size_t /*row*/) {}
   virtual void write(H5Writer& out) const = 0;
   virtual void summarize(nlohmann::json& /*summary*/) const {}
 };

@@ -2,6 +2,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -9,6 +10,7 @@
 
 #include "core/csv.hpp"
 #include "flow/settings.hpp"
+#include "flow/temporal_smoothing.hpp"
 
 namespace tirstrain::pipeline {
 namespace {
@@ -21,6 +23,8 @@ constexpr double kCircularAspect = 0.95;
 
 // What is kept per frame: positions and status of the tracks that existed at that frame (K grows).
 struct TrackFrame {
+  double t_s = kNaN;
+  int tracker_frame = -1;  // -1: not tracked (before the reference frame, or unusable)
   std::vector<Vec2> position_px;
   std::vector<std::int8_t> status;
   std::optional<Vec2> plate_px;
@@ -45,6 +49,7 @@ class TrackingStage final : public Stage {
 
   void process(FrameContext& context) override {
     TrackFrame record;
+    if (context.frame) record.t_s = context.frame->device_time_s;
     const bool has_contact = context.usable && context.contact &&
                              (context.contact->status & contact::kNoContact) == 0 &&
                              context.contact->outline_px.size() >= 3;
@@ -86,6 +91,7 @@ class TrackingStage final : public Stage {
     ++tracked_frames_;
 
     const int frame = tracker_->frame_index();
+    record.tracker_frame = frame;
     tracker_rows_.push_back(static_cast<std::int64_t>(frames_.size()));
     const auto& tracks = tracker_->tracks();
     record.position_px.resize(tracks.size(), Vec2{kNaN, kNaN});
@@ -109,6 +115,33 @@ class TrackingStage final : public Stage {
         FrameContext::Tracking{&tracks, frame, frame == 0, &reference_normalization_, reference_has_ellipse_};
     context.plate_displacement_px = record.plate_px;
     remember(frames_, std::move(record), keep_history_);
+  }
+
+  // Smoothing in time (flow/temporal_smoothing.hpp) once the trial is complete, where the settings in effect
+  // ask for it: "auto" on noisy texture only (the tracker's low-SNR subsets).
+  bool finish() override {
+    if (!keep_history_ || !tracker_) return false;
+    const flow::TrackerSettings& s = tracker_->settings();
+    smoothed_ = s.smooth_in_time == "on" || (s.smooth_in_time == "auto" && tracker_->low_snr_texture());
+    if (!smoothed_) return false;
+    smooth_tracks({.gamma = s.smooth_in_time_gamma});
+    return true;
+  }
+
+  void replay(FrameContext& context, std::size_t row) override {
+    const TrackFrame& f = frames_.at(row);
+    if (f.tracker_frame < 0) return;
+    // The tracks as they were in that frame: status and (revised) position from the row, the rest as now.
+    replay_tracks_ = tracker_->tracks();
+    for (std::size_t k = 0; k < replay_tracks_.size(); ++k) {
+      flow::Track& t = replay_tracks_[k];
+      const bool existed = k < f.status.size() && f.status[k] != kAbsent;
+      t.status = existed ? static_cast<flow::TrackStatus>(f.status[k]) : flow::TrackStatus::kLeftContact;
+      if (existed && flow::is_alive(t.status)) t.position_px = f.position_px[k];
+    }
+    context.tracking = FrameContext::Tracking{&replay_tracks_, f.tracker_frame, f.tracker_frame == 0,
+                                              &reference_normalization_, reference_has_ellipse_};
+    context.plate_displacement_px = f.plate_px;
   }
 
   void draw(cv::Mat& bgr, const FrameContext& context) const override {
@@ -201,6 +234,7 @@ class TrackingStage final : public Stage {
                   "-1 absent (not born yet or retired earlier); 0 tracked; 1 born; 2 recovered; 3 unchecked; "
                   "10 left contact; 11 forward-backward; 12 poor match; 13 inconsistent; 14 left image");
     out.attribute("/tracks", "settings", settings_summary().dump());
+    out.attribute("/tracks", "smoothed_in_time", smoothed_ ? 1.0 : 0.0);
     out.write("/plate/displacement_px", std::span<const double>(plate), {n, 2});
     out.attribute("/plate", "measured", scene_.reference_pattern_roi ? 1.0 : 0.0);
     out.write("/plate/status", std::span<const std::int8_t>(plate_status), {n});
@@ -230,6 +264,11 @@ class TrackingStage final : public Stage {
     s["tracks_alive_last"] = alive_last;
     s["track_ms_per_frame"] =
         tracked_frames_ > 0 ? 1e3 * track_s_ / static_cast<double>(tracked_frames_) : 0.0;
+    s["smoothed_in_time"] = smoothed_;
+    if (smoothed_) {
+      s["smoothed_track_frames"] = smoothed_track_frames_;
+      s["smoothing_noise_px_median"] = smoothing_noise_px_median_;
+    }
     s["plate_measured"] = scene_.reference_pattern_roi.has_value();
     s["plate_frames_predicted"] = plate_frames_not_matched_[0];
     s["plate_frames_flow_only"] = plate_frames_not_matched_[1];
@@ -261,6 +300,54 @@ class TrackingStage final : public Stage {
                 cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * inset + 1, 2 * inset + 1)));
   }
 
+  // Each track's runs of consecutive alive rows, x and y apart, smoothed with their own noise level; the
+  // reference frame keeps its exact position (the displacement is zero there by definition).
+  void smooth_tracks(const flow::TemporalSmoothing& options) {
+    const std::size_t k_total = tracker_->tracks().size();
+    std::vector<double> noise;
+    std::vector<std::size_t> run;
+    std::vector<double> t, x;
+    const auto smooth_run = [&](std::size_t k) {
+      if (static_cast<int>(run.size()) < options.min_samples) return;
+      t.clear();
+      for (std::size_t row : run) t.push_back(frames_[row].t_s);
+      for (int c = 0; c < 2; ++c) {
+        x.clear();
+        for (std::size_t row : run)
+          x.push_back(c == 0 ? frames_[row].position_px[k].x : frames_[row].position_px[k].y);
+        const double sigma = flow::second_difference_noise(x);
+        noise.push_back(sigma);
+        const std::vector<double> smoothed = flow::smooth_in_time(t, x, sigma, options);
+        for (std::size_t i = 0; i < run.size(); ++i) {
+          if (static_cast<std::int64_t>(run[i]) == reference_row_) continue;
+          Vec2& p = frames_[run[i]].position_px[k];
+          (c == 0 ? p.x : p.y) = smoothed[i];
+        }
+      }
+      smoothed_track_frames_ += static_cast<std::int64_t>(run.size());
+    };
+    for (std::size_t k = 0; k < k_total; ++k) {
+      run.clear();
+      for (std::size_t row = 0; row < frames_.size(); ++row) {
+        const TrackFrame& f = frames_[row];
+        const bool alive = k < f.position_px.size() && std::isfinite(f.position_px[k].x) &&
+                           std::isfinite(f.position_px[k].y) && std::isfinite(f.t_s);
+        if (alive) {
+          run.push_back(row);
+        } else {
+          smooth_run(k);
+          run.clear();
+        }
+      }
+      smooth_run(k);
+    }
+    if (!noise.empty()) {
+      const auto mid = noise.begin() + static_cast<std::ptrdiff_t>(noise.size() / 2);
+      std::nth_element(noise.begin(), mid, noise.end());
+      smoothing_noise_px_median_ = *mid;
+    }
+  }
+
   // The settings in effect: the tracker may have adapted them to frame 0's texture.
   nlohmann::json settings_summary() const {
     const flow::TrackerSettings& s = tracker_ ? tracker_->settings() : settings_;
@@ -276,7 +363,8 @@ class TrackingStage final : public Stage {
                         {"border_exclusion_px", s.border_exclusion_px},
                         {"contact_inset_px", s.contact_inset_px},
                         {"max_displacement_px", s.max_displacement_px},
-                        {"rest_average_frames", s.rest_average_frames}};
+                        {"rest_average_frames", s.rest_average_frames},
+                        {"smooth_in_time", s.smooth_in_time}};
     if (tracker_ && s.refine) {
       const flow::TextureQuality& q = tracker_->texture();
       j["texture_snr"] = q.snr;
@@ -304,6 +392,10 @@ class TrackingStage final : public Stage {
   std::array<std::int64_t, 2> plate_frames_not_matched_{};  // predicted, LK only (/plate/status 1, 2)
   std::int64_t rest_frames_averaged_ = 0;
   std::int64_t rest_frames_on_fit_ = 0;
+  bool smoothed_ = false;
+  std::int64_t smoothed_track_frames_ = 0;
+  double smoothing_noise_px_median_ = 0.0;
+  std::vector<flow::Track> replay_tracks_;
 };
 
 }  // namespace

@@ -95,6 +95,15 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_EQ(parse_tracking_settings(scene_with("{}"), "delhaye2016").contact_inset_px, 1.0);
   EXPECT_EQ(parse_tracking_settings(scene_with("{contact_inset_px: 0}")).contact_inset_px, 0.0);
   EXPECT_THROW(parse_tracking_settings(scene_with("{contact_inset_px: -1}")), Error);
+  // Smoothing in time: on noisy texture by the automatic preset, never by the paper's.
+  EXPECT_EQ(parse_tracking_settings(scene_with("{}")).smooth_in_time, "auto");
+  EXPECT_EQ(parse_tracking_settings(scene_with("{}"), "delhaye2016").smooth_in_time, "off");
+  const TrackerSettings smooth =
+      parse_tracking_settings(scene_with("{smooth_in_time: on, smooth_in_time_gamma: 2}"));
+  EXPECT_EQ(smooth.smooth_in_time, "on");
+  EXPECT_EQ(smooth.smooth_in_time_gamma, 2.0);
+  EXPECT_THROW(parse_tracking_settings(scene_with("{smooth_in_time: sometimes}")), Error);
+  EXPECT_THROW(parse_tracking_settings(scene_with("{smooth_in_time_gamma: 0}")), Error);
 }
 
 TEST(Settings, StrictParsingNamesTheKey) {
