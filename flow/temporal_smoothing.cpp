@@ -34,7 +34,7 @@ Estimate line_at(std::span<const double> t, std::span<const double> x, int a, in
 
 }  // namespace
 
-double second_difference_noise(std::span<const double> x) {
+double series_noise(std::span<const double> x) {
   if (x.size() < 4) return 0.0;
   const auto median = [](std::vector<double>& v) {
     const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);

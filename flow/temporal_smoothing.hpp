@@ -6,7 +6,7 @@
 // kept and the three are fused by inverse variance. Where the skin holds still or moves steadily the
 // windows grow and average the noise; where the motion changes (the load's onset, the slip front passing)
 // they shrink to a frame or two, so the change is not smeared. The noise level is each series' own, from
-// its second differences (robust: median absolute deviation).
+// its second and third differences (robust: median absolute deviation).
 //
 // Why it exists: on noisy texture (ridge SNR below 4) each frame's match is at its Cramér–Rao bound and the
 // error is white in time, so only time can average it (bench/studies/temporal_smoothing.py, BENCHMARKS.md
@@ -23,8 +23,8 @@ struct TemporalSmoothing {
   int min_samples = 10;      // shorter series are returned as they are (too few to know their noise)
 };
 
-// Robust noise level of a series from its second differences (σ of one sample, same unit as x).
-double second_difference_noise(std::span<const double> x);
+// Robust noise level of a series (σ of one sample, same unit as x) from its second and third differences.
+double series_noise(std::span<const double> x);
 
 // The smoothed series of samples x at times t_s (increasing), noise level sigma (<= 0: x returned as is).
 std::vector<double> smooth_in_time(std::span<const double> t_s, std::span<const double> x, double sigma,

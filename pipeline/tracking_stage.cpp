@@ -315,7 +315,7 @@ class TrackingStage final : public Stage {
         x.clear();
         for (std::size_t row : run)
           x.push_back(c == 0 ? frames_[row].position_px[k].x : frames_[row].position_px[k].y);
-        const double sigma = flow::second_difference_noise(x);
+        const double sigma = flow::series_noise(x);
         noise.push_back(sigma);
         const std::vector<double> smoothed = flow::smooth_in_time(t, x, sigma, options);
         for (std::size_t i = 0; i < run.size(); ++i) {

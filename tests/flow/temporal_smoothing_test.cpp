@@ -46,12 +46,19 @@ double ramp_and_hold(int i) {
   return i < 5 ? 0.0 : i < 18 ? 12.0 * (i - 5) / 13.0 : 12.0;
 }
 
-TEST(TemporalSmoothing, NoiseLevelFromSecondDifferences) {
+TEST(TemporalSmoothing, NoiseLevelFromDifferences) {
   const Series s = make_series(2000, ramp_and_hold, 0.1, 1);
   // A normal σ from the median absolute deviation of 2000 samples: within a few per cent (the ramp's two
   // kinks are outliers the median ignores).
-  EXPECT_NEAR(second_difference_noise(s.measured), 0.1, 0.006);
-  EXPECT_EQ(second_difference_noise(std::vector<double>{1.0, 2.0}), 0.0);
+  EXPECT_NEAR(series_noise(s.measured), 0.1, 0.006);
+  EXPECT_EQ(series_noise(std::vector<double>{1.0, 2.0}), 0.0);
+  // A track that accelerates in every frame (4 px at 0.3 rad per frame): its second differences are mostly
+  // motion (they alone read 0.14-0.15 px), its third differences mostly noise.
+  for (unsigned seed = 1; seed <= 3; ++seed) {
+    const Series moving = make_series(
+        200, [](int i) { return 4.0 * std::sin(0.3 * i); }, 0.05, seed);
+    EXPECT_NEAR(series_noise(moving.measured), 0.05, 0.012) << seed;
+  }
 }
 
 TEST(TemporalSmoothing, AveragesNoiseAboutAConstant) {
@@ -59,7 +66,7 @@ TEST(TemporalSmoothing, AveragesNoiseAboutAConstant) {
   for (unsigned seed = 1; seed <= 20; ++seed) {
     const Series s = make_series(
         60, [](int) { return 3.0; }, 0.1, seed);
-    const auto out = smooth_in_time(s.t_s, s.measured, second_difference_noise(s.measured));
+    const auto out = smooth_in_time(s.t_s, s.measured, series_noise(s.measured));
     raw += rms(s.measured, s.truth) / 20;
     smoothed += rms(out, s.truth) / 20;
   }
@@ -72,7 +79,7 @@ TEST(TemporalSmoothing, FollowsTheLoadsOnsetAndEnd) {
   double raw = 0.0, smoothed = 0.0, raw_kinks = 0.0, smoothed_kinks = 0.0;
   for (unsigned seed = 1; seed <= 20; ++seed) {
     const Series s = make_series(60, ramp_and_hold, 0.1, seed);
-    const auto out = smooth_in_time(s.t_s, s.measured, second_difference_noise(s.measured));
+    const auto out = smooth_in_time(s.t_s, s.measured, series_noise(s.measured));
     raw += rms(s.measured, s.truth) / 20;
     smoothed += rms(out, s.truth) / 20;
     // Frames 3-7 and 16-20: the onset and the end of the ramp, where a fixed window would cut the corners.
@@ -93,7 +100,7 @@ TEST(TemporalSmoothing, KeepsAJump) {
   for (unsigned seed = 1; seed <= 20; ++seed) {
     const Series s = make_series(
         60, [](int i) { return i < 30 ? 0.0 : 3.0; }, 0.1, seed);
-    const auto out = smooth_in_time(s.t_s, s.measured, second_difference_noise(s.measured));
+    const auto out = smooth_in_time(s.t_s, s.measured, series_noise(s.measured));
     // A jump of 30 σ between frames 29 and 30 stays a jump: each side's windows stop at it.
     for (int i : {28, 29, 30, 31})
       EXPECT_LT(std::abs(out[static_cast<std::size_t>(i)] - s.truth[static_cast<std::size_t>(i)]), 0.3)
@@ -108,7 +115,7 @@ TEST(TemporalSmoothing, NoSampleMovesFurtherThanTwoGammaSigma) {
   for (unsigned seed = 1; seed <= 10; ++seed) {
     const Series s = make_series(
         200, [](int i) { return 4.0 * std::sin(0.3 * i) + (i % 37 < 3 ? 1.5 : 0.0); }, 0.05, seed);
-    const double sigma = second_difference_noise(s.measured);
+    const double sigma = series_noise(s.measured);
     const auto out = smooth_in_time(s.t_s, s.measured, sigma, options);
     for (std::size_t i = 0; i < out.size(); ++i)
       ASSERT_LE(std::abs(out[i] - s.measured[i]), 2.0 * options.gamma * sigma + 1e-12) << i;
