@@ -187,6 +187,20 @@ TEST(ValidateCli, SmoothingInTimeOnNoisyTextureLowersTheErrors) {
   EXPECT_TRUE(summary_says("validate_unsmoothed", "\"smoothed_in_time\": false"));
 }
 
+TEST(ValidateCli, NoisyAndLowContrastScenesMeetTheDisplacementTarget) {
+  // The target for the noisy and low-contrast hard cases, end to end on the shipped 60-frame
+  // scenes: displacement RMS over every alive track and frame <= 0.10 px. Measured 0.0931 and 0.0983 px
+  // (the same to every digit in the Release and the sanitizer build); 0.136 / 0.148 px before the tracks
+  // were smoothed in time.
+  for (const char* scene : {"hard_heavy_noise", "hard_low_contrast"}) {
+    auto rms = validate_shortened(std::string("target_") + scene, scene, 60, "");
+    ASSERT_TRUE(rms.count("displacement,tracks,")) << scene;
+    std::cout << "  " << scene << ": displacement " << rms["displacement,tracks,"] << " px RMS, U error "
+              << rms["U,same triangles,exact"] << " %, c error " << rms["stick_radius_c,model,"] << " %\n";
+    EXPECT_LE(rms["displacement,tracks,"], 0.10) << scene;
+  }
+}
+
 TEST(ValidateCli, ComparesAnExistingTrialAndNamesMissingInputs) {
   const std::string out = fresh_dir("validate_cli");
   // The quick benchmark's cached trial is a real synthesised trial folder.
