@@ -15,22 +15,23 @@ struct Estimate {
   double variance_factor = 0.0;  // variance of the value over σ²
 };
 
-// Value at t0 of the least-squares line through (t[a..b], x[a..b]): with u = t − t0, the intercept and
-// its variance factor (AᵀA)⁻¹ for the column [u, 1].
-Estimate line_at(std::span<const double> t, std::span<const double> x, int a, int b, double t0) {
+// Sums of a line fit about t0 (u = t − t0), grown a sample at a time as the window lengthens.
+struct LineSums {
   double n = 0, su = 0, suu = 0, sx = 0, sux = 0;
-  for (int i = a; i <= b; ++i) {
-    const double u = t[static_cast<std::size_t>(i)] - t0, v = x[static_cast<std::size_t>(i)];
+  void add(double u, double x) {
     n += 1;
     su += u;
     suu += u * u;
-    sx += v;
-    sux += u * v;
+    sx += x;
+    sux += u * x;
   }
-  const double d = n * suu - su * su;
-  if (!(d > 0.0)) return {sx / n, 1.0 / n};
-  return {(suu * sx - su * sux) / d, suu / d};
-}
+  // Value at u = 0 of the least-squares line, and its variance factor (AᵀA)⁻¹ for the column [u, 1].
+  Estimate at_origin() const {
+    const double d = n * suu - su * su;
+    if (!(d > 0.0)) return {sx / n, 1.0 / n};
+    return {(suu * sx - su * sux) / d, suu / d};
+  }
+};
 
 }  // namespace
 
@@ -73,12 +74,22 @@ std::vector<double> smooth_in_time(std::span<const double> t_s, std::span<const 
       const double xi = x[static_cast<std::size_t>(i)];
       double low = xi - options.gamma * sigma, high = xi + options.gamma * sigma;
       Estimate best{xi, 1.0};
+      LineSums sums;
+      sums.add(0.0, xi);
+      int reached = 0;  // half-length already in the sums
       for (int h : kHalfWindows) {
         if (h > options.max_half_window) break;
         const int a = side == kRight ? i : i - h, b = side == kLeft ? i : i + h;
         if (a < 0 || b > n - 1) break;
+        for (int j = reached + 1; j <= h; ++j) {
+          if (side != kRight)
+            sums.add(t_s[static_cast<std::size_t>(i - j)] - t0, x[static_cast<std::size_t>(i - j)]);
+          if (side != kLeft)
+            sums.add(t_s[static_cast<std::size_t>(i + j)] - t0, x[static_cast<std::size_t>(i + j)]);
+        }
+        reached = h;
         if (b - a + 1 < 3) continue;  // a line through two points has no noise estimate to judge it by
-        const Estimate e = line_at(t_s, x, a, b, t0);
+        const Estimate e = sums.at_origin();
         const double sd = sigma * std::sqrt(e.variance_factor);
         low = std::max(low, e.value - options.gamma * sd);
         high = std::min(high, e.value + options.gamma * sd);
