@@ -399,7 +399,7 @@ class ChannelsStage final : public Stage {
       text += "  " + s.name + " " + fmt(v);
     }
     const double scale = std::max(1.0, bgr.cols / 640.0);
-    cv::putText(bgr, text, cv::Point(8, static_cast<int>(68 * scale)), cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale,
+    cv::putText(bgr, text, cv::Point(8, static_cast<int>(116 * scale)), cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale,
                 cv::Scalar(255, 255, 0), static_cast<int>(std::lround(scale)), cv::LINE_AA);
   }
 

@@ -120,12 +120,17 @@ class TrackingStage final : public Stage {
   // Smoothing in time (flow/temporal_smoothing.hpp) once the trial is complete, where the settings in effect
   // ask for it: "auto" on noisy texture only (the tracker's low-SNR subsets).
   bool finish() override {
-    if (!keep_history_ || !tracker_) return false;
-    const flow::TrackerSettings& s = tracker_->settings();
-    smoothed_ = s.smooth_in_time == "on" || (s.smooth_in_time == "auto" && tracker_->low_snr_texture());
+    smoothed_ = will_smooth();
     if (!smoothed_) return false;
-    smooth_tracks({.gamma = s.smooth_in_time_gamma});
+    smooth_tracks({.gamma = tracker_->settings().smooth_in_time_gamma});
     return true;
+  }
+
+  // Known from frame 0 on (the texture is judged there), so the overlay can say it.
+  bool will_smooth() const {
+    if (!keep_history_ || !tracker_) return false;
+    const std::string& mode = tracker_->settings().smooth_in_time;
+    return mode == "on" || (mode == "auto" && tracker_->low_snr_texture());
   }
 
   void replay(FrameContext& context, std::size_t row) override {
@@ -179,6 +184,10 @@ class TrackingStage final : public Stage {
       std::snprintf(text, sizeof text, "tracks: %d alive (+%d, -%d)", f.alive, f.born, f.retired);
     cv::putText(bgr, text, cv::Point(8, static_cast<int>(68 * scale)), cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale,
                 cv::Scalar(255, 255, 255), thick, cv::LINE_AA);
+    // The video shows each frame as tracked; the result files hold the tracks smoothed afterwards.
+    if (will_smooth())
+      cv::putText(bgr, "as tracked; result.h5 smoothed in time", cv::Point(8, static_cast<int>(140 * scale)),
+                  cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale, cv::Scalar(255, 255, 255), thick, cv::LINE_AA);
   }
 
   std::vector<std::string> csv_header() const override {
