@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <vector>
 
 #include "flow/bicubic.hpp"
@@ -25,6 +26,7 @@ inline Vec2 evaluate(const Coef& c, double a, double b) {
 
 void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, double spacing_px,
                          double sigma_px) {
+  if (std::max(1.0, spacing_px) != spacing_ || sigma_px != sigma_) cache_.clear();
   region_ = region;
   spacing_ = std::max(1.0, spacing_px);
   sigma_ = sigma_px;
@@ -36,15 +38,28 @@ void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, do
   const std::size_t node_count = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
   term_start_.assign(node_count + 1, 0);
   terms_.clear();
+  reused_ = 0;
   if (anchor_px.empty() || region.area() <= 0 || !(sigma_px > 0.0)) return;
-  // Samples in buckets one fit radius wide: a node's samples lie in its bucket and the eight around it.
-  const int bcols = static_cast<int>(std::ceil((region.width + 2.0 * radius) / radius)) + 1;
-  const int brows = static_cast<int>(std::ceil((region.height + 2.0 * radius) / radius)) + 1;
+  // Samples in buckets one fit radius wide: a node's samples lie in its bucket and the eight around it. The
+  // buckets sit on multiples of the radius and take their samples in order of position, so a node meets its
+  // samples in the same order whatever the region and the samples' order in the list (the cache below
+  // compares sample lists, and equal lists give the same sums to the last bit).
+  const int bx0 = static_cast<int>(std::floor((region.x - radius) / radius));
+  const int by0 = static_cast<int>(std::floor((region.y - radius) / radius));
+  const int bcols = static_cast<int>(std::floor((region.x + region.width + 2.0 * radius) / radius)) - bx0 + 1;
+  const int brows =
+      static_cast<int>(std::floor((region.y + region.height + 2.0 * radius) / radius)) - by0 + 1;
   const auto bucket_of = [&](double x, double y, int& bx, int& by) {
-    bx = static_cast<int>(std::floor((x - region.x + radius) / radius));
-    by = static_cast<int>(std::floor((y - region.y + radius) / radius));
+    bx = static_cast<int>(std::floor(x / radius)) - bx0;
+    by = static_cast<int>(std::floor(y / radius)) - by0;
     return bx >= 0 && by >= 0 && bx < bcols && by < brows;
   };
+  std::vector<int> order(anchor_px.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int i, int j) {
+    const Vec2 p = anchor_px[static_cast<std::size_t>(i)], q = anchor_px[static_cast<std::size_t>(j)];
+    return p.y != q.y ? p.y < q.y : (p.x != q.x ? p.x < q.x : i < j);
+  });
   std::vector<int> start(static_cast<std::size_t>(bcols * brows) + 1, 0), items(anchor_px.size());
   std::vector<int> bucket(anchor_px.size(), -1);
   for (std::size_t s = 0; s < anchor_px.size(); ++s) {
@@ -56,13 +71,20 @@ void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, do
   }
   for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
   std::vector<int> fill(start.begin(), start.end() - 1);
-  for (std::size_t s = 0; s < anchor_px.size(); ++s)
-    if (bucket[s] >= 0)
-      items[static_cast<std::size_t>(fill[static_cast<std::size_t>(bucket[s])]++)] = static_cast<int>(s);
+  for (int s : order) {
+    const int b = bucket[static_cast<std::size_t>(s)];
+    if (b >= 0) items[static_cast<std::size_t>(fill[static_cast<std::size_t>(b)]++)] = s;
+  }
 
   // Each row of nodes in parallel into its own list, joined in order afterwards.
   std::vector<std::vector<Term>> row_terms(static_cast<std::size_t>(rows_));
   std::vector<std::vector<int>> row_counts(static_cast<std::size_t>(rows_));
+  std::vector<std::vector<std::pair<std::int64_t, CachedNode>>> row_cache(static_cast<std::size_t>(rows_));
+  std::vector<int> row_reused(static_cast<std::size_t>(rows_), 0);
+  const auto node_key = [](double x, double y) {
+    return (static_cast<std::int64_t>(std::llround(4.0 * y)) << 32) ^
+           (static_cast<std::int64_t>(std::llround(4.0 * x)) & 0xffffffffLL);
+  };
   cv::parallel_for_(cv::Range(0, rows_), [&](const cv::Range& range) {
     Eigen::Matrix<double, 6, 6> normal;
     std::vector<Vector6> basis;
@@ -70,6 +92,7 @@ void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, do
     for (int r = range.start; r < range.end; ++r) {
       auto& out = row_terms[static_cast<std::size_t>(r)];
       auto& counts = row_counts[static_cast<std::size_t>(r)];
+      auto& cached = row_cache[static_cast<std::size_t>(r)];
       out.clear();
       counts.assign(static_cast<std::size_t>(cols_), 0);
       for (int c = 0; c < cols_; ++c) {
@@ -92,6 +115,27 @@ void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, do
           }
         const int count = static_cast<int>(members.size());
         if (count < 6) continue;
+        // Each node is visited by one thread only, so its old entry can be moved from.
+        const std::int64_t key = node_key(nx, ny);
+        const auto same_samples = [&](const CachedNode& node) {
+          if (node.samples.size() != members.size()) return false;
+          for (std::size_t k = 0; k < members.size(); ++k) {
+            const Vec2 p = anchor_px[static_cast<std::size_t>(members[k])], q = node.samples[k];
+            if (p.x != q.x || p.y != q.y) return false;
+          }
+          return true;
+        };
+        if (const auto it = cache_.find(key); it != cache_.end() && same_samples(it->second)) {
+          const CachedNode& node = it->second;
+          for (std::size_t k = 0; k < node.rows.size(); ++k) out.push_back({members[k], node.rows[k]});
+          counts[static_cast<std::size_t>(c)] = static_cast<int>(node.rows.size());
+          cached.emplace_back(key, std::move(it->second));
+          ++row_reused[static_cast<std::size_t>(r)];
+          continue;
+        }
+        CachedNode entry;
+        entry.samples.reserve(members.size());
+        for (int m : members) entry.samples.push_back(anchor_px[static_cast<std::size_t>(m)]);
         basis.resize(static_cast<std::size_t>(count));
         normal.setZero();
         for (int k = 0; k < count; ++k) {
@@ -119,18 +163,24 @@ void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, do
         }
         if (!solved) {  // affine; e.g. samples along one line, where the quadratic is ill-posed
           const Eigen::LDLT<Eigen::Matrix3d> f(normal.topLeftCorner<3, 3>());
-          if (!(f.info() == Eigen::Success && f.isPositive() && f.rcond() >= 1e-8)) continue;
-          inverse.topLeftCorner<3, 3>() = f.solve(Eigen::Matrix3d::Identity());
+          if (f.info() == Eigen::Success && f.isPositive() && f.rcond() >= 1e-8) {
+            inverse.topLeftCorner<3, 3>() = f.solve(Eigen::Matrix3d::Identity());
+            solved = true;
+          }
         }
-        if (!inverse.allFinite()) continue;
-        for (int k = 0; k < count; ++k) {
-          Term t;
-          t.sample = members[static_cast<std::size_t>(k)];
-          const Vector6 a = inverse * basis[static_cast<std::size_t>(k)];
-          for (int i = 0; i < 6; ++i) t.a[static_cast<std::size_t>(i)] = a[i];
-          out.push_back(t);
+        if (solved && inverse.allFinite()) {
+          entry.rows.resize(static_cast<std::size_t>(count));
+          for (int k = 0; k < count; ++k) {
+            Term t;
+            t.sample = members[static_cast<std::size_t>(k)];
+            const Vector6 a = inverse * basis[static_cast<std::size_t>(k)];
+            for (int i = 0; i < 6; ++i) t.a[static_cast<std::size_t>(i)] = a[i];
+            entry.rows[static_cast<std::size_t>(k)] = t.a;
+            out.push_back(t);
+          }
+          counts[static_cast<std::size_t>(c)] = count;
         }
-        counts[static_cast<std::size_t>(c)] = count;
+        cached.emplace_back(key, std::move(entry));
       }
     }
   });
@@ -143,6 +193,10 @@ void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, do
     terms_.insert(terms_.end(), row_terms[static_cast<std::size_t>(r)].begin(),
                   row_terms[static_cast<std::size_t>(r)].end());
   }
+  for (int n : row_reused) reused_ += n;
+  cache_.clear();
+  for (auto& row : row_cache)
+    for (auto& [key, node] : row) cache_.emplace(key, std::move(node));
 }
 
 void ShapeField::fit(const std::vector<Vec2>& anchor_px, const std::vector<Vec2>& displacement_px,
