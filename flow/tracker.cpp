@@ -48,10 +48,9 @@ struct TrackState {
   bool matched = false;
   bool suspect = false;
   bool fixed_shape = false;
-  bool exact_reference = false;
-  Eigen::Matrix2d fixed_information =
-      Eigen::Matrix2d::Zero();  // anchored to frame 0 without a birth map: X is a matched frame-0 pixel  //
-                                // this frame's position comes from the fixed-shape pass
+  bool exact_reference = false;  // anchored to frame 0 without a birth map: X is a matched frame-0 pixel
+  // The information of the subset the fixed-shape pass matched this frame for its translation.
+  Eigen::Matrix2d fixed_information = Eigen::Matrix2d::Zero();
   MatchResult match;
 };
 
@@ -301,8 +300,7 @@ void FeatureTracker::Impl::adapt_to_texture(double expected_tracks) {
   // correlated over ~2σ. A quarter of the samples then carries the same information; the main match is
   // 4× cheaper (hard_heavy_noise 0.1396 → 0.1369 px, hard_low_contrast 0.1550 → 0.1522 px, +25 % frames/s
   // tracking only; on the default scene's σ = 1 px it would cost 1 % of accuracy, so not there).
-  if (!pinned.subset_stride && settings.prefilter_sigma_px >= 1.5)
-    settings.subset_stride = std::max(settings.subset_stride, 2);
+  if (!pinned.subset_stride && settings.prefilter_sigma_px >= 1.5) settings.subset_stride = 2;
   // Along its ridges such a subset is pinned down only by the ridges' curvature: at this SNR that leaves
   // ~0.2 px of noise, which only neighbours further away (beyond the overlapping subsets) average out.
   // Fusing twice as wide, as strongly as the track's own information and until it settles, halves the

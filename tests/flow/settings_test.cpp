@@ -35,11 +35,11 @@ TEST(Settings, AutoIsSizedFromTheRidgePeriod) {
   EXPECT_TRUE(s.fixed_shape_pass);
   EXPECT_EQ(s.fixed_shape_radius_px, 20);  // round(0.85 P)
   EXPECT_EQ(s.pyramid_levels, 2);          // 12 px needs two levels above a 23 px window's reach of ~6 px
-  // The fixed-shape rounds on the resampled frame, seeded by an affine match on every 2nd pixel.
+  // The fixed-shape rounds on the resampled frame, seeded by an affine match on every 3rd pixel.
   EXPECT_TRUE(s.fixed_shape_resampled);
   EXPECT_EQ(s.fixed_shape_resampled_rounds, 3);
   EXPECT_EQ(s.shape, ShapeFunction::kAffine);
-  EXPECT_EQ(s.subset_stride, 2);
+  EXPECT_EQ(s.subset_stride, 3);
   h.max_displacement_px = 2.0;
   EXPECT_EQ(preset_settings("auto", h).pyramid_levels, 0);
   h.max_displacement_px = 200.0;  // capped: ridges must survive the pyramid (23.4 / 2^L >= 4 px)
