@@ -177,7 +177,16 @@ struct FeatureTracker::Impl {
   std::vector<float> lk_error;
   std::vector<double> scratch_x, scratch_y;
   std::vector<int> retry;
-  std::vector<Vec2> fused, measured;
+  // fuse(): per alive track, what its sweeps need besides the neighbours' current positions.
+  struct FusionTerm {
+    bool active = false;
+    Eigen::Matrix2d solve = Eigen::Matrix2d::Zero();  // (own information + alpha I)^-1
+    Eigen::Vector2d constant = Eigen::Vector2d::Zero();
+    double scale = 0.0;  // alpha / sum of the neighbours' weights
+  };
+  std::vector<Vec2> fused;
+  std::vector<FusionTerm> fusion_terms;
+  std::vector<std::vector<std::pair<int, double>>> fusion_neighbours;
   std::vector<Warp> shapes;
   std::vector<Mat2d> smoothed;
   // Spatial hash of live tracks by current position.
@@ -1147,50 +1156,67 @@ void FeatureTracker::Impl::fuse() {
   build_hash(true);
   const std::size_t n = alive.size();
   fused.resize(n);
-  measured.resize(n);
-  for (std::size_t k = 0; k < n; ++k) measured[k] = states[static_cast<std::size_t>(alive[k])].candidate;
+  fusion_terms.resize(n);
+  fusion_neighbours.resize(n);
+  // Everything but the neighbours' positions is the same in every sweep (the weights depend on the
+  // reference positions, the neighbours' offsets on the deformation gradients, the system on the track's
+  // own information), so it is set up once and a sweep is a weighted sum per track.
+  cv::parallel_for_(cv::Range(0, static_cast<int>(n)), [&](const cv::Range& range) {
+    for (int k = range.start; k < range.end; ++k) {
+      const int i = alive[static_cast<std::size_t>(k)];
+      const TrackState& st = states[static_cast<std::size_t>(i)];
+      FusionTerm& term = fusion_terms[static_cast<std::size_t>(k)];
+      std::vector<std::pair<int, double>>& list = fusion_neighbours[static_cast<std::size_t>(k)];
+      term.active = false;
+      list.clear();
+      if (!is_alive(tracks[static_cast<std::size_t>(i)].status) || !st.matched || st.suspect) continue;
+      const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
+      const Vec2 p = st.candidate;
+      const Eigen::Matrix2d own = st.fixed_shape ? st.fixed_information : st.subset.translation_information();
+      const double alpha = settings.fusion_weight * 0.5 * own.trace();
+      double wsum = 0.0;
+      Eigen::Vector2d offset_sum = Eigen::Vector2d::Zero();
+      const int cx0 = std::max(0, static_cast<int>((p.x - radius) / hash_cell));
+      const int cx1 = std::min(hash_cols - 1, static_cast<int>((p.x + radius) / hash_cell));
+      const int cy0 = std::max(0, static_cast<int>((p.y - radius) / hash_cell));
+      const int cy1 = std::min(hash_rows - 1, static_cast<int>((p.y + radius) / hash_cell));
+      for (int cy = cy0; cy <= cy1; ++cy)
+        for (int cx = cx0; cx <= cx1; ++cx) {
+          const std::size_t c = static_cast<std::size_t>(cy) * static_cast<std::size_t>(hash_cols) +
+                                static_cast<std::size_t>(cx);
+          for (int h = hash_start[c]; h < hash_start[c + 1]; ++h) {
+            const int j = hash_items[static_cast<std::size_t>(h)];
+            if (j == i) continue;
+            const TrackState& nb = states[static_cast<std::size_t>(j)];
+            const Vec2 Xj = tracks[static_cast<std::size_t>(j)].reference_px;
+            const double dx = X.x - Xj.x, dy = X.y - Xj.y, d2 = dx * dx + dy * dy;
+            if (d2 > radius * radius) continue;
+            const double w = std::exp(-0.5 * d2 / (sigma * sigma));
+            offset_sum += w * 0.5 * (nb.deformation + st.deformation) * Eigen::Vector2d(dx, dy);
+            wsum += w;
+            list.emplace_back(j, w);
+          }
+        }
+      if (wsum <= 0.0) continue;
+      term.active = true;
+      term.solve = (own + alpha * Eigen::Matrix2d::Identity()).inverse();
+      term.scale = alpha / wsum;
+      term.constant = own * Eigen::Vector2d(st.candidate.x, st.candidate.y) + term.scale * offset_sum;
+    }
+  });
   for (int sweep = 0; sweep < settings.fusion_sweeps; ++sweep) {
     cv::parallel_for_(cv::Range(0, static_cast<int>(n)), [&](const cv::Range& range) {
       for (int k = range.start; k < range.end; ++k) {
-        const int i = alive[static_cast<std::size_t>(k)];
-        const TrackState& st = states[static_cast<std::size_t>(i)];
-        fused[static_cast<std::size_t>(k)] = st.candidate;
-        if (!is_alive(tracks[static_cast<std::size_t>(i)].status) || !st.matched || st.suspect) continue;
-        const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
-        const Vec2 p = st.candidate;
-        const Eigen::Matrix2d own =
-            st.fixed_shape ? st.fixed_information : st.subset.translation_information();
-        const double alpha = settings.fusion_weight * 0.5 * own.trace();
-        const Vec2 m = measured[static_cast<std::size_t>(k)];
-        Eigen::Matrix2d a = own;
-        Eigen::Vector2d b = own * Eigen::Vector2d(m.x, m.y);
-        double wsum = 0.0;
+        const FusionTerm& term = fusion_terms[static_cast<std::size_t>(k)];
+        const Vec2 current = states[static_cast<std::size_t>(alive[static_cast<std::size_t>(k)])].candidate;
+        fused[static_cast<std::size_t>(k)] = current;
+        if (!term.active) continue;
         Eigen::Vector2d q_sum = Eigen::Vector2d::Zero();
-        const int cx0 = std::max(0, static_cast<int>((p.x - radius) / hash_cell));
-        const int cx1 = std::min(hash_cols - 1, static_cast<int>((p.x + radius) / hash_cell));
-        const int cy0 = std::max(0, static_cast<int>((p.y - radius) / hash_cell));
-        const int cy1 = std::min(hash_rows - 1, static_cast<int>((p.y + radius) / hash_cell));
-        for (int cy = cy0; cy <= cy1; ++cy)
-          for (int cx = cx0; cx <= cx1; ++cx) {
-            const std::size_t c = static_cast<std::size_t>(cy) * static_cast<std::size_t>(hash_cols) +
-                                  static_cast<std::size_t>(cx);
-            for (int h = hash_start[c]; h < hash_start[c + 1]; ++h) {
-              const int j = hash_items[static_cast<std::size_t>(h)];
-              if (j == i) continue;
-              const TrackState& nb = states[static_cast<std::size_t>(j)];
-              const Vec2 Xj = tracks[static_cast<std::size_t>(j)].reference_px;
-              const double dx = X.x - Xj.x, dy = X.y - Xj.y, d2 = dx * dx + dy * dy;
-              if (d2 > radius * radius) continue;
-              const double w = std::exp(-0.5 * d2 / (sigma * sigma));
-              q_sum += w * (Eigen::Vector2d(nb.candidate.x, nb.candidate.y) +
-                            0.5 * (nb.deformation + st.deformation) * Eigen::Vector2d(dx, dy));
-              wsum += w;
-            }
-          }
-        if (wsum <= 0.0) continue;
-        a += alpha * Eigen::Matrix2d::Identity();
-        b += alpha * q_sum / wsum;
-        const Eigen::Vector2d x = a.inverse() * b;
+        for (const auto& [j, w] : fusion_neighbours[static_cast<std::size_t>(k)]) {
+          const Vec2 c = states[static_cast<std::size_t>(j)].candidate;
+          q_sum += w * Eigen::Vector2d(c.x, c.y);
+        }
+        const Eigen::Vector2d x = term.solve * (term.constant + term.scale * q_sum);
         if (x.allFinite()) fused[static_cast<std::size_t>(k)] = {x.x(), x.y()};
       }
     });
