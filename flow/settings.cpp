@@ -65,14 +65,18 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
   if (name != "auto")
     throw Error("unknown tracking preset '" + name + "' (known: auto, delhaye2016)",
                 {.key = "tracking.preset"});
-  // Sized from the ridge period P: the LK window spans about one period (enough texture to be well posed,
+  // Sized from the ridge period P: the LK window spans most of a period (enough texture to be well posed,
   // small enough that the field is nearly uniform inside it); the refinement subset has a radius of about
   // 0.55 P, where a second-order subset's curvature bias is negligible and its noise is still low; seeds on a
   // grid of P/3 (three samples per ridge period, the finest spacing at which neighbouring subsets still
   // differ). The pyramid is as deep as the largest expected displacement needs, but never so deep that the
   // ridges (P / 2^L px at level L) fall below 4 px and vanish in the pyramid's smoothing.
   s.grid_step_px = std::max(3.0, std::round(period / 3.0));
-  s.window_px = odd(period);
+  // The LK window is 0.7 P (17 px at P = 23.4 px) since session 15: LK only seeds the subset match, and
+  // a window one period wide (23 px) cost half again as much for the same answers (goal trial, tracking
+  // only: +19 % frames/s with the coarser stop below, 0.0346 -> 0.0344 px; BENCHMARKS.md, flow/ session 15).
+  s.window_px = odd(0.7 * period);
+  s.lk_epsilon = 0.1;  // LK stops at 0.1 px steps: the match converges to 0.01 px from there
   s.subset_radius_px = std::max(5, static_cast<int>(std::lround(0.55 * period)));
   s.neighbour_radius_px = 3.0 * s.grid_step_px;
   s.fusion_sigma_px = s.grid_step_px;

@@ -29,12 +29,13 @@ TEST(Settings, AutoIsSizedFromTheRidgePeriod) {
   h.ridge_period_px = 0.45 * 52.0;  // 23.4 px
   h.max_displacement_px = 12.0;
   const TrackerSettings s = preset_settings("auto", h);
-  EXPECT_EQ(s.window_px, 23);
+  EXPECT_EQ(s.window_px, 17);  // odd(0.7 P)
+  EXPECT_DOUBLE_EQ(s.lk_epsilon, 0.1);
   EXPECT_EQ(s.subset_radius_px, 13);
   EXPECT_EQ(s.grid_step_px, 8.0);
   EXPECT_TRUE(s.fixed_shape_pass);
   EXPECT_EQ(s.fixed_shape_radius_px, 20);  // round(0.85 P)
-  EXPECT_EQ(s.pyramid_levels, 2);          // 12 px needs two levels above a 23 px window's reach of ~6 px
+  EXPECT_EQ(s.pyramid_levels, 2);          // 12 px needs two levels above a 17 px window's reach of ~4 px
   // The fixed-shape rounds on the resampled frame, seeded by an affine match on every 3rd pixel.
   EXPECT_TRUE(s.fixed_shape_resampled);
   EXPECT_EQ(s.fixed_shape_resampled_rounds, 3);
