@@ -103,6 +103,12 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
   // −0.2 to +0.6 points either way (BENCHMARKS.md, flow/ session 14). Noisy texture keeps every 2nd pixel
   // and small contacts every pixel (FeatureTracker, adapt_to_texture).
   s.subset_stride = 3;
+  // The rounds' translation steps on every 2nd pixel each way since session 15 (and only those pixels
+  // resampled): a translation needs far fewer samples than the 41×41 window's reach gives it, and the
+  // frames are smoothed by ≥ P/24 ≈ 1 px on every shipped scene but the noise-free one (goal trial, tracking
+  // only: +10 % frames/s at 0.0344 → 0.0345 px before the resampling followed; end to end BENCHMARKS.md,
+  // flow/ session 15). Small contacts keep every pixel (FeatureTracker, adapt_to_texture).
+  s.fixed_shape_stride = 2;
   s.fusion_weight = 0.1;
   s.border_margin_px = s.border_exclusion_px;
   const double reach_px = 0.25 * s.window_px;  // what one level of LK follows reliably
@@ -161,9 +167,10 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   if (refine == "translation") s.shape = ShapeFunction::kTranslation;
   if (refine == "affine") s.shape = ShapeFunction::kAffine;
   if (refine == "quadratic") s.shape = ShapeFunction::kQuadratic;
-  s.pinned = {t.has("refine"), t.has("prefilter_sigma_px"), t.has("subset_radius_px"),
-              t.has("fusion_sigma_px") || t.has("fusion_weight") || t.has("fusion_sweeps"),
-              t.has("subset_stride")};
+  s.pinned = {
+      t.has("refine"),           t.has("prefilter_sigma_px"),
+      t.has("subset_radius_px"), t.has("fusion_sigma_px") || t.has("fusion_weight") || t.has("fusion_sweeps"),
+      t.has("subset_stride"),    t.has("fixed_shape_stride")};
   s.adapt_to_texture = t.boolean("adapt_to_texture", s.adapt_to_texture);
   s.min_quadratic_snr = t.number("min_quadratic_snr", s.min_quadratic_snr, 0.0, 1e6);
   s.min_unfiltered_snr = t.number("min_unfiltered_snr", s.min_unfiltered_snr, 0.0, 1e6);

@@ -162,7 +162,8 @@ struct TrackerSettings {
   // is kept.
   bool adapt_to_texture = false;
   struct Pinned {
-    bool shape = false, prefilter = false, subset_radius = false, fusion = false, subset_stride = false;
+    bool shape = false, prefilter = false, subset_radius = false, fusion = false, subset_stride = false,
+         fixed_shape_stride = false;
   } pinned;
   double min_unfiltered_snr = 30.0;
   double min_quadratic_snr = 4.0;

@@ -344,7 +344,8 @@ void ShapeField::displacement_row(int y, int x_begin, int x_end, Vec2* u, std::u
 }
 
 void resample_through(const cv::Mat& current, const cv::Mat& current_mask, const ShapeField& field,
-                      const cv::Mat& anchor_mask, cv::Rect region, cv::Mat& out, cv::Mat& valid) {
+                      const cv::Mat& anchor_mask, cv::Rect region, cv::Mat& out, cv::Mat& valid,
+                      const PixelClasses& classes) {
   CV_Assert(current.type() == CV_32F && anchor_mask.type() == CV_8U && anchor_mask.size() == current.size());
   out.create(current.size(), CV_32F);
   valid.create(current.size(), CV_8U);
@@ -354,19 +355,24 @@ void resample_through(const cv::Mat& current, const cv::Mat& current_mask, const
   cv::parallel_for_(cv::Range(region.y, region.y + region.height), [&](const cv::Range& range) {
     std::vector<Vec2> u(static_cast<std::size_t>(region.width));
     std::vector<std::uint8_t> defined(static_cast<std::size_t>(region.width));
+    const int stride = classes.stride();
     for (int y = range.start; y < range.end; ++y) {
+      bool row_used = false;
+      classes.for_each_in_row(y, region.x, region.x + std::min(stride, region.width),
+                              [&](int) { row_used = true; });
+      if (!row_used) continue;
       const std::uint8_t* m = anchor_mask.ptr<std::uint8_t>(y);
       float* o = out.ptr<float>(y);
       std::uint8_t* v = valid.ptr<std::uint8_t>(y);
       field.displacement_row(y, region.x, region.x + region.width, u.data(), defined.data());
-      for (int x = region.x; x < region.x + region.width; ++x) {
+      classes.for_each_in_row(y, region.x, region.x + region.width, [&](int x) {
         const std::size_t k = static_cast<std::size_t>(x - region.x);
-        if (m[x] == 0 || !defined[k]) continue;
+        if (m[x] == 0 || !defined[k]) return;
         float g;
-        if (!image.sample(x + u[k].x, y + u[k].y, g)) continue;
+        if (!image.sample(x + u[k].x, y + u[k].y, g)) return;
         o[x] = g;
         v[x] = 1;
-      }
+      });
     }
   });
 }

@@ -532,7 +532,7 @@ MatchResult Subset::solve_translation(const StepSums& s, double min_valid_fracti
 }
 
 void WindowSums::build(const AnchorImage& anchor, const cv::Mat& resampled, const cv::Mat& valid,
-                       cv::Rect region, int stride) {
+                       cv::Rect region, int stride, const PixelClasses& classes) {
   const cv::Mat& img = anchor.image();
   CV_Assert(resampled.type() == CV_32F && valid.type() == CV_8U && valid.size() == resampled.size() &&
             resampled.size() == img.size() && stride >= 1);
@@ -556,9 +556,9 @@ void WindowSums::build(const AnchorImage& anchor, const cv::Mat& resampled, cons
     const std::uint8_t* mrow = anchor.mask().ptr<std::uint8_t>(y);
     const std::uint8_t* vrow = valid.ptr<std::uint8_t>(y);
     const float* grow = resampled.ptr<float>(y);
-    double* cell = sums_.data() + static_cast<std::ptrdiff_t>(ry + stride) * row_step + back;
-    for (int rx = 0; rx < region_.width; ++rx, cell += kChannels) {
-      const int x = region_.x + rx;
+    double* row = sums_.data() + static_cast<std::ptrdiff_t>(ry + stride) * row_step + back;
+    classes.for_each_in_row(y, region_.x, region_.x + region_.width, [&](int x) {
+      double* cell = row + static_cast<std::ptrdiff_t>(x - region_.x) * kChannels;
       double v[kChannels] = {0, 0, 0, 0, 0, 0, 0};
       if (row_inside && x >= 1 && x < img.cols - 1 && mrow[x] != 0) {
         v[0] = 1.0;
@@ -577,7 +577,7 @@ void WindowSums::build(const AnchorImage& anchor, const cv::Mat& resampled, cons
       const double* before = cell - back;
       const double* corner = above - back;
       for (int c = 0; c < kChannels; ++c) cell[c] = v[c] + above[c] + before[c] - corner[c];
-    }
+    });
   }
 }
 

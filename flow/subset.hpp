@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/tensor2.hpp"
+#include "flow/pixel_classes.hpp"
 
 namespace tirstrain::flow {
 
@@ -80,8 +81,9 @@ class WindowSums {
   };
   // Over `region` (clipped to the image), windows sampled every `stride` pixels. `resampled` CV_32F and
   // `valid` CV_8U, both the anchor's size (resample_through, flow/shape_field.hpp).
+  // Only the lattices in `classes` are summed (a window on another one finds no pixels).
   void build(const AnchorImage& anchor, const cv::Mat& resampled, const cv::Mat& valid, cv::Rect region,
-             int stride);
+             int stride, const PixelClasses& classes = PixelClasses());
   int stride() const { return stride_; }
   // The sums over the window of `radius` around `centre`, on the same pixels Subset::build takes (every
   // stride-th, inside the image less its 1 px border). False when the window reaches past the region's side
@@ -134,6 +136,7 @@ class Subset {
   bool empty() const { return points_.empty(); }
   cv::Point centre() const { return centre_; }
   int radius_px() const { return radius_px_; }
+  int stride() const { return stride_; }
   ShapeFunction shape() const { return shape_; }
   std::size_t pixel_count() const { return points_.size(); }
   // How well the subset's texture pins down its translation (2×2, the Hessian's translation block with the

@@ -286,6 +286,7 @@ void FeatureTracker::Impl::adapt_to_texture(double expected_tracks) {
   if (settings.adapt_to_texture && settings.fixed_shape_resampled && expected_tracks < kFewTracks) {
     if (!settings.pinned.shape) settings.shape = ShapeFunction::kQuadratic;
     if (!settings.pinned.subset_stride) settings.subset_stride = 1;
+    if (!settings.pinned.fixed_shape_stride) settings.fixed_shape_stride = 1;
   }
   texture = measure_texture(current_f, mask, period);
   if (!settings.adapt_to_texture || texture.pixels == 0 || texture.snr >= settings.min_unfiltered_snr) return;
@@ -1032,6 +1033,18 @@ void FeatureTracker::Impl::resampled_shape_pass() {
   resampled_moved.assign(n, 0.0);
   for (int i : eligible)
     resampled_position[static_cast<std::size_t>(i)] = states[static_cast<std::size_t>(i)].candidate;
+  // The subsets read every stride-th pixel: only their lattices are resampled (one in four pixels at
+  // stride 2 when the seeds, on multiples of the grid step, share one).
+  PixelClasses lattices(settings.fixed_shape_stride);
+  for (int i : eligible) {
+    const TrackState& st = states[static_cast<std::size_t>(i)];
+    const Subset& subset = st.wide.empty() ? st.subset : st.wide;
+    if (subset.stride() != settings.fixed_shape_stride) {
+      lattices = PixelClasses();
+      break;
+    }
+    lattices.add(subset.centre().x - subset.radius_px(), subset.centre().y - subset.radius_px());
+  }
   for (int round = 0; round < settings.fixed_shape_resampled_rounds; ++round) {
     field_anchor.clear();
     field_displacement.clear();
@@ -1049,8 +1062,9 @@ void FeatureTracker::Impl::resampled_shape_pass() {
     }
     shape_field.fit(field_anchor, field_displacement, region, settings.grid_step_px, sigma);
     resample_through(match_f, match_mask, shape_field, keys[0]->anchor.mask(), region, resampled,
-                     resampled_valid);
-    window_sums.build(keys[0]->anchor, resampled, resampled_valid, region, settings.fixed_shape_stride);
+                     resampled_valid, lattices);
+    window_sums.build(keys[0]->anchor, resampled, resampled_valid, region, settings.fixed_shape_stride,
+                      lattices);
     cv::parallel_for_(cv::Range(0, static_cast<int>(n)), [&](const cv::Range& range) {
       for (int k = range.start; k < range.end; ++k) {
         const int i = eligible[static_cast<std::size_t>(k)];

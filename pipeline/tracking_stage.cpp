@@ -368,6 +368,7 @@ class TrackingStage final : public Stage {
                         {"refine", s.refine ? flow::to_string(s.shape) : std::string("none")},
                         {"subset_radius_px", s.subset_radius_px},
                         {"subset_stride", s.subset_stride},
+                        {"fixed_shape_stride", s.fixed_shape_stride},
                         {"prefilter_sigma_px", s.prefilter_sigma_px},
                         {"border_exclusion_px", s.border_exclusion_px},
                         {"contact_inset_px", s.contact_inset_px},

@@ -41,6 +41,7 @@ TEST(Settings, AutoIsSizedFromTheRidgePeriod) {
   EXPECT_EQ(s.fixed_shape_resampled_rounds, 3);
   EXPECT_EQ(s.shape, ShapeFunction::kAffine);
   EXPECT_EQ(s.subset_stride, 3);
+  EXPECT_EQ(s.fixed_shape_stride, 2);
   h.max_displacement_px = 2.0;
   EXPECT_EQ(preset_settings("auto", h).pyramid_levels, 0);
   h.max_displacement_px = 200.0;  // capped: ridges must survive the pyramid (23.4 / 2^L >= 4 px)
@@ -63,6 +64,8 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_TRUE(parse_tracking_settings(scene_with("{fusion_weight: 0.1}")).pinned.fusion);
   EXPECT_FALSE(s.pinned.subset_stride);
   EXPECT_TRUE(parse_tracking_settings(scene_with("{subset_stride: 1}")).pinned.subset_stride);
+  EXPECT_FALSE(s.pinned.fixed_shape_stride);
+  EXPECT_TRUE(parse_tracking_settings(scene_with("{fixed_shape_stride: 1}")).pinned.fixed_shape_stride);
   EXPECT_FALSE(parse_tracking_settings(scene_with("{adapt_to_texture: false}")).adapt_to_texture);
   EXPECT_FALSE(parse_tracking_settings(scene_with("{}"), "delhaye2016").adapt_to_texture);
   // The anchor is averaged over the frames at rest by the automatic preset only (the paper has no anchor).

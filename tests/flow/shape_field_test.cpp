@@ -358,5 +358,61 @@ TEST(WindowSums, StepFromTheSumsEqualsThePassOverTheWindow) {
   }
 }
 
+// At stride 2 the rounds resample and sum only the lattices their subsets read (PixelClasses): on those
+// pixels the frame and every step are the same as with all pixels; the other lattices stay invalid and
+// their windows find no pixels.
+TEST(WindowSums, OnlyTheSubsetsLatticesAreResampledAndSummed) {
+  const int size = 200;
+  const cv::Mat reference = render(size, [](Vec2) { return Vec2{}; });
+  const cv::Mat current = render(size, quadratic_field);
+  AnchorImage anchor;
+  anchor.assign(reference, cv::Mat());
+  const std::vector<Vec2> points = scattered_points(0.0, 200.0, 6);
+  ShapeField field;
+  field.fit(points, displacements(points, quadratic_field), cv::Rect(0, 0, size, size), 8.0, 20.0);
+  const cv::Rect region(0, 0, size, size);
+  cv::Mat all_out, all_valid, out, valid;
+  resample_through(current, cv::Mat(), field, anchor.mask(), region, all_out, all_valid);
+  PixelClasses lattices(2);
+  lattices.add(40 - 20, 60 - 20);  // subsets of radius 20 centred on even pixels: the (even, even) lattice
+  resample_through(current, cv::Mat(), field, anchor.mask(), region, out, valid, lattices);
+  int resampled = 0, left_out = 0;
+  for (int y = 0; y < size; ++y)
+    for (int x = 0; x < size; ++x) {
+      if (x % 2 == 0 && y % 2 == 0) {
+        ASSERT_EQ(valid.at<std::uint8_t>(y, x), all_valid.at<std::uint8_t>(y, x)) << x << "," << y;
+        if (!valid.at<std::uint8_t>(y, x)) continue;
+        ASSERT_EQ(out.at<float>(y, x), all_out.at<float>(y, x)) << x << "," << y;
+        ++resampled;
+      } else {
+        ASSERT_EQ(valid.at<std::uint8_t>(y, x), 0) << x << "," << y;
+        ++left_out;
+      }
+    }
+  EXPECT_GT(resampled, 9000);
+  EXPECT_EQ(left_out, size * size * 3 / 4);
+  WindowSums all_sums, sums;
+  all_sums.build(anchor, all_out, all_valid, region, 2);
+  sums.build(anchor, out, valid, region, 2, lattices);
+  int compared = 0;
+  for (int cy = 24; cy <= 176; cy += 8)
+    for (int cx = 24; cx <= 176; cx += 8) {
+      Subset subset;
+      ASSERT_TRUE(subset.build(anchor, {cx, cy}, 20, 2, ShapeFunction::kTranslation, 40));
+      Vec2 step_all, step;
+      const MatchResult a = subset.translation_step(all_sums, anchor, all_out, all_valid, 0.6, step_all);
+      const MatchResult b = subset.translation_step(sums, anchor, out, valid, 0.6, step);
+      ASSERT_TRUE(a.converged && b.converged) << cx << "," << cy;
+      EXPECT_EQ(step.x, step_all.x);
+      EXPECT_EQ(step.y, step_all.y);
+      ++compared;
+    }
+  EXPECT_EQ(compared, 400);
+  // A window on another lattice (odd centre) finds none of its pixels in the table.
+  WindowSums::Window w;
+  ASSERT_TRUE(sums.window({101, 100}, 20, w));
+  EXPECT_EQ(w.mask, 0.0);
+}
+
 }  // namespace
 }  // namespace tirstrain::flow
