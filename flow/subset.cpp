@@ -129,17 +129,17 @@ Eigen::MatrixXd truncated_inverse(const Eigen::MatrixXd& h, double relative_floo
 // gradient's reach) and inside the anchor's mask, in row order: visit(dx, dy, x, y, value, gx, gy). Subset
 // building and the translation step on a resampled frame must agree on exactly these pixels.
 template <class Visit>
-void for_each_window_pixel(const AnchorImage& anchor, cv::Point centre, int radius, int stride,
-                           Visit&& visit) {
+void for_each_window_pixel(const AnchorImage& anchor, cv::Point centre, cv::Point first, int radius,
+                           int stride, Visit&& visit) {
   const cv::Mat& img = anchor.image();
-  for (int dy = -radius; dy <= radius; dy += stride) {
+  for (int dy = first.y; dy <= radius; dy += stride) {
     const int y = centre.y + dy;
     if (y < 1 || y >= img.rows - 1) continue;
     const float* row = img.ptr<float>(y);
     const float* gxr = anchor.gx().ptr<float>(y);
     const float* gyr = anchor.gy().ptr<float>(y);
     const std::uint8_t* mrow = anchor.mask().ptr<std::uint8_t>(y);
-    for (int dx = -radius; dx <= radius; dx += stride) {
+    for (int dx = first.x; dx <= radius; dx += stride) {
       const int x = centre.x + dx;
       if (x < 1 || x >= img.cols - 1 || mrow[x] == 0) continue;
       visit(dx, dy, x, y, row[x], gxr[x], gyr[x]);
@@ -199,7 +199,7 @@ void erode_for_matching(const cv::Mat& mask, cv::Mat& out) {
 }
 
 bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, int stride,
-                   ShapeFunction shape, int min_pixels) {
+                   ShapeFunction shape, int min_pixels, Lattice lattice) {
   points_.clear();
   centre_ = centre;
   radius_px_ = radius_px;
@@ -207,7 +207,13 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
   const int n = parameter_count(shape);
   stride = std::max(1, stride);
   stride_ = stride;
-  for_each_window_pixel(anchor, centre, radius_px, stride,
+  first_ = {-radius_px, -radius_px};
+  if (lattice == Lattice::kImage) {
+    // The first pixel at or after the window's corner on the image's lattice (multiples of the stride).
+    const auto up = [stride](int v) { return ((-v) % stride + stride) % stride; };
+    first_ = {-radius_px + up(centre.x - radius_px), -radius_px + up(centre.y - radius_px)};
+  }
+  for_each_window_pixel(anchor, centre, first_, radius_px, stride,
                         [&](int dx, int dy, int, int, float f, float gx, float gy) {
                           points_.push_back({static_cast<float>(dx), static_cast<float>(dy), f, gx, gy});
                         });
@@ -437,7 +443,7 @@ MatchResult Subset::translation_step(const AnchorImage& anchor, const cv::Mat& r
   // (at most 2·radius + 1 terms) and in double across rows: per-pixel double conversions were most of this
   // loop's time when every subset ran it (WindowSums now serves most).
   const int rows = img.rows, cols = img.cols;
-  for (int dy = -radius_px_; dy <= radius_px_; dy += stride_) {
+  for (int dy = first_.y; dy <= radius_px_; dy += stride_) {
     const int y = centre_.y + dy;
     if (y < 1 || y >= rows - 1) continue;
     const float* row = img.ptr<float>(y);
@@ -447,7 +453,7 @@ MatchResult Subset::translation_step(const AnchorImage& anchor, const cv::Mat& r
     const std::uint8_t* vrow = valid.ptr<std::uint8_t>(y);
     const float* grow = resampled.ptr<float>(y);
     float r_jg_x = 0, r_jg_y = 0, r_g = 0, r_gg = 0, r_fg = 0;
-    for (int dx = -radius_px_; dx <= radius_px_; dx += stride_) {
+    for (int dx = first_.x; dx <= radius_px_; dx += stride_) {
       const int x = centre_.x + dx;
       if (x < 1 || x >= cols - 1 || mrow[x] == 0) continue;
       ++seen;
@@ -489,7 +495,7 @@ MatchResult Subset::translation_step(const WindowSums& sums, const AnchorImage& 
                                      const cv::Mat& resampled, const cv::Mat& valid,
                                      double min_valid_fraction, Vec2& step_px) const {
   WindowSums::Window w;
-  if (points_.empty() || sums.stride() != stride_ || !sums.window(centre_, radius_px_, w) ||
+  if (points_.empty() || sums.stride() != stride_ || !sums.window(centre_, first_, radius_px_, w) ||
       w.mask != static_cast<double>(points_.size()) || w.outside != 0.0)
     return translation_step(anchor, resampled, valid, min_valid_fraction, step_px);
   step_px = {};
@@ -581,12 +587,12 @@ void WindowSums::build(const AnchorImage& anchor, const cv::Mat& resampled, cons
   }
 }
 
-bool WindowSums::window(cv::Point centre, int radius, Window& out) const {
+bool WindowSums::window(cv::Point centre, cv::Point first, int radius, Window& out) const {
   if (stride_ < 1) return false;
   // The window's lattice, [x0, x1] × [y0, y1], cut to the region where the region's side is the image's
   // (nothing lies beyond it); past a side inside the image the table has not seen those pixels.
-  int x0 = centre.x - radius, x1 = centre.x - radius + stride_ * ((2 * radius) / stride_);
-  int y0 = centre.y - radius, y1 = centre.y - radius + stride_ * ((2 * radius) / stride_);
+  int x0 = centre.x + first.x, x1 = x0 + stride_ * ((radius - first.x) / stride_);
+  int y0 = centre.y + first.y, y1 = y0 + stride_ * ((radius - first.y) / stride_);
   const int left = region_.x, top = region_.y, right = region_.x + region_.width - 1,
             bottom = region_.y + region_.height - 1;
   const auto cut_low = [&](int& a, int side, bool image_side) {

@@ -88,7 +88,11 @@ class WindowSums {
   // The sums over the window of `radius` around `centre`, on the same pixels Subset::build takes (every
   // stride-th, inside the image less its 1 px border). False when the window reaches past the region's side
   // where that side is not the image's.
-  bool window(cv::Point centre, int radius, Window& out) const;
+  bool window(cv::Point centre, int radius, Window& out) const {
+    return window(centre, {-radius, -radius}, radius, out);
+  }
+  // The same for a window whose lattice starts at centre + first (first.x, first.y in [−radius, 0]).
+  bool window(cv::Point centre, cv::Point first, int radius, Window& out) const;
 
  private:
   static constexpr int kChannels = 7;
@@ -131,8 +135,14 @@ class Subset {
   // Builds the reference subset of (2 radius + 1)² pixels (every `stride`-th pixel) around the integer
   // centre. Returns false (and stays empty) when fewer than `min_pixels` are inside the anchor's mask or
   // the texture cannot determine the shape function's parameters.
+  // Where the every-stride-th pixels lie: on the window's own lattice (from its corner, centre − radius) or
+  // on the image's (multiples of the stride, so that subsets whose centres differ by an odd amount still
+  // read the same pixels; the window is then symmetric but one sample shorter per odd side).
+  enum class Lattice { kWindow, kImage };
   bool build(const AnchorImage& anchor, cv::Point centre, int radius_px, int stride, ShapeFunction shape,
-             int min_pixels);
+             int min_pixels, Lattice lattice = Lattice::kWindow);
+  // The first sample's offset from the centre (−radius each way on the window's lattice).
+  cv::Point first_offset() const { return first_; }
   bool empty() const { return points_.empty(); }
   cv::Point centre() const { return centre_; }
   int radius_px() const { return radius_px_; }
@@ -186,6 +196,7 @@ class Subset {
 
   std::vector<Pixel> points_;
   cv::Point centre_{0, 0};
+  cv::Point first_{0, 0};
   int radius_px_ = 0;
   int stride_ = 1;
   double mean_ = 0.0;  // of the reference pixels (points_ hold them minus this)

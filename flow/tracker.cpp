@@ -419,8 +419,10 @@ bool FeatureTracker::Impl::build_subsets(const AnchorImage& anchor, cv::Point ce
   const int rw = std::max(r, settings.fixed_shape_radius_px);
   if (settings.fixed_shape_pass && (rw > r || settings.fixed_shape_stride != settings.subset_stride)) {
     const int wside = 2 * (rw / settings.fixed_shape_stride) + 1;
+    // On the image's lattice: the resampled rounds then resample and sum one pixel class only, whatever
+    // the parity of the newborns' centres (PixelClasses).
     wide.build(anchor, centre, rw, settings.fixed_shape_stride, ShapeFunction::kTranslation,
-               wside * wside / 3);
+               wside * wside / 3, Subset::Lattice::kImage);
   }
   return true;
 }
@@ -1034,7 +1036,7 @@ void FeatureTracker::Impl::resampled_shape_pass() {
   for (int i : eligible)
     resampled_position[static_cast<std::size_t>(i)] = states[static_cast<std::size_t>(i)].candidate;
   // The subsets read every stride-th pixel: only their lattices are resampled (one in four pixels at
-  // stride 2 when the seeds, on multiples of the grid step, share one).
+  // stride 2: the wide subsets sample the image's lattice).
   PixelClasses lattices(settings.fixed_shape_stride);
   for (int i : eligible) {
     const TrackState& st = states[static_cast<std::size_t>(i)];
@@ -1043,7 +1045,7 @@ void FeatureTracker::Impl::resampled_shape_pass() {
       lattices = PixelClasses();
       break;
     }
-    lattices.add(subset.centre().x - subset.radius_px(), subset.centre().y - subset.radius_px());
+    lattices.add(subset.centre().x + subset.first_offset().x, subset.centre().y + subset.first_offset().y);
   }
   for (int round = 0; round < settings.fixed_shape_resampled_rounds; ++round) {
     field_anchor.clear();
