@@ -113,14 +113,16 @@ void compose_translation(Warp& warp, double tx, double ty) {
 // there (Gauss–Newton then "converges" anywhere along the ridge). Those directions keep their starting
 // value, which comes from the prediction and the neighbours. Judged on the Jacobi-scaled matrix because
 // the parameters mix px, px/px and px/px².
-Eigen::MatrixXd truncated_inverse(const Eigen::MatrixXd& h, double relative_floor) {
-  const Eigen::VectorXd d = h.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
-  const Eigen::MatrixXd scaled = d.asDiagonal() * h * d.asDiagonal();
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(scaled);
-  const Eigen::VectorXd& l = eig.eigenvalues();
+template <int N>
+Eigen::Matrix<double, N, N> truncated_inverse(const Eigen::Matrix<double, N, N>& h, double relative_floor) {
+  using Square = Eigen::Matrix<double, N, N>;
+  const Eigen::Matrix<double, N, 1> d = h.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+  const Square scaled = d.asDiagonal() * h * d.asDiagonal();
+  Eigen::SelfAdjointEigenSolver<Square> eig(scaled);
+  const Eigen::Matrix<double, N, 1>& l = eig.eigenvalues();
   const double floor = relative_floor * l.maxCoeff();
-  Eigen::VectorXd inv(l.size());
-  for (Eigen::Index i = 0; i < l.size(); ++i) inv[i] = l[i] > floor ? 1.0 / l[i] : 0.0;
+  Eigen::Matrix<double, N, 1> inv;
+  for (int i = 0; i < N; ++i) inv[i] = l[i] > floor ? 1.0 / l[i] : 0.0;
   return d.asDiagonal() * (eig.eigenvectors() * inv.asDiagonal() * eig.eigenvectors().transpose()) *
          d.asDiagonal();
 }
@@ -239,22 +241,28 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
     sum_jf_.head(n) += jv.head(n) * p.f;
     sum_ff_ += static_cast<double>(p.f) * p.f;
   }
-  // The parameters mix units (px, px/px, px/px²): judge the conditioning on the scaled Hessian.
-  const Eigen::MatrixXd h = hessian_.topLeftCorner(n, n);
-  const Eigen::VectorXd d = h.diagonal().cwiseMax(1e-30).cwiseSqrt().cwiseInverse();
-  const Eigen::MatrixXd scaled = d.asDiagonal() * h * d.asDiagonal();
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(scaled, Eigen::EigenvaluesOnly);
-  if (sum_ff_ <= 1e-12 || eig.eigenvalues()[0] < 1e-6) {
-    points_.clear();
-    return false;
-  }
-  hessian_inverse_.setZero();
-  hessian_inverse_.topLeftCorner(n, n) = truncated_inverse(h, kEigenFloor);
-  // The inverse of the translation block of H⁻¹ is the Schur complement: the information on (u, v) once the
-  // other parameters are free.
-  information_ = h.inverse().topLeftCorner(2, 2).inverse() / sum_ff_;
-  fixed_information_ = h.topLeftCorner(2, 2) / sum_ff_;
-  return true;
+  // Fixed-size blocks: the runtime-sized decompositions were a few percent of a tracking run (births).
+  const auto finish = [&]<int N>() {
+    using Square = Eigen::Matrix<double, N, N>;
+    // The parameters mix units (px, px/px, px/px²): judge the conditioning on the scaled Hessian.
+    const Square h = hessian_.template topLeftCorner<N, N>();
+    const Eigen::Matrix<double, N, 1> d = h.diagonal().cwiseMax(1e-30).cwiseSqrt().cwiseInverse();
+    const Square scaled = d.asDiagonal() * h * d.asDiagonal();
+    Eigen::SelfAdjointEigenSolver<Square> eig(scaled, Eigen::EigenvaluesOnly);
+    if (sum_ff_ <= 1e-12 || eig.eigenvalues()[0] < 1e-6) return false;
+    hessian_inverse_.setZero();
+    hessian_inverse_.template topLeftCorner<N, N>() = truncated_inverse<N>(h, kEigenFloor);
+    // The inverse of the translation block of H⁻¹ is the Schur complement: the information on (u, v) once
+    // the other parameters are free.
+    information_ = Eigen::Matrix2d(Square(h.inverse()).template topLeftCorner<2, 2>()).inverse() / sum_ff_;
+    fixed_information_ = h.template topLeftCorner<2, 2>() / sum_ff_;
+    return true;
+  };
+  const bool ok = n == 2   ? finish.template operator()<2>()
+                  : n == 6 ? finish.template operator()<6>()
+                           : finish.template operator()<12>();
+  if (!ok) points_.clear();
+  return ok;
 }
 
 double Subset::correlation(const cv::Mat& current, const cv::Mat& current_mask, const Warp& warp) const {
@@ -387,12 +395,20 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
     } else if (outside == 0) {
       dp.head(n).noalias() = -hessian_inverse_.topLeftCorner(n, n) * b.head(n);
     } else {
-      const Eigen::MatrixXd hv = hessian_.topLeftCorner(n, n) - h_out.topLeftCorner(n, n);
-      if (!(hv.diagonal().minCoeff() > 0.0)) {
+      const auto solve = [&]<int N>() {
+        const Eigen::Matrix<double, N, N> hv =
+            hessian_.template topLeftCorner<N, N>() - h_out.template topLeftCorner<N, N>();
+        if (!(hv.diagonal().minCoeff() > 0.0)) return false;
+        dp.template head<N>() = -truncated_inverse<N>(hv, kEigenFloor) * b.template head<N>();
+        return true;
+      };
+      const bool solved = n == 2   ? solve.template operator()<2>()
+                          : n == 6 ? solve.template operator()<6>()
+                                   : solve.template operator()<12>();
+      if (!solved) {
         result.degenerate = true;
         return result;
       }
-      dp.head(n) = -truncated_inverse(hv, kEigenFloor) * Eigen::VectorXd(b.head(n));
     }
     if (!dp.allFinite()) {
       result.degenerate = true;
