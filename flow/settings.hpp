@@ -157,7 +157,8 @@ struct TrackerSettings {
   // twice as far, at full weight; once smoothed by 1.5 px or more, they sample every 2nd pixel each way. The
   // curvature still enters through the fixed-shape pass, from the neighbours. With the resampled rounds
   // (fixed_shape_resampled), a contact of fewer than 300 grid points (mostly border tracks, whose main match
-  // counts on its own) keeps a second-order main match on every pixel. Set by the automatic preset;
+  // counts on its own) keeps a second-order main match on every pixel, and its rounds' steps every pixel
+  // (fixed_shape_stride 1). Set by the automatic preset;
   // what a scene sets itself (refine, prefilter_sigma_px, subset_radius_px, subset_stride, the fusion keys)
   // is kept.
   bool adapt_to_texture = false;
