@@ -159,8 +159,8 @@ struct TrackerSettings {
   // (fixed_shape_resampled), a contact of fewer than 300 grid points (mostly border tracks, whose main match
   // counts on its own) keeps a second-order main match on every pixel, and its rounds' steps every pixel
   // (fixed_shape_stride 1). Set by the automatic preset;
-  // what a scene sets itself (refine, prefilter_sigma_px, subset_radius_px, subset_stride, the fusion keys)
-  // is kept.
+  // what a scene sets itself (refine, prefilter_sigma_px, subset_radius_px, subset_stride,
+  // fixed_shape_stride, the fusion keys) is kept.
   bool adapt_to_texture = false;
   struct Pinned {
     bool shape = false, prefilter = false, subset_radius = false, fusion = false, subset_stride = false,
