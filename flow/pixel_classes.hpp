@@ -12,7 +12,13 @@ class PixelClasses {
   explicit PixelClasses(int stride)
       : stride_(stride < 1 ? 1 : stride), used_(static_cast<std::size_t>(stride_ * stride_), 0) {}
   void add(int x, int y) { used_[index(x, y)] = 1; }
-  bool contains(int x, int y) const { return used_.empty() || used_[index(x, y)] != 0; }
+  // Whether any marked class has pixels on row y.
+  bool has_row(int y) const {
+    if (used_.empty()) return true;
+    for (int cx = 0; cx < stride_; ++cx)
+      if (used_[index(cx, y)]) return true;
+    return false;
+  }
   int stride() const { return stride_; }
   // Calls visit(x) for every pixel of row y in [x_begin, x_end) that belongs to a marked class, in order
   // per class (all pixels, in order, when every class is marked).

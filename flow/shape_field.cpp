@@ -355,12 +355,8 @@ void resample_through(const cv::Mat& current, const cv::Mat& current_mask, const
   cv::parallel_for_(cv::Range(region.y, region.y + region.height), [&](const cv::Range& range) {
     std::vector<Vec2> u(static_cast<std::size_t>(region.width));
     std::vector<std::uint8_t> defined(static_cast<std::size_t>(region.width));
-    const int stride = classes.stride();
     for (int y = range.start; y < range.end; ++y) {
-      bool row_used = false;
-      classes.for_each_in_row(y, region.x, region.x + std::min(stride, region.width),
-                              [&](int) { row_used = true; });
-      if (!row_used) continue;
+      if (!classes.has_row(y)) continue;
       const std::uint8_t* m = anchor_mask.ptr<std::uint8_t>(y);
       float* o = out.ptr<float>(y);
       std::uint8_t* v = valid.ptr<std::uint8_t>(y);
