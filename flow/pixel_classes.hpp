@@ -19,6 +19,7 @@ class PixelClasses {
       if (used_[index(cx, y)]) return true;
     return false;
   }
+  bool has_class(int cx, int cy) const { return used_.empty() || used_[index(cx, cy)] != 0; }
   int stride() const { return stride_; }
   // Calls visit(x) for every pixel of row y in [x_begin, x_end) that belongs to a marked class, in order
   // per class (all pixels, in order, when every class is marked).

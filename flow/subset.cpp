@@ -561,16 +561,22 @@ void WindowSums::build(const AnchorImage& anchor, const cv::Mat& resampled, cons
   image_ = img.size();
   region_ = region & cv::Rect(0, 0, img.cols, img.rows);
   stride_ = stride;
-  width_ = region_.width + stride;
-  const int height = region_.height + stride;
-  sums_.assign(static_cast<std::size_t>(width_) * static_cast<std::size_t>(height) * kChannels, 0.0);
-  // S(y, x) = v(y, x) + S(y − s, x) + S(y, x − s) − S(y − s, x − s): an integral image over each of the
-  // stride² interleaved lattices at once.
-  const std::ptrdiff_t row_step = static_cast<std::ptrdiff_t>(width_) * kChannels;
-  const std::ptrdiff_t back = static_cast<std::ptrdiff_t>(stride) * kChannels;
-  const std::ptrdiff_t up = static_cast<std::ptrdiff_t>(stride) * row_step;
+  // Lattice point (i, j) of class (cx, cy) is pixel (x0 + cx' + i·s, y0 + cy' + j·s), where cx' is the
+  // class's first column in the region: i = (x − x0) / s for every pixel of the class.
+  plane_cols_ = (region_.width + stride - 1) / stride + 1;
+  plane_rows_ = (region_.height + stride - 1) / stride + 1;
+  plane_of_class_.assign(static_cast<std::size_t>(stride * stride), -1);
+  int planes = 0;
+  for (int cy = 0; cy < stride; ++cy)
+    for (int cx = 0; cx < stride; ++cx)
+      if (classes.has_class(cx, cy)) plane_of_class_[static_cast<std::size_t>(cy * stride + cx)] = planes++;
+  sums_.assign(static_cast<std::size_t>(planes) * static_cast<std::size_t>(plane_rows_) *
+                   static_cast<std::size_t>(plane_cols_) * kChannels,
+               0.0);
+  const std::ptrdiff_t row_step = static_cast<std::ptrdiff_t>(plane_cols_) * kChannels;
   for (int ry = 0; ry < region_.height; ++ry) {
     const int y = region_.y + ry;
+    const int cy = y % stride;
     const bool row_inside = y >= 1 && y < img.rows - 1;
     const float* irow = img.ptr<float>(y);
     const float* gxr = anchor.gx().ptr<float>(y);
@@ -578,9 +584,12 @@ void WindowSums::build(const AnchorImage& anchor, const cv::Mat& resampled, cons
     const std::uint8_t* mrow = anchor.mask().ptr<std::uint8_t>(y);
     const std::uint8_t* vrow = valid.ptr<std::uint8_t>(y);
     const float* grow = resampled.ptr<float>(y);
-    double* row = sums_.data() + static_cast<std::ptrdiff_t>(ry + stride) * row_step + back;
+    const std::ptrdiff_t j = ry / stride + 1;
     classes.for_each_in_row(y, region_.x, region_.x + region_.width, [&](int x) {
-      double* cell = row + static_cast<std::ptrdiff_t>(x - region_.x) * kChannels;
+      const int plane = plane_of_class_[static_cast<std::size_t>(cy * stride + x % stride)];
+      // S(j, i) = v + S(j − 1, i) + S(j, i − 1) − S(j − 1, i − 1) on the class's own lattice.
+      double* cell = sums_.data() + (static_cast<std::ptrdiff_t>(plane) * plane_rows_ + j) * row_step +
+                     static_cast<std::ptrdiff_t>((x - region_.x) / stride + 1) * kChannels;
       double v[kChannels] = {0, 0, 0, 0, 0, 0, 0};
       if (row_inside && x >= 1 && x < img.cols - 1 && mrow[x] != 0) {
         v[0] = 1.0;
@@ -595,9 +604,9 @@ void WindowSums::build(const AnchorImage& anchor, const cv::Mat& resampled, cons
           v[1] = 1.0;
         }
       }
-      const double* above = cell - up;
-      const double* before = cell - back;
-      const double* corner = above - back;
+      const double* above = cell - row_step;
+      const double* before = cell - kChannels;
+      const double* corner = above - kChannels;
       for (int c = 0; c < kChannels; ++c) cell[c] = v[c] + above[c] + before[c] - corner[c];
     });
   }
@@ -628,11 +637,14 @@ bool WindowSums::window(cv::Point centre, cv::Point first, int radius, Window& o
     return false;
   out = Window{};
   if (x1 < x0 || y1 < y0) return true;
-  // Table coordinates: shifted by the region's corner and the stride's padding.
-  const int tx1 = x1 - left + stride_, tx0 = x0 - left, ty1 = y1 - top + stride_, ty0 = y0 - top;
+  const int plane = plane_of_class_[static_cast<std::size_t>((y0 % stride_) * stride_ + x0 % stride_)];
+  if (plane < 0) return true;  // a lattice that was not summed holds no pixels
+  // Plane coordinates, past the zero row and column.
+  const int i1 = (x1 - left) / stride_ + 1, i0 = (x0 - left) / stride_, j1 = (y1 - top) / stride_ + 1,
+            j0 = (y0 - top) / stride_;
   double* fields[kChannels] = {&out.mask, &out.outside, &out.g, &out.gg, &out.ig, &out.gxg, &out.gyg};
   for (int c = 0; c < kChannels; ++c)
-    *fields[c] = at(ty1, tx1, c) - at(ty0, tx1, c) - at(ty1, tx0, c) + at(ty0, tx0, c);
+    *fields[c] = at(plane, j1, i1, c) - at(plane, j0, i1, c) - at(plane, j1, i0, c) + at(plane, j0, i0, c);
   return true;
 }
 
