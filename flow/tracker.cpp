@@ -264,12 +264,23 @@ void FeatureTracker::Impl::prepare(const cv::Mat& image, const cv::Mat& contact_
   else
     cv::compare(contact_mask, 0, mask, cv::CMP_NE);
   if (settings.refine) {
-    erode_for_matching(mask, match_mask);
+    // Eroded only around the contact (its bounding box grown past both kernels' reach, where the mask is 0
+    // as it is everywhere else): the same result, and the 0.6 P ellipse over the whole frame was 5 % of
+    // the tracker's instructions on the 640×512 goal trial.
     const int e = static_cast<int>(std::lround(settings.border_exclusion_px));
-    if (e > 0)
-      cv::erode(match_mask, match_mask,
-                cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * e + 1, 2 * e + 1)),
-                cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+    cv::Rect box = cv::boundingRect(mask);
+    const int reach = e + 3;
+    box = cv::Rect(box.x - reach, box.y - reach, box.width + 2 * reach, box.height + 2 * reach) &
+          cv::Rect(0, 0, mask.cols, mask.rows);
+    match_mask.create(mask.size(), CV_8U);
+    match_mask.setTo(0);
+    if (box.area() > 0) {
+      cv::Mat eroded = match_mask(box);
+      erode_for_matching(mask(box), eroded);
+      if (e > 0)
+        cv::erode(eroded, eroded, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * e + 1, 2 * e + 1)),
+                  cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+    }
   }
 }
 
