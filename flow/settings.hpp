@@ -75,6 +75,11 @@ struct TrackerSettings {
   // Every this many pixels of that subset are matched: a translation needs far fewer samples than the
   // second-order solve, and the wide subset's reach (the ridges' curvature) matters more than its density.
   int fixed_shape_stride = 1;
+  // With the resampled rounds, a frame-0 track takes the main match (LK and the subset match) every this
+  // many frames (1, 2 or 4), the tracks sharing the work on the seeding lattice (a checkerboard at 2, one
+  // grid point in four at 4); in between, it starts the rounds from its own motion corrected by the median
+  // correction its matched neighbours needed. A track the rounds do not confirm is matched after all.
+  int main_match_period_frames = 1;
   // The shape is a weighted quadratic fit of the neighbours' displacements (Gaussian weights of this σ, in
   // grid steps, out to 2σ).
   double fixed_shape_sigma_grid = 1.5;
@@ -164,7 +169,7 @@ struct TrackerSettings {
   bool adapt_to_texture = false;
   struct Pinned {
     bool shape = false, prefilter = false, subset_radius = false, fusion = false, subset_stride = false,
-         fixed_shape_stride = false;
+         fixed_shape_stride = false, main_match_period = false;
   } pinned;
   double min_unfiltered_snr = 30.0;
   double min_quadratic_snr = 4.0;

@@ -63,6 +63,7 @@ struct FrameStats {
   int born = 0;
   int retired = 0;
   int recovered = 0;
+  int main_matched = 0;  // tracks that took LK and the main match (the others started from their neighbours)
   bool global_jump = false;      // the frame's prediction came from the global shift, not the tracks' motion
   Vec2 global_shift_px;          // phase-correlation shift of the contact since the previous frame
   int rest_frames_averaged = 0;  // 1: this frame was at rest and joined frame 0's averaged anchor

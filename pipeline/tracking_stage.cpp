@@ -369,6 +369,7 @@ class TrackingStage final : public Stage {
                         {"subset_radius_px", s.subset_radius_px},
                         {"subset_stride", s.subset_stride},
                         {"fixed_shape_stride", s.fixed_shape_stride},
+                        {"main_match_period_frames", s.main_match_period_frames},
                         {"prefilter_sigma_px", s.prefilter_sigma_px},
                         {"border_exclusion_px", s.border_exclusion_px},
                         {"contact_inset_px", s.contact_inset_px},

@@ -29,6 +29,7 @@ Score run_and_score(const samples::Trial& trial, const RenderedTrial& frames, co
           "frame,id,born,status,X,Y,x,y,ex,ey,border_px,stick_px,ridge_nx,ridge_ny,zncc,gxx,gxy,gyx,gyy,"
           "txx,txy,tyx,tyy\n");
   }
+  long alive_before = 0;
   for (int f = 0; f < n; ++f) {
     const auto t0 = std::chrono::steady_clock::now();
     if (f == 0)
@@ -37,6 +38,11 @@ Score run_and_score(const samples::Trial& trial, const RenderedTrial& frames, co
       tracker.track(frames.frames[static_cast<std::size_t>(f)], frames.mask,
                     trial.frame_times_s()[static_cast<std::size_t>(f)]);
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (f > 0) {
+      s.main_matched += tracker.stats().main_matched;
+      s.entering += alive_before;
+    }
+    alive_before = tracker.stats().alive;
     s.rest_frames_averaged += tracker.stats().rest_frames_averaged;
     s.rest_frames_on_fit += tracker.stats().at_rest ? 1 : 0;
     if (f == 0) s.tracks_started = static_cast<int>(tracker.tracks().size());

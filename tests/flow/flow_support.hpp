@@ -58,6 +58,8 @@ struct Score {
   double seconds = 0.0;          // tracking time only (rendering excluded)
   int rest_frames_averaged = 0;  // frames that joined frame 0's anchor (FrameStats::rest_frames_averaged)
   int rest_frames_on_fit = 0;    // frames reported on the rest motion's fit (FrameStats::at_rest)
+  long main_matched = 0;  // track-frames that took the main match (FrameStats::main_matched), frames ≥ 1
+  long entering = 0;      // track-frames alive when their frame began, frames ≥ 1
 };
 
 // Renders every frame first (so timing covers tracking only), then tracks and scores.

@@ -42,6 +42,8 @@ TEST(Settings, AutoIsSizedFromTheRidgePeriod) {
   EXPECT_EQ(s.shape, ShapeFunction::kAffine);
   EXPECT_EQ(s.subset_stride, 3);
   EXPECT_EQ(s.fixed_shape_stride, 2);
+  EXPECT_EQ(s.main_match_period_frames, 4);  // a quarter of the frame-0 tracks take the main match per frame
+  EXPECT_EQ(preset_settings("delhaye2016", h).main_match_period_frames, 1);
   h.max_displacement_px = 2.0;
   EXPECT_EQ(preset_settings("auto", h).pyramid_levels, 0);
   h.max_displacement_px = 200.0;  // capped: ridges must survive the pyramid (23.4 / 2^L >= 4 px)
@@ -66,6 +68,14 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_TRUE(parse_tracking_settings(scene_with("{subset_stride: 1}")).pinned.subset_stride);
   EXPECT_FALSE(s.pinned.fixed_shape_stride);
   EXPECT_TRUE(parse_tracking_settings(scene_with("{fixed_shape_stride: 1}")).pinned.fixed_shape_stride);
+  EXPECT_FALSE(s.pinned.main_match_period);
+  const TrackerSettings every = parse_tracking_settings(scene_with("{main_match_period_frames: 1}"));
+  EXPECT_TRUE(every.pinned.main_match_period);
+  EXPECT_EQ(every.main_match_period_frames, 1);
+  EXPECT_EQ(parse_tracking_settings(scene_with("{main_match_period_frames: 2}")).main_match_period_frames, 2);
+  // The tracks share the work on a checkerboard (2) or a 2×2 pattern (4) of the lattice: 3 has no pattern.
+  EXPECT_THROW(parse_tracking_settings(scene_with("{main_match_period_frames: 3}")), Error);
+  EXPECT_THROW(parse_tracking_settings(scene_with("{main_match_period_frames: 8}")), Error);
   EXPECT_FALSE(parse_tracking_settings(scene_with("{adapt_to_texture: false}")).adapt_to_texture);
   EXPECT_FALSE(parse_tracking_settings(scene_with("{}"), "delhaye2016").adapt_to_texture);
   // The anchor is averaged over the frames at rest by the automatic preset only (the paper has no anchor).
