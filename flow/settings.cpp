@@ -228,6 +228,7 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   s.plate_subset_radius_px =
       static_cast<int>(t.integer("plate_subset_radius_px", s.plate_subset_radius_px, 0, 200));
   s.plate_prefilter_sigma_px = t.number("plate_prefilter_sigma_px", s.plate_prefilter_sigma_px, 0.0, 10.0);
+  s.plate_grid_step_px = t.number("plate_grid_step_px", s.plate_grid_step_px, 4.0, 1000.0);
   t.finish();
   if (s.neighbour_check && !s.refine)
     throw Error(
