@@ -346,17 +346,19 @@ int main(int argc, char** argv) {
     with_tracking.tracking = YAML::Load(y);
     configs.push_back({y, flow::parse_tracking_settings(with_tracking)});
   }
-  std::printf("%-24s %7s %8s %10s %8s %9s %9s %7s %7s %8s\n", "config", "tracks", "alive_end", "points/s",
-              "frames/s", "rms_px", "max_px", ">1px", "born", "plate_px");
+  // matched: the share of track-frames that took LK and the main match (main_match_period_frames).
+  std::printf("%-24s %7s %8s %10s %8s %9s %9s %7s %7s %8s %7s\n", "config", "tracks", "alive_end", "points/s",
+              "frames/s", "rms_px", "max_px", ">1px", "born", "plate_px", "matched");
   for (const Config& c : configs) {
     if (custom.empty() && !only.empty() && c.name != only) continue;
     const flow::testing::Score s = flow::testing::run_and_score(trial, rendered, c.settings, true);
     long tracked = 0;
     for (std::size_t f = 1; f < s.frame_alive.size(); ++f) tracked += s.frame_alive[f];
     const double fps = (frames - 1) / s.seconds;  // frame 0 (seeding) is included in the time
-    std::printf("%-24s %7d %8d %10.0f %8.2f %9.4f %9.3f %7ld %7d %8.4f\n", c.name.c_str(), s.tracks_started,
-                s.frame_alive.back(), tracked / s.seconds, fps, s.rms_px, s.max_px, s.wrong, s.born,
-                s.plate_rms_px);
+    const double matched = s.entering > 0 ? static_cast<double>(s.main_matched) / s.entering : 0.0;
+    std::printf("%-24s %7d %8d %10.0f %8.2f %9.4f %9.3f %7ld %7d %8.4f %7.2f\n", c.name.c_str(),
+                s.tracks_started, s.frame_alive.back(), tracked / s.seconds, fps, s.rms_px, s.max_px, s.wrong,
+                s.born, s.plate_rms_px, matched);
     std::fflush(stdout);
   }
   return 0;

@@ -45,6 +45,7 @@ void PlateTracker::start(const cv::Mat& image_in, const cv::Mat& image_u8, const
   if (settings_.subset_radius_px <= 0)
     settings_.subset_radius_px =
         std::max(3, std::min(kAutomaticRadiusPx, (std::min(roi_.width, roi_.height) - 3) / 2));
+  if (settings_.grid_step_px <= 0.0) settings_.grid_step_px = 2.0 * settings_.subset_radius_px + 1.0;
   if (roi_.width < 2 * settings_.subset_radius_px + 3 || roi_.height < 2 * settings_.subset_radius_px + 3)
     throw Error("the reference pattern band (" + std::to_string(roi.width) + "x" +
                     std::to_string(roi.height) + " px inside the image) is too small for a " +

@@ -109,13 +109,13 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
   // only: +10 % frames/s at 0.0344 → 0.0345 px before the resampling followed; end to end BENCHMARKS.md,
   // flow/ session 15). Small contacts keep every pixel (FeatureTracker, adapt_to_texture).
   s.fixed_shape_stride = 2;
-  // Each frame-0 track takes LK and the main match every 4th frame since session 16, a quarter of them
-  // per frame on a 2×2 pattern of the seeding lattice; the others start the rounds where their matched
-  // neighbours put them. The rounds, not the main match, set the final positions: end to end on every
-  // shipped scene the displacement error is within −15 … +5 % of matching every track every frame
-  // (default 0.0456 -> 0.0442 px, U 3.1 -> 2.9 %; elliptical contact 0.0596 -> 0.0616 px, U 4.3 -> 5.1 %),
-  // for +35-50 % frames/s on the goal trial (BENCHMARKS.md, flow/ session 16). Small contacts match every
-  // track every frame (FeatureTracker, adapt_to_texture).
+  // Each interior frame-0 track takes LK and the main match every 4th frame since session 16, a quarter
+  // of them per frame on a 2×2 pattern of the seeding lattice; the others start the rounds where their
+  // matched neighbours put them. The rounds, not the main match, set the final positions: end to end on
+  // the shipped scenes the displacement error is within −7 … +6 % of matching every track every frame
+  // (default 0.0456 -> 0.0471 px, U 3.1 -> 3.1 %; elliptical contact 0.0596 -> 0.0588 px), for about +30 %
+  // frames/s on the goal trial (BENCHMARKS.md, flow/ session 16). Border tracks, small contacts and
+  // low-SNR texture match every frame (FeatureTracker).
   s.main_match_period_frames = 4;
   s.fusion_weight = 0.1;
   s.border_margin_px = s.border_exclusion_px;
@@ -228,7 +228,10 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   s.plate_subset_radius_px =
       static_cast<int>(t.integer("plate_subset_radius_px", s.plate_subset_radius_px, 0, 200));
   s.plate_prefilter_sigma_px = t.number("plate_prefilter_sigma_px", s.plate_prefilter_sigma_px, 0.0, 10.0);
-  s.plate_grid_step_px = t.number("plate_grid_step_px", s.plate_grid_step_px, 4.0, 1000.0);
+  s.plate_grid_step_px = t.number("plate_grid_step_px", s.plate_grid_step_px, 0.0, 1000.0);
+  if (s.plate_grid_step_px > 0.0 && s.plate_grid_step_px < 4.0)
+    throw Error("plate_grid_step_px must be 0 (automatic) or at least 4 px",
+                {.file = scene.file, .key = t.path_of("plate_grid_step_px")});
   t.finish();
   if (s.neighbour_check && !s.refine)
     throw Error(

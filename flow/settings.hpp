@@ -148,7 +148,7 @@ struct TrackerSettings {
   // 18 / 20 / 22 / 25 px: default 0.0053 / 0.0053 / 0.0049 / 0.0043 / 0.0044 px RMS, hard_heavy_noise
   // 0.034 / 0.038 / 0.023 / 0.021 / 0.022 px).
   int plate_subset_radius_px = 0;
-  double plate_grid_step_px = 24.0;
+  double plate_grid_step_px = 0.0;        // PlateSettings::grid_step_px (0: subsets side by side)
   double plate_prefilter_sigma_px = 0.7;  // PlateSettings::prefilter_sigma_px
 
   // Largest expected skin displacement between consecutive frames (sizes the pyramid).

@@ -789,6 +789,10 @@ bool FeatureTracker::Impl::skips_main_match(int index) const {
   const TrackState& st = states[static_cast<std::size_t>(index)];
   const Track& t = tracks[static_cast<std::size_t>(index)];
   if (st.key != 0 || !st.exact_reference || t.born_frame + 1 >= frame) return false;
+  // Border tracks (their last match had pixels outside the contact) always match: their neighbours lie on
+  // one side, and started from them the rounds left more frame-to-frame jitter there (a noise-free 24-frame
+  // trial smoothed in time: largest move 0.21 px, against 0.13 px matching every track and 0.15 px so).
+  if (st.match.valid_fraction < 0.999) return false;
   const long ix = std::lround(t.reference_px.x / settings.grid_step_px);
   const long iy = std::lround(t.reference_px.y / settings.grid_step_px);
   const long lattice_class = period == 2 ? ((ix + iy) & 1) : ((ix & 1) + 2 * (iy & 1));

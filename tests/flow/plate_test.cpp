@@ -190,8 +190,9 @@ TEST(PlateTracker, HeavyNoiseIsSmoothedAwayBeforeMatching) {
   // Pixel noise σ = 0.04 of full scale (the dots' contrast is 0.48; the hard_heavy_noise scene's band has
   // σ ≈ 0.063 on a pattern of RMS contrast ≈ 0.1), the plate crossing the 48 px band ~3 times at 2.6 px per
   // frame. Resampled by the bicubic kernel, pixel noise varies with the sub-pixel phase and biases each
-  // match; the 0.7 px Gaussian prefilter takes much of it out. Measured here: 0.0207 px RMS with the
-  // prefilter, 0.0232 px without (on the hard_heavy_noise scene, flow_bench: 0.0183 and 0.0212 px).
+  // match; the 0.7 px Gaussian prefilter takes much of it out. Measured here: 0.0210 px RMS with the
+  // prefilter, 0.0222 px without, with the subsets side by side (with subsets every 24 px, overlapping by
+  // half: 0.0207 and 0.0232 px; on the hard_heavy_noise scene, flow_bench: 0.0183 and 0.0212 px).
   const Vec2 step{0.02, -2.6};
   PlateSettings unfiltered;
   unfiltered.prefilter_sigma_px = 0.0;
@@ -200,7 +201,7 @@ TEST(PlateTracker, HeavyNoiseIsSmoothedAwayBeforeMatching) {
   std::printf("heavy noise, 60 frames: plate RMS %.4f px prefiltered, %.4f px unfiltered\n", filtered_rms,
               unfiltered_rms);
   EXPECT_LT(filtered_rms, 0.022);
-  EXPECT_LT(filtered_rms, 0.93 * unfiltered_rms);
+  EXPECT_LT(filtered_rms, 0.97 * unfiltered_rms);
 }
 
 TEST(PlateTracker, NarrowBandGetsTheLargestSubsetItHoldsAndTooNarrowIsAnError) {

@@ -91,6 +91,9 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_EQ(parse_tracking_settings(scene_with("{plate_prefilter_sigma_px: 0}")).plate_prefilter_sigma_px,
             0.0);
   EXPECT_THROW(parse_tracking_settings(scene_with("{plate_prefilter_sigma_px: -1}")), Error);
+  EXPECT_THROW(parse_tracking_settings(scene_with("{plate_grid_step_px: 2}")), Error);
+  EXPECT_EQ(parse_tracking_settings(scene_with("{plate_grid_step_px: 30}")).plate_grid_step_px, 30.0);
+  EXPECT_EQ(parse_tracking_settings(scene_with("{}")).plate_grid_step_px, 0.0);  // subsets side by side
   EXPECT_EQ(parse_tracking_settings(scene_with("{}")).fixed_shape_convergence_px, 0.1);
   EXPECT_EQ(
       parse_tracking_settings(scene_with("{fixed_shape_convergence_px: 0.01}")).fixed_shape_convergence_px,

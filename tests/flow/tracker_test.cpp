@@ -177,11 +177,12 @@ TEST(Tracker, LargeContactSeedsTheResampledRoundsWithACheapMatch) {
 }
 
 TEST(Tracker, TracksThatSkipTheMainMatchLoseNothing) {
-  // The contact of the test above. With main_match_period_frames 4 (the automatic preset) each frame-0
-  // track takes LK and the main match every 4th frame; in between it starts the resampled rounds where its
-  // matched neighbours put it. Against every track matched every frame: measured 0.0107 against 0.0126 px
-  // RMS (max 0.098 against 0.10 px; every 2nd frame 0.0109 px); 42 % of the track-frames matched over these
-  // 10 frames (every track in frame 1, and newborns in their first frame).
+  // The contact of the test above. With main_match_period_frames 4 (the automatic preset) each interior
+  // frame-0 track takes LK and the main match every 4th frame; in between it starts the resampled rounds
+  // where its matched neighbours put them. Border tracks (a subset reaching out of the contact), newborns
+  // and every track in frame 1 match every frame: on this small contact that is most of them.
+  // Measured: 0.0127 px RMS (every 2nd frame 0.0124, every frame 0.0126), max 0.100 px each; 53 % and 66 %
+  // of the track-frames matched.
   YAML::Node root = cm_scene(300, 280, 10, 50.0);
   root["synthesis"]["contact"]["normal_N"] = 2.1;
   const samples::Trial trial(config_of(root));
@@ -199,10 +200,12 @@ TEST(Tracker, TracksThatSkipTheMainMatchLoseNothing) {
   print("main match every 4th frame", quarter);
   print("main match every 2nd frame", half);
   print("main match every frame", all);
+  std::printf("matched: %ld / %ld / %ld of %ld track-frames\n", quarter.main_matched, half.main_matched,
+              all.main_matched, all.entering);
   EXPECT_EQ(all.main_matched, all.entering);
-  EXPECT_LT(quarter.main_matched, 0.5 * static_cast<double>(quarter.entering));
-  EXPECT_GT(quarter.main_matched, 0.2 * static_cast<double>(quarter.entering));
-  EXPECT_LT(half.main_matched, 0.6 * static_cast<double>(half.entering));
+  EXPECT_LT(half.main_matched, 0.75 * static_cast<double>(half.entering));
+  EXPECT_LT(quarter.main_matched, 0.85 * static_cast<double>(half.main_matched));
+  EXPECT_GT(quarter.main_matched, 0.3 * static_cast<double>(quarter.entering));
   EXPECT_EQ(quarter.wrong, 0);
   EXPECT_EQ(half.wrong, 0);
   EXPECT_LT(quarter.rms_px, 1.1 * all.rms_px);
