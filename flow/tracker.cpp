@@ -163,7 +163,7 @@ struct FeatureTracker::Impl {
   bool low_snr = false;
   cv::Rect roi;
   std::vector<cv::Mat> previous_pyramid, current_pyramid;
-  cv::Mat previous_hp, current_hp, hp_blur, hp_weight, hp_small, hp_mask;
+  cv::Mat previous_hp, current_hp, hp_blur, hp_weight, hp_small, hp_quarter, hp_mask;
   // Until the skin first moves (resting), frame 0's anchor is averaged over the frames so far (rest_count
   // of them, up to rest_average_frames; 0: averaging over or off) and tracks report the fitted rest motion.
   bool resting = false;
@@ -247,7 +247,13 @@ struct FeatureTracker::Impl {
   bool build_subsets(const AnchorImage& anchor, cv::Point centre, Subset& subset, Subset& wide) const;
   void follow_rest();
   double ridge_reach_px() const { return 0.25 * settings.window_px; }
-  int high_pass_factor() const { return 4.0 * ridge_reach_px() >= 16.0 ? 2 : 1; }
+  // The global shift's images are reduced by 2 or 4 while the ridges stay at least 5 px apart there.
+  int high_pass_factor() const {
+    const double period = settings.ridge_period_px > 0.0 ? settings.ridge_period_px : settings.window_px;
+    int factor = 1;
+    while (factor < 4 && period / (2 * factor) >= 5.0) factor *= 2;
+    return factor;
+  }
 };
 
 void FeatureTracker::Impl::check_input(const cv::Mat& image, const cv::Mat& contact_mask) const {
@@ -387,16 +393,21 @@ void FeatureTracker::Impl::build_pyramid(const cv::Mat& u8, std::vector<cv::Mat>
 }
 
 // Ridges only, faded out towards the contact border: the border stays put while the skin moves, so its
-// step would otherwise dominate the correlation and pull the global shift to zero. At half resolution when
-// the ridges are at least 16 px apart (8 px there, well clear of the pyramid's smoothing): the shift only
-// has to reveal jumps of more than a quarter period, and the full-resolution filtering (a Gaussian of
-// σ = P/2 over the ROI) took ≈ 15 ms of a 640×512 frame.
+// step would otherwise dominate the correlation and pull the global shift to zero. At half or quarter
+// resolution, as long as the ridges stay at least 5 px apart there (high_pass_factor): the shift only has
+// to reveal jumps of more than a quarter of the LK window, and the full-resolution filtering (a Gaussian of
+// σ = P/2 over the ROI) took ≈ 15 ms of a 640×512 frame; at half resolution the correlation's DFTs were
+// still 8 % of the tracker's instructions on the goal trial (quarter resolution since session 16).
 void FeatureTracker::Impl::high_pass(const cv::Mat& image, cv::Mat& out) {
   const int factor = high_pass_factor();
   const double period = 4.0 * ridge_reach_px() / factor;
   cv::Mat view = image(roi);
-  if (factor == 2) {
+  if (factor > 1) {
     cv::pyrDown(view, hp_small);
+    if (factor == 4) {
+      cv::pyrDown(hp_small, hp_quarter);
+      std::swap(hp_small, hp_quarter);
+    }
     view = hp_small;
     cv::resize(mask(roi), hp_mask, view.size(), 0.0, 0.0, cv::INTER_NEAREST);
   } else {
