@@ -75,10 +75,12 @@ struct TrackerSettings {
   // Every this many pixels of that subset are matched: a translation needs far fewer samples than the
   // second-order solve, and the wide subset's reach (the ridges' curvature) matters more than its density.
   int fixed_shape_stride = 1;
-  // With the resampled rounds, a frame-0 track takes the main match (LK and the subset match) every this
-  // many frames (1, 2 or 4), the tracks sharing the work on the seeding lattice (a checkerboard at 2, one
-  // grid point in four at 4); in between, it starts the rounds from its own motion corrected by the median
-  // correction its matched neighbours needed. A track the rounds do not confirm is matched after all.
+  // With the resampled rounds, an interior frame-0 track takes the main match (LK and the subset match)
+  // every this many frames (1, 2 or 4), the tracks sharing the work on the seeding lattice (a checkerboard
+  // at 2, one grid point in four at 4); in between, it starts the rounds at the median of where its matched
+  // neighbours put it. Border tracks, newborns in their first frame and tracks with too few matched
+  // neighbours match every frame, and a track the rounds do not carry is matched after all (docs/flow.md,
+  // step 7). The automatic preset: 4, and 1 on small contacts and low-SNR texture.
   int main_match_period_frames = 1;
   // The shape is a weighted quadratic fit of the neighbours' displacements (Gaussian weights of this σ, in
   // grid steps, out to 2σ).
