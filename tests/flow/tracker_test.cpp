@@ -139,14 +139,19 @@ TEST(Tracker, SmallContactKeepsEveryPixel) {
   EXPECT_EQ(probe.settings().main_match_period_frames, 1);
 }
 
+// 300×280 px, 10 frames, ≈ 500 grid points of contact: large enough for the resampled rounds.
+YAML::Node large_contact_scene() {
+  YAML::Node root = cm_scene(300, 280, 10, 50.0);
+  root["synthesis"]["contact"]["normal_N"] = 2.1;
+  return root;
+}
+
 TEST(Tracker, LargeContactSeedsTheResampledRoundsWithACheapMatch) {
   // A contact of ≈ 500 grid points (radius ≈ 100 px, ≈ 260 tracks inside the border margin): the automatic
   // preset's frame-0 tracks get their final positions from the resampled fixed-shape rounds, so the main
   // match only seeds them, affine on every 3rd pixel. It must lose nothing against the full second-order
   // match on every pixel.
-  YAML::Node root = cm_scene(300, 280, 10, 50.0);
-  root["synthesis"]["contact"]["normal_N"] = 2.1;
-  const samples::Trial trial(config_of(root));
+  const samples::Trial trial(config_of(large_contact_scene()));
   const auto frames = render(trial, true);
   FeatureTracker probe(auto_settings());
   probe.start(frames.frames[0], frames.mask, 0.0);
@@ -167,7 +172,8 @@ TEST(Tracker, LargeContactSeedsTheResampledRoundsWithACheapMatch) {
   print("auto (affine seed, resampled rounds)", cheap);
   print("second-order seed, resampled rounds", second_order);
   print("second-order seed, rounds subset by subset", before);
-  // Measured: 0.0126 px RMS (max 0.10 px; session 14, rounds on every pixel: 0.0131 px, max 0.11 px; seed on
+  // Measured: 0.0127 px RMS (max 0.10 px; 0.0126 px before the main match every 4th frame; session 14, rounds
+  // on every pixel: 0.0131 px, max 0.11 px; seed on
   // every 2nd pixel: 0.0129 px, max 0.12 px) against 0.0166 px with
   // the second-order seed and 0.0209 px with the rounds subset by subset (max 0.35 px); none > 1 px.
   EXPECT_EQ(cheap.wrong, 0);
@@ -183,9 +189,7 @@ TEST(Tracker, TracksThatSkipTheMainMatchLoseNothing) {
   // and every track in frame 1 match every frame: on this small contact that is most of them.
   // Measured: 0.0127 px RMS (every 2nd frame 0.0124, every frame 0.0126), max 0.100 px each; 53 % and 66 %
   // of the track-frames matched.
-  YAML::Node root = cm_scene(300, 280, 10, 50.0);
-  root["synthesis"]["contact"]["normal_N"] = 2.1;
-  const samples::Trial trial(config_of(root));
+  const samples::Trial trial(config_of(large_contact_scene()));
   const auto frames = render(trial, true);
   TrackerSettings every = auto_settings();
   every.main_match_period_frames = 1;
