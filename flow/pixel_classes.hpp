@@ -19,6 +19,17 @@ class PixelClasses {
       if (used_[index(cx, y)]) return true;
     return false;
   }
+  // The one column class x mod stride marked on row y, or −1 when none or several are (or all pixels are).
+  int single_column_class(int y) const {
+    if (used_.empty()) return -1;
+    int found = -1;
+    for (int cx = 0; cx < stride_; ++cx) {
+      if (!used_[index(cx, y)]) continue;
+      if (found >= 0) return -1;
+      found = cx;
+    }
+    return found;
+  }
   bool has_class(int cx, int cy) const { return used_.empty() || used_[index(cx, cy)] != 0; }
   int stride() const { return stride_; }
   // Calls visit(x) for every pixel of row y in [x_begin, x_end) that belongs to a marked class, in order

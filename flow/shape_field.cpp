@@ -26,24 +26,28 @@ inline Vec2 evaluate(const Coef& c, double a, double b) {
 
 void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, double spacing_px,
                          double sigma_px) {
-  if (std::max(1.0, spacing_px) != spacing_ || sigma_px != sigma_) cache_.clear();
+  if (std::max(1.0, spacing_px) != spacing_ || sigma_px != sigma_) operators_.clear();
   region_ = region;
   spacing_ = std::max(1.0, spacing_px);
   sigma_ = sigma_px;
+  const std::vector<Vec2> previous = std::move(anchors_);
   anchors_ = anchor_px;
   const double radius = 2.0 * sigma_px;
   scale_ = radius;
   cols_ = static_cast<int>(std::ceil(region.width / spacing_)) + 1;
   rows_ = static_cast<int>(std::ceil(region.height / spacing_)) + 1;
   const std::size_t node_count = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
-  term_start_.assign(node_count + 1, 0);
-  terms_.clear();
+  node_operator_.assign(node_count, nullptr);
   reused_ = 0;
-  if (anchor_px.empty() || region.area() <= 0 || !(sigma_px > 0.0)) return;
+  ++generation_;
+  if (anchor_px.empty() || region.area() <= 0 || !(sigma_px > 0.0)) {
+    operators_.clear();
+    return;
+  }
   // Samples in buckets one fit radius wide: a node's samples lie in its bucket and the eight around it. The
   // buckets sit on multiples of the radius and take their samples in order of position, so a node meets its
-  // samples in the same order whatever the region and the samples' order in the list (the cache below
-  // compares sample lists, and equal lists give the same sums to the last bit).
+  // samples in the same order whatever the region and the samples' order in the list (equal sample lists
+  // give the same sums to the last bit).
   const int bx0 = static_cast<int>(std::floor((region.x - radius) / radius));
   const int by0 = static_cast<int>(std::floor((region.y - radius) / radius));
   const int bcols = static_cast<int>(std::floor((region.x + region.width + 2.0 * radius) / radius)) - bx0 + 1;
@@ -54,51 +58,122 @@ void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, do
     by = static_cast<int>(std::floor(y / radius)) - by0;
     return bx >= 0 && by >= 0 && bx < bcols && by < brows;
   };
-  std::vector<int> order(anchor_px.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](int i, int j) {
-    const Vec2 p = anchor_px[static_cast<std::size_t>(i)], q = anchor_px[static_cast<std::size_t>(j)];
-    return p.y != q.y ? p.y < q.y : (p.x != q.x ? p.x < q.x : i < j);
-  });
-  std::vector<int> start(static_cast<std::size_t>(bcols * brows) + 1, 0), items(anchor_px.size());
-  std::vector<int> bucket(anchor_px.size(), -1);
-  for (std::size_t s = 0; s < anchor_px.size(); ++s) {
-    int bx, by;
-    const Vec2 p = anchor_px[s];
-    if (!(std::isfinite(p.x) && std::isfinite(p.y)) || !bucket_of(p.x, p.y, bx, by)) continue;
-    bucket[s] = by * bcols + bx;
-    ++start[static_cast<std::size_t>(bucket[s]) + 1];
-  }
-  for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
-  std::vector<int> fill(start.begin(), start.end() - 1);
-  for (int s : order) {
-    const int b = bucket[static_cast<std::size_t>(s)];
-    if (b >= 0) items[static_cast<std::size_t>(fill[static_cast<std::size_t>(b)]++)] = s;
-  }
+  const auto before = [](Vec2 p, Vec2 q) { return p.y != q.y ? p.y < q.y : p.x < q.x; };
+  const auto sorted = [&](const std::vector<Vec2>& points) {
+    std::vector<int> order(points.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(), [&](int i, int j) {
+      const Vec2 p = points[static_cast<std::size_t>(i)], q = points[static_cast<std::size_t>(j)];
+      return before(p, q) || (!before(q, p) && i < j);
+    });
+    return order;
+  };
+  const std::vector<int> order = sorted(anchor_px);
 
-  // Each row of nodes in parallel into its own list, joined in order afterwards.
-  std::vector<std::vector<Term>> row_terms(static_cast<std::size_t>(rows_));
-  std::vector<std::vector<int>> row_counts(static_cast<std::size_t>(rows_));
-  std::vector<std::vector<std::pair<std::int64_t, CachedNode>>> row_cache(static_cast<std::size_t>(rows_));
-  std::vector<int> row_reused(static_cast<std::size_t>(rows_), 0);
+  // The previous list's samples in this one (the same position), and the positions that came or went: only
+  // the nodes within a fit radius of those gather their samples again.
+  std::vector<int> renumber(previous.size(), -1);
+  std::vector<Vec2> changed;
+  bool all_changed = operators_.empty();
+  const auto finite = [](Vec2 p) { return std::isfinite(p.x) && std::isfinite(p.y); };
+  const auto same = [](Vec2 p, Vec2 q) { return p.x == q.x && p.y == q.y; };
+  for (std::size_t k = 1; k < order.size() && !all_changed;
+       ++k)  // a position twice: no one-to-one renumbering
+    all_changed = same(anchor_px[static_cast<std::size_t>(order[k - 1])],
+                       anchor_px[static_cast<std::size_t>(order[k])]);
+  if (!all_changed) {
+    const std::vector<int> old_order = sorted(previous);
+    std::size_t i = 0, j = 0;
+    while (i < old_order.size() || j < order.size()) {
+      const int o = i < old_order.size() ? old_order[i] : -1, n = j < order.size() ? order[j] : -1;
+      const Vec2 p = o >= 0 ? previous[static_cast<std::size_t>(o)] : Vec2{};
+      const Vec2 q = n >= 0 ? anchor_px[static_cast<std::size_t>(n)] : Vec2{};
+      if (o >= 0 && n >= 0 && same(p, q)) {
+        renumber[static_cast<std::size_t>(o)] = n;
+        ++i, ++j;
+      } else if (n < 0 || (o >= 0 && before(p, q))) {
+        if (finite(p)) changed.push_back(p);
+        ++i;
+      } else {
+        if (finite(q)) changed.push_back(q);
+        ++j;
+      }
+    }
+  }
+  std::vector<std::uint8_t> gather(node_count, all_changed ? 1 : 0);
+  for (const Vec2 p : changed) {
+    const int c0 = std::max(0, static_cast<int>(std::floor((p.x - radius - region.x) / spacing_)));
+    const int c1 = std::min(cols_ - 1, static_cast<int>(std::ceil((p.x + radius - region.x) / spacing_)));
+    const int r0 = std::max(0, static_cast<int>(std::floor((p.y - radius - region.y) / spacing_)));
+    const int r1 = std::min(rows_ - 1, static_cast<int>(std::ceil((p.y + radius - region.y) / spacing_)));
+    for (int r = r0; r <= r1; ++r)
+      std::fill(gather.begin() + r * cols_ + c0, gather.begin() + r * cols_ + c1 + 1, std::uint8_t{1});
+  }
   const auto node_key = [](double x, double y) {
     return (static_cast<std::int64_t>(std::llround(4.0 * y)) << 32) ^
            (static_cast<std::int64_t>(std::llround(4.0 * x)) & 0xffffffffLL);
   };
+  // Every node in reach of the buckets gets its operator here, before the parallel part: each thread then
+  // writes only its own nodes' entries.
+  for (int r = 0; r < rows_; ++r)
+    for (int c = 0; c < cols_; ++c) {
+      const double nx = region.x + c * spacing_, ny = region.y + r * spacing_;
+      int bx, by;
+      if (!bucket_of(nx, ny, bx, by)) continue;
+      const std::size_t node = static_cast<std::size_t>(r * cols_ + c);
+      const auto [it, added] = operators_.try_emplace(node_key(nx, ny));
+      if (added) gather[node] = 1;
+      it->second.generation = generation_;
+      node_operator_[node] = &it->second;
+    }
+  for (auto it = operators_.begin(); it != operators_.end();)
+    it = it->second.generation == generation_ ? std::next(it) : operators_.erase(it);
+
+  std::vector<int> start, items;
+  if (std::find(gather.begin(), gather.end(), std::uint8_t{1}) != gather.end()) {
+    start.assign(static_cast<std::size_t>(bcols * brows) + 1, 0);
+    items.resize(anchor_px.size());
+    std::vector<int> bucket(anchor_px.size(), -1);
+    for (std::size_t s = 0; s < anchor_px.size(); ++s) {
+      int bx, by;
+      const Vec2 p = anchor_px[s];
+      if (!finite(p) || !bucket_of(p.x, p.y, bx, by)) continue;
+      bucket[s] = by * bcols + bx;
+      ++start[static_cast<std::size_t>(bucket[s]) + 1];
+    }
+    for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (int s : order) {
+      const int b = bucket[static_cast<std::size_t>(s)];
+      if (b >= 0) items[static_cast<std::size_t>(fill[static_cast<std::size_t>(b)]++)] = s;
+    }
+  }
+
+  std::vector<int> row_reused(static_cast<std::size_t>(rows_), 0);
   cv::parallel_for_(cv::Range(0, rows_), [&](const cv::Range& range) {
     Eigen::Matrix<double, 6, 6> normal;
     std::vector<Vector6> basis;
     std::vector<int> members;
     for (int r = range.start; r < range.end; ++r) {
-      auto& out = row_terms[static_cast<std::size_t>(r)];
-      auto& counts = row_counts[static_cast<std::size_t>(r)];
-      auto& cached = row_cache[static_cast<std::size_t>(r)];
-      out.clear();
-      counts.assign(static_cast<std::size_t>(cols_), 0);
       for (int c = 0; c < cols_; ++c) {
+        const std::size_t node = static_cast<std::size_t>(r * cols_ + c);
+        NodeOperator* op = node_operator_[node];
+        if (!op) continue;
+        if (!gather[node]) {
+          // The same samples as last time, renumbered.
+          bool kept = true;
+          for (int& s : op->samples) {
+            s = renumber[static_cast<std::size_t>(s)];
+            kept = kept && s >= 0;
+          }
+          if (kept) {
+            if (!op->rows.empty()) ++row_reused[static_cast<std::size_t>(r)];
+            continue;
+          }
+        }
         const double nx = region.x + c * spacing_, ny = region.y + r * spacing_;
         int bx, by;
-        if (!bucket_of(nx, ny, bx, by)) continue;
+        bucket_of(nx, ny, bx, by);
         members.clear();
         int quadrants = 0;
         for (int y = std::max(0, by - 1); y <= std::min(brows - 1, by + 1); ++y)
@@ -114,41 +189,39 @@ void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, do
             }
           }
         const int count = static_cast<int>(members.size());
-        if (count < 6) continue;
-        // Each node is visited by one thread only, so its old entry can be moved from.
-        const std::int64_t key = node_key(nx, ny);
-        const auto same_samples = [&](const CachedNode& node) {
-          if (node.samples.size() != members.size()) return false;
-          for (std::size_t k = 0; k < members.size(); ++k) {
-            const Vec2 p = anchor_px[static_cast<std::size_t>(members[k])], q = node.samples[k];
-            if (p.x != q.x || p.y != q.y) return false;
-          }
-          return true;
-        };
-        if (const auto it = cache_.find(key); it != cache_.end() && same_samples(it->second)) {
-          const CachedNode& node = it->second;
-          for (std::size_t k = 0; k < node.rows.size(); ++k) out.push_back({members[k], node.rows[k]});
-          counts[static_cast<std::size_t>(c)] = static_cast<int>(node.rows.size());
-          cached.emplace_back(key, std::move(it->second));
+        // Samples at the same positions as the operator's (its indices still those of the previous list).
+        const bool same_samples =
+            op->samples.size() == members.size() &&
+            std::equal(members.begin(), members.end(), op->samples.begin(), [&](int m, int s) {
+              return s >= 0 && static_cast<std::size_t>(s) < previous.size() &&
+                     same(anchor_px[static_cast<std::size_t>(m)], previous[static_cast<std::size_t>(s)]);
+            });
+        op->samples = members;
+        if (same_samples && !op->rows.empty()) {
           ++row_reused[static_cast<std::size_t>(r)];
           continue;
         }
-        CachedNode entry;
-        entry.samples.reserve(members.size());
-        for (int m : members) entry.samples.push_back(anchor_px[static_cast<std::size_t>(m)]);
+        op->rows.clear();
+        if (count < 6) continue;
         basis.resize(static_cast<std::size_t>(count));
-        normal.setZero();
+        // The upper triangle of N = Σ w_k b_k b_kᵀ by hand: Eigen's rank update of a fixed 6×6 took 4 times
+        // the instructions.
+        double upper[21] = {};
         for (int k = 0; k < count; ++k) {
           const Vec2 p = anchor_px[static_cast<std::size_t>(members[static_cast<std::size_t>(k)])];
           const double dx = p.x - nx, dy = p.y - ny;
           const double w = std::exp(-0.5 * (dx * dx + dy * dy) / (sigma_px * sigma_px));
           const double a = dx / scale_, bb = dy / scale_;
-          Vector6& v = basis[static_cast<std::size_t>(k)];
-          v << 1.0, a, bb, a * a, a * bb, bb * bb;
-          normal.selfadjointView<Eigen::Upper>().rankUpdate(v, w);
-          v *= w;
+          const double v[6] = {1.0, a, bb, a * a, a * bb, bb * bb};
+          for (int i = 0, e = 0; i < 6; ++i) {
+            const double wv = w * v[i];
+            for (int j = i; j < 6; ++j, ++e) upper[e] += wv * v[j];
+          }
+          Vector6& wb = basis[static_cast<std::size_t>(k)];
+          for (int i = 0; i < 6; ++i) wb[i] = w * v[i];
         }
-        normal.triangularView<Eigen::StrictlyLower>() = normal.transpose();
+        for (int i = 0, e = 0; i < 6; ++i)
+          for (int j = i; j < 6; ++j, ++e) normal(i, j) = normal(j, i) = upper[e];
         const int sides =
             (quadrants & 1) + ((quadrants >> 1) & 1) + ((quadrants >> 2) & 1) + ((quadrants >> 3) & 1);
         // The operator rows: coef = N⁻¹ Σ w_k b_k u_k, so a_k = N⁻¹ (w_k b_k).
@@ -168,35 +241,17 @@ void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, do
             solved = true;
           }
         }
-        if (solved && inverse.allFinite()) {
-          entry.rows.resize(static_cast<std::size_t>(count));
-          for (int k = 0; k < count; ++k) {
-            Term t;
-            t.sample = members[static_cast<std::size_t>(k)];
-            const Vector6 a = inverse * basis[static_cast<std::size_t>(k)];
-            for (int i = 0; i < 6; ++i) t.a[static_cast<std::size_t>(i)] = a[i];
-            entry.rows[static_cast<std::size_t>(k)] = t.a;
-            out.push_back(t);
-          }
-          counts[static_cast<std::size_t>(c)] = count;
+        if (!solved || !inverse.allFinite()) continue;
+        op->rows.resize(static_cast<std::size_t>(count));
+        for (int k = 0; k < count; ++k) {
+          const Vector6 a = inverse * basis[static_cast<std::size_t>(k)];
+          for (int i = 0; i < 6; ++i)
+            op->rows[static_cast<std::size_t>(k)][static_cast<std::size_t>(i)] = a[i];
         }
-        cached.emplace_back(key, std::move(entry));
       }
     }
   });
-  for (int r = 0; r < rows_; ++r) {
-    for (int c = 0; c < cols_; ++c) {
-      const std::size_t node = static_cast<std::size_t>(r * cols_ + c);
-      term_start_[node + 1] =
-          term_start_[node] + row_counts[static_cast<std::size_t>(r)][static_cast<std::size_t>(c)];
-    }
-    terms_.insert(terms_.end(), row_terms[static_cast<std::size_t>(r)].begin(),
-                  row_terms[static_cast<std::size_t>(r)].end());
-  }
   for (int n : row_reused) reused_ += n;
-  cache_.clear();
-  for (auto& row : row_cache)
-    for (auto& [key, node] : row) cache_.emplace(key, std::move(node));
 }
 
 void ShapeField::fit(const std::vector<Vec2>& anchor_px, const std::vector<Vec2>& displacement_px,
@@ -207,21 +262,24 @@ void ShapeField::fit(const std::vector<Vec2>& anchor_px, const std::vector<Vec2>
            std::equal(a.begin(), a.end(), b.begin(), [](Vec2 p, Vec2 q) { return p.x == q.x && p.y == q.y; });
   };
   if (region != region_ || spacing_px != spacing_ || sigma_px != sigma_ || !same(anchor_px, anchors_) ||
-      term_start_.empty())
+      node_operator_.empty())
     prepare(anchor_px, region, spacing_px, sigma_px);
   nodes_.assign(static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_), Node{});
   fitted_ = 0;
   for (std::size_t node = 0; node < nodes_.size(); ++node) {
-    if (term_start_[node + 1] == term_start_[node]) continue;
-    Eigen::Matrix<double, 6, 2> coef = Eigen::Matrix<double, 6, 2>::Zero();
-    for (int k = term_start_[node]; k < term_start_[node + 1]; ++k) {
-      const Term& t = terms_[static_cast<std::size_t>(k)];
-      const Vec2 u = displacement_px[static_cast<std::size_t>(t.sample)];
+    const NodeOperator* op = node_operator_[node];
+    if (!op || op->rows.empty()) continue;
+    double su[6] = {}, sv[6] = {};
+    for (std::size_t k = 0; k < op->rows.size(); ++k) {
+      const Vec2 u = displacement_px[static_cast<std::size_t>(op->samples[k])];
+      const std::array<double, 6>& a = op->rows[k];
       for (int i = 0; i < 6; ++i) {
-        coef(i, 0) += t.a[static_cast<std::size_t>(i)] * u.x;
-        coef(i, 1) += t.a[static_cast<std::size_t>(i)] * u.y;
+        su[i] += a[static_cast<std::size_t>(i)] * u.x;
+        sv[i] += a[static_cast<std::size_t>(i)] * u.y;
       }
     }
+    Eigen::Matrix<double, 6, 2> coef;
+    for (int i = 0; i < 6; ++i) coef(i, 0) = su[i], coef(i, 1) = sv[i];
     if (!coef.allFinite()) continue;
     nodes_[node].coef = coef;
     nodes_[node].fitted = true;
@@ -265,63 +323,76 @@ bool ShapeField::displacement(double x, double y, Vec2& u, Eigen::Matrix2d* grad
   return true;
 }
 
-void ShapeField::displacement_row(int y, int x_begin, int x_end, Vec2* u, std::uint8_t* ok) const {
+void ShapeField::displacement_row(int y, int x_begin, int x_end, Vec2* u, std::uint8_t* ok, int x_stride,
+                                  int x_phase) const {
   if (x_end <= x_begin) return;
   std::fill(ok, ok + (x_end - x_begin), std::uint8_t{0});
   if (nodes_.empty()) return;
   const double fy = (y - region_.y) / spacing_;
   if (!(fy >= 0.0 && fy <= rows_ - 1)) return;
+  x_stride = std::max(1, x_stride);
   const int last_c = cols_ - 2 < 0 ? 0 : cols_ - 2;
   const int r = std::min(static_cast<int>(fy), rows_ - 2 < 0 ? 0 : rows_ - 2);
   const double ty = fy - r;
-  // Along a row, within one cell, each node's weight is linear and its polynomial quadratic in the column
-  // offset t from the cell's first pixel, so the blend's numerators are cubics and its weight sum linear in
-  // t: their coefficients are summed once per cell, and a pixel costs two Horner evaluations and a division.
-  int x = x_begin;
+  // Along a row each node's polynomial is a quadratic in x and its weight the row's weight times a linear
+  // one. Per node column, the fitted nodes of the two node rows around y are reduced once, to a quadratic
+  // Q(s) in s = (x − column) / spacing and a weight sum W (each column serves the cells on both its sides);
+  // per cell, the blend's numerators are cubics in s and its weight sum linear, and a pixel costs two
+  // Horner evaluations and a division.
+  const double ratio = spacing_ / scale_;
+  const int first_c = std::max(0, static_cast<int>(std::floor((x_begin - region_.x) / spacing_)));
+  const int end_c = std::min(cols_ - 1, static_cast<int>(std::ceil((x_end - region_.x) / spacing_)) + 1);
+  struct Column {
+    double q[2][3] = {};  // u and v
+    double w = 0.0;
+  };
+  std::vector<Column> columns(static_cast<std::size_t>(std::max(0, end_c - first_c + 1)));
+  for (int c = first_c; c <= end_c; ++c) {
+    Column& col = columns[static_cast<std::size_t>(c - first_c)];
+    for (int k = 0; k < 2; ++k) {
+      const int nr = r + k;
+      if (nr >= rows_) continue;
+      const Node& node = nodes_[static_cast<std::size_t>(nr * cols_ + c)];
+      if (!node.fitted) continue;
+      const double wy = k ? ty : 1.0 - ty;
+      const double b = (y - (region_.y + nr * spacing_)) / scale_;
+      const Coef& q = node.coef;
+      // a = s · spacing / scale
+      for (int j = 0; j < 2; ++j) {
+        col.q[j][0] += wy * (q(0, j) + q(2, j) * b + q(5, j) * b * b);
+        col.q[j][1] += wy * (q(1, j) + q(4, j) * b) * ratio;
+        col.q[j][2] += wy * q(3, j) * ratio * ratio;
+      }
+      col.w += wy;
+    }
+  }
+  int x = x_begin + ((x_phase - x_begin) % x_stride + x_stride) % x_stride;
   while (x < x_end) {
     const double fx = (x - region_.x) / spacing_;
     if (fx < 0.0) {
-      ++x;
+      x += x_stride;
       continue;
     }
     if (fx > cols_ - 1) break;
     const int c = std::min(static_cast<int>(fx), last_c);
-    const double x0 = x;  // t = 0
-    double su[4] = {0.0, 0.0, 0.0, 0.0}, sv[4] = {0.0, 0.0, 0.0, 0.0}, sw[2] = {0.0, 0.0};
-    for (int k = 0; k < 4; ++k) {
-      const int nc = c + (k & 1), nr = r + (k >> 1);
-      if (nc >= cols_ || nr >= rows_) continue;
-      const Node& node = nodes_[static_cast<std::size_t>(nr * cols_ + nc)];
-      if (!node.fitted) continue;
-      const double wy = (k >> 1) ? ty : 1.0 - ty;
-      // w(t) = alpha + beta t, from tx = (x0 + t − region x) / spacing − c.
-      const double tx0 = (x0 - region_.x) / spacing_ - c;
-      const double alpha = wy * ((k & 1) ? tx0 : 1.0 - tx0);
-      const double beta = wy * ((k & 1) ? 1.0 : -1.0) / spacing_;
-      const double b = (y - (region_.y + nr * spacing_)) / scale_;
-      const double a0 = (x0 - (region_.x + nc * spacing_)) / scale_;
-      const Coef& q = node.coef;
-      // The node's polynomial on this row, p0 + p1 a + p2 a², rewritten in t (a = a0 + t / scale).
-      const auto in_t = [&](int j, double out[3]) {
-        const double p0 = q(0, j) + q(2, j) * b + q(5, j) * b * b, p1 = q(1, j) + q(4, j) * b, p2 = q(3, j);
-        out[0] = p0 + (p1 + p2 * a0) * a0;
-        out[1] = (p1 + 2.0 * p2 * a0) / scale_;
-        out[2] = p2 / (scale_ * scale_);
-      };
-      double pu[3], pv[3];
-      in_t(0, pu);
-      in_t(1, pv);
-      su[0] += alpha * pu[0];
-      su[1] += alpha * pu[1] + beta * pu[0];
-      su[2] += alpha * pu[2] + beta * pu[1];
-      su[3] += beta * pu[2];
-      sv[0] += alpha * pv[0];
-      sv[1] += alpha * pv[1] + beta * pv[0];
-      sv[2] += alpha * pv[2] + beta * pv[1];
-      sv[3] += beta * pv[2];
-      sw[0] += alpha;
-      sw[1] += beta;
+    // s from node column c: left weight 1 − s, right weight s (the right column's s' = s − 1).
+    const Column& left = columns[static_cast<std::size_t>(c - first_c)];
+    const Column empty{};
+    const Column& right = c + 1 < cols_ ? columns[static_cast<std::size_t>(c + 1 - first_c)] : empty;
+    double cu[2][4], sw[2];
+    for (int j = 0; j < 2; ++j) {
+      const double* L = left.q[j];
+      // The right quadratic in s: R(s − 1).
+      const double* R0 = right.q[j];
+      const double R[3] = {R0[0] - R0[1] + R0[2], R0[1] - 2.0 * R0[2], R0[2]};
+      // (1 − s) L(s) + s R(s)
+      cu[j][0] = L[0];
+      cu[j][1] = L[1] - L[0] + R[0];
+      cu[j][2] = L[2] - L[1] + R[1];
+      cu[j][3] = -L[2] + R[2];
     }
+    sw[0] = left.w;
+    sw[1] = right.w - left.w;
     // The pixels of this cell: fx < c + 1, or up to the last node column in the last cell.
     int cell_end;
     if (c < last_c) {
@@ -330,13 +401,14 @@ void ShapeField::displacement_row(int y, int x_begin, int x_end, Vec2* u, std::u
       cell_end = static_cast<int>(std::floor(region_.x + (cols_ - 1) * spacing_)) + 1;
     }
     cell_end = std::clamp(cell_end, x + 1, x_end);
-    for (; x < cell_end; ++x) {
-      const double t = x - x0;
-      const double wsum = sw[0] + sw[1] * t;
+    const double column_x = region_.x + c * spacing_;
+    for (; x < cell_end; x += x_stride) {
+      const double s = (x - column_x) / spacing_;
+      const double wsum = sw[0] + sw[1] * s;
       if (!(wsum > 1e-9)) continue;
       const double inverse = 1.0 / wsum;
-      const double sx = ((su[3] * t + su[2]) * t + su[1]) * t + su[0];
-      const double sy = ((sv[3] * t + sv[2]) * t + sv[1]) * t + sv[0];
+      const double sx = ((cu[0][3] * s + cu[0][2]) * s + cu[0][1]) * s + cu[0][0];
+      const double sy = ((cu[1][3] * s + cu[1][2]) * s + cu[1][1]) * s + cu[1][0];
       u[x - x_begin] = {sx * inverse, sy * inverse};
       ok[x - x_begin] = 1;
     }
@@ -360,7 +432,12 @@ void resample_through(const cv::Mat& current, const cv::Mat& current_mask, const
       const std::uint8_t* m = anchor_mask.ptr<std::uint8_t>(y);
       float* o = out.ptr<float>(y);
       std::uint8_t* v = valid.ptr<std::uint8_t>(y);
-      field.displacement_row(y, region.x, region.x + region.width, u.data(), defined.data());
+      const int column_class = classes.single_column_class(y);
+      if (column_class >= 0)
+        field.displacement_row(y, region.x, region.x + region.width, u.data(), defined.data(),
+                               classes.stride(), column_class);
+      else
+        field.displacement_row(y, region.x, region.x + region.width, u.data(), defined.data());
       classes.for_each_in_row(y, region.x, region.x + region.width, [&](int x) {
         const std::size_t k = static_cast<std::size_t>(x - region.x);
         if (m[x] == 0 || !defined[k]) return;

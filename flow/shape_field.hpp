@@ -38,9 +38,10 @@ class ShapeField {
   // with the blend of gradients, 0.1394 px with the exact derivative).
   bool displacement(double x, double y, Vec2& u, Eigen::Matrix2d* gradient = nullptr) const;
   // displacement() along image row y for x = x_begin … x_end − 1, into u[x − x_begin], with ok[…] = 0
-  // where it is undefined: the per-pixel cost of resampling a frame (each node polynomial is reduced to
-  // one in x once per row and cell).
-  void displacement_row(int y, int x_begin, int x_end, Vec2* u, std::uint8_t* ok) const;
+  // where it is undefined: the per-pixel cost of resampling a frame. Only the columns x ≡ x_phase
+  // (mod x_stride) are evaluated (the others are left undefined): a pass reading one lattice class.
+  void displacement_row(int y, int x_begin, int x_end, Vec2* u, std::uint8_t* ok, int x_stride = 1,
+                        int x_phase = 0) const;
   int fitted_nodes() const { return fitted_; }
   // Of the nodes the last change of sample positions fitted, those whose samples within their reach were
   // the same as before (their operators were kept rather than built again).
@@ -49,11 +50,6 @@ class ShapeField {
  private:
   void prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, double spacing_px, double sigma_px);
 
-  // Per node, the rows of its least-squares operator: coef = Σ_k a_k u_k over its samples.
-  struct Term {
-    int sample = 0;
-    std::array<double, 6> a{};
-  };
   struct Node {
     bool fitted = false;
     // u and v as polynomials in (X − node) / scale: 1, a, b, a², ab, b².
@@ -63,16 +59,21 @@ class ShapeField {
   double spacing_ = 1.0, sigma_ = 0.0, scale_ = 1.0;
   int cols_ = 0, rows_ = 0, fitted_ = 0, reused_ = 0;
   std::vector<Vec2> anchors_;  // what the operators were built for
-  // The last operators by node position, each with its samples' positions in order: a node whose samples
-  // did not change keeps its operator. From one frame to the next, only the nodes within a fit radius of a
-  // retired or newborn track change, and building the operators was 12 % of the tracker's time.
-  struct CachedNode {
-    std::vector<Vec2> samples;
-    std::vector<std::array<double, 6>> rows;  // empty: the node has no fit
+  // Per node, its samples (indices into anchors_, in a fixed order: by bucket, then by position) and the
+  // rows of its least-squares operator, coef = Σ_k rows_k u_k; no rows: the node has no fit.
+  //
+  // Why kept by node position from one call to the next: from one frame to the next only the nodes within
+  // a fit radius of a retired or newborn track see other samples. The others keep their operator and only
+  // renumber their samples; gathering every node's samples again and copying its operator out was 15 % of
+  // the tracker's instructions after building the operators had been cut the same way (12 %).
+  struct NodeOperator {
+    std::vector<int> samples;
+    std::vector<std::array<double, 6>> rows;
+    std::uint64_t generation = 0;  // the last prepare() that used it
   };
-  std::unordered_map<std::int64_t, CachedNode> cache_;
-  std::vector<int> term_start_;  // per node, into terms_ (size nodes + 1)
-  std::vector<Term> terms_;
+  std::unordered_map<std::int64_t, NodeOperator> operators_;
+  std::uint64_t generation_ = 0;
+  std::vector<NodeOperator*> node_operator_;  // per node of the grid; null: fewer than 6 samples
   std::vector<Node> nodes_;
 };
 

@@ -189,6 +189,27 @@ TEST(ShapeField, RowEvaluationEqualsPointEvaluation) {
   }
   EXPECT_GT(defined, 10000);
   EXPECT_GT(undefined, 5000);
+  // One column class only (every 3rd column from x ≡ 1): the same values there, nothing elsewhere.
+  std::vector<Vec2> full(200);
+  std::vector<std::uint8_t> full_ok(200);
+  int compared = 0;
+  for (int y = 0; y < 165; y += 2) {
+    field.displacement_row(y, -10, 190, full.data(), full_ok.data());
+    field.displacement_row(y, -10, 190, row.data(), ok.data(), 3, 1);
+    for (int x = -10; x < 190; ++x) {
+      const std::size_t k = static_cast<std::size_t>(x + 10);
+      if (((x % 3) + 3) % 3 != 1) {
+        ASSERT_EQ(ok[k], 0) << x << "," << y;
+        continue;
+      }
+      ASSERT_EQ(ok[k], full_ok[k]) << x << "," << y;
+      if (!ok[k]) continue;
+      ++compared;
+      EXPECT_EQ(row[k].x, full[k].x);
+      EXPECT_EQ(row[k].y, full[k].y);
+    }
+  }
+  EXPECT_GT(compared, 1500);
 }
 
 TEST(ResampleThrough, UndoesAKnownWarpToTheInterpolationError) {
