@@ -570,10 +570,17 @@ void WindowSums::build(const AnchorImage& anchor, const cv::Mat& resampled, cons
   for (int cy = 0; cy < stride; ++cy)
     for (int cx = 0; cx < stride; ++cx)
       if (classes.has_class(cx, cy)) plane_of_class_[static_cast<std::size_t>(cy * stride + cx)] = planes++;
-  sums_.assign(static_cast<std::size_t>(planes) * static_cast<std::size_t>(plane_rows_) *
-                   static_cast<std::size_t>(plane_cols_) * kChannels,
-               0.0);
+  // Every cell a window or the recurrence reads is written below except the zero row and column: only those
+  // are cleared (clearing the whole table was 3 % of the tracker's instructions on the goal trial).
+  sums_.resize(static_cast<std::size_t>(planes) * static_cast<std::size_t>(plane_rows_) *
+               static_cast<std::size_t>(plane_cols_) * kChannels);
   const std::ptrdiff_t row_step = static_cast<std::ptrdiff_t>(plane_cols_) * kChannels;
+  for (int plane = 0; plane < planes; ++plane) {
+    double* first = sums_.data() + static_cast<std::ptrdiff_t>(plane) * plane_rows_ * row_step;
+    std::fill(first, first + row_step, 0.0);
+    for (int j = 1; j < plane_rows_; ++j)
+      std::fill(first + j * row_step, first + j * row_step + kChannels, 0.0);
+  }
   for (int ry = 0; ry < region_.height; ++ry) {
     const int y = region_.y + ry;
     const int cy = y % stride;
@@ -585,30 +592,35 @@ void WindowSums::build(const AnchorImage& anchor, const cv::Mat& resampled, cons
     const std::uint8_t* vrow = valid.ptr<std::uint8_t>(y);
     const float* grow = resampled.ptr<float>(y);
     const std::ptrdiff_t j = ry / stride + 1;
-    classes.for_each_in_row(y, region_.x, region_.x + region_.width, [&](int x) {
-      const int plane = plane_of_class_[static_cast<std::size_t>(cy * stride + x % stride)];
-      // S(j, i) = v + S(j − 1, i) + S(j, i − 1) − S(j − 1, i − 1) on the class's own lattice.
+    for (int cx = 0; cx < stride; ++cx) {
+      const int plane = plane_of_class_[static_cast<std::size_t>(cy * stride + cx)];
+      if (plane < 0) continue;
+      // The class's first pixel in the region, and its lattice cell (past the zero column).
+      const int x_first = region_.x + ((cx - region_.x) % stride + stride) % stride;
       double* cell = sums_.data() + (static_cast<std::ptrdiff_t>(plane) * plane_rows_ + j) * row_step +
-                     static_cast<std::ptrdiff_t>((x - region_.x) / stride + 1) * kChannels;
-      double v[kChannels] = {0, 0, 0, 0, 0, 0, 0};
-      if (row_inside && x >= 1 && x < img.cols - 1 && mrow[x] != 0) {
-        v[0] = 1.0;
-        if (vrow[x]) {
-          const double g = grow[x];
-          v[2] = g;
-          v[3] = g * g;
-          v[4] = irow[x] * g;
-          v[5] = gxr[x] * g;
-          v[6] = gyr[x] * g;
-        } else {
-          v[1] = 1.0;
+                     static_cast<std::ptrdiff_t>((x_first - region_.x) / stride + 1) * kChannels;
+      // S(j, i) = v + S(j − 1, i) + S(j, i − 1) − S(j − 1, i − 1) on the class's own lattice.
+      for (int x = x_first; x < region_.x + region_.width; x += stride, cell += kChannels) {
+        double v[kChannels] = {0, 0, 0, 0, 0, 0, 0};
+        if (row_inside && x >= 1 && x < img.cols - 1 && mrow[x] != 0) {
+          v[0] = 1.0;
+          if (vrow[x]) {
+            const double g = grow[x];
+            v[2] = g;
+            v[3] = g * g;
+            v[4] = irow[x] * g;
+            v[5] = gxr[x] * g;
+            v[6] = gyr[x] * g;
+          } else {
+            v[1] = 1.0;
+          }
         }
+        const double* above = cell - row_step;
+        const double* before = cell - kChannels;
+        const double* corner = above - kChannels;
+        for (int c = 0; c < kChannels; ++c) cell[c] = v[c] + above[c] + before[c] - corner[c];
       }
-      const double* above = cell - row_step;
-      const double* before = cell - kChannels;
-      const double* corner = above - kChannels;
-      for (int c = 0; c < kChannels; ++c) cell[c] = v[c] + above[c] + before[c] - corner[c];
-    });
+    }
   }
 }
 
