@@ -203,6 +203,7 @@ void erode_for_matching(const cv::Mat& mask, cv::Mat& out) {
 bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, int stride,
                    ShapeFunction shape, int min_pixels, Lattice lattice) {
   points_.clear();
+  count_ = 0;
   centre_ = centre;
   radius_px_ = radius_px;
   shape_ = shape;
@@ -215,6 +216,11 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
     const auto up = [stride](int v) { return ((-v) % stride + stride) % stride; };
     first_ = {-radius_px + up(centre.x - radius_px), -radius_px + up(centre.y - radius_px)};
   }
+  // Reserved whole: growing it pixel by pixel reallocated a few times per subset, and with ~3000 subsets
+  // built at seeding, the fresh pages' faults were a visible part of the first frame.
+  const std::size_t across = static_cast<std::size_t>((radius_px - first_.x) / stride + 1);
+  const std::size_t down = static_cast<std::size_t>((radius_px - first_.y) / stride + 1);
+  points_.reserve(across * down);
   for_each_window_pixel(anchor, centre, first_, radius_px, stride,
                         [&](int dx, int dy, int, int, float f, float gx, float gy) {
                           points_.push_back({static_cast<float>(dx), static_cast<float>(dy), f, gx, gy});
@@ -231,16 +237,31 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
   sum_j_.setZero();
   sum_jf_.setZero();
   sum_ff_ = 0.0;
-  double j[12];
-  for (Pixel& p : points_) {
-    p.f = static_cast<float>(p.f - mean);
-    jacobian(p.dx, p.dy, p.gx, p.gy, j);
-    const Eigen::Map<const Vector12> jv(j);
-    hessian_.topLeftCorner(n, n).noalias() += jv.head(n) * jv.head(n).transpose();
-    sum_j_.head(n) += jv.head(n);
-    sum_jf_.head(n) += jv.head(n) * p.f;
-    sum_ff_ += static_cast<double>(p.f) * p.f;
-  }
+  // In fixed-size blocks: the runtime-sized outer product made building the plate's subsets, every frame,
+  // 3 % of the tracker's instructions.
+  const auto accumulate = [&]<int N>() {
+    Eigen::Matrix<double, N, N> h = Eigen::Matrix<double, N, N>::Zero();
+    Eigen::Matrix<double, N, 1> sj = Eigen::Matrix<double, N, 1>::Zero(), sjf = sj;
+    double j[12];
+    for (Pixel& p : points_) {
+      p.f = static_cast<float>(p.f - mean);
+      jacobian(p.dx, p.dy, p.gx, p.gy, j);
+      const Eigen::Map<const Eigen::Matrix<double, N, 1>> jv(j);
+      h.noalias() += jv * jv.transpose();
+      sj += jv;
+      sjf += jv * p.f;
+      sum_ff_ += static_cast<double>(p.f) * p.f;
+    }
+    hessian_.template topLeftCorner<N, N>() = h;
+    sum_j_.template head<N>() = sj;
+    sum_jf_.template head<N>() = sjf;
+  };
+  if (n == 2)
+    accumulate.template operator()<2>();
+  else if (n == 6)
+    accumulate.template operator()<6>();
+  else
+    accumulate.template operator()<12>();
   // Fixed-size blocks: the runtime-sized decompositions were a few percent of a tracking run (births).
   const auto finish = [&]<int N>() {
     using Square = Eigen::Matrix<double, N, N>;
@@ -262,6 +283,7 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
                   : n == 6 ? finish.template operator()<6>()
                            : finish.template operator()<12>();
   if (!ok) points_.clear();
+  count_ = points_.size();
   return ok;
 }
 
@@ -445,7 +467,7 @@ MatchResult Subset::translation_step(const AnchorImage& anchor, const cv::Mat& r
                                      const cv::Mat& valid, double min_valid_fraction, Vec2& step_px) const {
   step_px = {};
   MatchResult result;
-  if (points_.empty()) {
+  if (count_ == 0) {
     result.degenerate = true;
     return result;
   }
@@ -500,7 +522,7 @@ MatchResult Subset::translation_step(const AnchorImage& anchor, const cv::Mat& r
     s.sgg += r_gg;
     s.sfg += r_fg;
   }
-  if (seen != static_cast<long>(points_.size())) {  // not the anchor this subset was built from
+  if (seen != static_cast<long>(count_)) {  // not the anchor this subset was built from
     result.degenerate = true;
     return result;
   }
@@ -511,8 +533,8 @@ MatchResult Subset::translation_step(const WindowSums& sums, const AnchorImage& 
                                      const cv::Mat& resampled, const cv::Mat& valid,
                                      double min_valid_fraction, Vec2& step_px) const {
   WindowSums::Window w;
-  if (points_.empty() || sums.stride() != stride_ || !sums.window(centre_, first_, radius_px_, w) ||
-      w.mask != static_cast<double>(points_.size()) || w.outside != 0.0)
+  if (count_ == 0 || sums.stride() != stride_ || !sums.window(centre_, first_, radius_px_, w) ||
+      w.mask != static_cast<double>(count_) || w.outside != 0.0)
     return translation_step(anchor, resampled, valid, min_valid_fraction, step_px);
   step_px = {};
   StepSums s;
@@ -526,7 +548,7 @@ MatchResult Subset::translation_step(const WindowSums& sums, const AnchorImage& 
 
 MatchResult Subset::solve_translation(const StepSums& s, double min_valid_fraction, Vec2& step_px) const {
   MatchResult result;
-  const double total = static_cast<double>(points_.size());
+  const double total = static_cast<double>(count_);
   const double count = total - static_cast<double>(s.outside);
   result.valid_fraction = count / total;
   result.iterations = 1;

@@ -151,12 +151,20 @@ class Subset {
              int min_pixels, Lattice lattice = Lattice::kWindow);
   // The first sample's offset from the centre (−radius each way on the window's lattice).
   cv::Point first_offset() const { return first_; }
-  bool empty() const { return points_.empty(); }
+  bool empty() const { return count_ == 0; }
   cv::Point centre() const { return centre_; }
   int radius_px() const { return radius_px_; }
   int stride() const { return stride_; }
   ShapeFunction shape() const { return shape_; }
-  std::size_t pixel_count() const { return points_.size(); }
+  std::size_t pixel_count() const { return count_; }
+  // Frees the per-pixel copy of the reference and keeps the sums: what the box-sum translation step needs
+  // (translation_step reads the reference from the anchor). match() and correlation() then report a
+  // degenerate subset until it is built again.
+  //
+  // Why: a wide subset holds ~9 kB of pixels, and seeding ~1500 of them put ~3000 fresh pages in the first
+  // frame, at ~12 µs a page fault on the CI's virtual machines.
+  void release_pixels() { std::vector<Pixel>().swap(points_); }
+  bool has_pixels() const { return !points_.empty(); }
   // How well the subset's texture pins down its translation (2×2, the Hessian's translation block with the
   // other shape parameters eliminated), normalised by the texture's energy: large across the ridges, small
   // along them.
@@ -203,6 +211,7 @@ class Subset {
   MatchResult solve_translation(const StepSums& sums, double min_valid_fraction, Vec2& step_px) const;
 
   std::vector<Pixel> points_;
+  std::size_t count_ = 0;  // the pixels build() took (points_ may have been released)
   cv::Point centre_{0, 0};
   cv::Point first_{0, 0};
   int radius_px_ = 0;

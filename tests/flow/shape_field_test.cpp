@@ -287,6 +287,54 @@ TEST(SubsetTranslationStep, MovesATrackOntoTheTruthFromAnOffsetField) {
   EXPECT_LT(worst, 0.025);
 }
 
+TEST(SubsetTranslationStep, ASubsetWithoutItsPixelCopyStepsTheSameAndRefusesToMatch) {
+  // The tracker drops the per-pixel copy of frame-0 tracks' wide subsets (Subset::release_pixels): the
+  // translation steps, from the pixel pass and from the box sums, must not change, and a full match must
+  // report a degenerate subset rather than match nothing.
+  const int size = 200;
+  const cv::Mat reference = render(size, [](Vec2) { return Vec2{}; });
+  const cv::Mat current = render(size, quadratic_field);
+  AnchorImage anchor;
+  anchor.assign(reference, cv::Mat());
+  const std::vector<Vec2> points = scattered_points(0.0, 200.0, 4);
+  ShapeField field;
+  field.fit(points, displacements(points, quadratic_field), cv::Rect(0, 0, size, size), 8.0, 20.0);
+  cv::Mat out, valid;
+  resample_through(current, cv::Mat(), field, anchor.mask(), cv::Rect(0, 0, size, size), out, valid);
+  valid(cv::Rect(0, 0, size, 75)).setTo(0);  // the row of subsets at y = 80 takes the pixel pass
+  WindowSums sums;
+  sums.build(anchor, out, valid, cv::Rect(0, 0, size, size), 2);
+  int compared = 0;
+  for (int cy = 60; cy <= 140; cy += 20)
+    for (int cx = 60; cx <= 140; cx += 20) {
+      Subset subset;
+      ASSERT_TRUE(subset.build(anchor, {cx, cy}, 20, 2, ShapeFunction::kTranslation, 100,
+                               Subset::Lattice::kImage));
+      Vec2 pass_before, sums_before, pass_after, sums_after;
+      const MatchResult a = subset.translation_step(anchor, out, valid, 0.3, pass_before);
+      const MatchResult b = subset.translation_step(sums, anchor, out, valid, 0.3, sums_before);
+      const std::size_t pixels = subset.pixel_count();
+      subset.release_pixels();
+      EXPECT_FALSE(subset.has_pixels());
+      EXPECT_FALSE(subset.empty());
+      EXPECT_EQ(subset.pixel_count(), pixels);
+      const MatchResult c = subset.translation_step(anchor, out, valid, 0.3, pass_after);
+      const MatchResult d = subset.translation_step(sums, anchor, out, valid, 0.3, sums_after);
+      ASSERT_EQ(a.converged, c.converged);
+      ASSERT_EQ(b.converged, d.converged);
+      EXPECT_EQ(pass_before.x, pass_after.x);
+      EXPECT_EQ(pass_before.y, pass_after.y);
+      EXPECT_EQ(sums_before.x, sums_after.x);
+      EXPECT_EQ(sums_before.y, sums_after.y);
+      EXPECT_EQ(a.zncc, c.zncc);
+      EXPECT_EQ(b.zncc, d.zncc);
+      compared += a.converged ? 1 : 0;
+      Warp w;
+      EXPECT_TRUE(subset.match(current, cv::Mat(), w, MatchOptions{}).degenerate);
+    }
+  EXPECT_EQ(compared, 20);  // all but the row at y = 60, which lies wholly outside
+}
+
 TEST(SubsetTranslationStep, ReportsTooFewValidPixels) {
   const int size = 120;
   const cv::Mat reference = render(size, [](Vec2) { return Vec2{}; });
