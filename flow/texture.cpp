@@ -13,6 +13,11 @@ TextureQuality measure_texture(const cv::Mat& image, const cv::Mat& mask, double
             (mask.empty() || (mask.type() == CV_8U && mask.size() == image.size())));
   TextureQuality q;
   if (image.rows < 3 || image.cols < 3 || !(ridge_period_px > 0.0)) return q;
+  // Only the mask's bounding box is filtered: the views keep their parent image, so every filter reads the
+  // real pixels around the box and each value inside equals the whole frame's (and the frame's outside the
+  // contact was fresh memory to fault in, ~5 MB on a 640×512 frame).
+  const cv::Rect box = mask.empty() ? cv::Rect(0, 0, image.cols, image.rows) : cv::boundingRect(mask);
+  if (box.area() == 0) return q;
   cv::Mat interior;
   if (mask.empty())
     interior = cv::Mat(image.size(), CV_8U, cv::Scalar(1));
@@ -28,15 +33,16 @@ TextureQuality measure_texture(const cv::Mat& image, const cv::Mat& mask, double
   // Immerkær (1996): for white noise of σ, E|I * N| = 6 σ √(2/π) with N = [1 −2 1; −2 4 −2; 1 −2 1].
   const cv::Matx33f kernel(1, -2, 1, -2, 4, -2, 1, -2, 1);
   cv::Mat response;
-  cv::filter2D(image, response, CV_32F, kernel, cv::Point(-1, -1), 0.0, cv::BORDER_REPLICATE);
-  const double mean_abs = cv::mean(cv::abs(response), interior)[0];
+  const cv::Mat view = image(box), inside = interior(box);
+  cv::filter2D(view, response, CV_32F, kernel, cv::Point(-1, -1), 0.0, cv::BORDER_REPLICATE);
+  const double mean_abs = cv::mean(cv::abs(response), inside)[0];
   q.noise_sigma = mean_abs * std::sqrt(0.5 * std::numbers::pi) / 6.0;
 
   cv::Mat fine, coarse;
-  cv::GaussianBlur(image, fine, cv::Size(), ridge_period_px / 8.0, 0.0, cv::BORDER_REPLICATE);
-  cv::GaussianBlur(image, coarse, cv::Size(), ridge_period_px / 2.0, 0.0, cv::BORDER_REPLICATE);
+  cv::GaussianBlur(view, fine, cv::Size(), ridge_period_px / 8.0, 0.0, cv::BORDER_REPLICATE);
+  cv::GaussianBlur(view, coarse, cv::Size(), ridge_period_px / 2.0, 0.0, cv::BORDER_REPLICATE);
   cv::Scalar mean, stddev;
-  cv::meanStdDev(fine - coarse, mean, stddev, interior);
+  cv::meanStdDev(fine - coarse, mean, stddev, inside);
   q.ridge_rms = stddev[0];
   q.snr = q.ridge_rms / std::max(q.noise_sigma, 1e-9);
   return q;

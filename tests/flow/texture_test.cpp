@@ -84,5 +84,31 @@ TEST(Texture, DegenerateInputsGiveDefinedResults) {
   EXPECT_EQ(measure_texture(ridges(0.2, 0.01), cv::Mat(), 0.0).pixels, 0);
 }
 
+TEST(Texture, TheContactsBoxGivesTheWholeFramesFigures) {
+  // measure_texture filters only the mask's bounding box, through views that read the real pixels around
+  // it: the figures must be those of filtering the whole frame (computed here the long way).
+  const cv::Mat image = ridges(0.2, 0.03);
+  cv::Mat mask(image.size(), CV_8U, cv::Scalar(0));
+  cv::ellipse(mask, {120, 110}, {70, 55}, 25.0, 0.0, 360.0, cv::Scalar(1), cv::FILLED);
+  const TextureQuality q = measure_texture(image, mask, kPeriodPx);
+  cv::Mat interior;
+  cv::compare(mask, 0, interior, cv::CMP_NE);
+  const int reach = static_cast<int>(std::ceil(0.5 * kPeriodPx));
+  cv::erode(interior, interior,
+            cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * reach + 1, 2 * reach + 1)),
+            cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::Mat response, fine, coarse;
+  cv::filter2D(image, response, CV_32F, cv::Matx33f(1, -2, 1, -2, 4, -2, 1, -2, 1), cv::Point(-1, -1), 0.0,
+               cv::BORDER_REPLICATE);
+  const double noise = cv::mean(cv::abs(response), interior)[0] * std::sqrt(0.5 * std::numbers::pi) / 6.0;
+  cv::GaussianBlur(image, fine, cv::Size(), kPeriodPx / 8.0, 0.0, cv::BORDER_REPLICATE);
+  cv::GaussianBlur(image, coarse, cv::Size(), kPeriodPx / 2.0, 0.0, cv::BORDER_REPLICATE);
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(fine - coarse, mean, stddev, interior);
+  EXPECT_EQ(q.pixels, cv::countNonZero(interior));
+  EXPECT_NEAR(q.noise_sigma, noise, 1e-12);
+  EXPECT_NEAR(q.ridge_rms, stddev[0], 1e-12);
+}
+
 }  // namespace
 }  // namespace tirstrain::flow
