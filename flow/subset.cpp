@@ -233,7 +233,7 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
   for (const Pixel& p : points_) mean += p.f;
   mean /= static_cast<double>(points_.size());
   mean_ = mean;
-  hessian_.setZero();
+  hessian_.setZero(n, n);
   sum_j_.setZero();
   sum_jf_.setZero();
   sum_ff_ = 0.0;
@@ -271,8 +271,7 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
     const Square scaled = d.asDiagonal() * h * d.asDiagonal();
     Eigen::SelfAdjointEigenSolver<Square> eig(scaled, Eigen::EigenvaluesOnly);
     if (sum_ff_ <= 1e-12 || eig.eigenvalues()[0] < 1e-6) return false;
-    hessian_inverse_.setZero();
-    hessian_inverse_.template topLeftCorner<N, N>() = truncated_inverse<N>(h, kEigenFloor);
+    hessian_inverse_ = truncated_inverse<N>(h, kEigenFloor);
     // The inverse of the translation block of H⁻¹ is the Schur complement: the information on (u, v) once
     // the other parameters are free.
     information_ = Eigen::Matrix2d(Square(h.inverse()).template topLeftCorner<2, 2>()).inverse() / sum_ff_;

@@ -219,8 +219,9 @@ class Subset {
   double mean_ = 0.0;  // of the reference pixels (points_ hold them minus this)
   ShapeFunction shape_ = ShapeFunction::kAffine;
   // Sums over the whole reference subset, so the common case (nothing masked) needs no per-match setup.
-  Matrix hessian_ = Matrix::Zero();
-  Matrix hessian_inverse_ = Matrix::Zero();
+  // n × n for the shape function's n parameters, on the heap: at 12 × 12 inline they were 4.6 kB of each
+  // track's 5.6 kB state, fresh memory to fault in for every track seeded or born.
+  Eigen::MatrixXd hessian_, hessian_inverse_;
   Vector sum_j_ = Vector::Zero();
   Vector sum_jf_ = Vector::Zero();
   double sum_ff_ = 0.0;
