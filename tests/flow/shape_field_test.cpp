@@ -308,8 +308,8 @@ TEST(SubsetTranslationStep, ASubsetWithoutItsPixelCopyStepsTheSameAndRefusesToMa
   for (int cy = 60; cy <= 140; cy += 20)
     for (int cx = 60; cx <= 140; cx += 20) {
       Subset subset;
-      ASSERT_TRUE(subset.build(anchor, {cx, cy}, 20, 2, ShapeFunction::kTranslation, 100,
-                               Subset::Lattice::kImage));
+      ASSERT_TRUE(
+          subset.build(anchor, {cx, cy}, 20, 2, ShapeFunction::kTranslation, 100, Subset::Lattice::kImage));
       Vec2 pass_before, sums_before, pass_after, sums_after;
       const MatchResult a = subset.translation_step(anchor, out, valid, 0.3, pass_before);
       const MatchResult b = subset.translation_step(sums, anchor, out, valid, 0.3, sums_before);
