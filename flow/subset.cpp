@@ -32,6 +32,15 @@ inline void jacobian(float dx, float dy, float gx, float gy, double j[12]) {
   j[11] = 0.5 * gy * dy * dy;
 }
 
+// f.operator()<N>() with N the shape function's parameter count (2, 6 or 12): sums and solves on fixed-size
+// blocks (runtime-sized ones took several times the instructions).
+template <class F>
+decltype(auto) with_parameter_count(int n, F&& f) {
+  if (n == 2) return f.template operator()<2>();
+  if (n == 6) return f.template operator()<6>();
+  return f.template operator()<12>();
+}
+
 // Least-squares fit of a quadratic c0 + c1 a + c2 b + c3 a² + c4 ab + c5 b² to samples on {-1, 0, 1}².
 const Eigen::Matrix<double, 6, 9>& quadratic_fit() {
   static const Eigen::Matrix<double, 6, 9> fit = [] {
@@ -256,12 +265,7 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
     sum_j_.template head<N>() = sj;
     sum_jf_.template head<N>() = sjf;
   };
-  if (n == 2)
-    accumulate.template operator()<2>();
-  else if (n == 6)
-    accumulate.template operator()<6>();
-  else
-    accumulate.template operator()<12>();
+  with_parameter_count(n, accumulate);
   // Fixed-size blocks: the runtime-sized decompositions were a few percent of a tracking run (births).
   const auto finish = [&]<int N>() {
     using Square = Eigen::Matrix<double, N, N>;
@@ -278,9 +282,7 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
     fixed_information_ = h.template topLeftCorner<2, 2>() / sum_ff_;
     return true;
   };
-  const bool ok = n == 2   ? finish.template operator()<2>()
-                  : n == 6 ? finish.template operator()<6>()
-                           : finish.template operator()<12>();
+  const bool ok = with_parameter_count(n, finish);
   if (!ok) points_.clear();
   count_ = points_.size();
   return ok;
@@ -387,12 +389,7 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
       sgg = a_gg;
       sfg = a_fg;
     };
-    if (n == 2)
-      accumulate.template operator()<2>();
-    else if (n == 6)
-      accumulate.template operator()<6>();
-    else
-      accumulate.template operator()<12>();
+    with_parameter_count(n, accumulate);
     const double count = total - static_cast<double>(outside);
     result.valid_fraction = count / total;
     if (result.valid_fraction < options.min_valid_fraction || count < 2.0 * n) return result;
@@ -423,9 +420,7 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
         dp.template head<N>() = -truncated_inverse<N>(hv, kEigenFloor) * b.template head<N>();
         return true;
       };
-      const bool solved = n == 2   ? solve.template operator()<2>()
-                          : n == 6 ? solve.template operator()<6>()
-                                   : solve.template operator()<12>();
+      const bool solved = with_parameter_count(n, solve);
       if (!solved) {
         result.degenerate = true;
         return result;

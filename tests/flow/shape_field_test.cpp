@@ -60,6 +60,27 @@ cv::Mat render(int size, const Field& u) {
   return img;
 }
 
+// A 200 px frame pair, the texture at rest and warped by quadratic_field; the anchor on the first (with
+// `mask`, if any) and a field fitted to the warp at scattered samples (`seed`), shifted by `offset`.
+struct WarpedPair {
+  static constexpr int size = 200;
+  cv::Mat reference, current;
+  AnchorImage anchor;
+  ShapeField field;
+};
+
+WarpedPair warped_pair(unsigned seed, Vec2 offset = {}, const cv::Mat& mask = cv::Mat()) {
+  WarpedPair w;
+  w.reference = render(WarpedPair::size, [](Vec2) { return Vec2{}; });
+  w.current = render(WarpedPair::size, quadratic_field);
+  w.anchor.assign(w.reference, mask);
+  const std::vector<Vec2> points = scattered_points(0.0, 200.0, seed);
+  std::vector<Vec2> shifted = displacements(points, quadratic_field);
+  for (Vec2& d : shifted) d = {d.x + offset.x, d.y + offset.y};
+  w.field.fit(points, shifted, cv::Rect(0, 0, WarpedPair::size, WarpedPair::size), 8.0, 20.0);
+  return w;
+}
+
 TEST(ShapeField, RecoversAQuadraticFieldAndItsGradientExactly) {
   const std::vector<Vec2> points = scattered_points(0.0, 200.0, 1);
   ShapeField field;
@@ -254,17 +275,11 @@ TEST(ResampleThrough, UndoesAKnownWarpToTheInterpolationError) {
 // One translation step of a subset on the frame resampled through a field that is off by a constant
 // δ: the step must take the track point to the truth, x = (X − Δ) + W(X − Δ).
 TEST(SubsetTranslationStep, MovesATrackOntoTheTruthFromAnOffsetField) {
-  const int size = 200;
-  const cv::Mat reference = render(size, [](Vec2) { return Vec2{}; });
-  const cv::Mat current = render(size, quadratic_field);
-  AnchorImage anchor;
-  anchor.assign(reference, cv::Mat());
-  const std::vector<Vec2> points = scattered_points(0.0, 200.0, 4);
-  const Vec2 offset{0.4, -0.3};
-  std::vector<Vec2> shifted = displacements(points, quadratic_field);
-  for (Vec2& d : shifted) d = {d.x + offset.x, d.y + offset.y};
-  ShapeField field;
-  field.fit(points, shifted, cv::Rect(0, 0, size, size), 8.0, 20.0);
+  const int size = WarpedPair::size;
+  const WarpedPair pair = warped_pair(4, {0.4, -0.3});
+  const AnchorImage& anchor = pair.anchor;
+  const ShapeField& field = pair.field;
+  const cv::Mat& current = pair.current;
   cv::Mat out, valid;
   resample_through(current, cv::Mat(), field, anchor.mask(), cv::Rect(0, 0, size, size), out, valid);
   double worst = 0.0;
@@ -291,14 +306,11 @@ TEST(SubsetTranslationStep, ASubsetWithoutItsPixelCopyStepsTheSameAndRefusesToMa
   // The tracker drops the per-pixel copy of frame-0 tracks' wide subsets (Subset::release_pixels): the
   // translation steps, from the pixel pass and from the box sums, must not change, and a full match must
   // report a degenerate subset rather than match nothing.
-  const int size = 200;
-  const cv::Mat reference = render(size, [](Vec2) { return Vec2{}; });
-  const cv::Mat current = render(size, quadratic_field);
-  AnchorImage anchor;
-  anchor.assign(reference, cv::Mat());
-  const std::vector<Vec2> points = scattered_points(0.0, 200.0, 4);
-  ShapeField field;
-  field.fit(points, displacements(points, quadratic_field), cv::Rect(0, 0, size, size), 8.0, 20.0);
+  const int size = WarpedPair::size;
+  const WarpedPair pair = warped_pair(4);
+  const AnchorImage& anchor = pair.anchor;
+  const ShapeField& field = pair.field;
+  const cv::Mat& current = pair.current;
   cv::Mat out, valid;
   resample_through(current, cv::Mat(), field, anchor.mask(), cv::Rect(0, 0, size, size), out, valid);
   valid(cv::Rect(0, 0, size, 75)).setTo(0);  // the row of subsets at y = 80 takes the pixel pass
@@ -367,18 +379,13 @@ TEST(SubsetTranslationStep, ReportsTooFewValidPixels) {
 // table region's inner sides (where the table must refuse) and where part of a window has no resampled value
 // (where the step falls back to the pass).
 TEST(WindowSums, StepFromTheSumsEqualsThePassOverTheWindow) {
-  const int size = 200;
-  const cv::Mat reference = render(size, [](Vec2) { return Vec2{}; });
-  const cv::Mat current = render(size, quadratic_field);
+  const int size = WarpedPair::size;
   cv::Mat mask = cv::Mat::zeros(size, size, CV_8U);
   cv::ellipse(mask, {100, 100}, {97, 88}, 20.0, 0.0, 360.0, cv::Scalar(1), cv::FILLED);
-  AnchorImage anchor;
-  anchor.assign(reference, mask);
-  const std::vector<Vec2> points = scattered_points(0.0, 200.0, 5);
-  std::vector<Vec2> shifted = displacements(points, quadratic_field);
-  for (Vec2& d : shifted) d = {d.x + 0.3, d.y - 0.2};
-  ShapeField field;
-  field.fit(points, shifted, cv::Rect(0, 0, size, size), 8.0, 20.0);
+  const WarpedPair pair = warped_pair(5, {0.3, -0.2}, mask);
+  const AnchorImage& anchor = pair.anchor;
+  const ShapeField& field = pair.field;
+  const cv::Mat& current = pair.current;
   cv::Mat current_mask(size, size, CV_8U, cv::Scalar(1));
   current_mask(cv::Rect(0, 150, size, 50)).setTo(0);  // the lower rows' pixels get no resampled value
   cv::Mat out, valid;
@@ -433,14 +440,11 @@ TEST(WindowSums, StepFromTheSumsEqualsThePassOverTheWindow) {
 // pixels the frame and every step are the same as with all pixels; the other lattices stay invalid and
 // their windows find no pixels.
 TEST(WindowSums, OnlyTheSubsetsLatticesAreResampledAndSummed) {
-  const int size = 200;
-  const cv::Mat reference = render(size, [](Vec2) { return Vec2{}; });
-  const cv::Mat current = render(size, quadratic_field);
-  AnchorImage anchor;
-  anchor.assign(reference, cv::Mat());
-  const std::vector<Vec2> points = scattered_points(0.0, 200.0, 6);
-  ShapeField field;
-  field.fit(points, displacements(points, quadratic_field), cv::Rect(0, 0, size, size), 8.0, 20.0);
+  const int size = WarpedPair::size;
+  const WarpedPair pair = warped_pair(6);
+  const AnchorImage& anchor = pair.anchor;
+  const ShapeField& field = pair.field;
+  const cv::Mat& current = pair.current;
   const cv::Rect region(0, 0, size, size);
   cv::Mat all_out, all_valid, out, valid;
   resample_through(current, cv::Mat(), field, anchor.mask(), region, all_out, all_valid);
