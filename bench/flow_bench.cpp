@@ -4,7 +4,9 @@
 // is tracking only (pyramids, LK, refinement, checks, births, plate). Error is against the exact field.
 //
 //   flow_bench [--frames N] [--width W --height H | --scene FILE] [--only NAME] [--threads T]
-//              [--yaml TRACKING]... [--mesh E,S,B,SIGMA,INSET,UPDATE,CONV]... [--crb]
+//              [--yaml TRACKING]... [--mesh E,S,B,SIGMA,INSET,UPDATE,CONV]... [--crb] [--frame-times]
+// --frame-times adds, per configuration, where the time goes across the trial: seeding (frame 0), frame 1,
+// and the later frames' median and largest, in ms.
 // --scene renders that scene's `synthesis:` section instead (e.g. samples/scenes/default.yaml).
 // --yaml adds a configuration given as a scene `tracking:` section, e.g. --yaml "{subset_radius_px: 18}".
 // --crb prints the Cramér–Rao bound of the automatic preset's subsets on this trial's frame 0 instead.
@@ -16,6 +18,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -216,6 +219,16 @@ void run_crb(const tirstrain::samples::Trial& trial, double grid_px, double excl
   }
 }
 
+// Seeding and frame 1 pay for first-touch memory (subsets, anchor, field operators, second pyramid) that the
+// later frames reuse; the steady state is what a long trial converges to.
+void print_frame_times(const std::vector<double>& frame_seconds) {
+  std::vector<double> later(frame_seconds.begin() + 2, frame_seconds.end());
+  std::sort(later.begin(), later.end());
+  std::printf("  ms: seeding %.1f, frame 1 %.1f, frames 2-%zu median %.1f max %.1f\n", 1e3 * frame_seconds[0],
+              1e3 * frame_seconds[1], frame_seconds.size() - 1, 1e3 * later[later.size() / 2],
+              1e3 * later.back());
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -223,6 +236,7 @@ int main(int argc, char** argv) {
   bool frames_given = false;
   std::string only, scene_file;
   std::vector<std::string> custom;        // extra configurations: a scene `tracking:` section each
+  bool frame_times = false;               // print the per-frame time breakdown under each row
   bool crb = false;                       // print the Cramér–Rao bound of the tracker's subsets instead
   std::vector<std::string> mesh_configs;  // "element_px,smoothness,brightness,sigma_px,inset_px"
   for (int i = 1; i < argc; ++i) {
@@ -251,12 +265,15 @@ int main(int argc, char** argv) {
       scene_file = next();
     else if (a == "--crb")
       crb = true;
+    else if (a == "--frame-times")
+      frame_times = true;
     else if (a == "--mesh")
       mesh_configs.push_back(next());
     else {
       std::fprintf(stderr,
                    "usage: flow_bench [--frames N] [--width W --height H | --scene FILE] [--only NAME] "
-                   "[--threads T] [--yaml TRACKING]... [--mesh E,S,B,SIGMA,INSET,UPDATE,CONV]... [--crb]\n");
+                   "[--threads T] [--yaml TRACKING]... [--mesh E,S,B,SIGMA,INSET,UPDATE,CONV]... [--crb] "
+                   "[--frame-times]\n");
       return 2;
     }
   }
@@ -359,6 +376,7 @@ int main(int argc, char** argv) {
     std::printf("%-24s %7d %8d %10.0f %8.2f %9.4f %9.3f %7ld %7d %8.4f %7.2f\n", c.name.c_str(),
                 s.tracks_started, s.frame_alive.back(), tracked / s.seconds, fps, s.rms_px, s.max_px, s.wrong,
                 s.born, s.plate_rms_px, matched);
+    if (frame_times && s.frame_seconds.size() > 2) print_frame_times(s.frame_seconds);
     std::fflush(stdout);
   }
   return 0;

@@ -20,6 +20,7 @@
 #include "flow/mask_erosion.hpp"
 #include "flow/plate.hpp"
 #include "flow/shape_field.hpp"
+#include "flow/shi_tomasi.hpp"
 
 namespace tirstrain::flow {
 namespace {
@@ -160,7 +161,7 @@ struct FeatureTracker::Impl {
   double eigen_threshold = 0.0;
 
   cv::Mat first_mask;  // frame 0's contact
-  cv::Mat current_f, current_u8, previous_u8, mask, match_mask, birth_mask, eigen;
+  cv::Mat current_f, current_u8, previous_u8, mask, match_mask, birth_mask, eigen, eigen_scratch;
   cv::Mat erosion_scratch;
   cv::Mat match_f;  // what subsets are matched in: current_f, smoothed by prefilter_sigma_px
   TextureQuality texture;
@@ -612,7 +613,7 @@ void FeatureTracker::Impl::seed_grid() {
   const int margin = static_cast<int>(std::ceil(settings.border_margin_px));
   cv::erode(mask, birth_mask,
             cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * margin + 1, 2 * margin + 1)));
-  cv::cornerMinEigenVal(current_f(roi), eigen, settings.eigen_block_px, 3);
+  min_eigenvalue_map(current_f(roi), settings.eigen_block_px, eigen, eigen_scratch);
   double largest = 0.0;
   cv::minMaxLoc(eigen, nullptr, &largest, nullptr, nullptr, birth_mask(roi));
   eigen_threshold = settings.min_eigen_quality * largest;
@@ -1473,7 +1474,7 @@ void FeatureTracker::Impl::births() {
   const int margin = static_cast<int>(std::ceil(settings.border_margin_px));
   cv::erode(mask, birth_mask,
             cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * margin + 1, 2 * margin + 1)));
-  cv::cornerMinEigenVal(current_f(roi), eigen, settings.eigen_block_px, 3);
+  min_eigenvalue_map(current_f(roi), settings.eigen_block_px, eigen, eigen_scratch);
   build_hash(false);
   int key = -1;
   const double radius = std::max(settings.neighbour_radius_px, 2.5 * step);

@@ -16,6 +16,7 @@ Score run_and_score(const samples::Trial& trial, const RenderedTrial& frames, co
   const int n = static_cast<int>(frames.frames.size());
   s.frame_rms_px.assign(static_cast<std::size_t>(n), 0.0);
   s.frame_alive.assign(static_cast<std::size_t>(n), 0);
+  s.frame_seconds.assign(static_cast<std::size_t>(n), 0.0);
   double sum2 = 0.0, birth2 = 0.0, plate2 = 0.0;
   int plate_n = 0;
   double seconds = 0.0;
@@ -37,7 +38,9 @@ Score run_and_score(const samples::Trial& trial, const RenderedTrial& frames, co
     else
       tracker.track(frames.frames[static_cast<std::size_t>(f)], frames.mask,
                     trial.frame_times_s()[static_cast<std::size_t>(f)]);
-    seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double frame_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    s.frame_seconds[static_cast<std::size_t>(f)] = frame_seconds;
+    seconds += frame_seconds;
     if (f > 0) {
       s.main_matched += tracker.stats().main_matched;
       s.entering += alive_before;

@@ -55,7 +55,8 @@ struct Score {
   double birth_max_px = 0.0;
   double plate_rms_px = 0.0;
   double plate_max_px = 0.0;
-  double seconds = 0.0;          // tracking time only (rendering excluded)
+  double seconds = 0.0;               // tracking time only (rendering excluded)
+  std::vector<double> frame_seconds;  // per frame; frame 0 is the seeding (start)
   int rest_frames_averaged = 0;  // frames that joined frame 0's anchor (FrameStats::rest_frames_averaged)
   int rest_frames_on_fit = 0;    // frames reported on the rest motion's fit (FrameStats::at_rest)
   long main_matched = 0;  // track-frames that took the main match (FrameStats::main_matched), frames ≥ 1
