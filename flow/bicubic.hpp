@@ -3,8 +3,12 @@
 // correlation (internal to flow/).
 #include <opencv2/core.hpp>
 
+#include <algorithm>
+#include <climits>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <vector>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -54,6 +58,84 @@ inline float interpolate_keys(const float* row, std::size_t step, float tx, floa
   return sum;
 }
 #endif
+
+// The four Keys weights at fraction t, as the interpolation above computes them.
+inline void keys_weights_of(float t, float w[4]) {
+#if defined(__SSE2__)
+  _mm_storeu_ps(w, keys_weights(t));
+#else
+  keys_weights(t, w);
+#endif
+}
+
+// Sampling under a pure translation: every pixel moves by the same fraction of a pixel, so the weights are
+// computed once and the frame is filtered separably, each row's vertical sums shared by four output pixels
+// (8 products a pixel instead of 16, and no weights). The arithmetic is interpolate_keys', term for term
+// (vertical first, then the horizontal pairs), so the values agree with Sampler's to float rounding; the
+// only difference is that Sampler takes each pixel's fraction from its own (integer + shift) in double.
+// Pixels must come row by row (dy not decreasing).
+class TranslatedSampler {
+ public:
+  // Offset (0, 0) lands at (x0, y0); offsets dx lie in [dx_min, dx_max]. Refuses (ok() false) a shift
+  // that is not finite or is far outside the image.
+  TranslatedSampler(const cv::Mat& image, const cv::Mat& mask, double x0, double y0, int dx_min, int dx_max)
+      : image_(image), mask_(mask), dx_min_(dx_min), dx_max_(dx_max) {
+    CV_Assert(image.type() == CV_32F &&
+              (mask.empty() || (mask.type() == CV_8U && mask.size() == image.size())));
+    ok_ = std::abs(x0) < 1e6 && std::abs(y0) < 1e6;  // also false for NaN
+    if (!ok_) return;
+    ix0_ = static_cast<int>(std::floor(x0));
+    iy0_ = static_cast<int>(std::floor(y0));
+    const double fx = x0 - ix0_, fy = y0 - iy0_;
+    keys_weights_of(static_cast<float>(fx), wx_);
+    keys_weights_of(static_cast<float>(fy), wy_);
+    mask_dx_ = fx + 0.5 >= 1.0 ? 1 : 0;
+    mask_dy_ = fy + 0.5 >= 1.0 ? 1 : 0;
+    vertical_.resize(static_cast<std::size_t>(dx_max - dx_min + 4));
+  }
+  bool ok() const { return ok_; }
+
+  bool sample(int dx, int dy, float& value) {
+    if (dy != row_dy_) start_row(dy);
+    const int ix = ix0_ + dx;
+    if (!row_ok_ || ix < 1 || ix > image_.cols - 3) return false;
+    if (mask_row_ && mask_row_[ix + mask_dx_] == 0) return false;
+    const float* v = vertical_.data() + (dx - dx_min_);  // v[k] is column ix - 1 + k
+    value = (v[0] * wx_[0] + v[1] * wx_[1]) + (v[2] * wx_[2] + v[3] * wx_[3]);
+    return true;
+  }
+
+ private:
+  void start_row(int dy) {
+    row_dy_ = dy;
+    const int iy = iy0_ + dy;
+    row_ok_ = iy >= 1 && iy <= image_.rows - 3;
+    if (!row_ok_) return;
+    mask_row_ = mask_.empty() ? nullptr : mask_.ptr<std::uint8_t>(iy + mask_dy_);
+    const float* r0 = image_.ptr<float>(iy - 1);
+    const std::size_t step = image_.step1();
+    // Columns ix0 + dx_min - 1 ... ix0 + dx_max + 2, clipped to the image (a pixel whose support leaves
+    // it is refused above).
+    const int c0 = ix0_ + dx_min_ - 1;
+    const int lo = std::max(0, c0), hi = std::min(image_.cols - 1, ix0_ + dx_max_ + 2);
+    for (int c = lo; c <= hi; ++c) {
+      const float* p = r0 + c;
+      vertical_[static_cast<std::size_t>(c - c0)] =
+          ((p[0] * wy_[0] + p[step] * wy_[1]) + p[2 * step] * wy_[2]) + p[3 * step] * wy_[3];
+    }
+  }
+
+  const cv::Mat& image_;
+  const cv::Mat& mask_;
+  int dx_min_, dx_max_;
+  bool ok_ = false;
+  int ix0_ = 0, iy0_ = 0, mask_dx_ = 0, mask_dy_ = 0;
+  float wx_[4] = {}, wy_[4] = {};
+  int row_dy_ = INT_MIN;
+  bool row_ok_ = false;
+  const std::uint8_t* mask_row_ = nullptr;
+  std::vector<float> vertical_;
+};
 
 // The current frame and its mask, as raw pointers: the match loop samples every subset pixel per
 // iteration, and going through cv::Mat accessors there cost a fifth of the tracker's time.

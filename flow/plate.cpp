@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include "core/error.hpp"
+#include "flow/bicubic.hpp"
 
 namespace tirstrain::flow {
 namespace {
@@ -144,14 +145,17 @@ void PlateTracker::add_to_mosaic(const cv::Mat& image, Vec2 d, bool only_empty) 
   const int i1 = std::min(mosaic_sum_.cols - 1, static_cast<int>(std::floor(hi_x - d.x)) - origin_x_);
   const int j0 = std::max(0, static_cast<int>(std::ceil(lo_y - d.y)) - origin_y_);
   const int j1 = std::min(mosaic_sum_.rows - 1, static_cast<int>(std::floor(hi_y - d.y)) - origin_y_);
+  if (i1 < i0 || j1 < j0) return;
+  // The whole band moves by d: one set of bicubic weights for every pixel.
+  detail::TranslatedSampler shifted(image, cv::Mat(), origin_x_ + i0 + d.x, origin_y_ + j0 + d.y, 0, i1 - i0);
+  if (!shifted.ok()) return;  // so far off that no pixel lands in the image
   for (int j = j0; j <= j1; ++j) {
     float* sum = mosaic_sum_.ptr<float>(j);
     float* count = mosaic_count_.ptr<float>(j);
-    const double y = origin_y_ + j + d.y;
     for (int i = i0; i <= i1; ++i) {
       float v = 0.0f;
       if (only_empty && count[i] > 0.0f) continue;
-      if (!sample_bicubic(image, origin_x_ + i + d.x, y, v)) continue;
+      if (!shifted.sample(i - i0, j - j0, v)) continue;
       sum[i] += v;
       count[i] += 1.0f;
     }

@@ -324,11 +324,20 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
   const double total = static_cast<double>(points_.size());
   const double r = radius_px_;
   const detail::Sampler image(current, current_mask);
+  // A translation subset under a pure translation (the plate's, into its mosaic) samples every pixel at
+  // the same fraction of a pixel: TranslatedSampler filters separably instead.
+  const auto is_pure_translation = [&] {
+    if (shape_ != ShapeFunction::kTranslation || n != 2) return false;
+    for (int i = 2; i < 12; ++i)
+      if (warp.p[static_cast<std::size_t>(i)] != 0.0) return false;
+    return true;
+  };
   double j[12];
   Matrix h_out;
   Vector sj_out, sjf_out, sjg;
   for (int iter = 1; iter <= options.max_iterations; ++iter) {
     result.iterations = iter;
+    const bool pure_translation = is_pure_translation();
     h_out.setZero();
     sj_out.setZero();
     sjf_out.setZero();
@@ -341,14 +350,8 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
       const auto& q = warp.p;
       double a[N] = {};
       double a_g = 0, a_gg = 0, a_fg = 0;
-      for (const Pixel& p : points_) {
-        const double dx = p.dx, dy = p.dy;
-        const double x = centre_.x + dx + q[0] + q[2] * dx + q[3] * dy +
-                         (0.5 * q[6] * dx * dx + q[7] * dx * dy + 0.5 * q[8] * dy * dy);
-        const double y = centre_.y + dy + q[1] + q[4] * dx + q[5] * dy +
-                         (0.5 * q[9] * dx * dx + q[10] * dx * dy + 0.5 * q[11] * dy * dy);
-        float g = 0.0f;
-        if (!image.sample(x, y, g)) {
+      const auto take = [&](const Pixel& p, bool visible, float g) {
+        if (!visible) {
           jacobian(p.dx, p.dy, p.gx, p.gy, j);
           const Eigen::Map<const Vector12> jv(j);
           ++outside;
@@ -360,8 +363,9 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
           sjf_out.template head<N>() += jv.template head<N>() * p.f;
           sf_out += p.f;
           sff_out += static_cast<double>(p.f) * p.f;
-          continue;
+          return;
         }
+        const double dx = p.dx, dy = p.dy;
         const double ggx = static_cast<double>(p.gx) * g, ggy = static_cast<double>(p.gy) * g;
         a[0] += ggx;
         a[1] += ggy;
@@ -383,11 +387,39 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
         a_g += g;
         a_gg += static_cast<double>(g) * g;
         a_fg += static_cast<double>(p.f) * g;
+      };
+      const auto finish = [&] {
+        for (int k = 0; k < N; ++k) sjg[k] = a[k];
+        sg = a_g;
+        sgg = a_gg;
+        sfg = a_fg;
+      };
+      if constexpr (N == 2) {
+        // The plate's subsets: the same shift for every pixel (TranslatedSampler).
+        if (pure_translation) {
+          detail::TranslatedSampler shifted(current, current_mask, centre_.x + q[0], centre_.y + q[1],
+                                            first_.x, radius_px_);
+          if (shifted.ok()) {
+            for (const Pixel& p : points_) {
+              float g = 0.0f;
+              const bool visible = shifted.sample(static_cast<int>(p.dx), static_cast<int>(p.dy), g);
+              take(p, visible, g);
+            }
+            return finish();
+          }
+        }
       }
-      for (int k = 0; k < N; ++k) sjg[k] = a[k];
-      sg = a_g;
-      sgg = a_gg;
-      sfg = a_fg;
+      for (const Pixel& p : points_) {
+        const double dx = p.dx, dy = p.dy;
+        const double x = centre_.x + dx + q[0] + q[2] * dx + q[3] * dy +
+                         (0.5 * q[6] * dx * dx + q[7] * dx * dy + 0.5 * q[8] * dy * dy);
+        const double y = centre_.y + dy + q[1] + q[4] * dx + q[5] * dy +
+                         (0.5 * q[9] * dx * dx + q[10] * dx * dy + 0.5 * q[11] * dy * dy);
+        float g = 0.0f;
+        const bool visible = image.sample(x, y, g);
+        take(p, visible, g);
+      }
+      finish();
     };
     with_parameter_count(n, accumulate);
     const double count = total - static_cast<double>(outside);

@@ -3,11 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <opencv2/imgproc.hpp>
 
 #include <cmath>
 #include <functional>
 #include <numbers>
 
+#include "flow/bicubic.hpp"
 #include "flow/settings.hpp"
 #include "flow/subset.hpp"
 #include "ridge_texture.hpp"
@@ -157,6 +159,78 @@ TEST(Subset, BicubicReproducesSmoothSignal) {
   EXPECT_FALSE(sample_bicubic(img, 10.0, 3e9, v));
   EXPECT_FALSE(sample_bicubic(img, std::nan(""), 10.0, v));
   EXPECT_FALSE(sample_bicubic(img, -1e12, 10.0, v));
+}
+
+// Under a pure translation every pixel is sampled at the same fraction of a pixel (the plate's subsets and
+// mosaic): the separable sampler must give the per-pixel sampler's values and refusals, at the image's
+// edges, under a mask (its nearest pixel), and for shifts either side of half a pixel.
+TEST(Subset, TranslatedSamplerEqualsThePerPixelSampler) {
+  cv::Mat img(40, 50, CV_32F);
+  cv::randu(img, 0.0, 1.0);
+  cv::Mat mask(img.size(), CV_8U, cv::Scalar(1));
+  cv::circle(mask, cv::Point(20, 18), 6, cv::Scalar(0), cv::FILLED);
+  for (const cv::Mat& m : {cv::Mat(), mask})
+    for (const Vec2 shift : {Vec2{0.25, 0.75}, Vec2{-3.6, 2.49}, Vec2{7.5, -0.5}, Vec2{-12.0, 15.0}}) {
+      const detail::Sampler each(img, m);
+      // Offsets −25…25 around (24, 19): many land outside the image on one side or the other.
+      detail::TranslatedSampler shifted(img, m, 24.0 + shift.x, 19.0 + shift.y, -25, 25);
+      ASSERT_TRUE(shifted.ok());
+      int compared = 0, refused = 0;
+      for (int dy = -25; dy <= 25; ++dy)
+        for (int dx = -25; dx <= 25; ++dx) {
+          float a = 0.0f, b = 0.0f;
+          const bool in_each = each.sample(24.0 + dx + shift.x, 19.0 + dy + shift.y, a);
+          const bool in_shifted = shifted.sample(dx, dy, b);
+          ASSERT_EQ(in_each, in_shifted) << "offset " << dx << ", " << dy;
+          if (!in_each) {
+            ++refused;
+            continue;
+          }
+          EXPECT_NEAR(a, b, 1e-6f);
+          ++compared;
+        }
+      EXPECT_GT(compared, 500);
+      EXPECT_GT(refused, 100);
+    }
+  EXPECT_FALSE(detail::TranslatedSampler(img, cv::Mat(), std::nan(""), 3.0, 0, 4).ok());
+  EXPECT_FALSE(detail::TranslatedSampler(img, cv::Mat(), 3.0, 1e12, 0, 4).ok());
+}
+
+// A translation subset takes the separable path; an affine one matched for the translation alone takes the
+// per-pixel path on the same pixels: the two must end at the same place with the same score, also where
+// part of the subset falls outside the frame's mask.
+TEST(Subset, TranslationSubsetMatchesAsThePerPixelPath) {
+  const cv::Mat ref = render(96, [](double x, double y) { return Vec2{x, y}; });
+  const Vec2 t{2.37, -1.61};
+  const cv::Mat cur = render(96, [&](double x, double y) { return Vec2{x - t.x, y - t.y}; });
+  cv::Mat mask(cur.size(), CV_8U, cv::Scalar(1));
+  mask.colRange(58, 96).setTo(0);
+  AnchorImage anchor;
+  anchor.assign(ref, cv::Mat());
+  Subset translation, affine;
+  ASSERT_TRUE(translation.build(anchor, cv::Point(47, 47), 14, 1, ShapeFunction::kTranslation, 100));
+  ASSERT_TRUE(affine.build(anchor, cv::Point(47, 47), 14, 1, ShapeFunction::kAffine, 100));
+  MatchOptions translation_only;
+  translation_only.translation_only = true;
+  for (const cv::Mat& m : {cv::Mat(), mask}) {
+    Warp a, b;
+    a.p[0] = b.p[0] = t.x + 0.8;
+    a.p[1] = b.p[1] = t.y - 0.6;
+    const MatchResult ma = translation.match(cur, m, a, MatchOptions{});
+    const MatchResult mb = affine.match(cur, m, b, translation_only);
+    ASSERT_TRUE(ma.converged);
+    ASSERT_TRUE(mb.converged);
+    EXPECT_EQ(ma.iterations, mb.iterations);
+    EXPECT_NEAR(a.p[0], b.p[0], 1e-6);
+    EXPECT_NEAR(a.p[1], b.p[1], 1e-6);
+    EXPECT_NEAR(ma.zncc, mb.zncc, 1e-9);
+    EXPECT_NEAR(ma.valid_fraction, mb.valid_fraction, 1e-12);
+    EXPECT_NEAR(a.p[0], t.x, 0.01);
+    EXPECT_NEAR(a.p[1], t.y, 0.01);
+    if (!m.empty()) {
+      EXPECT_LT(ma.valid_fraction, 0.9);
+    }
+  }
 }
 
 }  // namespace
