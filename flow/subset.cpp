@@ -350,22 +350,20 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
       const auto& q = warp.p;
       double a[N] = {};
       double a_g = 0, a_gg = 0, a_fg = 0;
-      const auto take = [&](const Pixel& p, bool visible, float g) {
-        if (!visible) {
-          jacobian(p.dx, p.dy, p.gx, p.gy, j);
-          const Eigen::Map<const Vector12> jv(j);
-          ++outside;
-          // Fixed-size blocks: as runtime-sized Eigen blocks these took 13 % of a tracking run's
-          // instructions.
-          h_out.template topLeftCorner<N, N>().noalias() +=
-              jv.template head<N>() * jv.template head<N>().transpose();
-          sj_out.template head<N>() += jv.template head<N>();
-          sjf_out.template head<N>() += jv.template head<N>() * p.f;
-          sf_out += p.f;
-          sff_out += static_cast<double>(p.f) * p.f;
-          return;
-        }
-        const double dx = p.dx, dy = p.dy;
+      const auto take_outside = [&](const Pixel& p) {
+        jacobian(p.dx, p.dy, p.gx, p.gy, j);
+        const Eigen::Map<const Vector12> jv(j);
+        ++outside;
+        // Fixed-size blocks: as runtime-sized Eigen blocks these took 13 % of a tracking run's
+        // instructions.
+        h_out.template topLeftCorner<N, N>().noalias() +=
+            jv.template head<N>() * jv.template head<N>().transpose();
+        sj_out.template head<N>() += jv.template head<N>();
+        sjf_out.template head<N>() += jv.template head<N>() * p.f;
+        sf_out += p.f;
+        sff_out += static_cast<double>(p.f) * p.f;
+      };
+      const auto take_visible = [&](const Pixel& p, double dx, double dy, float g) {
         const double ggx = static_cast<double>(p.gx) * g, ggy = static_cast<double>(p.gy) * g;
         a[0] += ggx;
         a[1] += ggy;
@@ -402,8 +400,11 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
           if (shifted.ok()) {
             for (const Pixel& p : points_) {
               float g = 0.0f;
-              const bool visible = shifted.sample(static_cast<int>(p.dx), static_cast<int>(p.dy), g);
-              take(p, visible, g);
+              if (!shifted.sample(static_cast<int>(p.dx), static_cast<int>(p.dy), g)) {
+                take_outside(p);
+                continue;
+              }
+              take_visible(p, p.dx, p.dy, g);
             }
             return finish();
           }
@@ -416,8 +417,11 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
         const double y = centre_.y + dy + q[1] + q[4] * dx + q[5] * dy +
                          (0.5 * q[9] * dx * dx + q[10] * dx * dy + 0.5 * q[11] * dy * dy);
         float g = 0.0f;
-        const bool visible = image.sample(x, y, g);
-        take(p, visible, g);
+        if (!image.sample(x, y, g)) {
+          take_outside(p);
+          continue;
+        }
+        take_visible(p, dx, dy, g);
       }
       finish();
     };
