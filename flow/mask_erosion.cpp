@@ -38,46 +38,90 @@ void erode_ellipse(const cv::Mat& mask, int radius_px, cv::Mat& out) {
   // reach ≥ w + 1.
   const int cap = r + 1;
   cv::Mat reach(rows, cols, CV_8U);
-  std::vector<int> left(static_cast<std::size_t>(cols));
+  // Per row: the extent of its set pixels [first, last], and one run of pixels whose reach is full (≥ cap,
+  // i.e. at least r + 1 set pixels on both sides) as [deep_first, deep_last]: the longest such run, so that
+  // an interior pixel of a convex contact is known to survive without testing it.
+  std::vector<int> first(static_cast<std::size_t>(rows)), last(static_cast<std::size_t>(rows));
+  std::vector<int> deep_first(static_cast<std::size_t>(rows)), deep_last(static_cast<std::size_t>(rows));
+  const int top = cap + 1;
   for (int y = 0; y < rows; ++y) {
     const std::uint8_t* m = mask.ptr<std::uint8_t>(y);
     std::uint8_t* out_row = reach.ptr<std::uint8_t>(y);
-    int run = 0;
-    for (int x = 0; x < cols; ++x) {
-      run = m[x] ? std::min(run + 1, cap + 1) : 0;
-      left[static_cast<std::size_t>(x)] = run;
+    std::fill(out_row, out_row + cols, std::uint8_t{0});
+    int f = cols, l = -1, best_first = 0, best_last = -1;
+    // Run by run: reach(x) = min(x − s + 1, e − x + 1, cap + 1) on a run [s, e] of set pixels, a ramp up,
+    // a plateau and a ramp down.
+    for (int x = 0; x < cols;) {
+      while (x < cols && m[x] == 0) ++x;
+      if (x == cols) break;
+      const int s0 = x;
+      while (x < cols && m[x] != 0) ++x;
+      const int e = x - 1, length = e - s0 + 1;
+      if (f == cols) f = s0;
+      l = e;
+      std::uint8_t* run = out_row + s0;
+      if (length >= 2 * top) {
+        for (int k = 0; k < top; ++k) run[k] = run[length - 1 - k] = static_cast<std::uint8_t>(k + 1);
+        std::fill(run + top, run + length - top, static_cast<std::uint8_t>(top));
+      } else {
+        for (int k = 0; k < length; ++k)
+          run[k] = static_cast<std::uint8_t>(std::min({k + 1, length - k, top}));
+      }
+      const int deep_s = s0 + cap - 1, deep_e = e - cap + 1;
+      if (deep_e >= deep_s && deep_e - deep_s > best_last - best_first)
+        best_first = deep_s, best_last = deep_e;
     }
-    run = 0;
-    for (int x = cols - 1; x >= 0; --x) {
-      run = m[x] ? std::min(run + 1, cap + 1) : 0;
-      // Set pixels in [x − (L−1), x + (R−1)]: half-width min(L, R) − 1 fits; stored +1.
-      out_row[x] = static_cast<std::uint8_t>(std::min(left[static_cast<std::size_t>(x)], run));
-    }
+    const auto k = static_cast<std::size_t>(y);
+    first[k] = f, last[k] = l, deep_first[k] = best_first, deep_last[k] = best_last;
   }
   std::vector<std::uint8_t> keep(static_cast<std::size_t>(cols));
-  for (int y = 0; y < rows; ++y) {
-    std::fill(keep.begin(), keep.end(), std::uint8_t{1});
-    bool any = true;
-    for (int i = 0; i <= 2 * r && any; ++i) {
+  // keep[x] for x in [x0, x1]: every element row's reach covers its half-width.
+  const auto test = [&](int y, int x0, int x1) {
+    if (x1 < x0) return;
+    std::uint8_t* k = keep.data();
+    std::fill(k + x0, k + x1 + 1, std::uint8_t{1});
+    for (int i = 0; i <= 2 * r; ++i) {
       const int w = half[static_cast<std::size_t>(i)];
       if (w < 0) continue;
-      const int yy = y + i - r;
-      if (yy < 0 || yy >= rows) {  // the border is 0
-        any = false;
-        break;
-      }
-      const std::uint8_t* row = reach.ptr<std::uint8_t>(yy);
+      const std::uint8_t* row = reach.ptr<std::uint8_t>(y + i - r);
       const auto need = static_cast<std::uint8_t>(w + 1);
-      std::uint8_t* k = keep.data();
-      for (int x = 0; x < cols; ++x) k[x] = static_cast<std::uint8_t>(k[x] & (row[x] >= need ? 1 : 0));
+      for (int x = x0; x <= x1; ++x) k[x] = static_cast<std::uint8_t>(k[x] & (row[x] >= need ? 1 : 0));
     }
+  };
+  for (int y = 0; y < rows; ++y) {
     const std::uint8_t* m = mask.ptr<std::uint8_t>(y);
     std::uint8_t* o = out.ptr<std::uint8_t>(y);
-    if (!any) {
-      std::fill(o, o + cols, std::uint8_t{0});
-      continue;
+    std::fill(o, o + cols, std::uint8_t{0});
+    // A pixel survives only where every element row's reach is at least 1: inside every row's extent.
+    int lo = 0, hi = cols - 1, deep_lo = 0, deep_hi = cols - 1;
+    bool inside = true;
+    for (int i = 0; i <= 2 * r && inside; ++i) {
+      if (half[static_cast<std::size_t>(i)] < 0) continue;
+      const int yy = y + i - r;
+      if (yy < 0 || yy >= rows) {  // the border is 0
+        inside = false;
+        break;
+      }
+      const auto k = static_cast<std::size_t>(yy);
+      lo = std::max(lo, first[k]);
+      hi = std::min(hi, last[k]);
+      deep_lo = std::max(deep_lo, deep_first[k]);
+      deep_hi = std::min(deep_hi, deep_last[k]);
     }
-    for (int x = 0; x < cols; ++x) o[x] = keep[static_cast<std::size_t>(x)] ? m[x] : std::uint8_t{0};
+    if (!inside || hi < lo) continue;
+    // Within every row's full-reach run the element fits at once; the rest of [lo, hi] is tested.
+    if (deep_hi < deep_lo) {
+      deep_lo = hi + 1;
+      deep_hi = hi;
+    }
+    deep_lo = std::max(deep_lo, lo);
+    deep_hi = std::min(deep_hi, hi);
+    test(y, lo, deep_lo - 1);
+    test(y, deep_hi + 1, hi);
+    for (int x = lo; x <= hi; ++x) {
+      const bool survives = (x >= deep_lo && x <= deep_hi) || keep[static_cast<std::size_t>(x)];
+      o[x] = survives ? m[x] : std::uint8_t{0};
+    }
   }
 }
 

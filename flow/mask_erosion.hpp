@@ -2,9 +2,11 @@
 // Erosion of a binary mask by OpenCV's elliptic structuring element, without OpenCV's per-element pass.
 // cv::erode with a (2r+1)² MORPH_ELLIPSE visits every element point per pixel: at the automatic preset's
 // border exclusion (r = 0.6 P ≈ 14 px) that was 8 % of the tracker's instructions per 640×512 frame. Here
-// each row first records how far its run of set pixels extends to both sides of each pixel; a pixel then
-// survives when, for every row of the element, that reach covers the element row's half-width: 2r + 1 byte
-// comparisons per pixel, which vectorise.
+// each row first records, run by run, how far its run of set pixels extends to both sides of each pixel; a
+// pixel then survives when, for every row of the element, that reach covers the element row's half-width:
+// 2r + 1 byte comparisons per pixel, which vectorise. Only the band along the contact's edge is tested:
+// outside every element row's extent a pixel is background, and inside every row's run of full reach it
+// survives (on the goal trial 94 → 43 M instructions over 10 frames).
 #include <opencv2/core.hpp>
 
 namespace tirstrain::flow {
