@@ -30,7 +30,9 @@ double median_of(std::vector<double>& v) {
 const cv::Mat& PlateTracker::smoothed(const cv::Mat& image) {
   const double sigma = settings_.prefilter_sigma_px;
   if (sigma <= 0.0) return image;
-  if (smoothed_.size() != image.size()) smoothed_ = cv::Mat::zeros(image.size(), CV_32F);
+  // Allocated, not cleared: only the band is ever read, and clearing the whole frame touched 1.3 MB of
+  // fresh pages on a 640×512 trial (≈ 320 page faults at start, ≈ 4 ms on these machines).
+  smoothed_.create(image.size(), CV_32F);
   cv::GaussianBlur(image(roi_), smoothed_(roi_), cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
   return smoothed_;
 }

@@ -123,17 +123,27 @@ void compose_translation(Warp& warp, double tx, double ty) {
 // value, which comes from the prediction and the neighbours. Judged on the Jacobi-scaled matrix because
 // the parameters mix px, px/px and px/px².
 template <int N>
-Eigen::Matrix<double, N, N> truncated_inverse(const Eigen::Matrix<double, N, N>& h, double relative_floor) {
-  using Square = Eigen::Matrix<double, N, N>;
-  const Eigen::Matrix<double, N, 1> d = h.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
-  const Square scaled = d.asDiagonal() * h * d.asDiagonal();
-  Eigen::SelfAdjointEigenSolver<Square> eig(scaled);
-  const Eigen::Matrix<double, N, 1>& l = eig.eigenvalues();
+struct ScaledEigen {
+  Eigen::Matrix<double, N, 1> d;                                   // the Jacobi scaling: 1 / sqrt(diag h)
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eig;  // of d h d
+  explicit ScaledEigen(const Eigen::Matrix<double, N, N>& h)
+      : d(h.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse()),
+        eig(d.asDiagonal() * h * d.asDiagonal()) {}
+};
+
+template <int N>
+Eigen::Matrix<double, N, N> truncated_inverse(const ScaledEigen<N>& s, double relative_floor) {
+  const Eigen::Matrix<double, N, 1>& l = s.eig.eigenvalues();
   const double floor = relative_floor * l.maxCoeff();
   Eigen::Matrix<double, N, 1> inv;
   for (int i = 0; i < N; ++i) inv[i] = l[i] > floor ? 1.0 / l[i] : 0.0;
-  return d.asDiagonal() * (eig.eigenvectors() * inv.asDiagonal() * eig.eigenvectors().transpose()) *
-         d.asDiagonal();
+  return s.d.asDiagonal() * (s.eig.eigenvectors() * inv.asDiagonal() * s.eig.eigenvectors().transpose()) *
+         s.d.asDiagonal();
+}
+
+template <int N>
+Eigen::Matrix<double, N, N> truncated_inverse(const Eigen::Matrix<double, N, N>& h, double relative_floor) {
+  return truncated_inverse<N>(ScaledEigen<N>(h), relative_floor);
 }
 
 // Visits the anchor pixels of a subset window, every `stride`-th, inside the image less its 1 px border (the
@@ -270,12 +280,11 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
   const auto finish = [&]<int N>() {
     using Square = Eigen::Matrix<double, N, N>;
     // The parameters mix units (px, px/px, px/px²): judge the conditioning on the scaled Hessian.
+    // One decomposition for both the check and the inverse: two were a sixth of the seeding's instructions.
     const Square h = hessian_.template topLeftCorner<N, N>();
-    const Eigen::Matrix<double, N, 1> d = h.diagonal().cwiseMax(1e-30).cwiseSqrt().cwiseInverse();
-    const Square scaled = d.asDiagonal() * h * d.asDiagonal();
-    Eigen::SelfAdjointEigenSolver<Square> eig(scaled, Eigen::EigenvaluesOnly);
-    if (sum_ff_ <= 1e-12 || eig.eigenvalues()[0] < 1e-6) return false;
-    hessian_inverse_ = truncated_inverse<N>(h, kEigenFloor);
+    const ScaledEigen<N> scaled(h);
+    if (sum_ff_ <= 1e-12 || scaled.eig.eigenvalues()[0] < 1e-6) return false;
+    hessian_inverse_ = truncated_inverse<N>(scaled, kEigenFloor);
     // The inverse of the translation block of H⁻¹ is the Schur complement: the information on (u, v) once
     // the other parameters are free.
     information_ = Eigen::Matrix2d(Square(h.inverse()).template topLeftCorner<2, 2>()).inverse() / sum_ff_;
