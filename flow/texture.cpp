@@ -6,6 +6,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "flow/mask_erosion.hpp"
+
 namespace tirstrain::flow {
 
 TextureQuality measure_texture(const cv::Mat& image, const cv::Mat& mask, double ridge_period_px) {
@@ -18,22 +20,21 @@ TextureQuality measure_texture(const cv::Mat& image, const cv::Mat& mask, double
   // contact was fresh memory to fault in, ~5 MB on a 640×512 frame).
   const cv::Rect box = mask.empty() ? cv::Rect(0, 0, image.cols, image.rows) : cv::boundingRect(mask);
   if (box.area() == 0) return q;
-  cv::Mat interior;
+  // The interior, on the box alone: the mask is 0 outside it, as the erosion's constant border is.
+  cv::Mat interior, contact;
   if (mask.empty())
-    interior = cv::Mat(image.size(), CV_8U, cv::Scalar(1));
+    contact = cv::Mat(box.size(), CV_8U, cv::Scalar(1));
   else
-    cv::compare(mask, 0, interior, cv::CMP_NE);
+    cv::compare(mask(box), 0, contact, cv::CMP_NE);
   const int reach = std::max(1, static_cast<int>(std::ceil(0.5 * ridge_period_px)));
-  cv::erode(interior, interior,
-            cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * reach + 1, 2 * reach + 1)),
-            cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+  erode_ellipse(contact, reach, interior);
   q.pixels = cv::countNonZero(interior);
   if (q.pixels == 0) return q;
 
   // Immerkær (1996): for white noise of σ, E|I * N| = 6 σ √(2/π) with N = [1 −2 1; −2 4 −2; 1 −2 1].
   const cv::Matx33f kernel(1, -2, 1, -2, 4, -2, 1, -2, 1);
   cv::Mat response;
-  const cv::Mat view = image(box), inside = interior(box);
+  const cv::Mat view = image(box), &inside = interior;
   cv::filter2D(view, response, CV_32F, kernel, cv::Point(-1, -1), 0.0, cv::BORDER_REPLICATE);
   const double mean_abs = cv::mean(cv::abs(response), inside)[0];
   q.noise_sigma = mean_abs * std::sqrt(0.5 * std::numbers::pi) / 6.0;
