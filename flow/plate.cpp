@@ -10,6 +10,7 @@
 
 #include "core/error.hpp"
 #include "flow/bicubic.hpp"
+#include "flow/phase_correlation.hpp"
 
 namespace tirstrain::flow {
 namespace {
@@ -72,19 +73,17 @@ void PlateTracker::start(const cv::Mat& image_in, const cv::Mat& image_u8, const
   add_to_mosaic(image, {}, false);
   cv::buildOpticalFlowPyramid(image_u8(roi_), previous_pyramid_,
                               cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels);
-  image(roi_).copyTo(previous_band_);
   cv::createHanningWindow(hann_, roi_.size(), CV_32F);
+  band_correlation_.set_reference(image(roi_), hann_);
   ok_ = true;
 }
 
 // The band's shift since the previous frame by phase correlation (Hann-windowed), if its peak is clear.
 std::optional<Vec2> PlateTracker::band_shift(const cv::Mat& band) {
-  if (previous_band_.size() != band.size()) return std::nullopt;
-  // On copies: where the size is already DFT-friendly, phaseCorrelate applies the window in place.
-  previous_band_.copyTo(correlate_previous_);
-  band.copyTo(correlate_current_);
+  if (!band_correlation_.has_reference() || band_correlation_.reference_size() != band.size())
+    return std::nullopt;
   double response = 0.0;
-  const cv::Point2d s = cv::phaseCorrelate(correlate_previous_, correlate_current_, hann_, &response);
+  const cv::Point2d s = band_correlation_.correlate(band, &response);
   if (!(response > settings_.min_shift_response) || !std::isfinite(s.x) || !std::isfinite(s.y))
     return std::nullopt;
   return Vec2{s.x, s.y};
@@ -332,7 +331,8 @@ Vec2 PlateTracker::track(const cv::Mat& image_in, const cv::Mat& image_u8, doubl
   }
   velocity_px_per_s_ = {(displacement_px_.x - before.x) / dt, (displacement_px_.y - before.y) / dt};
   std::swap(previous_pyramid_, current_pyramid_);
-  image(roi_).copyTo(previous_band_);
+  // The band correlated above becomes the next frame's reference, its spectrum kept.
+  if (!band_correlation_.adopt_last_as_reference()) band_correlation_.set_reference(image(roi_), hann_);
   base_px_ = displacement_px_;
   base_time_s_ = t;
   return displacement_px_;

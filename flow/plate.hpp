@@ -23,6 +23,7 @@
 
 #include "core/scene.hpp"
 #include "core/tensor2.hpp"
+#include "flow/phase_correlation.hpp"
 #include "flow/subset.hpp"
 
 namespace tirstrain::flow {
@@ -110,8 +111,8 @@ class PlateTracker {
   std::vector<cv::Point2f> lk_from_, lk_to_;
   std::vector<unsigned char> lk_status_;
   std::vector<float> lk_error_;
-  cv::Mat previous_band_, hann_;  // the previous frame's (smoothed) band, and the correlation's window
-  cv::Mat correlate_previous_, correlate_current_;
+  cv::Mat hann_;                      // the band correlation's window
+  PhaseCorrelator band_correlation_;  // against the previous frame's (smoothed) band
   // Mosaic pixel (i, j) holds plate point (origin_x_ + i, origin_y_ + j).
   cv::Mat mosaic_sum_, mosaic_count_, mosaic_mean_, mosaic_mask_, scratch_mask_;
   int origin_x_ = 0, origin_y_ = 0;

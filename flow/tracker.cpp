@@ -18,6 +18,7 @@
 
 #include "core/error.hpp"
 #include "flow/mask_erosion.hpp"
+#include "flow/phase_correlation.hpp"
 #include "flow/plate.hpp"
 #include "flow/shape_field.hpp"
 #include "flow/shi_tomasi.hpp"
@@ -169,6 +170,7 @@ struct FeatureTracker::Impl {
   cv::Rect roi;
   std::vector<cv::Mat> previous_pyramid, current_pyramid;
   cv::Mat previous_hp, current_hp, hp_blur, hp_weight, hp_small, hp_quarter, hp_mask;
+  PhaseCorrelator global_correlation;  // current_hp against previous_hp
   // Until the skin first moves (resting), frame 0's anchor is averaged over the frames so far (rest_count
   // of them, up to rest_average_frames; 0: averaging over or off) and tracks report the fitted rest motion.
   bool resting = false;
@@ -397,6 +399,7 @@ void FeatureTracker::Impl::update_roi(bool rebuild_previous) {
       cv::Mat previous_f;
       previous_u8.convertTo(previous_f, CV_32F, 1.0 / 255.0);
       high_pass(previous_f, previous_hp);
+      global_correlation.set_reference(previous_hp);
     }
   }
 }
@@ -680,10 +683,10 @@ void FeatureTracker::Impl::predict_and_match() {
   Vec2 shift{0.0, 0.0};
   if (settings.global_prediction && !alive.empty()) {
     high_pass(current_f, current_hp);
-    if (previous_hp.size() == current_hp.size()) {
+    if (global_correlation.has_reference() && global_correlation.reference_size() == current_hp.size()) {
       double response = 0.0;
-      const cv::Point2d s = cv::phaseCorrelate(previous_hp, current_hp, cv::noArray(), &response) *
-                            static_cast<double>(high_pass_factor());
+      const cv::Point2d s =
+          global_correlation.correlate(current_hp, &response) * static_cast<double>(high_pass_factor());
       stats.global_shift_px = {s.x, s.y};
       scratch_x.clear();
       scratch_y.clear();
@@ -1625,7 +1628,10 @@ void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, do
   m.update_roi(false);
   m.prepare_matching();
   m.build_pyramid(m.current_u8, m.previous_pyramid);
-  if (m.settings.global_prediction) m.high_pass(m.current_f, m.previous_hp);
+  if (m.settings.global_prediction) {
+    m.high_pass(m.current_f, m.previous_hp);
+    m.global_correlation.set_reference(m.previous_hp);
+  }
   m.add_key_frame();
   m.mask.copyTo(m.first_mask);
   m.rest_count = 0;
@@ -1725,6 +1731,10 @@ const FrameStats& FeatureTracker::track(const cv::Mat& image, const cv::Mat& con
   std::swap(m.previous_pyramid, m.current_pyramid);
   std::swap(m.previous_u8, m.current_u8);
   std::swap(m.previous_hp, m.current_hp);
+  // The high-passed frame correlated this frame is the next reference (its spectrum kept); otherwise the
+  // reference follows whatever previous_hp now holds.
+  if (!m.global_correlation.adopt_last_as_reference() && !m.previous_hp.empty())
+    m.global_correlation.set_reference(m.previous_hp);
   m.stats.alive = static_cast<int>(
       std::count_if(m.tracks.begin(), m.tracks.end(), [](const Track& t) { return is_alive(t.status); }));
   return m.stats;
