@@ -67,8 +67,9 @@ void PhaseCorrelator::spectrum_of(const cv::Mat& image, cv::Mat& spectrum) {
   CV_Assert(image.type() == CV_32F && image.size() == size_);
   const int m = cv::getOptimalDFTSize(image.rows), n = cv::getOptimalDFTSize(image.cols);
   if (m != image.rows || n != image.cols)
-    cv::copyMakeBorder(image, padded_, 0, m - image.rows, 0, n - image.cols, cv::BORDER_CONSTANT,
-                       cv::Scalar(0));
+    // Isolated: for a view into a larger image, copyMakeBorder would pad with the pixels around it.
+    cv::copyMakeBorder(image, padded_, 0, m - image.rows, 0, n - image.cols,
+                       cv::BORDER_CONSTANT | cv::BORDER_ISOLATED, cv::Scalar(0));
   else
     image.copyTo(padded_);
   if (!window_.empty()) cv::multiply(window_, padded_, padded_);
@@ -90,8 +91,8 @@ void PhaseCorrelator::set_reference(const cv::Mat& reference, const cv::Mat& win
   if (window.empty())
     window_.release();
   else if (m != window.rows || n != window.cols)
-    cv::copyMakeBorder(window, window_, 0, m - window.rows, 0, n - window.cols, cv::BORDER_CONSTANT,
-                       cv::Scalar(0));
+    cv::copyMakeBorder(window, window_, 0, m - window.rows, 0, n - window.cols,
+                       cv::BORDER_CONSTANT | cv::BORDER_ISOLATED, cv::Scalar(0));
   else
     window.copyTo(window_);
   spectrum_of(reference, reference_spectrum_);

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include <cmath>
+
 namespace tirstrain::flow {
 namespace {
 
@@ -55,6 +57,30 @@ TEST(PhaseCorrelation, FrameAfterFrameEqualsOpenCVsPairByPair) {
         previous = current;
       }
     }
+}
+
+// Images that are views into larger ones (the plate's band of a frame), with sizes the transform pads in
+// both directions: the padding is zeros, never the pixels around the view (here NaN), as for copies.
+TEST(PhaseCorrelation, ViewsArePaddedWithZerosNotTheirSurroundings) {
+  const cv::Mat big = textured({400, 300}, 5);
+  const cv::Size size(131, 56);  // padded to 135 × 60
+  cv::Mat frame_a(100, 200, CV_32F, cv::Scalar(std::nanf(""))), frame_b = frame_a.clone();
+  const cv::Rect band(10, 20, size.width, size.height);
+  shifted(big, size, {0.0, 0.0}, 1).copyTo(frame_a(band));
+  shifted(big, size, {2.2, -0.7}, 2).copyTo(frame_b(band));
+  cv::Mat window;
+  cv::createHanningWindow(window, size, CV_32F);
+  PhaseCorrelator correlator;
+  correlator.set_reference(frame_a(band), window);
+  double response = 0.0, expected_response = 0.0;
+  const cv::Point2d s = correlator.correlate(frame_b(band), &response);
+  const cv::Point2d expected =
+      cv::phaseCorrelate(frame_a(band).clone(), frame_b(band).clone(), window, &expected_response);
+  EXPECT_NEAR(s.x, expected.x, 1e-9);
+  EXPECT_NEAR(s.y, expected.y, 1e-9);
+  EXPECT_NEAR(response, expected_response, 1e-9);
+  EXPECT_NEAR(s.x, 2.2, 1.0);
+  EXPECT_NEAR(s.y, -0.7, 1.0);
 }
 
 // Unrelated images give no clear peak; an image against itself a response of one.
