@@ -96,6 +96,12 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
   // 3.5 → 2.7 %; BENCHMARKS.md).
   s.fixed_shape_resampled = true;
   s.fixed_shape_resampled_rounds = 3;
+  // Field nodes two grid steps apart (16 px at P = 23.4 px, 0.8 σ) since session 18, not one: a quarter of
+  // the nodes to build and fit. Goal trial (tracking only) 0.0344 px either way, +25 % frames/s; end to end
+  // on the 19 shipped scenes the displacement RMS went down on 15 (default 0.0471 -> 0.0466 px) and up on 4
+  // by at most 2 % (hard_low_contrast 0.0980 -> 0.0986 px); U and the stick radius moved by -0.3 to +0.2
+  // points (default U 3.13 -> 3.21 %, c 2.54 -> 2.70 %). BENCHMARKS.md, flow/ session 18.
+  s.fixed_shape_node_grid = 2;
   s.shape = ShapeFunction::kAffine;
   // Every 3rd pixel since session 14: the goal trial +18 % frames/s (tracking only) at 0.0342 → 0.0346 px;
   // end to end (validate, all shipped scenes) the displacement error went down on 11 scenes and up on 5,
@@ -202,6 +208,8 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   s.fixed_shape_resampled = t.boolean("fixed_shape_resampled", s.fixed_shape_resampled);
   s.fixed_shape_resampled_rounds =
       static_cast<int>(t.integer("fixed_shape_resampled_rounds", s.fixed_shape_resampled_rounds, 1, 100));
+  s.fixed_shape_node_grid =
+      static_cast<int>(t.integer("fixed_shape_node_grid", s.fixed_shape_node_grid, 1, 8));
   s.smoothed_gradient = t.boolean("smoothed_gradient", s.smoothed_gradient);
   s.fixed_shape_radius_px =
       static_cast<int>(t.integer("fixed_shape_radius_px", s.fixed_shape_radius_px, 0, 200));
@@ -259,6 +267,8 @@ void validate(const TrackerSettings& s) {
   if (s.rest_average_frames < 1) fail("rest_average_frames", "must be at least 1");
   if (!(s.rest_tolerance_px >= 0.0)) fail("rest_tolerance_px", "must not be negative");
   if (!(s.rest_noise_sigmas >= 0.0)) fail("rest_noise_sigmas", "must not be negative");
+  if (s.fixed_shape_node_grid < 1 || s.fixed_shape_node_grid > 8)
+    fail("fixed_shape_node_grid", "must lie in [1, 8] grid steps");
   if (s.plate_subset_radius_px != 0 && s.plate_subset_radius_px < 3)
     fail("plate_subset_radius_px", "must be 0 (automatic) or at least 3 px");
 }

@@ -100,6 +100,10 @@ struct TrackerSettings {
   // subset-by-subset rounds.
   bool fixed_shape_resampled = false;
   int fixed_shape_resampled_rounds = 3;
+  // The resampled rounds' field has its nodes this many grid steps apart, on the seeding lattice. The
+  // node polynomials are fits over 2σ (fixed_shape_sigma_grid) and are blended bilinearly between nodes: a
+  // spacing well under σ adds nodes, not detail.
+  int fixed_shape_node_grid = 1;
   bool smoothed_gradient = true;  // report (and use) the fitted gradient instead of the subset's own
   // A refined match further than this from its prediction is re-checked against the neighbours.
   double max_correction_px = 3.0;

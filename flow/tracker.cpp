@@ -1175,10 +1175,10 @@ void FeatureTracker::Impl::resampled_shape_pass() {
     x0 = std::min(x0, X.x), y0 = std::min(y0, X.y), x1 = std::max(x1, X.x), y1 = std::max(y1, X.y);
   }
   if (eligible.size() < 6) return;
-  // The field's nodes on the seeding lattice (multiples of the grid step): there a node's fit is the
-  // seeded track's own neighbourhood fit, as in the subset-by-subset rounds.
+  // The field's nodes on the seeding lattice (multiples of fixed_shape_node_grid grid steps): there a
+  // node's fit is that seeded track's own neighbourhood fit, as in the subset-by-subset rounds.
   const int reach = std::max(settings.subset_radius_px, settings.fixed_shape_radius_px) + 2;
-  const double step = settings.grid_step_px;
+  const double step = settings.fixed_shape_node_grid * settings.grid_step_px;
   const int left = static_cast<int>(std::lround(std::max(0.0, std::floor((x0 - reach) / step)) * step));
   const int top = static_cast<int>(std::lround(std::max(0.0, std::floor((y0 - reach) / step)) * step));
   const cv::Rect region =
@@ -1219,7 +1219,7 @@ void FeatureTracker::Impl::resampled_shape_pass() {
       field_anchor.push_back(X);
       field_displacement.push_back({x.x - X.x, x.y - X.y});
     }
-    shape_field.fit(field_anchor, field_displacement, region, settings.grid_step_px, sigma);
+    shape_field.fit(field_anchor, field_displacement, region, step, sigma);
     resample_through(match_f, match_mask, shape_field, keys[0]->anchor.mask(), region, resampled,
                      resampled_valid, lattices);
     window_sums.build(keys[0]->anchor, resampled, resampled_valid, region, settings.fixed_shape_stride,

@@ -39,6 +39,7 @@ TEST(Settings, AutoIsSizedFromTheRidgePeriod) {
   // The fixed-shape rounds on the resampled frame, seeded by an affine match on every 3rd pixel.
   EXPECT_TRUE(s.fixed_shape_resampled);
   EXPECT_EQ(s.fixed_shape_resampled_rounds, 3);
+  EXPECT_EQ(s.fixed_shape_node_grid, 2);  // the rounds' field nodes every other seeding-lattice point
   EXPECT_EQ(s.shape, ShapeFunction::kAffine);
   EXPECT_EQ(s.subset_stride, 3);
   EXPECT_EQ(s.fixed_shape_stride, 2);
@@ -106,6 +107,9 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_EQ(rounds.lk_max_iterations, 10);
   EXPECT_EQ(rounds.lk_epsilon, 0.05);
   EXPECT_THROW(parse_tracking_settings(scene_with("{fixed_shape_resampled_rounds: 0}")), Error);
+  EXPECT_EQ(parse_tracking_settings(scene_with("{fixed_shape_node_grid: 1}")).fixed_shape_node_grid, 1);
+  EXPECT_THROW(parse_tracking_settings(scene_with("{fixed_shape_node_grid: 0}")), Error);
+  EXPECT_THROW(parse_tracking_settings(scene_with("{fixed_shape_node_grid: 9}")), Error);
   EXPECT_THROW(parse_tracking_settings(scene_with("{lk_epsilon: 0}")), Error);
   // The measured contact is inset by 1 px for tracking (both presets) unless the scene says otherwise.
   EXPECT_EQ(parse_tracking_settings(scene_with("{}")).contact_inset_px, 1.0);
