@@ -5,15 +5,13 @@
 
 #include <cmath>
 
+#include "noise_texture.hpp"
+
 namespace tirstrain::flow {
 namespace {
 
 cv::Mat textured(cv::Size size, unsigned seed) {
-  cv::Mat image(size, CV_32F);
-  cv::RNG rng(seed);
-  rng.fill(image, cv::RNG::UNIFORM, 0.0, 1.0);
-  cv::GaussianBlur(image, image, cv::Size(), 1.2);
-  return image;
+  return testing::smoothed_noise(size, seed, 1.2);
 }
 
 // A frame of a moving texture: its content moved by `shift` px (and a little noise of its own).

@@ -3,17 +3,13 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
-#include <random>
+#include "noise_texture.hpp"
 
 namespace tirstrain::flow {
 namespace {
 
 cv::Mat textured(cv::Size size, unsigned seed) {
-  cv::Mat image(size, CV_32F);
-  cv::RNG rng(seed);
-  rng.fill(image, cv::RNG::UNIFORM, 0.0, 1.0);
-  cv::GaussianBlur(image, image, cv::Size(), 1.5);
-  return image;
+  return testing::smoothed_noise(size, seed, 1.5);
 }
 
 // Band by band equals the whole region at once, for views anywhere in a frame (touching its edges or
