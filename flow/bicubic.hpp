@@ -78,8 +78,16 @@ class TranslatedSampler {
  public:
   // Offset (0, 0) lands at (x0, y0); offsets dx lie in [dx_min, dx_max]. Refuses (ok() false) a shift
   // that is not finite or is far outside the image.
+  // Keeps raw pointers (as Sampler does), not the matrices: a temporary empty mask may be passed.
   TranslatedSampler(const cv::Mat& image, const cv::Mat& mask, double x0, double y0, int dx_min, int dx_max)
-      : image_(image), mask_(mask), dx_min_(dx_min), dx_max_(dx_max) {
+      : data_(image.ptr<float>()),
+        step_(image.step1()),
+        cols_(image.cols),
+        rows_(image.rows),
+        mask_(mask.empty() ? nullptr : mask.ptr<std::uint8_t>()),
+        mask_step_(mask.empty() ? 0 : mask.step1()),
+        dx_min_(dx_min),
+        dx_max_(dx_max) {
     CV_Assert(image.type() == CV_32F &&
               (mask.empty() || (mask.type() == CV_8U && mask.size() == image.size())));
     ok_ = std::abs(x0) < 1e6 && std::abs(y0) < 1e6;  // also false for NaN
@@ -98,7 +106,7 @@ class TranslatedSampler {
   bool sample(int dx, int dy, float& value) {
     if (dy != row_dy_) start_row(dy);
     const int ix = ix0_ + dx;
-    if (!row_ok_ || ix < 1 || ix > image_.cols - 3) return false;
+    if (!row_ok_ || ix < 1 || ix > cols_ - 3) return false;
     if (mask_row_ && mask_row_[ix + mask_dx_] == 0) return false;
     const float* v = vertical_.data() + (dx - dx_min_);  // v[k] is column ix - 1 + k
     value = (v[0] * wx_[0] + v[1] * wx_[1]) + (v[2] * wx_[2] + v[3] * wx_[3]);
@@ -109,15 +117,15 @@ class TranslatedSampler {
   void start_row(int dy) {
     row_dy_ = dy;
     const int iy = iy0_ + dy;
-    row_ok_ = iy >= 1 && iy <= image_.rows - 3;
+    row_ok_ = iy >= 1 && iy <= rows_ - 3;
     if (!row_ok_) return;
-    mask_row_ = mask_.empty() ? nullptr : mask_.ptr<std::uint8_t>(iy + mask_dy_);
-    const float* r0 = image_.ptr<float>(iy - 1);
-    const std::size_t step = image_.step1();
+    mask_row_ = mask_ ? mask_ + static_cast<std::size_t>(iy + mask_dy_) * mask_step_ : nullptr;
+    const float* r0 = data_ + static_cast<std::size_t>(iy - 1) * step_;
+    const std::size_t step = step_;
     // Columns ix0 + dx_min - 1 ... ix0 + dx_max + 2, clipped to the image (a pixel whose support leaves
     // it is refused above).
     const int c0 = ix0_ + dx_min_ - 1;
-    const int lo = std::max(0, c0), hi = std::min(image_.cols - 1, ix0_ + dx_max_ + 2);
+    const int lo = std::max(0, c0), hi = std::min(cols_ - 1, ix0_ + dx_max_ + 2);
     for (int c = lo; c <= hi; ++c) {
       const float* p = r0 + c;
       vertical_[static_cast<std::size_t>(c - c0)] =
@@ -125,8 +133,11 @@ class TranslatedSampler {
     }
   }
 
-  const cv::Mat& image_;
-  const cv::Mat& mask_;
+  const float* data_;
+  std::size_t step_;
+  int cols_, rows_;
+  const std::uint8_t* mask_;
+  std::size_t mask_step_;
   int dx_min_, dx_max_;
   bool ok_ = false;
   int ix0_ = 0, iy0_ = 0, mask_dx_ = 0, mask_dy_ = 0;
