@@ -34,16 +34,16 @@ TextureQuality measure_texture(const cv::Mat& image, const cv::Mat& mask, double
   // Immerkær (1996): for white noise of σ, E|I * N| = 6 σ √(2/π) with N = [1 −2 1; −2 4 −2; 1 −2 1].
   const cv::Matx33f kernel(1, -2, 1, -2, 4, -2, 1, -2, 1);
   cv::Mat response;
-  const cv::Mat view = image(box), &inside = interior;
+  const cv::Mat view = image(box);
   cv::filter2D(view, response, CV_32F, kernel, cv::Point(-1, -1), 0.0, cv::BORDER_REPLICATE);
-  const double mean_abs = cv::mean(cv::abs(response), inside)[0];
+  const double mean_abs = cv::mean(cv::abs(response), interior)[0];
   q.noise_sigma = mean_abs * std::sqrt(0.5 * std::numbers::pi) / 6.0;
 
   cv::Mat fine, coarse;
   cv::GaussianBlur(view, fine, cv::Size(), ridge_period_px / 8.0, 0.0, cv::BORDER_REPLICATE);
   cv::GaussianBlur(view, coarse, cv::Size(), ridge_period_px / 2.0, 0.0, cv::BORDER_REPLICATE);
   cv::Scalar mean, stddev;
-  cv::meanStdDev(fine - coarse, mean, stddev, inside);
+  cv::meanStdDev(fine - coarse, mean, stddev, interior);
   q.ridge_rms = stddev[0];
   q.snr = q.ridge_rms / std::max(q.noise_sigma, 1e-9);
   return q;
