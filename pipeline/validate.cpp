@@ -1,6 +1,7 @@
 #include "pipeline/validate.hpp"
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <array>
@@ -9,8 +10,12 @@
 #include <limits>
 #include <map>
 #include <numbers>
+#include <span>
 #include <sstream>
 
+#include "contact/ellipse.hpp"
+#include "contact/geometry.hpp"
+#include "contact/segmenter.hpp"
 #include "core/atomic_output.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
@@ -87,6 +92,57 @@ cv::Matx23d invert_similarity(const cv::Matx23d& m) {
   const cv::Matx22d inv = a.inv();
   const cv::Vec2d t = -(inv * cv::Vec2d(m(0, 2), m(1, 2)));
   return {inv(0, 0), inv(0, 1), t[0], inv(1, 0), inv(1, 1), t[1]};
+}
+
+// The truth's contact: the generator's mask (the same in every frame: its contact does not move in the
+// image) and the same direct ellipse fit the segmenter reports, applied to the mask's outline. Outline
+// pixels' centres lie half a pixel inside the mask's edge, so the semi-axes get that half pixel back.
+struct ContactTruth {
+  cv::Mat mask;  // CV_8UC1, 255 inside
+  std::optional<contact::Ellipse> ellipse;
+  double area_px = 0.0;
+};
+
+ContactTruth contact_truth(const samples::Trial& trial) {
+  ContactTruth truth;
+  truth.mask = trial.contact_mask() * 255;
+  truth.area_px = cv::countNonZero(truth.mask);
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(truth.mask.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+  std::vector<cv::Point2d> outline;
+  for (const auto& contour : contours)
+    for (const auto& p : contour) outline.emplace_back(p.x, p.y);
+  truth.ellipse = contact::fit_ellipse_direct(outline);
+  if (truth.ellipse) {
+    truth.ellipse->semi_major_px += 0.5;
+    truth.ellipse->semi_minor_px += 0.5;
+  }
+  return truth;
+}
+
+struct ContactErrors {
+  double iou = kNaN;             // hull polygon filled against the truth mask
+  double centre_px = kNaN;       // ellipse centre distance
+  double semi_major_pct = kNaN;  // signed, measured − truth
+  double semi_minor_pct = kNaN;
+  double area_pct = kNaN;
+};
+
+// One frame's contact against the truth; NaN for what the frame does not have (no contact, no ellipse).
+ContactErrors contact_errors(const ContactTruth& truth, std::int64_t status, std::span<const double> hull_px,
+                             std::span<const double> ellipse, double area_mm2, double px_per_mm) {
+  ContactErrors e;
+  if ((status & (contact::kNoContact | contact::kFrameSkipped)) != 0 || hull_px.empty()) return e;
+  std::vector<cv::Point2d> hull;
+  for (std::size_t p = 0; p + 1 < hull_px.size(); p += 2) hull.emplace_back(hull_px[p], hull_px[p + 1]);
+  e.iou = contact::mask_iou(contact::rasterize_polygon(hull, truth.mask.size()), truth.mask);
+  if (truth.area_px > 0.0) e.area_pct = 100.0 * (area_mm2 * px_per_mm * px_per_mm / truth.area_px - 1.0);
+  if ((status & contact::kNoEllipse) == 0 && truth.ellipse && ellipse.size() == 5 && ellipse[2] > 0.0) {
+    e.centre_px = std::hypot(ellipse[0] - truth.ellipse->cx_px, ellipse[1] - truth.ellipse->cy_px);
+    e.semi_major_pct = 100.0 * (ellipse[2] / truth.ellipse->semi_major_px - 1.0);
+    e.semi_minor_pct = 100.0 * (ellipse[3] / truth.ellipse->semi_minor_px - 1.0);
+  }
+  return e;
 }
 
 }  // namespace
@@ -176,6 +232,27 @@ ValidationReport run_validate(const ValidateOptions& options) {
   // c from the strain stage's slip-profile fit (older results have only the stuck labels).
   const std::vector<double> c_fit =
       h5.has("/stick/radius_mm") ? h5.read_doubles("/stick/radius_mm", &shape) : std::vector<double>(n, kNaN);
+
+  // Contact, per frame: the measured hull and ellipse against the truth's.
+  const ContactTruth true_contact = contact_truth(trial);
+  const std::vector<std::int64_t> contact_status = h5.read_integers("/contact/status");
+  const std::vector<double> hull = read(h5, "/contact/hull_px", &shape);
+  const std::size_t hull_values = shape.size() == 3 ? shape[1] * shape[2] : 0;
+  const std::vector<double> ellipses = read(h5, "/contact/ellipse", &shape);
+  const std::vector<double> contact_area = read(h5, "/contact/area_mm2", &shape);
+  std::vector<ContactErrors> contact_frames(n);
+  Accumulator contact_iou_deficit, contact_centre, contact_major, contact_minor, contact_area_error;
+  for (std::size_t i = 0; i < n && contact_status.size() == n; ++i) {
+    const ContactErrors e = contact_errors(
+        true_contact, contact_status[i], std::span<const double>(hull).subspan(i * hull_values, hull_values),
+        std::span<const double>(ellipses).subspan(i * 5, 5), contact_area[i], scene.px_per_mm);
+    contact_frames[i] = e;
+    contact_iou_deficit.add(1.0 - e.iou);
+    contact_centre.add(e.centre_px);
+    contact_major.add(e.semi_major_pct);
+    contact_minor.add(e.semi_minor_pct);
+    contact_area_error.add(e.area_pct);
+  }
 
   const double young = scene.tissue.young_Pa, nu = scene.tissue.poisson, depth = scene.tissue.depth_m;
   const double px_per_mm = scene.px_per_mm;
@@ -474,6 +551,11 @@ ValidationReport run_validate(const ValidateOptions& options) {
   report.rows.push_back(c_exact_error.stats("stick_radius_c_exact_tracks", "model", "", "%"));
   report.rows.push_back(c_true_contact_error.stats("stick_radius_c_true_contact", "model", "", "%"));
   report.rows.push_back(c_all_error.stats("stick_radius_c_all_frames", "model", "", "mm"));
+  report.rows.push_back(contact_iou_deficit.stats("contact_1-IoU", "truth mask", "", ""));
+  report.rows.push_back(contact_centre.stats("contact_centre", "truth ellipse", "", "px"));
+  report.rows.push_back(contact_major.stats("contact_semi_major", "truth ellipse", "", "%"));
+  report.rows.push_back(contact_minor.stats("contact_semi_minor", "truth ellipse", "", "%"));
+  report.rows.push_back(contact_area_error.stats("contact_area", "truth mask", "", "%"));
 
   {
     CsvWriter csv((out / "validation.csv").string(),
@@ -485,17 +567,21 @@ ValidationReport run_validate(const ValidateOptions& options) {
     report.outputs.push_back((out / "validation.csv").string());
   }
   {
-    CsvWriter csv((out / "validation_frames.csv").string(),
-                  {"index", "t_s", "U_J", "U_truth_J", "U_truth_contact_J", "U_truth_triangle_J",
-                   "U_interior_J", "U_truth_interior_J", "stick_ratio", "stick_ratio_truth", "c_mm",
-                   "c_labels_mm", "c_model_mm", "displacement_rms_px", "E_xx_rms"});
+    CsvWriter csv(
+        (out / "validation_frames.csv").string(),
+        {"index", "t_s", "U_J", "U_truth_J", "U_truth_contact_J", "U_truth_triangle_J", "U_interior_J",
+         "U_truth_interior_J", "stick_ratio", "stick_ratio_truth", "c_mm", "c_labels_mm", "c_model_mm",
+         "displacement_rms_px", "E_xx_rms", "contact_iou", "contact_centre_error_px",
+         "contact_semi_major_error_pct", "contact_semi_minor_error_pct"});
     for (std::size_t i = 0; i < n; ++i)
-      csv.row_text({std::to_string(i), format_double(t_s[i]), format_double(energy[i]),
-                    format_double(u_truth[i]), format_double(u_truth_contact[i]),
-                    format_double(u_truth_triangle[i]), format_double(u_interior[i]),
-                    format_double(u_truth_interior[i]), format_double(stick_ratio[i]),
-                    format_double(ratio_truth[i]), format_double(c_fit[i]), format_double(c_labels[i]),
-                    format_double(c_model[i]), format_double(disp_rms[i]), format_double(exx_rms[i])});
+      csv.row_text(
+          {std::to_string(i), format_double(t_s[i]), format_double(energy[i]), format_double(u_truth[i]),
+           format_double(u_truth_contact[i]), format_double(u_truth_triangle[i]),
+           format_double(u_interior[i]), format_double(u_truth_interior[i]), format_double(stick_ratio[i]),
+           format_double(ratio_truth[i]), format_double(c_fit[i]), format_double(c_labels[i]),
+           format_double(c_model[i]), format_double(disp_rms[i]), format_double(exx_rms[i]),
+           format_double(contact_frames[i].iou), format_double(contact_frames[i].centre_px),
+           format_double(contact_frames[i].semi_major_pct), format_double(contact_frames[i].semi_minor_pct)});
     csv.commit();
     report.outputs.push_back((out / "validation_frames.csv").string());
   }

@@ -1,9 +1,10 @@
 #pragma once
 // `tirstrain validate`: a processed synthetic trial against its exact truth. The trial (its scene file
 // carries the synthesis section, so the generator's exact field can be evaluated anywhere, not only on
-// truth.h5's grid) is compared per frame and triangle with the measured strain, per track with the measured
-// displacement, and per frame with the measured energy and stick zone; the analytic Cattaneo–Mindlin stick
-// radius c is the reference for the stick zone.
+// truth.h5's grid) is compared per frame with the measured contact (hull against the truth mask, ellipse
+// against the same direct fit of the mask's outline), per frame and triangle with the measured strain, per
+// track with the measured displacement, and per frame with the measured energy and stick zone; the analytic
+// Cattaneo–Mindlin stick radius c is the reference for the stick zone.
 //
 // Where: the contact interior, i.e. triangles whose reference centroid and true current centroid both lie
 // more than `border_exclusion_mm` inside the contact border (the ridge contrast fades there and the field's

@@ -69,6 +69,7 @@ struct Row {
   double frames_per_s = kNaN, contact_ms = kNaN, track_ms = kNaN, strain_ms = kNaN, peak_mb = kNaN;
   double tracks_mean = kNaN, disp_rms_px = kNaN, strain_rms[3] = {kNaN, kNaN, kNaN}, strain_rms_all = kNaN;
   double energy_err_pct = kNaN, plate_rms_px = kNaN;
+  double contact_centre_rms_px = kNaN, contact_iou_min = kNaN;  // ellipse centre, hull against the truth
 };
 
 double median(std::vector<double> v) {
@@ -154,6 +155,8 @@ void read_validation(const fs::path& dir, Row& row) {
     if (q == "displacement" && reference == "tracks") row.disp_rms_px = rms;
     if (q == "plate_displacement") row.plate_rms_px = rms;
     if (q == "U" && mode == "exact") row.energy_err_pct = rms;
+    if (q == "contact_centre") row.contact_centre_rms_px = rms;
+    if (q == "contact_1-IoU") row.contact_iou_min = 1.0 - std::strtod(cells[5].c_str(), nullptr);
   }
   if (components == 3) row.strain_rms_all = std::sqrt(sum2 / 3.0);
 }
@@ -377,31 +380,33 @@ void add_bench_command(CLI::App& app) {
       }
     }
 
-    std::printf("%-24s %-22s %8s %8s %8s %8s %8s %7s %9s %9s %9s %9s %8s\n", "scene", "config", "frames/s",
-                "contact", "track", "strain", "peak_MB", "tracks", "disp_px", "E_xx", "E_yy", "E_xy",
-                "U_err%");
+    std::printf("%-24s %-22s %8s %8s %7s %8s %8s %8s %7s %9s %9s %9s %9s %8s\n", "scene", "config",
+                "frames/s", "contact", "ctr_px", "track", "strain", "peak_MB", "tracks", "disp_px", "E_xx",
+                "E_yy", "E_xy", "U_err%");
     for (const Row& r : rows) {
       if (!r.error.empty()) {
         std::printf("%-24s %-22s failed: %s\n", r.scene.c_str(), r.config.c_str(), r.error.c_str());
         continue;
       }
-      std::printf("%-24s %-22s %8.3g %8.3g %8.3g %8.3g %8.0f %7.0f %9.4f %9.5f %9.5f %9.5f %8.2f\n",
-                  r.scene.c_str(), r.config.c_str(), r.frames_per_s, r.contact_ms, r.track_ms, r.strain_ms,
-                  r.peak_mb, r.tracks_mean, r.disp_rms_px, r.strain_rms[0], r.strain_rms[1], r.strain_rms[2],
-                  r.energy_err_pct);
+      std::printf("%-24s %-22s %8.3g %8.3g %7.2f %8.3g %8.3g %8.0f %7.0f %9.4f %9.5f %9.5f %9.5f %8.2f\n",
+                  r.scene.c_str(), r.config.c_str(), r.frames_per_s, r.contact_ms, r.contact_centre_rms_px,
+                  r.track_ms, r.strain_ms, r.peak_mb, r.tracks_mean, r.disp_rms_px, r.strain_rms[0],
+                  r.strain_rms[1], r.strain_rms[2], r.energy_err_pct);
     }
     {
-      CsvWriter csv((out / "bench.csv").string(),
-                    {"scene", "config", "frames", "frames_per_s", "contact_ms", "track_ms", "strain_ms",
-                     "peak_mb", "tracks_mean", "disp_rms_px", "strain_rms", "strain_rms_exx",
-                     "strain_rms_eyy", "strain_rms_exy", "energy_err_pct", "plate_rms_px", "error"});
+      CsvWriter csv(
+          (out / "bench.csv").string(),
+          {"scene", "config", "frames", "frames_per_s", "contact_ms", "track_ms", "strain_ms", "peak_mb",
+           "tracks_mean", "disp_rms_px", "strain_rms", "strain_rms_exx", "strain_rms_eyy", "strain_rms_exy",
+           "energy_err_pct", "plate_rms_px", "contact_centre_rms_px", "contact_iou_min", "error"});
       for (const Row& r : rows)
-        csv.row_text({r.scene, r.config, std::to_string(r.frames), format_double(r.frames_per_s),
-                      format_double(r.contact_ms), format_double(r.track_ms), format_double(r.strain_ms),
-                      format_double(r.peak_mb), format_double(r.tracks_mean), format_double(r.disp_rms_px),
-                      format_double(r.strain_rms_all), format_double(r.strain_rms[0]),
-                      format_double(r.strain_rms[1]), format_double(r.strain_rms[2]),
-                      format_double(r.energy_err_pct), format_double(r.plate_rms_px), csv_safe(r.error)});
+        csv.row_text(
+            {r.scene, r.config, std::to_string(r.frames), format_double(r.frames_per_s),
+             format_double(r.contact_ms), format_double(r.track_ms), format_double(r.strain_ms),
+             format_double(r.peak_mb), format_double(r.tracks_mean), format_double(r.disp_rms_px),
+             format_double(r.strain_rms_all), format_double(r.strain_rms[0]), format_double(r.strain_rms[1]),
+             format_double(r.strain_rms[2]), format_double(r.energy_err_pct), format_double(r.plate_rms_px),
+             format_double(r.contact_centre_rms_px), format_double(r.contact_iou_min), csv_safe(r.error)});
       csv.commit();
     }
     write_plot(rows, scenes, (out / "bench.png").string());

@@ -39,9 +39,9 @@ void add_validate_command(CLI::App& app) {
     bool quiet = false, no_maps = false;
   };
   auto args = std::make_shared<Args>();
-  CLI::App* sub = app.add_subcommand(
-      "validate",
-      "Compare a processed synthetic trial with its exact truth (strain, energy, stick zone, tracks)");
+  CLI::App* sub = app.add_subcommand("validate",
+                                     "Compare a processed synthetic trial with its exact truth (contact, "
+                                     "tracks, strain, energy, stick zone)");
   sub->footer(
       "With --scene the trial is synthesised into OUT/trial; with --trial an existing `tirstrain synth` "
       "folder\n"
@@ -54,7 +54,10 @@ void add_validate_command(CLI::App& app) {
       "and incremental) are reported. U: % error of the total strain energy against the truth on the same\n"
       "triangles, over frames with >= 10 % of the largest energy (none if that is below a uniform 1e-4\n"
       "strain's, as in a rigid motion). c: stick radius from the stuck triangles'\n"
-      "area against the Cattaneo-Mindlin model's, in partial slip.\n"
+      "area against the Cattaneo-Mindlin model's, in partial slip. Contact, every frame: 1 - IoU of the "
+      "hull\n"
+      "against the truth mask, and the ellipse's centre (px) and semi-axes (%) against the same direct fit\n"
+      "of the truth mask's outline.\n"
       "Writes OUT/validation.csv (one row per quantity), OUT/validation_frames.csv (per frame) and\n"
       "OUT/maps_E_xx.png, maps_E_yy.png, maps_E_xy.png (measured | truth | difference on the standard "
       "ellipse).");

@@ -11,8 +11,13 @@
 #include <filesystem>
 #include <fstream>
 #include <numbers>
+#include <optional>
 #include <string>
 
+#include <opencv2/imgproc.hpp>
+
+#include "contact/ellipse.hpp"
+#include "contact/geometry.hpp"
 #include "core/h5_file.hpp"
 #include "core/scene.hpp"
 #include "core/tensor2.hpp"
@@ -183,6 +188,57 @@ TEST(StrainPipeline, AffineFieldDatasetsAndAccuracy) {
     EXPECT_LT(definition->rms, 1.02 * expected) << component;
     EXPECT_GT(definition->rms, 0.8 * expected) << component;
   }
+
+  // The contact rows, recomputed here from result.h5 and truth.h5: per frame the hull filled against the
+  // truth mask, and the ellipse against the direct fit of the mask's outline (pixel-centre outline, so the
+  // semi-axes get half a pixel back).
+  const H5Reader truth((fs::path(report.result_dir).parent_path() / "trial" / "truth.h5").string());
+  H5Shape mask_shape;
+  const std::vector<std::int64_t> masks = truth.read_integers("/contact/mask", &mask_shape);
+  ASSERT_EQ(mask_shape.size(), 3u);
+  const int rows = static_cast<int>(mask_shape[1]), cols = static_cast<int>(mask_shape[2]);
+  const std::vector<double> hull = h5.read_doubles("/contact/hull_px");
+  const std::vector<double> ellipses = h5.read_doubles("/contact/ellipse");
+  double iou_deficit_sum = 0.0, centre_sq = 0.0, minor_sq = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    cv::Mat mask(rows, cols, CV_8UC1);
+    for (int p = 0; p < rows * cols; ++p)
+      mask.data[p] = masks[i * static_cast<std::size_t>(rows * cols) + static_cast<std::size_t>(p)] ? 255 : 0;
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(mask.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+    std::vector<cv::Point2d> outline, polygon;
+    for (const auto& contour : contours)
+      for (const auto& p : contour) outline.emplace_back(p.x, p.y);
+    const std::optional<contact::Ellipse> fit = contact::fit_ellipse_direct(outline);
+    ASSERT_TRUE(fit.has_value());
+    for (std::size_t p = 0; p < 50; ++p)
+      polygon.emplace_back(hull[(i * 50 + p) * 2], hull[(i * 50 + p) * 2 + 1]);
+    iou_deficit_sum += 1.0 - contact::mask_iou(contact::rasterize_polygon(polygon, mask.size()), mask);
+    const double* e = &ellipses[i * 5];
+    centre_sq += std::pow(std::hypot(e[0] - fit->cx_px, e[1] - fit->cy_px), 2);
+    minor_sq += std::pow(100.0 * (e[3] / (fit->semi_minor_px + 0.5) - 1.0), 2);
+  }
+  const pipeline::ErrorStats* iou = report.find("contact_1-IoU", "truth mask");
+  const pipeline::ErrorStats* centre = report.find("contact_centre", "truth ellipse");
+  const pipeline::ErrorStats* minor = report.find("contact_semi_minor", "truth ellipse");
+  ASSERT_NE(iou, nullptr);
+  ASSERT_NE(centre, nullptr);
+  ASSERT_NE(minor, nullptr);
+  ASSERT_NE(report.find("contact_semi_major", "truth ellipse"), nullptr);
+  ASSERT_NE(report.find("contact_area", "truth mask"), nullptr);
+  EXPECT_EQ(centre->samples, static_cast<long>(n));
+  EXPECT_NEAR(iou->mean, iou_deficit_sum / static_cast<double>(n), 1e-12);
+  EXPECT_NEAR(centre->rms, std::sqrt(centre_sq / static_cast<double>(n)), 1e-9);
+  EXPECT_NEAR(minor->rms, std::sqrt(minor_sq / static_cast<double>(n)), 1e-9);
+  // The contact itself, at its measured values with a margin (a regression fails). Measured: 1 - IoU 0.029 to
+  // 0.046, centre 1.4 to 3.3 px (frame 3), semi-axes within 2.0 %. Not the 1 px: the flat field is
+  // not used on this 288x256 frame (too little background around the contact), and as the ridges stretch
+  // over the fixed contact, valleys come to lie along other parts of its border (BENCHMARKS.md, contact/).
+  std::printf("  contact: 1 - IoU %.4f max, centre %.3f px RMS (max %.3f), semi-minor %.2f %% RMS\n",
+              iou->max_abs, centre->rms, centre->max_abs, minor->rms);
+  EXPECT_LT(iou->max_abs, 0.05);
+  EXPECT_LT(centre->max_abs, 3.6);
+  EXPECT_LT(minor->max_abs, 2.2);
 }
 
 // The leading edge (towards the plate's motion) is compressed along the motion, the trailing edge stretched.
