@@ -120,12 +120,15 @@ void check_scene(const std::string& name, const Tolerance& tolerance) {
 }
 
 // Issue targets: IoU >= 0.97 on the default scene and >= 0.93 on hard cases with contact; centre <= 1 px and
-// axes <= 2 % of the truth's ellipse. Asserted at those tolerances where they are met: everywhere except the
-// tiny contact's centre, asserted at its measured 1.37 px plus a small margin so that a regression fails
-// (see BENCHMARKS.md). Where a ridge valley runs along the border the edge is invisible (a valley reflects
-// like the background) and can only be placed statistically; on a contact two ridge periods in radius,
-// which valleys happen to lie along which side moves the centre by that much. The noisy and low-contrast
-// scenes meet the targets with the outline searched on the flat-fielded frame averaged along the border.
+// axes <= 2 % of the truth's ellipse. Asserted at those tolerances where they are met on these two frames at
+// rest: everywhere except the tiny contact's centre, asserted at its measured 1.37 px plus a small margin so
+// that a regression fails (see BENCHMARKS.md). Where a ridge valley runs along the border the edge is
+// invisible (a valley reflects like the background) and can only be placed statistically; on a contact two
+// ridge periods in radius, which valleys happen to lie along which side moves the centre by that much. The
+// noisy and low-contrast scenes meet the targets with the outline searched on the flat-fielded frame averaged
+// along the border. Over whole trials, while the skin slides under the contact, other valleys come to lie
+// along the border and a few frames of the hard scenes reach 1.05-1.16 px (`tirstrain validate` reports
+// every frame; BENCHMARKS.md, contact/, session 19).
 TEST(SynthAccuracy, DefaultScene) {
   check_scene("default", {0.97, 1.0, 0.02, false});
 }
