@@ -12,6 +12,8 @@
 #include <fstream>
 #include <functional>
 #include <iostream>
+#include <tuple>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 
@@ -143,6 +145,50 @@ TEST(SynthAccuracy, HeavyNoise) {
 }
 TEST(SynthAccuracy, TinyContact) {
   check_scene("hard_tiny_contact", {0.93, 1.5, 0.02, false});
+}
+
+// The same tiny contact (same truth mask) with the fingerprint's core at the contact's centre and well
+// outside it: the ridge phase along the border decides the outline where a valley lies along it, so the
+// centre is good when ridges cross the border and several pixels off when they run around it (BENCHMARKS.md,
+// contact/, session 19: measured 3.66 / 3.54 px and 0.39 / 0.37 px, IoU 0.88 and 0.96). Known limit, asserted
+// at the measured values so that a change either way shows.
+TEST(SynthAccuracy, TinyContactCentreDependsOnWhereTheFingerprintLies) {
+  for (const auto& [core, low_px, high_px] : {std::tuple{std::vector<double>{0.0, 0.0}, 3.0, 4.2},
+                                              std::tuple{std::vector<double>{1.5, 1.0}, 0.0, 0.6}}) {
+    fs::path dir;
+    render(
+        "hard_tiny_contact", "tiny_core_" + std::to_string(core[0]),
+        [&](YAML::Node& yaml) {
+          yaml["synthesis"]["timing"]["frames"] = 2;
+          yaml["synthesis"]["fingerprint"]["core_offset_mm"] = core;
+        },
+        &dir);
+    if (dir.empty()) return;
+    ContactSegmenter segmenter(pipeline::segmenter_options_for(load_scene((dir / "scene.yaml").string())));
+    H5Reader truth((dir / "truth.h5").string());
+    H5Shape shape;
+    const auto masks = truth.read_integers("/contact/mask", &shape);
+    cv::Mat truth_mask(static_cast<int>(shape[1]), static_cast<int>(shape[2]), CV_8UC1);
+    for (int i = 0; i < truth_mask.rows * truth_mask.cols; ++i)
+      truth_mask.data[i] = masks[static_cast<std::size_t>(i)] != 0 ? 255 : 0;
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(truth_mask.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+    std::vector<cv::Point2d> outline;
+    for (const auto& contour : contours)
+      for (const auto& p : contour) outline.emplace_back(p.x, p.y);
+    const auto truth_ellipse = fit_ellipse_direct(outline);
+    ASSERT_TRUE(truth_ellipse.has_value());
+    for (std::size_t f = 0; f < 2; ++f) {
+      const ContactResult r = segmenter.segment(frame_image(dir, f));
+      ASSERT_TRUE(r.ellipse.has_value());
+      const double centre_px =
+          std::hypot(r.ellipse->cx_px - truth_ellipse->cx_px, r.ellipse->cy_px - truth_ellipse->cy_px);
+      std::cout << "  core at (" << core[0] << ", " << core[1] << ") mm, frame " << f << ": centre error "
+                << centre_px << " px\n";
+      EXPECT_GE(centre_px, low_px);
+      EXPECT_LE(centre_px, high_px);
+    }
+  }
 }
 
 // The border averaging on a contact two ridge periods in radius, where its band reaches most of the way to
