@@ -12,6 +12,7 @@
 #include <fstream>
 #include <functional>
 #include <iostream>
+#include <optional>
 #include <tuple>
 #include <vector>
 
@@ -59,6 +60,30 @@ cv::Mat frame_image(const fs::path& dir, std::size_t frame) {
   return cv::imread((dir / "frames" / file).string(), cv::IMREAD_UNCHANGED);
 }
 
+// Frame `f` of truth.h5's /contact/mask (255 inside) and the truth's ellipse: the same direct fit applied to
+// the exact mask's outline (its pixel centres, half a pixel inside the mask's edge). The generator's nominal
+// ellipse (root attributes) is not the mask's ellipse: its border irregularity (k = 2..5 harmonics of a few
+// %) changes the axes by up to that much.
+struct TruthContact {
+  cv::Mat mask;
+  std::optional<Ellipse> ellipse;
+};
+
+TruthContact truth_contact(const std::vector<std::int64_t>& masks, const H5Shape& shape, std::size_t f) {
+  const int height = static_cast<int>(shape[1]), width = static_cast<int>(shape[2]);
+  TruthContact truth{cv::Mat(height, width, CV_8UC1), std::nullopt};
+  for (int i = 0; i < height * width; ++i)
+    truth.mask.data[i] =
+        masks[f * static_cast<std::size_t>(height * width) + static_cast<std::size_t>(i)] != 0 ? 255 : 0;
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(truth.mask.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+  std::vector<cv::Point2d> outline;
+  for (const auto& contour : contours)
+    for (const auto& p : contour) outline.emplace_back(p.x, p.y);
+  truth.ellipse = fit_ellipse_direct(outline);
+  return truth;
+}
+
 // Renders samples/scenes/<name>.yaml with two frames and segments both.
 void check_scene(const std::string& name, const Tolerance& tolerance) {
   fs::path dir;
@@ -81,22 +106,12 @@ void check_scene(const std::string& name, const Tolerance& tolerance) {
     const cv::Mat image = frame_image(dir, f);
     ASSERT_FALSE(image.empty());
     const ContactResult r = segmenter.segment(image);
-    cv::Mat truth_mask(height, width, CV_8UC1);
-    for (int i = 0; i < height * width; ++i)
-      truth_mask.data[i] =
-          masks[f * static_cast<std::size_t>(height * width) + static_cast<std::size_t>(i)] != 0 ? 255 : 0;
-    // The truth's ellipse: the same direct fit applied to the exact mask's outline. The generator's nominal
-    // ellipse (root attributes) is not the mask's ellipse: its border irregularity (k = 2..5 harmonics of a
-    // few %) changes the axes by up to that much; both are printed.
-    std::vector<std::vector<cv::Point>> contours;
-    cv::findContours(truth_mask.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
-    ASSERT_FALSE(contours.empty());
-    std::vector<cv::Point2d> outline;
-    for (const auto& contour : contours)
-      for (const auto& p : contour) outline.emplace_back(p.x, p.y);
-    const auto truth_ellipse = fit_ellipse_direct(outline);
+    const TruthContact truth_now = truth_contact(masks, shape, f);
+    const cv::Mat& truth_mask = truth_now.mask;
+    const std::optional<Ellipse>& truth_ellipse = truth_now.ellipse;
     ASSERT_TRUE(truth_ellipse.has_value());
-    // Pixel-centre outlines lie half a pixel inside the mask's edge.
+    // Both the mask's ellipse and the generator's nominal one are printed. Pixel-centre outlines lie half a
+    // pixel inside the mask's edge.
     const double major = truth_ellipse->semi_major_px + 0.5, minor = truth_ellipse->semi_minor_px + 0.5;
     std::cout << "  truth mask ellipse " << truth_ellipse->cx_px << ", " << truth_ellipse->cy_px << ", "
               << major << ", " << minor << " (nominal " << cx << ", " << cy << ", " << major_nominal << ", "
@@ -168,15 +183,7 @@ TEST(SynthAccuracy, TinyContactCentreDependsOnWhereTheFingerprintLies) {
     H5Reader truth((dir / "truth.h5").string());
     H5Shape shape;
     const auto masks = truth.read_integers("/contact/mask", &shape);
-    cv::Mat truth_mask(static_cast<int>(shape[1]), static_cast<int>(shape[2]), CV_8UC1);
-    for (int i = 0; i < truth_mask.rows * truth_mask.cols; ++i)
-      truth_mask.data[i] = masks[static_cast<std::size_t>(i)] != 0 ? 255 : 0;
-    std::vector<std::vector<cv::Point>> contours;
-    cv::findContours(truth_mask.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
-    std::vector<cv::Point2d> outline;
-    for (const auto& contour : contours)
-      for (const auto& p : contour) outline.emplace_back(p.x, p.y);
-    const auto truth_ellipse = fit_ellipse_direct(outline);
+    const std::optional<Ellipse> truth_ellipse = truth_contact(masks, shape, 0).ellipse;
     ASSERT_TRUE(truth_ellipse.has_value());
     for (std::size_t f = 0; f < 2; ++f) {
       const ContactResult r = segmenter.segment(frame_image(dir, f));
