@@ -240,9 +240,12 @@ ValidationReport run_validate(const ValidateOptions& options) {
   const std::size_t hull_values = shape.size() == 3 ? shape[1] * shape[2] : 0;
   const std::vector<double> ellipses = read(h5, "/contact/ellipse", &shape);
   const std::vector<double> contact_area = read(h5, "/contact/area_mm2", &shape);
+  if (contact_status.size() != n || hull.size() != n * hull_values || hull_values % 2 != 0 ||
+      ellipses.size() != n * 5 || contact_area.size() != n)
+    throw Error("the /contact datasets do not have one row per frame", {.file = result_path});
   std::vector<ContactErrors> contact_frames(n);
   Accumulator contact_iou_deficit, contact_centre, contact_major, contact_minor, contact_area_error;
-  for (std::size_t i = 0; i < n && contact_status.size() == n; ++i) {
+  for (std::size_t i = 0; i < n; ++i) {
     const ContactErrors e = contact_errors(
         true_contact, contact_status[i], std::span<const double>(hull).subspan(i * hull_values, hull_values),
         std::span<const double>(ellipses).subspan(i * 5, 5), contact_area[i], scene.px_per_mm);

@@ -18,6 +18,7 @@
 
 #include "contact/ellipse.hpp"
 #include "contact/geometry.hpp"
+#include "core/error.hpp"
 #include "core/h5_file.hpp"
 #include "core/scene.hpp"
 #include "core/tensor2.hpp"
@@ -239,6 +240,32 @@ TEST(StrainPipeline, AffineFieldDatasetsAndAccuracy) {
   EXPECT_LT(iou->max_abs, 0.05);
   EXPECT_LT(centre->max_abs, 3.6);
   EXPECT_LT(minor->max_abs, 2.2);
+
+  // A result whose /contact/ellipse lacks a frame's row is refused, naming the file.
+  const fs::path bad = fs::path(report.result_dir).parent_path() / "result_short_ellipse";
+  fs::remove_all(bad);
+  fs::copy(report.result_dir, bad, fs::copy_options::recursive);
+  {
+    H5::H5File file((bad / "result.h5").string(), H5F_ACC_RDWR);
+    file.unlink("/contact/ellipse");
+    const hsize_t dims[2] = {n - 1, 5};
+    const std::vector<double> rows(static_cast<std::size_t>((n - 1) * 5), 1.0);
+    file.createDataSet("/contact/ellipse", H5::PredType::NATIVE_DOUBLE, H5::DataSpace(2, dims))
+        .write(rows.data(), H5::PredType::NATIVE_DOUBLE);
+  }
+  pipeline::ValidateOptions o;
+  o.trial_dir = (fs::path(report.result_dir).parent_path() / "trial").string();
+  o.result_dir = bad.string();
+  o.out_dir = (bad.parent_path() / "validation_short_ellipse").string();
+  o.quiet = true;
+  o.write_maps = false;
+  try {
+    pipeline::run_validate(o);
+    ADD_FAILURE() << "a result with a missing ellipse row was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("/contact"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("result.h5"), std::string::npos) << e.what();
+  }
 }
 
 // The leading edge (towards the plate's motion) is compressed along the motion, the trailing edge stretched.
