@@ -22,6 +22,7 @@
 #include "core/h5_file.hpp"
 #include "core/heatmap.hpp"
 #include "core/tensor2.hpp"
+#include "pipeline/contact_observability.hpp"
 #include "pipeline/process.hpp"
 #include "samples/synth.hpp"
 #include "samples/trial.hpp"
@@ -107,16 +108,7 @@ ContactTruth contact_truth(const samples::Trial& trial) {
   ContactTruth truth;
   truth.mask = trial.contact_mask() * 255;
   truth.area_px = cv::countNonZero(truth.mask);
-  std::vector<std::vector<cv::Point>> contours;
-  cv::findContours(truth.mask.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
-  std::vector<cv::Point2d> outline;
-  for (const auto& contour : contours)
-    for (const auto& p : contour) outline.emplace_back(p.x, p.y);
-  truth.ellipse = contact::fit_ellipse_direct(outline);
-  if (truth.ellipse) {
-    truth.ellipse->semi_major_px += 0.5;
-    truth.ellipse->semi_minor_px += 0.5;
-  }
+  truth.ellipse = truth_contact_ellipse(truth.mask);
   return truth;
 }
 

@@ -92,10 +92,19 @@ double Trial::contact_signed_distance_px(Vec2 x) const {
 }
 
 double Trial::contact_weight(Vec2 x) const {
-  const double s = contact_signed_distance_px(x);
+  return edge_weight(contact_signed_distance_px(x));
+}
+
+double Trial::edge_weight(double signed_distance_px) const {
   const double soft = config_.contact.border_softness_px;
-  if (soft <= 0.0) return s <= 0.0 ? 1.0 : 0.0;
-  return 0.5 * std::erfc(s / soft);
+  if (soft <= 0.0) return signed_distance_px <= 0.0 ? 1.0 : 0.0;
+  return 0.5 * std::erfc(signed_distance_px / soft);
+}
+
+double Trial::border_fade(double signed_distance_px) const {
+  const double fade_px = config_.contact.fade_mm * config_.scene.px_per_mm;
+  const double floor = config_.contact.fade_floor;
+  return fade_px > 0.0 ? floor + (1.0 - floor) * smoothstep5(-signed_distance_px / fade_px) : 1.0;
 }
 
 cv::Mat Trial::contact_mask() const {
@@ -120,8 +129,6 @@ void Trial::render_into(const LoadState& state, cv::Mat& out) const {
   out.create(height(), width(), CV_32F);
   const FrameField field = history_.field_at(state);
   const double contrast = config_.fingerprint.ridge_contrast * (config_.ridges_dark ? -1.0 : 1.0);
-  const double fade_px = config_.contact.fade_mm * config_.scene.px_per_mm;
-  const double fade_floor = config_.contact.fade_floor;
   const double opacity = config_.pattern.opacity;
   const std::optional<RoiPx> roi = config_.scene.reference_pattern_roi;
   cv::parallel_for_(cv::Range(0, height()), [&](const cv::Range& rows) {
@@ -135,8 +142,7 @@ void Trial::render_into(const LoadState& state, cv::Mat& out) const {
         const Vec2 p{double(x), double(y)};
         double value = background_;
         const double s = distance_row[x];
-        const double soft = config_.contact.border_softness_px;
-        const double w = soft > 0.0 ? 0.5 * std::erfc(s / soft) : (s <= 0.0 ? 1.0 : 0.0);
+        const double w = edge_weight(s);
         if (w > 1e-7) {
           // Warm start from the left neighbour: the field changes little over one pixel, so Newton needs
           // one or two steps instead of three.
@@ -144,8 +150,7 @@ void Trial::render_into(const LoadState& state, cv::Mat& out) const {
               have_previous ? field.invert(p, {previous.x + 1.0, previous.y}) : field.invert(p);
           previous = inv.reference_px;
           have_previous = true;
-          const double fade =
-              fade_px > 0.0 ? fade_floor + (1.0 - fade_floor) * smoothstep5(-s / fade_px) : 1.0;
+          const double fade = border_fade(s);
           const double wet = sweat_.contrast_factor(inv.reference_px);
           const double ridge = wet * fingerprint_.ridge(inv.reference_px) + (1.0 - wet) * kWetLevel;
           value += contrast * w * fade * ridge;

@@ -55,6 +55,11 @@ class Trial {
   // Contact geometry (fixed in the image: the finger does not move, the skin deforms inside the contact).
   double contact_signed_distance_px(Vec2 x) const;  // < 0 inside
   double contact_weight(Vec2 x) const;              // soft edge, 0.5 on the border
+  // The two factors of the ridge contrast at a signed distance from the border (px, < 0 inside): the soft
+  // edge (0.5 on the border) and the fade of contrast towards the border (fade_floor there, 1 deep inside).
+  double edge_weight(double signed_distance_px) const;
+  double border_fade(double signed_distance_px) const;
+  double background_level() const { return background_; }  // optics background, fraction of full scale
   bool in_contact(Vec2 x) const { return contact_signed_distance_px(x) <= 0.0; }
   cv::Mat contact_mask() const;  // CV_8U, 1 inside
 
