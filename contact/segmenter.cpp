@@ -11,6 +11,7 @@
 
 #include "contact/geometry.hpp"
 #include "contact/orientation.hpp"
+#include "contact/ridge_labels.hpp"
 #include "contact/ridge_period.hpp"
 #include "core/error.hpp"
 
@@ -915,6 +916,23 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
   // An ellipse much larger than the frame is an extrapolation from a nearly straight arc: not reported.
   if (result.ellipse && result.ellipse->semi_major_px > 2.0 * std::hypot(full_size.width, full_size.height))
     result.ellipse.reset();
+  if (result.ellipse && options_.ridge_label_centre && polarity != 0 && (status & kTouchesEdge) == 0) {
+    const std::optional<RidgeLabelFit> fit =
+        fit_ellipse_to_ridge_labels(image, full_scale, *result.ellipse, period_px, polarity);
+    if (fit) {
+      const cv::Point2d shift(fit->ellipse.cx_px - result.ellipse->cx_px,
+                              fit->ellipse.cy_px - result.ellipse->cy_px);
+      if (cv::norm(shift) <= 0.5 * period_px) {
+        for (auto& p : result.outline_px) p += shift;
+        for (auto& p : result.hull_px) p += shift;
+        result.ellipse->cx_px += shift.x;
+        result.ellipse->cy_px += shift.y;
+        const cv::Rect moved =
+            cv::boundingRect(std::vector<cv::Point2f>(result.outline_px.begin(), result.outline_px.end()));
+        result.bounding_box_px = moved & cv::Rect(0, 0, full_size.width, full_size.height);
+      }
+    }
+  }
   if (result.ellipse) {
     result.normalization = EllipseNormalization(*result.ellipse);
   } else {

@@ -123,6 +123,12 @@ struct SegmenterOptions {
   // With automatic resolution, a contact whose equivalent radius is below this many ridge periods is
   // segmented again at half the working factor (about 11 working pixels per period).
   double small_contact_periods = 3.0;
+  // Opt-in: move the outline so that the ellipse's centre is the one fitted to where ridges show near the
+  // border (contact/ridge_labels.hpp): ridge ends pin the centre where the level edge, which works from
+  // crests, follows where valleys lie along the border. Applied when the contact does not touch the frame's
+  // edge and the shift is under half a ridge period. Off by default until the whole pipeline is validated
+  // with it (BENCHMARKS.md, contact/, session 20).
+  bool ridge_label_centre = false;
   double low_contrast = 0.02;  // texture energy (≈ 0.6 x ridge amplitude) below this: low contrast
   // Region tracking: after a frame with a contact, the next frames are segmented only around it (its
   // bounding box grown by the larger of region_margin_periods ridge periods and region_margin_fraction of

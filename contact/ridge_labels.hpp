@@ -1,0 +1,54 @@
+#pragma once
+// The contact ellipse from where ridges show near its border (opt-in refinement of the segmenter's centre).
+//
+// Where a ridge valley lies along the border, the border is invisible along that arc; where a ridge ends
+// against it, the ridge's end marks it. The segmenter's level edge works from the crests, so along valley
+// arcs it stops at the last crest, and a small contact's centre follows where the fingerprint happens to lie
+// (0.2-3.6 px for one contact, BENCHMARKS.md, contact/). Here every pixel within 0.75 ridge period of an
+// initial ellipse is labelled:
+//   inside  - the ridge signal (frame smoothed over 1 px, against the local background) exceeds in_sigmas;
+//   outside - below out_sigmas, at most a quarter period inside, where the local plane wave of the ridges
+//             (fitted just inside the border, per sector) predicts a ridge that would show at the border's
+//             crest level;
+//   neither - everything else (valleys, faint flanks).
+// The ellipse is then the logistic fit of its five parameters to those labels (signed distance over a
+// transition of transition_px), by Levenberg-Marquardt from the initial ellipse. Thousands of labels pin it
+// where a few extracted ridge ends would not (pipeline/contact_observability.hpp measures what they allow).
+// The fitted axes run ~2.5 px long (the soft edge's tail is labelled inside), so the segmenter takes only the
+// centre from it.
+#include <opencv2/core.hpp>
+
+#include <optional>
+
+#include "contact/ellipse.hpp"
+
+namespace tirstrain::contact {
+
+struct RidgeLabelOptions {
+  int sectors = 24;
+  double smooth_sigma_px = 1.0;
+  double in_sigmas = 4.0;
+  double out_sigmas = 1.0;
+  double visible_sigmas = 4.0;  // a predicted ridge counts only where it would show this clearly
+  double predicted_cos = 0.3;   // ... and only on its crest side (cosine of the wave's phase)
+  double transition_px = 1.5;
+  double min_fit_fraction = 0.3;  // a sector's wave must explain this fraction of its window's variance
+  int min_sectors = 12;           // sectors with a usable wave, else no fit
+  int max_iterations = 20;
+};
+
+struct RidgeLabelFit {
+  Ellipse ellipse;
+  int inside_labels = 0;
+  int outside_labels = 0;
+  int sectors_used = 0;
+};
+
+// `frame`: the full frame (CV_8UC1, CV_16UC1 or CV_32FC1), `full_scale` its full-scale value (1 for float);
+// `initial` in frame pixels; `polarity` -1 when ridges in contact are darker than the background, +1
+// brighter. Nothing when the ellipse leaves the frame, too few sectors carry a ridge wave, or the fit fails.
+std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(const cv::Mat& frame, double full_scale,
+                                                         const Ellipse& initial, double period_px,
+                                                         int polarity, const RidgeLabelOptions& options = {});
+
+}  // namespace tirstrain::contact
