@@ -23,6 +23,7 @@
 #include "contact/segmenter.hpp"
 #include "core/h5_file.hpp"
 #include "core/scene.hpp"
+#include "pipeline/contact_observability.hpp"
 #include "pipeline/contact_stage.hpp"
 
 namespace tirstrain::contact {
@@ -60,10 +61,10 @@ cv::Mat frame_image(const fs::path& dir, std::size_t frame) {
   return cv::imread((dir / "frames" / file).string(), cv::IMREAD_UNCHANGED);
 }
 
-// Frame `f` of truth.h5's /contact/mask (255 inside) and the truth's ellipse: the same direct fit applied to
-// the exact mask's outline (its pixel centres, half a pixel inside the mask's edge). The generator's nominal
-// ellipse (root attributes) is not the mask's ellipse: its border irregularity (k = 2..5 harmonics of a few
-// %) changes the axes by up to that much.
+// Frame `f` of truth.h5's /contact/mask (255 inside) and the truth's ellipse, as `tirstrain validate` takes
+// it (pipeline::truth_contact_ellipse: the direct fit of the mask's outline, semi-axes + 0.5 px to the
+// pixels' outer edges). The generator's nominal ellipse (root attributes) is not the mask's ellipse: its
+// border irregularity (k = 2..5 harmonics of a few %) changes the axes by up to that much.
 struct TruthContact {
   cv::Mat mask;
   std::optional<Ellipse> ellipse;
@@ -75,12 +76,7 @@ TruthContact truth_contact(const std::vector<std::int64_t>& masks, const H5Shape
   for (int i = 0; i < height * width; ++i)
     truth.mask.data[i] =
         masks[f * static_cast<std::size_t>(height * width) + static_cast<std::size_t>(i)] != 0 ? 255 : 0;
-  std::vector<std::vector<cv::Point>> contours;
-  cv::findContours(truth.mask.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
-  std::vector<cv::Point2d> outline;
-  for (const auto& contour : contours)
-    for (const auto& p : contour) outline.emplace_back(p.x, p.y);
-  truth.ellipse = fit_ellipse_direct(outline);
+  truth.ellipse = pipeline::truth_contact_ellipse(truth.mask);
   return truth;
 }
 
@@ -114,9 +110,8 @@ void check_scene(const std::string& name, const Tolerance& tolerance, bool ridge
     const cv::Mat& truth_mask = truth_now.mask;
     const std::optional<Ellipse>& truth_ellipse = truth_now.ellipse;
     ASSERT_TRUE(truth_ellipse.has_value());
-    // Both the mask's ellipse and the generator's nominal one are printed. Pixel-centre outlines lie half a
-    // pixel inside the mask's edge.
-    const double major = truth_ellipse->semi_major_px + 0.5, minor = truth_ellipse->semi_minor_px + 0.5;
+    // Both the mask's ellipse and the generator's nominal one are printed.
+    const double major = truth_ellipse->semi_major_px, minor = truth_ellipse->semi_minor_px;
     std::cout << "  truth mask ellipse " << truth_ellipse->cx_px << ", " << truth_ellipse->cy_px << ", "
               << major << ", " << minor << " (nominal " << cx << ", " << cy << ", " << major_nominal << ", "
               << minor_nominal << ")\n";
