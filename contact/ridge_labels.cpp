@@ -15,6 +15,8 @@ namespace {
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr std::size_t kMaxLabels = 2000;  // more add little to a five-parameter fit and cost linearly
 constexpr double kAnnulusSamples = 15000.0;
+constexpr std::size_t kMaxWaveSamples = 200;
+constexpr std::array<double, 6> kPeriodFactors{0.85, 0.9, 0.95, 1.05, 1.1, 1.15};
 
 struct Sample {
   float x, y, value;
@@ -42,12 +44,12 @@ struct Wave {
 };
 
 // Least-squares m + A cos(k.x) + B sin(k.x) over the window for a few wave vectors around the structure
-// tensor's direction and the nominal period; the best explains most variance. `dev`: ridge signal (ridges
-// positive).
+// tensor's direction and the nominal period (+-15 %); the best explains most variance. `dev`: ridge signal
+// (ridges positive).
 Wave fit_wave(const std::vector<Sample>& window, const cv::Mat& smooth, cv::Point origin, double background,
               double sign, double period_px) {
   Wave best;
-  double jxx = 0.0, jxy = 0.0, jyy = 0.0, mean = 0.0;
+  double jxx = 0.0, jxy = 0.0, jyy = 0.0;
   for (const Sample& s : window) {
     const int x = static_cast<int>(s.x) - origin.x, y = static_cast<int>(s.y) - origin.y;
     const double gx = 0.5 * (smooth.at<float>(y, x + 1) - smooth.at<float>(y, x - 1));
@@ -57,38 +59,51 @@ Wave fit_wave(const std::vector<Sample>& window, const cv::Mat& smooth, cv::Poin
     jyy += gy * gy;
     best.x0 += s.x;
     best.y0 += s.y;
-    mean += sign * (s.value - background);
   }
   const double n = static_cast<double>(window.size());
   best.x0 /= n;
   best.y0 /= n;
-  mean /= n;
-  double total = 0.0;
-  for (const Sample& s : window) total += std::pow(sign * (s.value - background) - mean, 2);
+  // A three-parameter fit needs far fewer samples than a large contact's sector holds.
+  const std::size_t stride = (window.size() + kMaxWaveSamples - 1) / kMaxWaveSamples;
+  double total = 0.0, subset_mean = 0.0, subset_count = 0.0;
+  for (std::size_t i = 0; i < window.size(); i += stride) {
+    subset_mean += sign * (window[i].value - background);
+    subset_count += 1.0;
+  }
+  subset_mean /= subset_count;
+  for (std::size_t i = 0; i < window.size(); i += stride)
+    total += std::pow(sign * (window[i].value - background) - subset_mean, 2);
   const double normal = 0.5 * std::atan2(2.0 * jxy, jxx - jyy);  // gradient direction: across the ridges
-  constexpr double kStep = 5.0 * std::numbers::pi / 180.0;
+  // The wave's direction first (structure tensor +-5 deg at the nominal period), then its period at that
+  // direction: near the border of a sliding contact the skin is stretched or compressed by 10-15 % (the
+  // leading and trailing edges), and a period off by that much misplaces the extrapolated crests by a third
+  // of a period one period out.
   double best_explained = -1.0;
-  for (int a = -1; a <= 1; ++a)
-    for (double period_factor : {0.93, 1.0, 1.07}) {
-      const double k = kTwoPi / (period_px * period_factor), theta = normal + a * kStep;
-      const double kx = k * std::cos(theta), ky = k * std::sin(theta);
-      Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
-      Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
-      for (const Sample& s : window) {
-        const double phase = kx * (s.x - best.x0) + ky * (s.y - best.y0);
-        const Eigen::Vector3d f(1.0, std::cos(phase), std::sin(phase));
-        normal_matrix += f * f.transpose();
-        rhs += f * (sign * (s.value - background));
-      }
-      const Eigen::Vector3d solution = normal_matrix.ldlt().solve(rhs);
-      const double explained = solution.dot(rhs) - rhs(0) * rhs(0) / normal_matrix(0, 0);
-      if (explained > best_explained) {
-        best_explained = explained;
-        best.kx = kx;
-        best.ky = ky;
-        best.phase = std::atan2(solution(2), solution(1));
-      }
+  const auto try_wave = [&](double theta, double period_factor) {
+    const double k = kTwoPi / (period_px * period_factor);
+    const double kx = k * std::cos(theta), ky = k * std::sin(theta);
+    Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < window.size(); i += stride) {
+      const Sample& s = window[i];
+      const double phase = kx * (s.x - best.x0) + ky * (s.y - best.y0);
+      const Eigen::Vector3d f(1.0, std::cos(phase), std::sin(phase));
+      normal_matrix += f * f.transpose();
+      rhs += f * (sign * (s.value - background));
     }
+    const Eigen::Vector3d solution = normal_matrix.ldlt().solve(rhs);
+    const double explained = solution.dot(rhs) - rhs(0) * rhs(0) / normal_matrix(0, 0);
+    if (explained > best_explained) {
+      best_explained = explained;
+      best.kx = kx;
+      best.ky = ky;
+      best.phase = std::atan2(solution(2), solution(1));
+    }
+  };
+  constexpr double kStep = 5.0 * std::numbers::pi / 180.0;
+  for (const double theta : {normal - kStep, normal, normal + kStep}) try_wave(theta, 1.0);
+  const double theta = std::atan2(best.ky, best.kx);
+  for (const double period_factor : kPeriodFactors) try_wave(theta, period_factor);
   best.explained = total > 0.0 ? best_explained / total : 0.0;
   return best;
 }
@@ -174,9 +189,9 @@ std::optional<Params> fit_logistic(Params p, const std::vector<Label>& labels, d
 
 }  // namespace
 
-std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(const cv::Mat& frame, double full_scale,
-                                                         const Ellipse& initial, double period_px,
-                                                         int polarity, const RidgeLabelOptions& options) {
+std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
+    const cv::Mat& frame, double full_scale, const Ellipse& initial, double period_px, int polarity,
+    const RidgeLabelOptions& options, const std::function<double(double x_px, double y_px)>& illumination) {
   if (polarity == 0 || !(period_px > 0.0) || options.sectors < 4 || initial.semi_minor_px < 2.0)
     return std::nullopt;
   // The outer band reaches 1.6 periods beyond the ellipse; one more pixel for the gradients.
@@ -199,15 +214,24 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(const cv::Mat& frame, d
                                                         initial.semi_minor_px * initial.semi_minor_px));
   const int step =
       std::max(1, static_cast<int>(std::lround(std::sqrt(perimeter_px * 3.1 * p / kAnnulusSamples))));
+  const double illumination_at_centre = illumination ? illumination(initial.cx_px, initial.cy_px) : 1.0;
+  if (illumination && !(illumination_at_centre > 0.0)) return std::nullopt;
+  const double q_inner = std::max(0.0, 1.0 - 1.5 * p / initial.semi_minor_px);
+  const double q_inner_squared = q_inner * q_inner;
+  const double q_outer_squared = std::pow(1.0 + 1.6 * p / initial.semi_minor_px, 2);
   for (int y = 1; y < smooth.rows - 1; y += step) {
     const float* row = smooth.ptr<float>(y);
     for (int x = 1; x < smooth.cols - 1; x += step) {
       const double fx = x + roi.x, fy = y + roi.y, dx = fx - initial.cx_px, dy = fy - initial.cy_px;
       // Along the ray from the centre the ellipse's radius is r / q (q: normalised radius), so t = r (1 -
       // 1/q).
-      const double q = std::hypot((cos_a * dx + sin_a * dy) / initial.semi_major_px,
-                                  (-sin_a * dx + cos_a * dy) / initial.semi_minor_px);
-      if (q < 1e-9) continue;
+      const double u = (cos_a * dx + sin_a * dy) / initial.semi_major_px;
+      const double v = (-sin_a * dx + cos_a * dy) / initial.semi_minor_px;
+      const double q_squared = u * u + v * v;
+      // Most of the square lies well inside or outside the band: t = rho (q - 1) with the ellipse's radius
+      // rho between the semi-axes, so q alone rejects them before the square roots and the angle.
+      if (q_squared < q_inner_squared || q_squared > q_outer_squared || q_squared < 1e-18) continue;
+      const double q = std::sqrt(q_squared);
       const double t = std::hypot(dx, dy) * (1.0 - 1.0 / q);
       if (t < -1.5 * p || t > 1.6 * p) continue;
       double phi = std::atan2(dy, dx);
@@ -215,10 +239,12 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(const cv::Mat& frame, d
       const auto index =
           std::min<std::size_t>(sectors.size() - 1, static_cast<std::size_t>(phi / kTwoPi * options.sectors));
       Sector& s = sectors[index];
-      const Sample sample{static_cast<float>(fx), static_cast<float>(fy), row[x]};
-      if (t >= 0.9 * p) s.outer.push_back(row[x]);
+      const float value =
+          illumination ? static_cast<float>(row[x] * illumination_at_centre / illumination(fx, fy)) : row[x];
+      const Sample sample{static_cast<float>(fx), static_cast<float>(fy), value};
+      if (t >= 0.9 * p) s.outer.push_back(value);
       if (t <= -0.25 * p) s.window.push_back(sample);
-      if (t >= -0.5 * p && t <= 0.0) s.near.push_back(row[x]);
+      if (t >= -0.5 * p && t <= 0.0) s.near.push_back(value);
       if (std::abs(t) <= 0.75 * p) {
         s.band.push_back(sample);
         s.band_t.push_back(static_cast<float>(t));
@@ -235,13 +261,16 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(const cv::Mat& frame, d
     std::vector<float> deviation(s.outer.size());
     for (std::size_t i = 0; i < s.outer.size(); ++i)
       deviation[i] = static_cast<float>(std::abs(s.outer[i] - background));
-    const double sigma = std::max(1.4826 * quantile(deviation, 0.5), 1e-6);
+    double sigma = std::max(1.4826 * quantile(deviation, 0.5), 1e-6);
     const Wave wave = fit_wave(s.window, smooth, roi.tl(), background, sign, p);
     if (wave.explained < options.min_fit_fraction) continue;
     std::vector<float> near_signal(s.near.size());
     for (std::size_t i = 0; i < s.near.size(); ++i)
       near_signal[i] = static_cast<float>(sign * (s.near[i] - background));
     const double border_crest = quantile(near_signal, 0.95);
+    // A noise-free frame's spread is its quantisation: the thresholds would then sit on any residual slope
+    // of the background.
+    sigma = std::max(sigma, options.min_sigma_crest_fraction * border_crest);
     ++fit.sectors_used;
     for (std::size_t i = 0; i < s.band.size(); ++i) {
       const Sample& b = s.band[i];

@@ -1,5 +1,6 @@
 #pragma once
-// The contact ellipse from where ridges show near its border (opt-in refinement of the segmenter's centre).
+// The contact ellipse from where ridges show near its border (the segmenter's centre,
+// SegmenterOptions::ridge_label_centre).
 //
 // Where a ridge valley lies along the border, the border is invisible along that arc; where a ridge ends
 // against it, the ridge's end marks it. The segmenter's level edge works from the crests, so along valley
@@ -18,6 +19,7 @@
 // centre from it.
 #include <opencv2/core.hpp>
 
+#include <functional>
 #include <optional>
 
 #include "contact/ellipse.hpp"
@@ -29,6 +31,8 @@ struct RidgeLabelOptions {
   double smooth_sigma_px = 1.0;
   double in_sigmas = 4.0;
   double out_sigmas = 1.0;
+  double min_sigma_crest_fraction =
+      0.005;                    // the noise sigma is taken as at least this much of the crest level
   double visible_sigmas = 4.0;  // a predicted ridge counts only where it would show this clearly
   double predicted_cos = 0.3;   // ... and only on its crest side (cosine of the wave's phase)
   double transition_px = 1.5;
@@ -46,9 +50,13 @@ struct RidgeLabelFit {
 
 // `frame`: the full frame (CV_8UC1, CV_16UC1 or CV_32FC1), `full_scale` its full-scale value (1 for float);
 // `initial` in frame pixels; `polarity` -1 when ridges in contact are darker than the background, +1
-// brighter. Nothing when the ellipse leaves the frame, too few sectors carry a ridge wave, or the fit fails.
-std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(const cv::Mat& frame, double full_scale,
-                                                         const Ellipse& initial, double period_px,
-                                                         int polarity, const RidgeLabelOptions& options = {});
+// brighter. `illumination` (optional): the background's level at a frame pixel (any scale), e.g. the
+// segmenter's flat field; the pixels are divided by it so that vignetting does not tilt a sector's background
+// across the labelled band. Nothing when the ellipse leaves the frame, too few sectors carry a ridge wave, or
+// the fit fails.
+std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
+    const cv::Mat& frame, double full_scale, const Ellipse& initial, double period_px, int polarity,
+    const RidgeLabelOptions& options = {},
+    const std::function<double(double x_px, double y_px)>& illumination = {});
 
 }  // namespace tirstrain::contact

@@ -713,10 +713,10 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
   // the outline is then the steepest descent of that plateau along the outward ray.
   bool use_level_edge = polarity != 0;
   double level_drop_min = 0.0;
+  // The background around the contact (clear of it by the rays' reach and a period, outside the excluded
+  // band), for the flat field and its pixel noise.
+  std::optional<QuadraticSurface> background;
   if (use_level_edge) {
-    // The background around the contact (clear of it by the rays' reach and a period, outside the excluded
-    // band), for the flat field and its pixel noise.
-    std::optional<QuadraticSurface> background;
     if (options_.flat_field) {
       const int grow = odd_at_least(2.0 * (reach_w + period_w) + 1.0, 3);
       cv::dilate(buf_.hull_mask, buf_.scratch_u8,
@@ -916,9 +916,19 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
   // An ellipse much larger than the frame is an extrapolation from a nearly straight arc: not reported.
   if (result.ellipse && result.ellipse->semi_major_px > 2.0 * std::hypot(full_size.width, full_size.height))
     result.ellipse.reset();
-  if (result.ellipse && options_.ridge_label_centre && polarity != 0 && (status & kTouchesEdge) == 0) {
+  const bool small_contact =
+      result.ellipse && std::sqrt(result.ellipse->semi_major_px * result.ellipse->semi_minor_px) <
+                            options_.ridge_label_below_periods * period_px;
+  if (result.ellipse && (options_.ridge_label_centre || small_contact) && polarity != 0 &&
+      (status & kTouchesEdge) == 0 && !result.border_averaged) {
+    // The flat field's surface, from working pixels of the region to frame pixels.
+    const auto illumination = [&](double x_px, double y_px) {
+      return (*background)((x_px - origin.x + 0.5) / f - 0.5, (y_px - origin.y + 0.5) / f - 0.5);
+    };
     const std::optional<RidgeLabelFit> fit =
-        fit_ellipse_to_ridge_labels(image, full_scale, *result.ellipse, period_px, polarity);
+        background ? fit_ellipse_to_ridge_labels(image, full_scale, *result.ellipse, period_px, polarity, {},
+                                                 illumination)
+                   : fit_ellipse_to_ridge_labels(image, full_scale, *result.ellipse, period_px, polarity);
     if (fit) {
       const cv::Point2d shift(fit->ellipse.cx_px - result.ellipse->cx_px,
                               fit->ellipse.cy_px - result.ellipse->cy_px);
@@ -930,6 +940,7 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
         const cv::Rect moved =
             cv::boundingRect(std::vector<cv::Point2f>(result.outline_px.begin(), result.outline_px.end()));
         result.bounding_box_px = moved & cv::Rect(0, 0, full_size.width, full_size.height);
+        result.ridge_label_shift_px = shift;
       }
     }
   }

@@ -123,11 +123,19 @@ struct SegmenterOptions {
   // With automatic resolution, a contact whose equivalent radius is below this many ridge periods is
   // segmented again at half the working factor (about 11 working pixels per period).
   double small_contact_periods = 3.0;
-  // Opt-in: move the outline so that the ellipse's centre is the one fitted to where ridges show near the
-  // border (contact/ridge_labels.hpp): ridge ends pin the centre where the level edge, which works from
-  // crests, follows where valleys lie along the border. Applied when the contact does not touch the frame's
-  // edge and the shift is under half a ridge period. Off by default until the whole pipeline is validated
-  // with it (BENCHMARKS.md, contact/, session 20).
+  // The centre from where ridges show near the border (contact/ridge_labels.hpp): the outline is moved so
+  // that the ellipse's centre is the one fitted to ridge labels. Ridge ends pin the centre where the level
+  // edge, which works from crests, follows where valleys lie along the border; how much that moves the
+  // level edge's centre falls with the number of ridge periods around the border (measured RMS over 60
+  // frames: 1.70 px at 1.9 periods in radius, 0.63 px at 6.5). Applied to contacts whose equivalent radius
+  // sqrt(a b) is under ridge_label_below_periods ridge periods (the tiny contact: 1.70 -> 0.35 px), or to
+  // every contact when ridge_label_centre. Not by default to large contacts: there it halves the error on
+  // the synthetic generator's fading border, but on a border without that fade (tests/contact/
+  // tir_render.hpp, ridges concentric about a core in the contact) it doubles it, 0.45 -> 1.08 px
+  // (BENCHMARKS.md, contact/, session 21). Never applied when the contact touches the frame's edge, when
+  // the frame was averaged along the border (the labels would be noise-limited), or when the shift would
+  // exceed half a ridge period. Costs about 3 ms a frame.
+  double ridge_label_below_periods = 5.0;
   bool ridge_label_centre = false;
   double low_contrast = 0.02;  // texture energy (≈ 0.6 x ridge amplitude) below this: low contrast
   // Region tracking: after a frame with a contact, the next frames are segmented only around it (its
@@ -157,6 +165,9 @@ struct ContactResult {
   // Texture SNR behind the border averaging (0 when the background could not be fitted) and whether it ran.
   double texture_snr = 0.0;
   bool border_averaged = false;
+  // Shift of the outline and ellipse to the centre fitted to the ridge labels (SegmenterOptions::
+  // ridge_label_centre), px; nothing when it was not applied.
+  std::optional<cv::Point2d> ridge_label_shift_px;
   int polarity = 0;  // -1: contact darker than background (dark ridges), +1 brighter, 0 unknown
 };
 
