@@ -4,9 +4,8 @@
 // argument is the pixel noise (per mille of full scale): at 80 the texture SNR falls below
 // SegmenterOptions::border_average_snr and the edge search runs on the frame averaged along the border. The
 // fourth, when 1, turns the flat field, the border averaging and the centre from the ridge labels off (the
-// segmenter before they were added), for their cost in the same run; when 2, the centre from the ridge labels
-// is used whatever the contact's size (SegmenterOptions::ridge_label_centre; by default only below
-// ridge_label_below_periods ridge periods in radius, which these contacts are not).
+// segmenter before they were added), for their cost in the same run; when 2, only the centre from the ridge
+// labels is off (SegmenterOptions::ridge_label_centre, ridge_label_below_periods).
 // Run: contact_bench --benchmark_counters_tabular=true
 #include <benchmark/benchmark.h>
 
@@ -36,7 +35,7 @@ void BM_Segment(benchmark::State& state) {
   const int downsample = static_cast<int>(state.range(1));
   tirstrain::test::TirScene scene = scene_for(width, height);
   scene.noise = static_cast<double>(state.range(2)) / 1000.0;
-  const bool plain = state.range(3) == 1, ridge_labels = state.range(3) == 2;
+  const bool plain = state.range(3) == 1, no_ridge_labels = state.range(3) == 2;
   const cv::Mat image = tirstrain::test::render_tir(scene);
   const cv::Mat truth = tirstrain::test::render_truth_mask(scene);
   SegmenterOptions options;
@@ -46,8 +45,10 @@ void BM_Segment(benchmark::State& state) {
     options.flat_field = false;
     options.border_average_snr = 0.0;
   }
-  if (plain) options.ridge_label_below_periods = 0.0;
-  options.ridge_label_centre = ridge_labels;
+  if (plain || no_ridge_labels) {
+    options.ridge_label_below_periods = 0.0;
+    options.ridge_label_centre = false;
+  }
   ContactSegmenter segmenter(options);
   tirstrain::contact::ContactResult result;
   for (auto _ : state) {
@@ -70,9 +71,9 @@ void BM_Segment(benchmark::State& state) {
   state.SetLabel(std::to_string(width) + "x" + std::to_string(height) +
                  (downsample == 1 ? " full" : " reduced") + ", noise " + std::to_string(state.range(2) / 10) +
                  "." + std::to_string(state.range(2) % 10) + " %" +
-                 (plain          ? ", no flat field, border averaging or ridge labels"
-                  : ridge_labels ? ", centre from the ridge labels"
-                                 : ""));
+                 (plain             ? ", no flat field, border averaging or ridge labels"
+                  : no_ridge_labels ? ", no ridge labels"
+                                    : ""));
 }
 
 // Period measured from the spectrum (first frame of a trial without a scene period).

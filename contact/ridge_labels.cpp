@@ -79,18 +79,30 @@ Wave fit_wave(const std::vector<Sample>& window, const cv::Mat& smooth, cv::Poin
   // leading and trailing edges), and a period off by that much misplaces the extrapolated crests by a third
   // of a period one period out.
   double best_explained = -1.0;
+  // The subset's positions and signals as float arrays: the cosines and sines of each trial wave are then
+  // evaluated a vector register at a time.
+  const Eigen::Index count = static_cast<Eigen::Index>(subset_count);
+  Eigen::ArrayXf dx(count), dy(count), signal(count);
+  for (Eigen::Index j = 0; j < count; ++j) {
+    const Sample& s = window[static_cast<std::size_t>(j) * stride];
+    dx(j) = static_cast<float>(s.x - best.x0);
+    dy(j) = static_cast<float>(s.y - best.y0);
+    signal(j) = static_cast<float>(sign * (s.value - background));
+  }
+  const double signal_sum = signal.cast<double>().sum();
   const auto try_wave = [&](double theta, double period_factor) {
     const double k = kTwoPi / (period_px * period_factor);
     const double kx = k * std::cos(theta), ky = k * std::sin(theta);
-    Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
-    for (std::size_t i = 0; i < window.size(); i += stride) {
-      const Sample& s = window[i];
-      const double phase = kx * (s.x - best.x0) + ky * (s.y - best.y0);
-      const Eigen::Vector3d f(1.0, std::cos(phase), std::sin(phase));
-      normal_matrix += f * f.transpose();
-      rhs += f * (sign * (s.value - background));
-    }
+    const Eigen::ArrayXf phase = static_cast<float>(kx) * dx + static_cast<float>(ky) * dy;
+    const Eigen::ArrayXf c = phase.cos(), sn = phase.sin();
+    Eigen::Matrix3d normal_matrix;
+    normal_matrix << static_cast<double>(count), c.sum(), sn.sum(),  //
+        0.0, (c * c).sum(), (c * sn).sum(),                          //
+        0.0, 0.0, (sn * sn).sum();
+    normal_matrix(1, 0) = normal_matrix(0, 1);
+    normal_matrix(2, 0) = normal_matrix(0, 2);
+    normal_matrix(2, 1) = normal_matrix(1, 2);
+    const Eigen::Vector3d rhs(signal_sum, (signal * c).sum(), (signal * sn).sum());
     const Eigen::Vector3d solution = normal_matrix.ldlt().solve(rhs);
     const double explained = solution.dot(rhs) - rhs(0) * rhs(0) / normal_matrix(0, 0);
     if (explained > best_explained) {
@@ -106,6 +118,19 @@ Wave fit_wave(const std::vector<Sample>& window, const cv::Mat& smooth, cv::Poin
   for (const double period_factor : kPeriodFactors) try_wave(theta, period_factor);
   best.explained = total > 0.0 ? best_explained / total : 0.0;
   return best;
+}
+
+// The direction of (dx, dy) in [0, 2 pi), within 0.004 rad (atan z ~ z (pi/4 + 0.273 (1 - |z|)) on each
+// octant): it only sorts pixels into sectors, many times per frame.
+double direction_rad(double dx, double dy) {
+  const double ax = std::abs(dx), ay = std::abs(dy);
+  if (ax == 0.0 && ay == 0.0) return 0.0;
+  const double z = std::min(ax, ay) / std::max(ax, ay);
+  double a = z * (0.25 * std::numbers::pi + 0.273 * (1.0 - z));
+  if (ay > ax) a = 0.5 * std::numbers::pi - a;
+  if (dx < 0.0) a = std::numbers::pi - a;
+  if (dy < 0.0) a = kTwoPi - a;
+  return a >= kTwoPi ? a - kTwoPi : a;
 }
 
 struct Label {
@@ -187,6 +212,40 @@ std::optional<Params> fit_logistic(Params p, const std::vector<Label>& labels, d
   return p;
 }
 
+// Per sector (k of n, direction u_k), the border's distance t_k from the initial ellipse: just beyond the
+// outermost inside labels (their 95th percentile), or midway to the innermost outside labels (5th percentile)
+// where those are within 2 bracket_reach_px. Where a ridge valley runs along the border the next ridge that
+// would show is a period out, and the midpoint would put the border half a period beyond the last ridge; on
+// every synthetic frame measured, some ridge reaches the border along each sector, so its outermost pixels
+// mark it there (BENCHMARKS.md, contact/, session 21). The shift is then the least-squares fit of
+// t_k = offset + shift . u_k over the sectors with labels, with a prior of bracket_prior_px on the shift.
+std::optional<cv::Point2d> bracket_centre_shift(const std::vector<std::vector<float>>& inside_t,
+                                                const std::vector<std::vector<float>>& outside_t,
+                                                const RidgeLabelOptions& options) {
+  const double n = static_cast<double>(inside_t.size());
+  Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  const double prior_weight = 1.0 / (options.bracket_prior_px * options.bracket_prior_px);
+  normal_matrix(1, 1) = normal_matrix(2, 2) = prior_weight;
+  int used = 0;
+  for (std::size_t k = 0; k < inside_t.size(); ++k) {
+    if (inside_t[k].size() < 3) continue;
+    const double outermost_inside = quantile(inside_t[k], 0.95);
+    double border = outermost_inside + options.bracket_reach_px;
+    if (outside_t[k].size() >= 3)
+      border = std::min(border, 0.5 * (outermost_inside + quantile(outside_t[k], 0.05)));
+    const double phi = (static_cast<double>(k) + 0.5) * kTwoPi / n;
+    const Eigen::Vector3d f(1.0, std::cos(phi), std::sin(phi));
+    normal_matrix += f * f.transpose();
+    rhs += f * border;
+    ++used;
+  }
+  if (used < options.min_sectors) return std::nullopt;
+  const Eigen::Vector3d solution = normal_matrix.ldlt().solve(rhs);
+  if (!solution.allFinite()) return std::nullopt;
+  return cv::Point2d(solution(1), solution(2));
+}
+
 }  // namespace
 
 std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
@@ -232,10 +291,9 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
       // rho between the semi-axes, so q alone rejects them before the square roots and the angle.
       if (q_squared < q_inner_squared || q_squared > q_outer_squared || q_squared < 1e-18) continue;
       const double q = std::sqrt(q_squared);
-      const double t = std::hypot(dx, dy) * (1.0 - 1.0 / q);
+      const double t = std::sqrt(dx * dx + dy * dy) * (1.0 - 1.0 / q);
       if (t < -1.5 * p || t > 1.6 * p) continue;
-      double phi = std::atan2(dy, dx);
-      if (phi < 0.0) phi += kTwoPi;
+      const double phi = direction_rad(dx, dy);
       const auto index =
           std::min<std::size_t>(sectors.size() - 1, static_cast<std::size_t>(phi / kTwoPi * options.sectors));
       Sector& s = sectors[index];
@@ -254,8 +312,11 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
 
   RidgeLabelFit fit;
   std::vector<Label> labels;
+  // Each sector's labels' distances t from the initial ellipse, for the brackets.
+  std::vector<std::vector<float>> inside_t(sectors.size()), outside_t(sectors.size());
   const double sign = polarity < 0 ? -1.0 : 1.0;
-  for (const Sector& s : sectors) {
+  for (std::size_t k = 0; k < sectors.size(); ++k) {
+    const Sector& s = sectors[k];
     if (s.outer.size() < 20 || s.window.size() < 30 || s.near.empty()) continue;
     const double background = quantile(s.outer, 0.5);
     std::vector<float> deviation(s.outer.size());
@@ -277,6 +338,7 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
       const double signal = sign * (b.value - background);
       if (signal > options.in_sigmas * sigma) {
         labels.push_back({b.x, b.y, 1.0});
+        inside_t[k].push_back(s.band_t[i]);
         ++fit.inside_labels;
         continue;
       }
@@ -284,12 +346,21 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
       const double c = wave.cos_at(b.x, b.y);
       if (c > options.predicted_cos && border_crest * 0.5 * (1.0 + c) > options.visible_sigmas * sigma) {
         labels.push_back({b.x, b.y, -1.0});
+        outside_t[k].push_back(s.band_t[i]);
         ++fit.outside_labels;
       }
     }
   }
   if (fit.sectors_used < options.min_sectors || fit.inside_labels == 0 || fit.outside_labels == 0)
     return std::nullopt;
+  if (options.method == RidgeLabelMethod::brackets) {
+    const std::optional<cv::Point2d> shift = bracket_centre_shift(inside_t, outside_t, options);
+    if (!shift) return std::nullopt;
+    fit.ellipse = initial;
+    fit.ellipse.cx_px += shift->x;
+    fit.ellipse.cy_px += shift->y;
+    return fit;
+  }
   if (labels.size() > kMaxLabels) {
     const std::size_t stride = (labels.size() + kMaxLabels - 1) / kMaxLabels;
     std::vector<Label> kept;

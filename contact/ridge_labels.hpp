@@ -4,19 +4,21 @@
 //
 // Where a ridge valley lies along the border, the border is invisible along that arc; where a ridge ends
 // against it, the ridge's end marks it. The segmenter's level edge works from the crests, so along valley
-// arcs it stops at the last crest, and a small contact's centre follows where the fingerprint happens to lie
-// (0.2-3.6 px for one contact, BENCHMARKS.md, contact/). Here every pixel within 0.75 ridge period of an
-// initial ellipse is labelled:
+// arcs it stops at the last crest, and the centre follows where the fingerprint happens to lie (0.2-3.6 px
+// for one small contact, up to 2 px RMS on sliding large ones; BENCHMARKS.md, contact/). Here every pixel
+// within 0.75 ridge period of an initial ellipse is labelled:
 //   inside  - the ridge signal (frame smoothed over 1 px, against the local background) exceeds in_sigmas;
 //   outside - below out_sigmas, at most a quarter period inside, where the local plane wave of the ridges
 //             (fitted just inside the border, per sector) predicts a ridge that would show at the border's
 //             crest level;
 //   neither - everything else (valleys, faint flanks).
-// The ellipse is then the logistic fit of its five parameters to those labels (signed distance over a
-// transition of transition_px), by Levenberg-Marquardt from the initial ellipse. Thousands of labels pin it
-// where a few extracted ridge ends would not (pipeline/contact_observability.hpp measures what they allow).
-// The fitted axes run ~2.5 px long (the soft edge's tail is labelled inside), so the segmenter takes only the
-// centre from it.
+// The ellipse then comes from those labels by one of two methods (RidgeLabelMethod): the logistic fit of its
+// five parameters (signed distance over a transition of transition_px, Levenberg-Marquardt from the initial
+// ellipse), where thousands of labels pin it where a few extracted ridge ends would not
+// (pipeline/contact_observability.hpp measures what they allow); or per-sector brackets, which move only the
+// centre. The logistic fit's axes run ~2.5 px long (the soft edge's tail is labelled inside), and on a large
+// contact it drifts outward along arcs where valleys run along the border; the segmenter uses it on small
+// contacts and the brackets on large ones, and takes only the centre.
 #include <opencv2/core.hpp>
 
 #include <functional>
@@ -26,7 +28,14 @@
 
 namespace tirstrain::contact {
 
+// How the labels set the ellipse. logistic: the ellipse's five parameters fitted to the labels. brackets: per
+// sector, the border is placed just beyond the outermost inside labels, or midway to the innermost outside
+// labels where those are close, and only the centre (with a common radial offset) is fitted to those
+// positions; the ellipse is `initial` moved to that centre.
+enum class RidgeLabelMethod { logistic, brackets };
+
 struct RidgeLabelOptions {
+  RidgeLabelMethod method = RidgeLabelMethod::logistic;
   int sectors = 24;
   double smooth_sigma_px = 1.0;
   double in_sigmas = 4.0;
@@ -39,6 +48,8 @@ struct RidgeLabelOptions {
   double min_fit_fraction = 0.3;  // a sector's wave must explain this fraction of its window's variance
   int min_sectors = 12;           // sectors with a usable wave, else no fit
   int max_iterations = 20;
+  double bracket_reach_px = 1.0;  // brackets: at most this far beyond the outermost inside labels
+  double bracket_prior_px = 3.0;  // brackets: prior standard deviation of the centre's shift
 };
 
 struct RidgeLabelFit {

@@ -124,19 +124,19 @@ struct SegmenterOptions {
   // segmented again at half the working factor (about 11 working pixels per period).
   double small_contact_periods = 3.0;
   // The centre from where ridges show near the border (contact/ridge_labels.hpp): the outline is moved so
-  // that the ellipse's centre is the one fitted to ridge labels. Ridge ends pin the centre where the level
-  // edge, which works from crests, follows where valleys lie along the border; how much that moves the
-  // level edge's centre falls with the number of ridge periods around the border (measured RMS over 60
-  // frames: 1.70 px at 1.9 periods in radius, 0.63 px at 6.5). Applied to contacts whose equivalent radius
-  // sqrt(a b) is under ridge_label_below_periods ridge periods (the tiny contact: 1.70 -> 0.35 px), or to
-  // every contact when ridge_label_centre. Not by default to large contacts: there it halves the error on
-  // the synthetic generator's fading border, but on a border without that fade (tests/contact/
-  // tir_render.hpp, ridges concentric about a core in the contact) it doubles it, 0.45 -> 1.08 px
-  // (BENCHMARKS.md, contact/, session 21). Never applied when the contact touches the frame's edge, when
-  // the frame was averaged along the border (the labels would be noise-limited), or when the shift would
-  // exceed half a ridge period. Costs about 3 ms a frame.
+  // that the ellipse's centre is the one the ridge labels give. The level edge works from the crests, so
+  // where a ridge valley runs along the border it stops at the last crest, and the centre follows where the
+  // fingerprint happens to lie (over 19 synthetic trials, every frame, centre RMS up to 1.7-2.0 px on the
+  // tiny contact and on sliding ones; 0.97 px RMS of the scenes' RMS). Contacts whose equivalent radius
+  // sqrt(a b) is under ridge_label_below_periods ridge periods get the logistic ellipse fit to the labels
+  // (the tiny contact: 1.70 -> 0.37 px; the brackets there: 0.77); larger ones, when ridge_label_centre,
+  // the per-sector brackets (there the logistic fit drifts outward along valley arcs: direction_proximal
+  // 0.90 px against the brackets' 0.61). Together: 0.97 -> 0.53 px (BENCHMARKS.md, contact/, session 21).
+  // Never applied when the contact touches the frame's edge, the frame is saturated or was averaged along
+  // the border (the labels would be clipped or noise-limited), or the shift would exceed half a ridge
+  // period. Costs about 1 ms a frame, 3 ms on a small contact.
   double ridge_label_below_periods = 5.0;
-  bool ridge_label_centre = false;
+  bool ridge_label_centre = true;
   double low_contrast = 0.02;  // texture energy (≈ 0.6 x ridge amplitude) below this: low contrast
   // Region tracking: after a frame with a contact, the next frames are segmented only around it (its
   // bounding box grown by the larger of region_margin_periods ridge periods and region_margin_fraction of

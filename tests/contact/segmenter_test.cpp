@@ -203,21 +203,24 @@ TEST(ContactSegmenter, TwoBlobsAreFlaggedAndJoined) {
   expect_finite(m.result);
 }
 
-// The centre from the ridge labels is applied by default only to contacts under ridge_label_below_periods
-// ridge periods in radius: a small contact (about two periods) gets it, the default scene's (5.5 periods)
-// does not, and 0 turns it off. Within 1 px on this renderer's small contacts (measured: straight ridges
-// 0.30 px against the level edge's 0.19, the whorl 0.64 against 0.95; the synthetic generator's tiny
-// contact, where it matters more: SynthAccuracy.*).
-TEST(ContactSegmenter, RidgeLabelCentreOnSmallContacts) {
-  for (const bool whorl : {false, true}) {
+// The centre from the ridge labels, by default on every contact: the logistic fit on small contacts (under
+// ridge_label_below_periods ridge periods in radius), the per-sector brackets on larger ones; off with
+// ridge_label_centre false and ridge_label_below_periods 0. Within 1 px on this renderer's small contacts
+// and its default-sized ones (measured: small, straight ridges 0.12 px against the level edge's 0.19, whorl
+// 0.58 against 0.95; default size, whorl 0.29 against 0.45, straight 0.15 against 0.34).
+TEST(ContactSegmenter, RidgeLabelCentreOnSmallAndLargeContacts) {
+  SegmenterOptions level_edge_only;
+  level_edge_only.ridge_label_below_periods = 0.0;
+  level_edge_only.ridge_label_centre = false;
+  for (const int size : {0, 1, 2, 3}) {
     TirScene scene;
-    scene.whorl = whorl;
-    scene.contacts = {{320.0, 256.0, 50.0, 42.0, 0.4}};
-    scene.core_x = 310.0;
-    scene.core_y = 250.0;
+    scene.whorl = size == 1 || size == 2;
+    if (size < 2) {
+      scene.contacts = {{320.0, 256.0, 50.0, 42.0, 0.4}};
+      scene.core_x = 310.0;
+      scene.core_y = 250.0;
+    }
     const Measured labelled = run(scene);
-    SegmenterOptions level_edge_only;
-    level_edge_only.ridge_label_below_periods = 0.0;
     const Measured level_edge = run(scene, level_edge_only);
     ASSERT_TRUE(labelled.result.ellipse && level_edge.result.ellipse);
     EXPECT_TRUE(labelled.result.ridge_label_shift_px.has_value());
@@ -226,11 +229,13 @@ TEST(ContactSegmenter, RidgeLabelCentreOnSmallContacts) {
     const auto centre_px = [&](const Measured& m) {
       return std::hypot(m.result.ellipse->cx_px - truth.cx_px, m.result.ellipse->cy_px - truth.cy_px);
     };
-    std::cout << (whorl ? "  whorl" : "  straight") << ": centre error " << centre_px(labelled)
+    const char* names[] = {"small, straight", "small, whorl", "default, whorl", "default, straight"};
+    std::cout << "  " << names[size] << ": centre error " << centre_px(labelled)
               << " px from the ridge labels, " << centre_px(level_edge) << " px from the level edge\n";
     EXPECT_LE(centre_px(labelled), 1.0);
+    // The outline is moved, not reshaped.
+    EXPECT_NEAR(labelled.result.area_mm2, level_edge.result.area_mm2, 1e-9);
   }
-  EXPECT_FALSE(run(TirScene{}).result.ridge_label_shift_px.has_value());
 }
 
 TEST(ContactSegmenter, SweatPatchesInsideContact) {
