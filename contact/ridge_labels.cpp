@@ -215,9 +215,10 @@ std::optional<Params> fit_logistic(Params p, const std::vector<Label>& labels, d
 // Per sector (k of n, direction u_k), the border's distance t_k from the initial ellipse: just beyond the
 // outermost inside labels (their 95th percentile), or midway to the innermost outside labels (5th percentile)
 // where those are within 2 bracket_reach_px. Where a ridge valley runs along the border the next ridge that
-// would show is a period out, and the midpoint would put the border half a period beyond the last ridge; on
-// every synthetic frame measured, some ridge reaches the border along each sector, so its outermost pixels
-// mark it there (BENCHMARKS.md, contact/, session 21). The shift is then the least-squares fit of
+// would show is a period out, and the midpoint would put the border half a period beyond the last ridge. In
+// the frames examined sector by sector (direction_proximal frame 40, the bench renderer's whorl), some ridge
+// reached the border along every sector, its outermost pixels within 1 px of the truth (BENCHMARKS.md,
+// contact/, session 21). The shift is then the least-squares fit of
 // t_k = offset + shift . u_k over the sectors with labels, with a prior of bracket_prior_px on the shift.
 std::optional<cv::Point2d> bracket_centre_shift(const std::vector<std::vector<float>>& inside_t,
                                                 const std::vector<std::vector<float>>& outside_t,
