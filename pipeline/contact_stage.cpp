@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <numbers>
+#include <optional>
 
 #include "core/csv.hpp"
 #include "core/yaml_reader.hpp"
@@ -21,6 +22,7 @@ struct ContactRecord {
   std::array<double, 5> ellipse{};  // cx, cy, semi-major, semi-minor, angle; zeros without an ellipse
   double texture_snr = 0.0;
   bool border_averaged = false;
+  std::optional<cv::Point2d> ridge_label_shift_px;
   cv::Mat orientation_rad, coherence;
 };
 
@@ -55,6 +57,7 @@ class ContactStage final : public Stage {
     record.hull_px = result.hull_px;
     record.texture_snr = result.texture_snr;
     record.border_averaged = result.border_averaged;
+    record.ridge_label_shift_px = result.ridge_label_shift_px;
     if (result.ellipse) {
       const auto& e = *result.ellipse;
       record.ellipse = {e.cx_px, e.cy_px, e.semi_major_px, e.semi_minor_px, e.angle_rad};
@@ -126,7 +129,8 @@ class ContactStage final : public Stage {
     const auto by = static_cast<std::size_t>(blocks_.height), bx = static_cast<std::size_t>(blocks_.width);
     std::vector<std::int32_t> status(n);
     std::vector<double> area(n), hull(n * hull_points * 2, 0.0), ellipse(n * 5, 0.0), snr(n);
-    std::vector<std::int8_t> averaged(n);
+    std::vector<std::int8_t> averaged(n), labelled(n);
+    std::vector<double> shift(n * 2, 0.0);
     std::vector<float> orientation(n * by * bx, 0.0f), coherence(n * by * bx, 0.0f);
     for (std::size_t i = 0; i < n; ++i) {
       const ContactRecord& r = records_[i];
@@ -134,6 +138,11 @@ class ContactStage final : public Stage {
       area[i] = r.area_mm2;
       snr[i] = r.texture_snr;
       averaged[i] = r.border_averaged ? 1 : 0;
+      labelled[i] = r.ridge_label_shift_px ? 1 : 0;
+      if (r.ridge_label_shift_px) {
+        shift[i * 2] = r.ridge_label_shift_px->x;
+        shift[i * 2 + 1] = r.ridge_label_shift_px->y;
+      }
       for (std::size_t k = 0; k < r.hull_px.size() && k < hull_points; ++k) {
         hull[(i * hull_points + k) * 2] = r.hull_px[k].x;
         hull[(i * hull_points + k) * 2 + 1] = r.hull_px[k].y;
@@ -154,6 +163,8 @@ class ContactStage final : public Stage {
     out.write("/contact/coherence", std::span<const float>(coherence), {n, by, bx});
     out.write("/contact/texture_snr", std::span<const double>(snr), {n});
     out.write("/contact/border_averaged", std::span<const std::int8_t>(averaged), {n});
+    out.write("/contact/ridge_label_centre", std::span<const std::int8_t>(labelled), {n});
+    out.write("/contact/ridge_label_shift_px", std::span<const double>(shift), {n, 2});
     out.attribute("/contact", "px_per_mm", options_.px_per_mm);
     out.attribute("/contact", "ridge_period_px", period_px());
     out.attribute("/contact", "ridge_period_source", period_source());
@@ -171,12 +182,13 @@ class ContactStage final : public Stage {
     std::int64_t with_contact = 0;
     double area_sum = 0.0, area_max = 0.0;
     std::map<std::string, std::int64_t> flags;
-    std::int64_t border_averaged = 0;
+    std::int64_t border_averaged = 0, ridge_label_centre = 0;
     std::vector<double> snr;
     for (const auto& r : records_) {
       if ((r.status & (contact::kNoContact | contact::kFrameSkipped)) == 0) {
         ++with_contact;
         if (r.border_averaged) ++border_averaged;
+        if (r.ridge_label_shift_px) ++ridge_label_centre;
         if (r.texture_snr > 0.0) snr.push_back(r.texture_snr);
         area_sum += r.area_mm2;
         area_max = std::max(area_max, r.area_mm2);
@@ -200,6 +212,7 @@ class ContactStage final : public Stage {
       c["texture_snr_median"] = nullptr;
     }
     c["frames_border_averaged"] = border_averaged;
+    c["frames_ridge_label_centre"] = ridge_label_centre;
     c["segment_ms_per_frame"] = segmented_ > 0 ? 1e3 * segment_s_ / static_cast<double>(segmented_) : 0.0;
     summary["contact"] = c;
   }

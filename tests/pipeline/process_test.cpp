@@ -96,6 +96,8 @@ TEST(Process, WritesDocumentedResults) {
   EXPECT_EQ(h5.shape("/contact/coherence"), (H5Shape{n, 16, 20}));
   EXPECT_EQ(h5.shape("/contact/texture_snr"), (H5Shape{n}));
   EXPECT_EQ(h5.shape("/contact/border_averaged"), (H5Shape{n}));
+  EXPECT_EQ(h5.shape("/contact/ridge_label_centre"), (H5Shape{n}));
+  EXPECT_EQ(h5.shape("/contact/ridge_label_shift_px"), (H5Shape{n, 2}));
   EXPECT_NE(h5.attribute_text("/", "software_version").find("tirstrain"), std::string::npos);
   EXPECT_NE(h5.attribute_text("/", "scene_yaml").find("px_per_mm"), std::string::npos);
   EXPECT_NEAR(h5.attribute_number("/contact", "ridge_period_px"), 23.4, 1.0);
@@ -107,6 +109,10 @@ TEST(Process, WritesDocumentedResults) {
   // The bench renderer's 2 % noise on 0.45 contrast: SNR 26 (contact_bench), above the border averaging's 20.
   const auto snr = h5.read_doubles("/contact/texture_snr");
   const auto averaged = h5.read_integers("/contact/border_averaged");
+  // The centre from the ridge labels, by default on this large, unsaturated, unaveraged contact; the shift is
+  // under half a ridge period (23.4 px) by construction.
+  const auto labelled = h5.read_integers("/contact/ridge_label_centre");
+  const auto shift = h5.read_doubles("/contact/ridge_label_shift_px");
   const double truth_area_mm2 = M_PI * 150.0 * 110.0 / (52.0 * 52.0);
   for (int i = 0; i < kFrames; ++i) {
     EXPECT_DOUBLE_EQ(t_s[static_cast<std::size_t>(i)], frame_time_s(i));
@@ -121,6 +127,10 @@ TEST(Process, WritesDocumentedResults) {
     EXPECT_GT(snr[static_cast<std::size_t>(i)], 20.0) << "frame " << i;
     EXPECT_LT(snr[static_cast<std::size_t>(i)], 40.0) << "frame " << i;
     EXPECT_EQ(averaged[static_cast<std::size_t>(i)], 0) << "frame " << i;
+    EXPECT_EQ(labelled[static_cast<std::size_t>(i)], 1) << "frame " << i;
+    EXPECT_LE(std::hypot(shift[static_cast<std::size_t>(i) * 2], shift[static_cast<std::size_t>(i) * 2 + 1]),
+              0.5 * 23.4)
+        << "frame " << i;
   }
 
   const CsvTable csv = read_numeric_csv((out / "frames.csv").string());
@@ -135,6 +145,7 @@ TEST(Process, WritesDocumentedResults) {
   EXPECT_EQ(summary["frames"]["total"], kFrames);
   EXPECT_EQ(summary["contact"]["frames_with_contact"], kFrames);
   EXPECT_EQ(summary["contact"]["frames_border_averaged"], 0);
+  EXPECT_EQ(summary["contact"]["frames_ridge_label_centre"], kFrames);
   EXPECT_GT(summary["contact"]["texture_snr_median"].get<double>(), 20.0);
   EXPECT_EQ(summary["time_measured"], true);
 
