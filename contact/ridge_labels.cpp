@@ -6,7 +6,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
+#include <utility>
 #include <vector>
 
 namespace tirstrain::contact {
@@ -31,29 +33,177 @@ struct Sector {
   std::vector<float> band_t;
 };
 
-double quantile(std::vector<float> values, double q) {
+// Reorders `values`.
+double quantile(std::vector<float>& values, double q) {
   const auto k = static_cast<std::ptrdiff_t>(q * static_cast<double>(values.size() - 1));
   std::nth_element(values.begin(), values.begin() + k, values.end());
   return values[static_cast<std::size_t>(k)];
 }
 
+// Where a row crosses the band between two normalised radii q_low < q_high of an ellipse (q: the ellipse's
+// normalised radius, 1 on it): the columns (as dx from the centre) with q <= q_high, less the hole q < q_low.
+class EllipseBand {
+ public:
+  struct Row {
+    bool crosses = false;
+    double first = 0.0, last = 0.0;  // q <= q_high
+    bool has_hole = false;
+    double hole_first = 0.0, hole_last = 0.0;  // q < q_low
+  };
+  EllipseBand(const Ellipse& e, double q_low, double q_high)
+      : q_low_squared_(q_low * q_low), q_high_squared_(q_high * q_high) {
+    const double cos_a = std::cos(e.angle_rad), sin_a = std::sin(e.angle_rad);
+    const double inv_a2 = 1.0 / (e.semi_major_px * e.semi_major_px);
+    const double inv_b2 = 1.0 / (e.semi_minor_px * e.semi_minor_px);
+    // q^2 = quad_a dx^2 + quad_b dy dx + quad_c dy^2
+    quad_a_ = cos_a * cos_a * inv_a2 + sin_a * sin_a * inv_b2;
+    quad_b_ = 2.0 * cos_a * sin_a * (inv_a2 - inv_b2);
+    quad_c_ = sin_a * sin_a * inv_a2 + cos_a * cos_a * inv_b2;
+  }
+  Row at(double dy) const {
+    Row row;
+    const double b = quad_b_ * dy, c = quad_c_ * dy * dy;
+    const double middle = -b / (2.0 * quad_a_);
+    const double outer_disc = b * b - 4.0 * quad_a_ * (c - q_high_squared_);
+    if (outer_disc < 0.0) return row;
+    const double outer_half = std::sqrt(outer_disc) / (2.0 * quad_a_);
+    row.crosses = true;
+    row.first = middle - outer_half;
+    row.last = middle + outer_half;
+    const double inner_disc = b * b - 4.0 * quad_a_ * (c - q_low_squared_);
+    if (inner_disc > 0.0) {
+      const double inner_half = std::sqrt(inner_disc) / (2.0 * quad_a_);
+      row.has_hole = true;
+      row.hole_first = middle - inner_half;
+      row.hole_last = middle + inner_half;
+    }
+    return row;
+  }
+
+ private:
+  double q_low_squared_, q_high_squared_;
+  double quad_a_ = 0.0, quad_b_ = 0.0, quad_c_ = 0.0;
+};
+
+// Binomial weights 1 4 6 4 1 (/16) per axis: a Gaussian of sigma 1 px.
+template <typename T>
+void smooth_row_span(const cv::Mat& source, int row, int first, int last, float scale,
+                     std::vector<float>& column_sums, float* __restrict out) {
+  const T* __restrict r0 = source.ptr<T>(row - 2);
+  const T* __restrict r1 = source.ptr<T>(row - 1);
+  const T* __restrict r2 = source.ptr<T>(row);
+  const T* __restrict r3 = source.ptr<T>(row + 1);
+  const T* __restrict r4 = source.ptr<T>(row + 2);
+  float* __restrict sums = column_sums.data();
+  for (int x = first - 2; x <= last + 2; ++x)
+    sums[x] = static_cast<float>(r0[x]) + 4.0f * static_cast<float>(r1[x]) +
+              6.0f * static_cast<float>(r2[x]) + 4.0f * static_cast<float>(r3[x]) + static_cast<float>(r4[x]);
+  const float* __restrict c = column_sums.data();
+  const float weight = scale / 256.0f;
+  for (int x = first; x <= last; ++x)
+    out[x] = weight * (c[x - 2] + 4.0f * c[x - 1] + 6.0f * c[x] + 4.0f * c[x + 1] + c[x + 2]);
+}
+
+// The ROI smoothed on the lattice's rows only (ROI rows first_row + step k): the band is a small part of the
+// ROI's square on a large contact, and the rows between are not needed.
+struct LatticeRows {
+  cv::Mat rows;  // CV_32F, one row per lattice row, the ROI's width
+  int first_row = 0, step = 1;
+  const float* row(int y) const { return rows.ptr<float>((y - first_row) / step); }
+  float at(int x, int y) const { return row(y)[x]; }
+};
+
+// Smooths the ROI's pixels at the columns within `band` (in ROI coordinates: the band's dy and dx are about
+// `centre`) on `lattice`'s rows; elsewhere its values are left unset.
+void smooth_band(const cv::Mat& roi_pixels, double full_scale, const EllipseBand& band, cv::Point2d centre,
+                 LatticeRows& lattice) {
+  std::vector<float> column_sums(static_cast<std::size_t>(roi_pixels.cols));
+  const float scale = static_cast<float>(1.0 / full_scale);
+  const int min_column = 2, max_column = roi_pixels.cols - 3;
+  for (int k = 0; k < lattice.rows.rows; ++k) {
+    const int y = lattice.first_row + k * lattice.step;
+    const EllipseBand::Row row = band.at(y - centre.y);
+    if (!row.crosses) continue;
+    const int first = std::max(min_column, static_cast<int>(std::floor(centre.x + row.first)));
+    const int last = std::min(max_column, static_cast<int>(std::ceil(centre.x + row.last)));
+    std::array<std::pair<int, int>, 2> spans{std::pair{first, last}, std::pair{1, 0}};
+    if (row.has_hole) {
+      const int hole_first = static_cast<int>(std::ceil(centre.x + row.hole_first));
+      const int hole_last = static_cast<int>(std::floor(centre.x + row.hole_last));
+      if (hole_first <= hole_last)
+        spans = {std::pair{first, std::min(last, hole_first - 1)},
+                 std::pair{std::max(first, hole_last + 1), last}};
+    }
+    float* out = lattice.rows.ptr<float>(k);
+    for (const auto& [span_first, span_last] : spans) {
+      if (span_first > span_last) continue;
+      switch (roi_pixels.depth()) {
+        case CV_8U:
+          smooth_row_span<std::uint8_t>(roi_pixels, y, span_first, span_last, scale, column_sums, out);
+          break;
+        case CV_16U:
+          smooth_row_span<std::uint16_t>(roi_pixels, y, span_first, span_last, scale, column_sums, out);
+          break;
+        default:
+          smooth_row_span<float>(roi_pixels, y, span_first, span_last, scale, column_sums, out);
+          break;
+      }
+    }
+  }
+}
+
+// 1 / illumination at `count` lattice points from (x_px, y_px) every `step_px` along the row, from its values
+// at the run's ends and middle: the illumination is a smooth background (the segmenter's is a quadratic
+// surface, which this reproduces exactly), and calling it at every point cost more than the rest of the
+// lattice's work. All ones without an illumination.
+void flat_field_along_run(const std::function<double(double, double)>& illumination, int x_px, int y_px,
+                          int step_px, Eigen::Ref<Eigen::ArrayXd> inverse_level) {
+  const Eigen::Index count = inverse_level.size();
+  if (!illumination) {
+    inverse_level.setOnes();
+    return;
+  }
+  if (count < 3) {
+    for (Eigen::Index i = 0; i < count; ++i)
+      inverse_level(i) = 1.0 / illumination(x_px + static_cast<double>(i * step_px), y_px);
+    return;
+  }
+  // The quadratic through j = 0, m, n (Newton's divided differences).
+  const double n = static_cast<double>(count - 1), m = std::floor(0.5 * n);
+  const double f0 = illumination(x_px, y_px), fm = illumination(x_px + m * step_px, y_px),
+               fn = illumination(x_px + n * step_px, y_px);
+  const double slope = (fm - f0) / m, curvature = ((fn - fm) / (n - m) - slope) / n;
+  const auto j = Eigen::ArrayXd::LinSpaced(count, 0.0, n);
+  inverse_level = (f0 + j * (slope + curvature * (j - m))).inverse();
+}
+
 struct Wave {
   double kx = 0.0, ky = 0.0, phase = 0.0, x0 = 0.0, y0 = 0.0;
   double explained = 0.0;  // fraction of the window's variance
-  double cos_at(double x, double y) const { return std::cos(kx * (x - x0) + ky * (y - y0) - phase); }
+  // The wave's cosine at each sample, a vector register at a time.
+  Eigen::ArrayXf cos_at(const std::vector<Sample>& samples) const {
+    Eigen::ArrayXf phases(static_cast<Eigen::Index>(samples.size()));
+    for (std::size_t i = 0; i < samples.size(); ++i)
+      phases(static_cast<Eigen::Index>(i)) =
+          static_cast<float>(kx * (samples[i].x - x0) + ky * (samples[i].y - y0) - phase);
+    return phases.cos();
+  }
 };
 
 // Least-squares m + A cos(k.x) + B sin(k.x) over the window for a few wave vectors around the structure
 // tensor's direction and the nominal period (+-15 %); the best explains most variance. `dev`: ridge signal
 // (ridges positive).
-Wave fit_wave(const std::vector<Sample>& window, const cv::Mat& smooth, cv::Point origin, double background,
-              double sign, double period_px) {
+// `smooth`: the frame smoothed on the lattice of spacing `step` that the window's samples lie on; the
+// gradients are central differences between lattice neighbours.
+Wave fit_wave(const std::vector<Sample>& window, const LatticeRows& smooth, cv::Point origin,
+              double background, double sign, double period_px) {
+  const int step = smooth.step;
   Wave best;
   double jxx = 0.0, jxy = 0.0, jyy = 0.0;
   for (const Sample& s : window) {
     const int x = static_cast<int>(s.x) - origin.x, y = static_cast<int>(s.y) - origin.y;
-    const double gx = 0.5 * (smooth.at<float>(y, x + 1) - smooth.at<float>(y, x - 1));
-    const double gy = 0.5 * (smooth.at<float>(y + 1, x) - smooth.at<float>(y - 1, x));
+    const double gx = smooth.at(x + step, y) - smooth.at(x - step, y);
+    const double gy = smooth.at(x, y + step) - smooth.at(x, y - step);
     jxx += gx * gx;
     jxy += gx * gy;
     jyy += gy * gy;
@@ -220,8 +370,8 @@ std::optional<Params> fit_logistic(Params p, const std::vector<Label>& labels, d
 // reached the border along every sector, its outermost pixels within 1 px of the truth (BENCHMARKS.md,
 // contact/, session 21). The shift is then the least-squares fit of
 // t_k = offset + shift . u_k over the sectors with labels, with a prior of bracket_prior_px on the shift.
-std::optional<cv::Point2d> bracket_centre_shift(const std::vector<std::vector<float>>& inside_t,
-                                                const std::vector<std::vector<float>>& outside_t,
+std::optional<cv::Point2d> bracket_centre_shift(std::vector<std::vector<float>>& inside_t,
+                                                std::vector<std::vector<float>>& outside_t,
                                                 const RidgeLabelOptions& options) {
   const double n = static_cast<double>(inside_t.size());
   Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
@@ -254,16 +404,16 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
     const RidgeLabelOptions& options, const std::function<double(double x_px, double y_px)>& illumination) {
   if (polarity == 0 || !(period_px > 0.0) || options.sectors < 4 || initial.semi_minor_px < 2.0)
     return std::nullopt;
-  // The outer band reaches 1.6 periods beyond the ellipse; one more pixel for the gradients.
-  const double reach = initial.semi_major_px + 1.6 * period_px + 2.0;
+  // The outer band reaches 1.6 periods beyond the ellipse; 4 more pixels for the smoothing and gradients.
+  const double reach = initial.semi_major_px + 1.6 * period_px + 4.0;
   const cv::Rect roi(static_cast<int>(std::floor(initial.cx_px - reach)),
                      static_cast<int>(std::floor(initial.cy_px - reach)), static_cast<int>(2.0 * reach) + 2,
                      static_cast<int>(2.0 * reach) + 2);
   if ((roi & cv::Rect(0, 0, frame.cols, frame.rows)) != roi) return std::nullopt;
-  cv::Mat smooth;
-  frame(roi).convertTo(smooth, CV_32F, 1.0 / full_scale);
-  cv::GaussianBlur(smooth, smooth, cv::Size(0, 0), options.smooth_sigma_px, options.smooth_sigma_px,
-                   cv::BORDER_REPLICATE);
+  if (frame.channels() != 1) return std::nullopt;
+  cv::Mat roi_pixels = frame(roi);
+  if (roi_pixels.depth() != CV_8U && roi_pixels.depth() != CV_16U && roi_pixels.depth() != CV_32F)
+    frame(roi).convertTo(roi_pixels, CV_32F);
 
   std::vector<Sector> sectors(static_cast<std::size_t>(options.sectors));
   const double p = period_px;
@@ -279,45 +429,103 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
   const double q_inner = std::max(0.0, 1.0 - 1.5 * p / initial.semi_minor_px);
   const double q_inner_squared = q_inner * q_inner;
   const double q_outer_squared = std::pow(1.0 + 1.6 * p / initial.semi_minor_px, 2);
-  for (int y = 1; y < smooth.rows - 1; y += step) {
-    const float* row = smooth.ptr<float>(y);
-    for (int x = 1; x < smooth.cols - 1; x += step) {
-      const double fx = x + roi.x, fy = y + roi.y, dx = fx - initial.cx_px, dy = fy - initial.cy_px;
+  // The lattice's points are at 3 + step k in the ROI (3 px for the smoothing). Per row only the lattice
+  // columns where q lies between the band's limits (plus a column either side) are visited, and the frame is
+  // smoothed only there: on the lattice's rows, over the band widened by a lattice step and a pixel (the
+  // gradients' neighbours).
+  const cv::Point2d centre(initial.cx_px - roi.x, initial.cy_px - roi.y);
+  const EllipseBand lattice_band(initial, q_inner, std::sqrt(q_outer_squared));
+  const double margin_q = (step + 1.0) / initial.semi_minor_px;
+  const EllipseBand smoothed_band(initial, std::max(0.0, q_inner - margin_q),
+                                  std::sqrt(q_outer_squared) + margin_q);
+  LatticeRows smooth{cv::Mat((roi.height - 7) / step + 1, roi.width, CV_32F), 3, step};
+  smooth_band(roi_pixels, full_scale, smoothed_band, centre, smooth);
+  const auto lattice_column = [&](double dx_px, bool up) {
+    const double x = (dx_px + centre.x - 3.0) / step;
+    return 3 + step * static_cast<int>(up ? std::ceil(x) : std::floor(x));
+  };
+  for (auto& sector : sectors) {
+    const std::size_t expected = static_cast<std::size_t>(kAnnulusSamples / options.sectors);
+    sector.outer.reserve(expected / 2);
+    sector.window.reserve(expected / 2);
+    sector.near.reserve(expected / 4);
+    sector.band.reserve(expected / 2);
+    sector.band_t.reserve(expected / 2);
+  }
+  // Per run of lattice columns: dx, q^2, t and 1 / illumination.
+  const Eigen::Index max_run = roi.width / step + 2;
+  Eigen::ArrayXf run_dx(max_run), run_q_squared(max_run), run_t(max_run);
+  Eigen::ArrayXd run_flat(max_run);
+  for (int y = 3; y < roi.height - 3; y += step) {
+    const float* row = smooth.row(y);
+    const EllipseBand::Row span = lattice_band.at(y - centre.y);
+    if (!span.crosses) continue;
+    const int x_first = std::max(3, lattice_column(span.first, false) - step);
+    const int x_last = std::min(roi.width - 4, lattice_column(span.last, true) + step);
+    int hole_first = x_last + 1, hole_last = x_last;  // lattice columns certainly inside the band's hole
+    if (span.has_hole) {
+      hole_first = lattice_column(span.hole_first, true) + step;
+      hole_last = lattice_column(span.hole_last, false) - step;
+    }
+    const double dy = y + roi.y - initial.cy_px;
+    // The lattice columns either side of the hole, each a run evaluated a vector register at a time.
+    std::array<std::pair<int, int>, 2> runs{std::pair{x_first, x_last}, std::pair{1, 0}};
+    if (hole_first <= hole_last)
+      runs = {std::pair{x_first, std::min(x_last, hole_first - step)},
+              std::pair{std::max(x_first, hole_last + step), x_last}};
+    for (const auto& [run_first, run_last] : runs) {
+      if (run_first > run_last) continue;
+      const Eigen::Index count = (run_last - run_first) / step + 1;
+      auto dx = run_dx.head(count);
+      auto q_squared = run_q_squared.head(count);
+      auto t = run_t.head(count);
+      auto flat = run_flat.head(count);
+      const double dx_first = run_first + roi.x - initial.cx_px;
+      const float along_x = static_cast<float>(cos_a), along_y = static_cast<float>(sin_a * dy);
+      const float across_x = static_cast<float>(-sin_a), across_y = static_cast<float>(cos_a * dy);
+      const float inverse_a = static_cast<float>(1.0 / initial.semi_major_px);
+      const float inverse_b = static_cast<float>(1.0 / initial.semi_minor_px);
+      const float dy_squared = static_cast<float>(dy * dy);
+      dx = Eigen::ArrayXf::LinSpaced(count, static_cast<float>(dx_first),
+                                     static_cast<float>(dx_first + step * (count - 1.0)));
       // Along the ray from the centre the ellipse's radius is r / q (q: normalised radius), so t = r (1 -
-      // 1/q).
-      const double u = (cos_a * dx + sin_a * dy) / initial.semi_major_px;
-      const double v = (-sin_a * dx + cos_a * dy) / initial.semi_minor_px;
-      const double q_squared = u * u + v * v;
-      // Most of the square lies well inside or outside the band: t = rho (q - 1) with the ellipse's radius
-      // rho between the semi-axes, so q alone rejects them before the square roots and the angle.
-      if (q_squared < q_inner_squared || q_squared > q_outer_squared || q_squared < 1e-18) continue;
-      const double q = std::sqrt(q_squared);
-      const double t = std::sqrt(dx * dx + dy * dy) * (1.0 - 1.0 / q);
-      if (t < -1.5 * p || t > 1.6 * p) continue;
-      const double phi = direction_rad(dx, dy);
-      const auto index =
-          std::min<std::size_t>(sectors.size() - 1, static_cast<std::size_t>(phi / kTwoPi * options.sectors));
-      Sector& s = sectors[index];
-      const float value =
-          illumination ? static_cast<float>(row[x] * illumination_at_centre / illumination(fx, fy)) : row[x];
-      const Sample sample{static_cast<float>(fx), static_cast<float>(fy), value};
-      if (t >= 0.9 * p) s.outer.push_back(value);
-      if (t <= -0.25 * p) s.window.push_back(sample);
-      if (t >= -0.5 * p && t <= 0.0) s.near.push_back(value);
-      if (std::abs(t) <= 0.75 * p) {
-        s.band.push_back(sample);
-        s.band_t.push_back(static_cast<float>(t));
+      // 1/q). In float, four at a time: t to 1e-4 px.
+      q_squared =
+          ((along_x * dx + along_y) * inverse_a).square() + ((across_x * dx + across_y) * inverse_b).square();
+      t = (dx * dx + dy_squared).sqrt() * (1.0f - q_squared.max(1e-18f).rsqrt());
+      flat_field_along_run(illumination, run_first + roi.x, y + roi.y, step, flat);
+      for (Eigen::Index j = 0; j < count; ++j) {
+        if (q_squared(j) < q_inner_squared || q_squared(j) > q_outer_squared || q_squared(j) < 1e-18)
+          continue;
+        if (t(j) < -1.5 * p || t(j) > 1.6 * p) continue;
+        const int x = run_first + static_cast<int>(j) * step;
+        const double fx = x + roi.x, fy = y + roi.y;
+        const double phi = direction_rad(dx(j), dy);
+        const auto index = std::min<std::size_t>(sectors.size() - 1,
+                                                 static_cast<std::size_t>(phi / kTwoPi * options.sectors));
+        Sector& s = sectors[index];
+        const float value = static_cast<float>(row[x] * illumination_at_centre * flat(j));
+        const Sample sample{static_cast<float>(fx), static_cast<float>(fy), value};
+        const double tj = t(j);
+        if (tj >= 0.9 * p) s.outer.push_back(value);
+        if (tj <= -0.25 * p) s.window.push_back(sample);
+        if (tj >= -0.5 * p && tj <= 0.0) s.near.push_back(value);
+        if (std::abs(tj) <= 0.75 * p) {
+          s.band.push_back(sample);
+          s.band_t.push_back(static_cast<float>(tj));
+        }
       }
     }
   }
 
   RidgeLabelFit fit;
-  std::vector<Label> labels;
+  const bool logistic = options.method == RidgeLabelMethod::logistic;
+  std::vector<Label> labels;  // the logistic fit's
   // Each sector's labels' distances t from the initial ellipse, for the brackets.
   std::vector<std::vector<float>> inside_t(sectors.size()), outside_t(sectors.size());
   const double sign = polarity < 0 ? -1.0 : 1.0;
   for (std::size_t k = 0; k < sectors.size(); ++k) {
-    const Sector& s = sectors[k];
+    Sector& s = sectors[k];
     if (s.outer.size() < 20 || s.window.size() < 30 || s.near.empty()) continue;
     const double background = quantile(s.outer, 0.5);
     std::vector<float> deviation(s.outer.size());
@@ -334,19 +542,20 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
     // of the background.
     sigma = std::max(sigma, options.min_sigma_crest_fraction * border_crest);
     ++fit.sectors_used;
+    const Eigen::ArrayXf wave_cos = wave.cos_at(s.band);
     for (std::size_t i = 0; i < s.band.size(); ++i) {
       const Sample& b = s.band[i];
       const double signal = sign * (b.value - background);
       if (signal > options.in_sigmas * sigma) {
-        labels.push_back({b.x, b.y, 1.0});
+        if (logistic) labels.push_back({b.x, b.y, 1.0});
         inside_t[k].push_back(s.band_t[i]);
         ++fit.inside_labels;
         continue;
       }
       if (s.band_t[i] < -0.25 * p || signal >= options.out_sigmas * sigma) continue;
-      const double c = wave.cos_at(b.x, b.y);
+      const double c = wave_cos(static_cast<Eigen::Index>(i));
       if (c > options.predicted_cos && border_crest * 0.5 * (1.0 + c) > options.visible_sigmas * sigma) {
-        labels.push_back({b.x, b.y, -1.0});
+        if (logistic) labels.push_back({b.x, b.y, -1.0});
         outside_t[k].push_back(s.band_t[i]);
         ++fit.outside_labels;
       }

@@ -6,8 +6,10 @@
 // against it, the ridge's end marks it. The segmenter's level edge works from the crests, so along valley
 // arcs it stops at the last crest, and the centre follows where the fingerprint happens to lie (0.2-3.6 px
 // for one small contact, up to 2 px RMS on sliding large ones; BENCHMARKS.md, contact/). Here every pixel
-// within 0.75 ridge period of an initial ellipse is labelled:
-//   inside  - the ridge signal (frame smoothed over 1 px, against the local background) exceeds in_sigmas;
+// within 0.75 ridge period of an initial ellipse (on a large contact, those of a lattice a few px apart) is
+// labelled:
+//   inside  - the ridge signal (frame smoothed by a Gaussian of 1 px, against the local background) exceeds
+//             in_sigmas;
 //   outside - below out_sigmas, at most a quarter period inside, where the local plane wave of the ridges
 //             (fitted just inside the border, per sector) predicts a ridge that would show at the border's
 //             crest level;
@@ -37,7 +39,6 @@ enum class RidgeLabelMethod { logistic, brackets };
 struct RidgeLabelOptions {
   RidgeLabelMethod method = RidgeLabelMethod::logistic;
   int sectors = 24;
-  double smooth_sigma_px = 1.0;
   double in_sigmas = 4.0;
   double out_sigmas = 1.0;
   double min_sigma_crest_fraction =
@@ -63,8 +64,9 @@ struct RidgeLabelFit {
 // `initial` in frame pixels; `polarity` -1 when ridges in contact are darker than the background, +1
 // brighter. `illumination` (optional): the background's level at a frame pixel (any scale), e.g. the
 // segmenter's flat field; the pixels are divided by it so that vignetting does not tilt a sector's background
-// across the labelled band. Nothing when the ellipse leaves the frame, too few sectors carry a ridge wave, or
-// the fit fails.
+// across the labelled band. It must be smooth: it is evaluated at three points per row of the band and
+// interpolated quadratically between them (exact for a quadratic surface). Nothing when the ellipse leaves
+// the frame, too few sectors carry a ridge wave, or the fit fails.
 std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
     const cv::Mat& frame, double full_scale, const Ellipse& initial, double period_px, int polarity,
     const RidgeLabelOptions& options = {},

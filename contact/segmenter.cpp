@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numbers>
 #include <numeric>
@@ -921,17 +922,17 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
                             options_.ridge_label_below_periods * period_px;
   if (result.ellipse && (options_.ridge_label_centre || small_contact) && polarity != 0 &&
       (status & (kTouchesEdge | kSaturated)) == 0 && !result.border_averaged) {
-    // The flat field's surface, from working pixels of the region to frame pixels.
-    const auto illumination = [&](double x_px, double y_px) {
-      return (*background)((x_px - origin.x + 0.5) / f - 0.5, (y_px - origin.y + 0.5) / f - 0.5);
-    };
+    // The flat field's surface, from working pixels of the region to frame pixels (none without a flat
+    // field).
+    std::function<double(double, double)> illumination;
+    if (background)
+      illumination = [&](double x_px, double y_px) {
+        return (*background)((x_px - origin.x + 0.5) / f - 0.5, (y_px - origin.y + 0.5) / f - 0.5);
+      };
     RidgeLabelOptions label_options;
     label_options.method = small_contact ? RidgeLabelMethod::logistic : RidgeLabelMethod::brackets;
-    const std::optional<RidgeLabelFit> fit =
-        background ? fit_ellipse_to_ridge_labels(image, full_scale, *result.ellipse, period_px, polarity,
-                                                 label_options, illumination)
-                   : fit_ellipse_to_ridge_labels(image, full_scale, *result.ellipse, period_px, polarity,
-                                                 label_options);
+    const std::optional<RidgeLabelFit> fit = fit_ellipse_to_ridge_labels(
+        image, full_scale, *result.ellipse, period_px, polarity, label_options, illumination);
     if (fit) {
       const cv::Point2d shift(fit->ellipse.cx_px - result.ellipse->cx_px,
                               fit->ellipse.cy_px - result.ellipse->cy_px);

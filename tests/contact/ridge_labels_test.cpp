@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <iostream>
 
 #include "contact/ridge_labels.hpp"
 #include "tests/contact/tir_render.hpp"
@@ -33,10 +35,11 @@ TEST(RidgeLabels, CentreComesBackFromAnOffsetStart) {
               << fit->ellipse.semi_major_px << " / " << fit->ellipse.semi_minor_px << " px, labels "
               << fit->inside_labels << " in, " << fit->outside_labels << " out, " << fit->sectors_used
               << " sectors\n";
-    // Straight ridges cross the border on two sides and end against it there: measured 0.08 px. Ridges
+    // Straight ridges cross the border on two sides and end against it there: measured 0.05 px. Ridges
     // concentric about a core near the contact's centre run along the whole border, which leaves the centre
-    // loosely held: measured 1.19 px, still a third of the start's 3.6 px.
-    EXPECT_LT(centre_px, whorl ? 1.5 : 0.3);
+    // loosely held: measured 1.46 px (1.19 px before the band-only smoothing of session 22, which moved a few
+    // labels), under half the start's 3.6 px.
+    EXPECT_LT(centre_px, whorl ? 1.8 : 0.3);
     // The soft edge's tail counts as inside: the axes come out a little long, never short.
     EXPECT_GT(fit->ellipse.semi_major_px, truth.semi_major_px - 1.0);
     EXPECT_LT(fit->ellipse.semi_major_px, truth.semi_major_px + 4.0);
@@ -48,7 +51,7 @@ TEST(RidgeLabels, CentreComesBackFromAnOffsetStart) {
 
 // Near the border of a sliding contact the skin is stretched or compressed, so the ridges there run at a
 // period 10-15 % off the frame's: given a period 12 % off, the wave is still found and the centre still
-// comes back (straight ridges; measured 0.39 and 0.24 px, against 0.08 px with the right period).
+// comes back (straight ridges; measured 0.29 and 0.12 px, against 0.05 px with the right period).
 TEST(RidgeLabels, CentreComesBackWithThePeriodTwelvePercentOff) {
   test::TirScene scene;
   scene.whorl = false;
@@ -66,7 +69,7 @@ TEST(RidgeLabels, CentreComesBackWithThePeriodTwelvePercentOff) {
 
 // The brackets (the segmenter's method on large contacts): only the centre moves, and from 3.6 px off it
 // comes back for both ridge patterns, the concentric one included, where the logistic fit drifts outward
-// along the arcs where valleys run along the border (measured: whorl 0.03 px, straight 0.46 px: where
+// along the arcs where valleys run along the border (measured: whorl 0.03 px, straight 0.48 px: where
 // straight ridges run along the border on two opposite arcs, the last ridge there can lie up to half a
 // period inside it; from the level edge's start the segmenter gets 0.15 px on this contact). The axes are
 // kept, so the start's must be close, as the level edge's are (here 2 % short, the axis tolerance).
@@ -87,6 +90,100 @@ TEST(RidgeLabels, BracketsBringTheCentreBack) {
     EXPECT_EQ(fit->ellipse.semi_major_px, start.semi_major_px);
     EXPECT_EQ(fit->ellipse.angle_rad, start.angle_rad);
   }
+}
+
+// Normalised radius of (x, y) in `e` (1 on the ellipse).
+double normalised_radius(const Ellipse& e, double x, double y) {
+  const double dx = x - e.cx_px, dy = y - e.cy_px;
+  const double u = (std::cos(e.angle_rad) * dx + std::sin(e.angle_rad) * dy) / e.semi_major_px;
+  const double v = (-std::sin(e.angle_rad) * dx + std::cos(e.angle_rad) * dy) / e.semi_minor_px;
+  return std::hypot(u, v);
+}
+
+// The frame is smoothed and read only in the band about the border (1.5 periods inside to 1.6 outside, plus
+// the smoothing's and gradients' few pixels): blanking everything well inside and well outside it leaves the
+// fit exactly as it was.
+TEST(RidgeLabels, ReadsOnlyTheBandAboutTheBorder) {
+  test::TirScene scene;
+  scene.whorl = false;
+  const cv::Mat image = test::render_tir(scene);
+  const Ellipse start = moved(scene.contacts[0], 3.0, -2.0, 0.98);
+  const double inner = 1.0 - (1.5 * scene.period_px + 10.0) / start.semi_minor_px;
+  const double outer = 1.0 + (1.6 * scene.period_px + 10.0) / start.semi_minor_px;
+  cv::Mat blanked = image.clone();
+  for (int y = 0; y < blanked.rows; ++y)
+    for (int x = 0; x < blanked.cols; ++x) {
+      const double q = normalised_radius(start, x, y);
+      if (q < inner || q > outer) blanked.at<std::uint8_t>(y, x) = 0;
+    }
+  for (const RidgeLabelMethod method : {RidgeLabelMethod::brackets, RidgeLabelMethod::logistic}) {
+    RidgeLabelOptions options;
+    options.method = method;
+    const auto fit = fit_ellipse_to_ridge_labels(image, 255.0, start, scene.period_px, -1, options);
+    const auto fit_blanked = fit_ellipse_to_ridge_labels(blanked, 255.0, start, scene.period_px, -1, options);
+    ASSERT_TRUE(fit.has_value());
+    ASSERT_TRUE(fit_blanked.has_value());
+    EXPECT_EQ(fit->ellipse.cx_px, fit_blanked->ellipse.cx_px);
+    EXPECT_EQ(fit->ellipse.cy_px, fit_blanked->ellipse.cy_px);
+    EXPECT_EQ(fit->inside_labels, fit_blanked->inside_labels);
+    EXPECT_EQ(fit->outside_labels, fit_blanked->outside_labels);
+  }
+}
+
+// The same frame as 8-bit, 16-bit and float pixels gives the same centre (to float rounding).
+TEST(RidgeLabels, SameCentreFromEightSixteenBitAndFloatFrames) {
+  test::TirScene scene;
+  const cv::Mat image = test::render_tir(scene);
+  cv::Mat image16, image32;
+  image.convertTo(image16, CV_16U, 257.0);
+  image.convertTo(image32, CV_32F, 1.0 / 255.0);
+  RidgeLabelOptions options;
+  options.method = RidgeLabelMethod::brackets;
+  const Ellipse start = moved(scene.contacts[0], 3.0, -2.0, 0.98);
+  const auto fit8 = fit_ellipse_to_ridge_labels(image, 255.0, start, scene.period_px, -1, options);
+  const auto fit16 = fit_ellipse_to_ridge_labels(image16, 65535.0, start, scene.period_px, -1, options);
+  const auto fit32 = fit_ellipse_to_ridge_labels(image32, 1.0, start, scene.period_px, -1, options);
+  ASSERT_TRUE(fit8 && fit16 && fit32);
+  for (const auto* other : {&*fit16, &*fit32}) {
+    EXPECT_NEAR(other->ellipse.cx_px, fit8->ellipse.cx_px, 1e-3);
+    EXPECT_NEAR(other->ellipse.cy_px, fit8->ellipse.cy_px, 1e-3);
+  }
+}
+
+// Vignetting: a frame lit by a quadratic falloff (to 70 % at the corners), with that falloff given as the
+// illumination, gives the evenly lit frame's centre. The illumination is interpolated along each row of the
+// band from three points, exact for a quadratic, and the smoothing of the product differs from the product of
+// the smoothing too little to move a label: measured 0 px, against 1.25 px without the illumination.
+TEST(RidgeLabels, IlluminationUndoesAQuadraticFalloff) {
+  test::TirScene scene;
+  scene.whorl = false;
+  const cv::Mat image = test::render_tir(scene);
+  const auto falloff = [&](double x, double y) {
+    const double u = (x - 250.0) / scene.size.width, v = (y - 300.0) / scene.size.height;
+    return 1.0 - 0.6 * (u * u + v * v) + 0.1 * u * v;
+  };
+  cv::Mat even, vignetted;
+  image.convertTo(even, CV_32F, 1.0 / 255.0);
+  vignetted = even.clone();
+  for (int y = 0; y < vignetted.rows; ++y)
+    for (int x = 0; x < vignetted.cols; ++x) vignetted.at<float>(y, x) *= static_cast<float>(falloff(x, y));
+  RidgeLabelOptions options;
+  options.method = RidgeLabelMethod::brackets;
+  const Ellipse start = moved(scene.contacts[0], 3.0, -2.0, 0.98);
+  const auto reference = fit_ellipse_to_ridge_labels(even, 1.0, start, scene.period_px, -1, options);
+  const auto corrected =
+      fit_ellipse_to_ridge_labels(vignetted, 1.0, start, scene.period_px, -1, options, falloff);
+  ASSERT_TRUE(reference && corrected);
+  const double difference_px = std::hypot(corrected->ellipse.cx_px - reference->ellipse.cx_px,
+                                          corrected->ellipse.cy_px - reference->ellipse.cy_px);
+  const auto uncorrected = fit_ellipse_to_ridge_labels(vignetted, 1.0, start, scene.period_px, -1, options);
+  ASSERT_TRUE(uncorrected);
+  const double uncorrected_px = std::hypot(uncorrected->ellipse.cx_px - reference->ellipse.cx_px,
+                                           uncorrected->ellipse.cy_px - reference->ellipse.cy_px);
+  std::cout << "  centre moved " << difference_px << " px by the corrected falloff, " << uncorrected_px
+            << " px by the uncorrected one\n";
+  EXPECT_LT(difference_px, 0.05);
+  EXPECT_GT(uncorrected_px, 0.5) << "the falloff must matter for this test to show anything";
 }
 
 TEST(RidgeLabels, NoFitWhereThereIsNothingToLabel) {

@@ -206,8 +206,8 @@ TEST(ContactSegmenter, TwoBlobsAreFlaggedAndJoined) {
 // The centre from the ridge labels, by default on every contact: the logistic fit on small contacts (under
 // ridge_label_below_periods ridge periods in radius), the per-sector brackets on larger ones; off with
 // ridge_label_centre false and ridge_label_below_periods 0. Within 1 px on this renderer's small contacts
-// and its default-sized ones (measured: small, straight ridges 0.12 px against the level edge's 0.19, whorl
-// 0.58 against 0.95; default size, whorl 0.29 against 0.45, straight 0.15 against 0.34).
+// and its default-sized ones (measured: small, straight ridges 0.30 px against the level edge's 0.19, whorl
+// 0.55 against 0.95; default size, whorl 0.31 against 0.45, straight 0.15 against 0.34).
 TEST(ContactSegmenter, RidgeLabelCentreOnSmallAndLargeContacts) {
   SegmenterOptions level_edge_only;
   level_edge_only.ridge_label_below_periods = 0.0;

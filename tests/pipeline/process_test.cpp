@@ -15,6 +15,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <limits>
 #include <sstream>
 
@@ -109,11 +110,13 @@ TEST(Process, WritesDocumentedResults) {
   // The bench renderer's 2 % noise on 0.45 contrast: SNR 26 (contact_bench), above the border averaging's 20.
   const auto snr = h5.read_doubles("/contact/texture_snr");
   const auto averaged = h5.read_integers("/contact/border_averaged");
-  // The centre from the ridge labels, by default on this large, unsaturated, unaveraged contact; the shift is
-  // under half a ridge period (23.4 px) by construction.
+  // The centre from the ridge labels, by default on this large, unsaturated, unaveraged contact. The recorded
+  // shift is what moved the level edge's centre: taking it back off gives that centre, which on this whorl is
+  // further from the rendered contact's (measured RMS 0.78 px with the shifts, 0.86 px without).
   const auto labelled = h5.read_integers("/contact/ridge_label_centre");
   const auto shift = h5.read_doubles("/contact/ridge_label_shift_px");
   const double truth_area_mm2 = M_PI * 150.0 * 110.0 / (52.0 * 52.0);
+  double labelled_sq = 0.0, level_edge_sq = 0.0, largest_shift_px = 0.0;
   for (int i = 0; i < kFrames; ++i) {
     EXPECT_DOUBLE_EQ(t_s[static_cast<std::size_t>(i)], frame_time_s(i));
     EXPECT_EQ(status[static_cast<std::size_t>(i)], 0);
@@ -128,10 +131,18 @@ TEST(Process, WritesDocumentedResults) {
     EXPECT_LT(snr[static_cast<std::size_t>(i)], 40.0) << "frame " << i;
     EXPECT_EQ(averaged[static_cast<std::size_t>(i)], 0) << "frame " << i;
     EXPECT_EQ(labelled[static_cast<std::size_t>(i)], 1) << "frame " << i;
-    EXPECT_LE(std::hypot(shift[static_cast<std::size_t>(i) * 2], shift[static_cast<std::size_t>(i) * 2 + 1]),
-              0.5 * 23.4)
-        << "frame " << i;
+    const double shift_x = shift[static_cast<std::size_t>(i) * 2],
+                 shift_y = shift[static_cast<std::size_t>(i) * 2 + 1];
+    labelled_sq += dx * dx + dy * dy;
+    largest_shift_px = std::max(largest_shift_px, std::hypot(shift_x, shift_y));
+    level_edge_sq += std::pow(dx - shift_x, 2) + std::pow(dy - shift_y, 2);
   }
+  const double labelled_rms_px = std::sqrt(labelled_sq / kFrames);
+  const double level_edge_rms_px = std::sqrt(level_edge_sq / kFrames);
+  std::cout << "  centre RMS " << labelled_rms_px << " px with the recorded shifts, " << level_edge_rms_px
+            << " px without\n";
+  EXPECT_LT(labelled_rms_px, level_edge_rms_px);
+  EXPECT_GT(largest_shift_px, 0.1);
 
   const CsvTable csv = read_numeric_csv((out / "frames.csv").string());
   EXPECT_EQ(csv.rows(), n);
