@@ -134,7 +134,7 @@ struct SegmenterOptions {
   // 0.90 px against the brackets' 0.61). Together: 0.97 -> 0.53 px (BENCHMARKS.md, contact/, session 21).
   // Never applied when the contact touches the frame's edge, the frame is saturated or was averaged along
   // the border (the labels would be clipped or noise-limited), or the shift would exceed half a ridge
-  // period. Costs about 1 ms a frame, 3 ms on a small contact.
+  // period. Costs about 0.9 ms a frame on a large contact (session 22), 3 ms on a small one.
   double ridge_label_below_periods = 5.0;
   bool ridge_label_centre = true;
   double low_contrast = 0.02;  // texture energy (≈ 0.6 x ridge amplitude) below this: low contrast
