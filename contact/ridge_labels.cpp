@@ -362,14 +362,32 @@ std::optional<Params> fit_logistic(Params p, const std::vector<Label>& labels, d
   return p;
 }
 
-// Per sector (k of n, direction u_k), the border's distance t_k from the initial ellipse: just beyond the
-// outermost inside labels (their 95th percentile), or midway to the innermost outside labels (5th percentile)
-// where those are within 2 bracket_reach_px. Where a ridge valley runs along the border the next ridge that
-// would show is a period out, and the midpoint would put the border half a period beyond the last ridge. In
-// the frames examined sector by sector (direction_proximal frame 40, the bench renderer's whorl), some ridge
-// reached the border along every sector, its outermost pixels within 1 px of the truth (BENCHMARKS.md,
-// contact/, session 21). The shift is then the least-squares fit of
-// t_k = offset + shift . u_k over the sectors with labels, with a prior of bracket_prior_px on the shift.
+// The brackets' outside labels: where the wave predicts a phase that this sector's ridges show inside the
+// contact. That phase range is measured from the inside labels at least a quarter period inside (the lowest
+// cosine, 5th percentile, at which they occur, plus phase_margin_cos), and is at most predicted_cos. With a
+// fixed crest side (cosine above 0.3), the ridges of a frame whose ridges show down to their valleys (cosine
+// -0.7) leave a gap of most of a period beyond a border that cuts a flank, and the midway border lands far
+// out; with the gap narrowed the synthetic trials' centre went 0.529 -> 0.478 px RMS and the bench
+// renderer's 0.438 -> 0.394 px (BENCHMARKS.md, contact/, session 23).
+double bracket_predicted_cos(const Sector& s, const Eigen::ArrayXf& wave_cos, double background, double sign,
+                             double sigma, double period_px, const RidgeLabelOptions& options) {
+  std::vector<float> inside_cos;
+  for (std::size_t i = 0; i < s.band.size(); ++i)
+    if (s.band_t[i] < -0.25 * period_px && sign * (s.band[i].value - background) > options.in_sigmas * sigma)
+      inside_cos.push_back(wave_cos(static_cast<Eigen::Index>(i)));
+  if (inside_cos.size() < 10) return options.predicted_cos;
+  return std::clamp(quantile(inside_cos, 0.05) + options.phase_margin_cos, -1.0, options.predicted_cos);
+}
+
+// Per sector (k of n, direction u_k), the border's distance t_k from the initial ellipse lies between the
+// outermost inside labels (their 95th percentile) and the innermost outside labels (5th percentile): it is
+// taken midway, or just beyond the inside labels (bracket_reach_px) where the sector has no outside labels.
+// Where the gap between the two is wide (a valley along the border, where the border could lie anywhere in
+// it), the sector counts less: weight 1 / (1 + (gap / bracket_gap_px)^2). A sector whose outside labels lie
+// within its inside labels contradicts itself (the wave's phase has drifted) and is left out. The shift is
+// the weighted least-squares fit of t_k = offset + shift . u_k, with a prior of bracket_prior_px on the
+// shift. Where the gap was ignored and the border put just beyond the inside labels, a wide valley along an
+// arc of a sliding contact moved the centre by up to 1.4 px (BENCHMARKS.md, contact/, session 23).
 std::optional<cv::Point2d> bracket_centre_shift(std::vector<std::vector<float>>& inside_t,
                                                 std::vector<std::vector<float>>& outside_t,
                                                 const RidgeLabelOptions& options) {
@@ -383,12 +401,17 @@ std::optional<cv::Point2d> bracket_centre_shift(std::vector<std::vector<float>>&
     if (inside_t[k].size() < 3) continue;
     const double outermost_inside = quantile(inside_t[k], 0.95);
     double border = outermost_inside + options.bracket_reach_px;
-    if (outside_t[k].size() >= 3)
-      border = std::min(border, 0.5 * (outermost_inside + quantile(outside_t[k], 0.05)));
+    double weight = 1.0;
+    if (outside_t[k].size() >= 3) {
+      const double gap = quantile(outside_t[k], 0.05) - outermost_inside;
+      if (gap < 0.0) continue;
+      border = outermost_inside + 0.5 * gap;
+      weight = 1.0 / (1.0 + std::pow(gap / options.bracket_gap_px, 2));
+    }
     const double phi = (static_cast<double>(k) + 0.5) * kTwoPi / n;
     const Eigen::Vector3d f(1.0, std::cos(phi), std::sin(phi));
-    normal_matrix += f * f.transpose();
-    rhs += f * border;
+    normal_matrix += weight * f * f.transpose();
+    rhs += weight * border * f;
     ++used;
   }
   if (used < options.min_sectors) return std::nullopt;
@@ -543,6 +566,9 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
     sigma = std::max(sigma, options.min_sigma_crest_fraction * border_crest);
     ++fit.sectors_used;
     const Eigen::ArrayXf wave_cos = wave.cos_at(s.band);
+    const double predicted_cos =
+        logistic ? options.predicted_cos
+                 : bracket_predicted_cos(s, wave_cos, background, sign, sigma, p, options);
     for (std::size_t i = 0; i < s.band.size(); ++i) {
       const Sample& b = s.band[i];
       const double signal = sign * (b.value - background);
@@ -554,7 +580,7 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
       }
       if (s.band_t[i] < -0.25 * p || signal >= options.out_sigmas * sigma) continue;
       const double c = wave_cos(static_cast<Eigen::Index>(i));
-      if (c > options.predicted_cos && border_crest * 0.5 * (1.0 + c) > options.visible_sigmas * sigma) {
+      if (c > predicted_cos && border_crest * 0.5 * (1.0 + c) > options.visible_sigmas * sigma) {
         if (logistic) labels.push_back({b.x, b.y, -1.0});
         outside_t[k].push_back(s.band_t[i]);
         ++fit.outside_labels;

@@ -31,9 +31,9 @@
 namespace tirstrain::contact {
 
 // How the labels set the ellipse. logistic: the ellipse's five parameters fitted to the labels. brackets: per
-// sector, the border is placed just beyond the outermost inside labels, or midway to the innermost outside
-// labels where those are close, and only the centre (with a common radial offset) is fitted to those
-// positions; the ellipse is `initial` moved to that centre.
+// sector, the border is placed midway between the outermost inside labels and the innermost outside labels
+// (sectors with a wide gap between them weigh less), and only the centre (with a common radial offset) is
+// fitted to those positions; the ellipse is `initial` moved to that centre.
 enum class RidgeLabelMethod { logistic, brackets };
 
 struct RidgeLabelOptions {
@@ -44,12 +44,17 @@ struct RidgeLabelOptions {
   double min_sigma_crest_fraction =
       0.005;                    // the noise sigma is taken as at least this much of the crest level
   double visible_sigmas = 4.0;  // a predicted ridge counts only where it would show this clearly
-  double predicted_cos = 0.3;   // ... and only on its crest side (cosine of the wave's phase)
+  double predicted_cos = 0.3;   // ... and only on its crest side (cosine of the wave's phase); the brackets
+                                // narrow it to the phase the sector's inside labels show, plus:
+  double phase_margin_cos = 0.2;
   double transition_px = 1.5;
   double min_fit_fraction = 0.3;  // a sector's wave must explain this fraction of its window's variance
   int min_sectors = 12;           // sectors with a usable wave, else no fit
   int max_iterations = 20;
-  double bracket_reach_px = 1.0;  // brackets: at most this far beyond the outermost inside labels
+  double bracket_reach_px =
+      1.0;                      // brackets: this far beyond the outermost inside labels, without outside ones
+  double bracket_gap_px = 6.7;  // brackets: a sector whose inside and outside labels are this far apart
+                                // counts half
   double bracket_prior_px = 3.0;  // brackets: prior standard deviation of the centre's shift
 };
 

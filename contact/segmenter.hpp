@@ -131,7 +131,8 @@ struct SegmenterOptions {
   // sqrt(a b) is under ridge_label_below_periods ridge periods get the logistic ellipse fit to the labels
   // (the tiny contact: 1.70 -> 0.37 px; the brackets there: 0.77); larger ones, when ridge_label_centre,
   // the per-sector brackets (there the logistic fit drifts outward along valley arcs: direction_proximal
-  // 0.90 px against the brackets' 0.61). Together: 0.97 -> 0.53 px (BENCHMARKS.md, contact/, session 21).
+  // 0.90 px against the brackets' 0.54). Together: 0.97 -> 0.48 px (BENCHMARKS.md, contact/, sessions 21
+  // and 23).
   // Never applied when the contact touches the frame's edge, the frame is saturated or was averaged along
   // the border (the labels would be clipped or noise-limited), or the shift would exceed half a ridge
   // period. Costs about 0.9 ms a frame on a large contact (session 22), 3 ms on a small one.

@@ -69,9 +69,10 @@ TEST(RidgeLabels, CentreComesBackWithThePeriodTwelvePercentOff) {
 
 // The brackets (the segmenter's method on large contacts): only the centre moves, and from 3.6 px off it
 // comes back for both ridge patterns, the concentric one included, where the logistic fit drifts outward
-// along the arcs where valleys run along the border (measured: whorl 0.03 px, straight 0.48 px: where
-// straight ridges run along the border on two opposite arcs, the last ridge there can lie up to half a
-// period inside it; from the level edge's start the segmenter gets 0.15 px on this contact). The axes are
+// along the arcs where valleys run along the border (measured: whorl 0.16 px, straight 0.42 px: where
+// straight ridges run along the border on two opposite arcs, the border can lie anywhere in the valley
+// between the last ridge and the next; from the level edge's start the segmenter gets 0.14 px on this
+// contact). The axes are
 // kept, so the start's must be close, as the level edge's are (here 2 % short, the axis tolerance).
 TEST(RidgeLabels, BracketsBringTheCentreBack) {
   RidgeLabelOptions options;
@@ -153,7 +154,7 @@ TEST(RidgeLabels, SameCentreFromEightSixteenBitAndFloatFrames) {
 // Vignetting: a frame lit by a quadratic falloff (to 70 % at the corners), with that falloff given as the
 // illumination, gives the evenly lit frame's centre. The illumination is interpolated along each row of the
 // band from three points, exact for a quadratic, and the smoothing of the product differs from the product of
-// the smoothing too little to move a label: measured 0 px, against 1.25 px without the illumination.
+// the smoothing too little to move a label: measured 0 px, against 0.55 px without the illumination.
 TEST(RidgeLabels, IlluminationUndoesAQuadraticFalloff) {
   test::TirScene scene;
   scene.whorl = false;
@@ -183,7 +184,7 @@ TEST(RidgeLabels, IlluminationUndoesAQuadraticFalloff) {
   std::cout << "  centre moved " << difference_px << " px by the corrected falloff, " << uncorrected_px
             << " px by the uncorrected one\n";
   EXPECT_LT(difference_px, 0.05);
-  EXPECT_GT(uncorrected_px, 0.5) << "the falloff must matter for this test to show anything";
+  EXPECT_GT(uncorrected_px, 0.3) << "the falloff must matter for this test to show anything";
 }
 
 TEST(RidgeLabels, NoFitWhereThereIsNothingToLabel) {

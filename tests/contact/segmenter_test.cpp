@@ -207,7 +207,9 @@ TEST(ContactSegmenter, TwoBlobsAreFlaggedAndJoined) {
 // ridge_label_below_periods ridge periods in radius), the per-sector brackets on larger ones; off with
 // ridge_label_centre false and ridge_label_below_periods 0. Within 1 px on this renderer's small contacts
 // and its default-sized ones (measured: small, straight ridges 0.30 px against the level edge's 0.19, whorl
-// 0.55 against 0.95; default size, whorl 0.31 against 0.45, straight 0.15 against 0.34).
+// 0.55 against 0.95; default size, whorl 0.55 against 0.45, straight 0.14 against 0.34). On this one whorl
+// the brackets' midway borders (session 23) do worse than the level edge (0.31 before); over 100 random
+// scenes of this renderer they do better (centre RMS 0.44 -> 0.39 px; BENCHMARKS.md, contact/, session 23).
 TEST(ContactSegmenter, RidgeLabelCentreOnSmallAndLargeContacts) {
   SegmenterOptions level_edge_only;
   level_edge_only.ridge_label_below_periods = 0.0;

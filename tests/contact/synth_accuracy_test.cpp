@@ -178,6 +178,42 @@ TEST(SynthAccuracy, LevelEdgeCentreAlone) {
   check_scene("hard_tiny_contact", {0.93, 1.5, 0.02, false, false}, Centre::level_edge);
 }
 
+// While the skin slides: the whole affine_stretch_50 trial (60 frames; the skin under the contact stretched
+// by up to 50 % along x), the trial whose sliding frames were the worst for the centre. Each sector of the
+// brackets places the border midway between its inside and outside ridge labels, and counts less where they
+// are far apart (contact/ridge_labels.cpp). With the border just beyond the inside labels (session 22) this
+// trial measured 0.66 px RMS over its frames and 1.39 px at its worst; now 0.51 / 0.98 px. Asserted at 0.6
+// and 1.1 px so that either rule is told apart. Some sliding frames of other trials still exceed the issue's
+// 1 px (BENCHMARKS.md, contact/, session 23).
+TEST(SynthAccuracy, SlidingTrialCentre) {
+  fs::path dir;
+  render(
+      "affine_stretch_50", "affine_stretch_50_all_frames", [](YAML::Node&) {}, &dir);
+  if (dir.empty()) return;
+  const Scene scene = load_scene((dir / "scene.yaml").string());
+  ContactSegmenter segmenter(pipeline::segmenter_options_for(scene));
+  H5Reader truth((dir / "truth.h5").string());
+  H5Shape shape;
+  const auto masks = truth.read_integers("/contact/mask", &shape);
+  ASSERT_EQ(shape[0], 60u);
+  double sum_squared_px2 = 0.0, worst_px = 0.0;
+  for (std::size_t f = 0; f < shape[0]; ++f) {
+    const ContactResult r = segmenter.segment(frame_image(dir, f));
+    const TruthContact truth_now = truth_contact(masks, shape, f);
+    ASSERT_TRUE(r.ellipse && truth_now.ellipse) << "frame " << f;
+    EXPECT_TRUE(r.ridge_label_shift_px.has_value()) << "frame " << f;
+    const double centre_px =
+        std::hypot(r.ellipse->cx_px - truth_now.ellipse->cx_px, r.ellipse->cy_px - truth_now.ellipse->cy_px);
+    sum_squared_px2 += centre_px * centre_px;
+    worst_px = std::max(worst_px, centre_px);
+  }
+  const double rms_px = std::sqrt(sum_squared_px2 / static_cast<double>(shape[0]));
+  std::cout << "  affine_stretch_50, 60 frames: centre error RMS " << rms_px << " px, worst " << worst_px
+            << " px\n";
+  EXPECT_LE(rms_px, 0.6);
+  EXPECT_LE(worst_px, 1.1);
+}
+
 // The same tiny contact (same truth mask) with the fingerprint's core at the contact's centre and well
 // outside it: the ridge phase along the border decides the outline where a valley lies along it, so the
 // centre is good when ridges cross the border and several pixels off when they run around it (BENCHMARKS.md,
