@@ -85,6 +85,15 @@ class EllipseBand {
   double quad_a_ = 0.0, quad_b_ = 0.0, quad_c_ = 0.0;
 };
 
+// The columns first, first + step, ..., last of a row less those in [hole_first, hole_last] (empty when
+// hole_first > hole_last): up to two runs, an empty one with first > last.
+std::array<std::pair<int, int>, 2> runs_beside_hole(int first, int last, int hole_first, int hole_last,
+                                                    int step) {
+  if (hole_first > hole_last) return {std::pair{first, last}, std::pair{1, 0}};
+  return {std::pair{first, std::min(last, hole_first - step)},
+          std::pair{std::max(first, hole_last + step), last}};
+}
+
 // Binomial weights 1 4 6 4 1 (/16) per axis: a Gaussian of sigma 1 px.
 template <typename T>
 void smooth_row_span(const cv::Mat& source, int row, int first, int last, float scale,
@@ -126,16 +135,13 @@ void smooth_band(const cv::Mat& roi_pixels, double full_scale, const EllipseBand
     if (!row.crosses) continue;
     const int first = std::max(min_column, static_cast<int>(std::floor(centre.x + row.first)));
     const int last = std::min(max_column, static_cast<int>(std::ceil(centre.x + row.last)));
-    std::array<std::pair<int, int>, 2> spans{std::pair{first, last}, std::pair{1, 0}};
+    int hole_first = last + 1, hole_last = last;
     if (row.has_hole) {
-      const int hole_first = static_cast<int>(std::ceil(centre.x + row.hole_first));
-      const int hole_last = static_cast<int>(std::floor(centre.x + row.hole_last));
-      if (hole_first <= hole_last)
-        spans = {std::pair{first, std::min(last, hole_first - 1)},
-                 std::pair{std::max(first, hole_last + 1), last}};
+      hole_first = static_cast<int>(std::ceil(centre.x + row.hole_first));
+      hole_last = static_cast<int>(std::floor(centre.x + row.hole_last));
     }
     float* out = lattice.rows.ptr<float>(k);
-    for (const auto& [span_first, span_last] : spans) {
+    for (const auto& [span_first, span_last] : runs_beside_hole(first, last, hole_first, hole_last, 1)) {
       if (span_first > span_last) continue;
       switch (roi_pixels.depth()) {
         case CV_8U:
@@ -492,11 +498,7 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
     }
     const double dy = y + roi.y - initial.cy_px;
     // The lattice columns either side of the hole, each a run evaluated a vector register at a time.
-    std::array<std::pair<int, int>, 2> runs{std::pair{x_first, x_last}, std::pair{1, 0}};
-    if (hole_first <= hole_last)
-      runs = {std::pair{x_first, std::min(x_last, hole_first - step)},
-              std::pair{std::max(x_first, hole_last + step), x_last}};
-    for (const auto& [run_first, run_last] : runs) {
+    for (const auto& [run_first, run_last] : runs_beside_hole(x_first, x_last, hole_first, hole_last, step)) {
       if (run_first > run_last) continue;
       const Eigen::Index count = (run_last - run_first) / step + 1;
       auto dx = run_dx.head(count);
