@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <numbers>
@@ -36,12 +37,17 @@ OtsuSplit otsu(const cv::Mat& values) {
   OtsuSplit split;
   if (!(max_value > 0.0)) return split;
   constexpr int kBins = 256;
-  std::array<double, kBins> hist{};
   const double to_bin = (kBins - 1) / max_value;
+  // Counted in four histograms by column: the background is mostly one bin, and in one histogram each
+  // increment waited on the last (a quarter of the segmenter's own time under perf).
+  std::array<std::array<std::uint32_t, kBins>, 4> counts{};
   for (int y = 0; y < values.rows; ++y) {
     const float* row = values.ptr<float>(y);
-    for (int x = 0; x < values.cols; ++x) hist[static_cast<std::size_t>(row[x] * to_bin + 0.5)] += 1.0;
+    for (int x = 0; x < values.cols; ++x) ++counts[x & 3][static_cast<std::size_t>(row[x] * to_bin + 0.5)];
   }
+  std::array<double, kBins> hist{};
+  for (std::size_t i = 0; i < kBins; ++i)
+    hist[i] = static_cast<double>(counts[0][i]) + counts[1][i] + counts[2][i] + counts[3][i];
   double total = 0.0, total_sum = 0.0;
   for (int i = 0; i < kBins; ++i) {
     total += hist[static_cast<std::size_t>(i)];
