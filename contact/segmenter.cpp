@@ -314,20 +314,34 @@ MaskedMeans masked_means(const cv::Mat& image, const cv::Mat& mask) {
   MaskedMeans m;
   double inside_sum = 0.0, outside_sum = 0.0;
   std::size_t inside_n = 0;
+  // Each row summed in kLanes interleaved float sums (a vector register's worth): one running sum per row
+  // waited on its last addition at every pixel.
+  constexpr int kLanes = 8;
   for (int y = 0; y < image.rows; ++y) {
     const float* v = image.ptr<float>(y);
     const std::uint8_t* in = mask.ptr<std::uint8_t>(y);
-    float row_in = 0.0f, row_out = 0.0f;
-    int row_n = 0;
-    for (int x = 0; x < image.cols; ++x) {
-      const bool inside = in[x] != 0;
-      row_in += inside ? v[x] : 0.0f;
-      row_out += inside ? 0.0f : v[x];
-      row_n += inside ? 1 : 0;
+    std::array<float, kLanes> lane_in{}, lane_out{};
+    std::array<int, kLanes> lane_n{};
+    int x = 0;
+    for (; x + kLanes <= image.cols; x += kLanes) {
+      for (int l = 0; l < kLanes; ++l) {
+        const bool inside = in[x + l] != 0;
+        lane_in[l] += inside ? v[x + l] : 0.0f;
+        lane_out[l] += inside ? 0.0f : v[x + l];
+        lane_n[l] += inside ? 1 : 0;
+      }
     }
-    inside_sum += row_in;
-    outside_sum += row_out;
-    inside_n += static_cast<std::size_t>(row_n);
+    for (; x < image.cols; ++x) {
+      const bool inside = in[x] != 0;
+      lane_in[0] += inside ? v[x] : 0.0f;
+      lane_out[0] += inside ? 0.0f : v[x];
+      lane_n[0] += inside ? 1 : 0;
+    }
+    for (int l = 0; l < kLanes; ++l) {
+      inside_sum += lane_in[l];
+      outside_sum += lane_out[l];
+      inside_n += static_cast<std::size_t>(lane_n[l]);
+    }
   }
   m.inside_count = static_cast<double>(inside_n);
   m.outside_count = static_cast<double>(image.total() - inside_n);
