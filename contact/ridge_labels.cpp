@@ -232,12 +232,13 @@ void flat_field_along_run(const std::function<double(double, double)>& illuminat
 struct Wave {
   double kx = 0.0, ky = 0.0, phase = 0.0, x0 = 0.0, y0 = 0.0;
   double explained = 0.0;  // fraction of the window's variance
-  // The wave's cosine at each sample, a vector register at a time.
-  Eigen::ArrayXf cos_at(const std::vector<Sample>& samples) const {
-    Eigen::ArrayXf phases(static_cast<Eigen::Index>(samples.size()));
-    for (std::size_t i = 0; i < samples.size(); ++i)
-      phases(static_cast<Eigen::Index>(i)) =
-          static_cast<float>(kx * (samples[i].x - x0) + ky * (samples[i].y - y0) - phase);
+  // The wave's cosine at samples[indices[i]], a vector register at a time.
+  Eigen::ArrayXf cos_at(const std::vector<Sample>& samples, const std::vector<std::uint32_t>& indices) const {
+    Eigen::ArrayXf phases(static_cast<Eigen::Index>(indices.size()));
+    for (std::size_t i = 0; i < indices.size(); ++i) {
+      const Sample& s = samples[indices[i]];
+      phases(static_cast<Eigen::Index>(i)) = static_cast<float>(kx * (s.x - x0) + ky * (s.y - y0) - phase);
+    }
     return phases.cos();
   }
 };
@@ -414,21 +415,17 @@ std::optional<Params> fit_logistic(Params p, const std::vector<Label>& labels, d
   return p;
 }
 
-// The brackets' outside labels: where the wave predicts a phase that this sector's ridges show inside the
-// contact. That phase range is measured from the inside labels at least a quarter period inside (the lowest
-// cosine, 5th percentile, at which they occur, plus phase_margin_cos), and is at most predicted_cos. With a
-// fixed crest side (cosine above 0.3), the ridges of a frame whose ridges show down to their valleys (cosine
-// -0.7) leave a gap of most of a period beyond a border that cuts a flank, and the midway border lands far
-// out; with the gap narrowed the synthetic trials' centre went 0.529 -> 0.478 px RMS and the bench
-// renderer's 0.438 -> 0.394 px (BENCHMARKS.md, contact/, session 23).
-double bracket_predicted_cos(const Sector& s, const Eigen::ArrayXf& wave_cos, double background, double sign,
-                             double sigma, double period_px, const RidgeLabelOptions& options) {
-  std::vector<float> inside_cos;
-  for (std::size_t i = 0; i < s.band.size(); ++i)
-    if (s.band_t[i] < -0.25 * period_px && sign * (s.band[i].value - background) > options.in_sigmas * sigma)
-      inside_cos.push_back(wave_cos(static_cast<Eigen::Index>(i)));
+// The brackets' outside labels lie where the wave predicts a phase that this sector's ridges show inside the
+// contact: a cosine above the lowest (5th percentile) of `inside_cos`, the wave's cosine at the inside labels
+// more than a quarter period inside, plus phase_margin_cos; at most predicted_cos. With the fixed crest side
+// (cosine above 0.3), where ridges show down into their valleys (to a cosine of -0.7 on the bench renderer) a
+// border cutting a flank left a gap of most of a period to the next predicted crest, and the midway border
+// landed far out. With the phase measured, the synthetic trials' centre went 0.529 -> 0.477 px RMS and the
+// bench renderer's 0.438 -> 0.394 px (BENCHMARKS.md, contact/, session 23).
+double bracket_predicted_cos(const Eigen::ArrayXf& inside_cos, const RidgeLabelOptions& options) {
   if (inside_cos.size() < 10) return options.predicted_cos;
-  return std::clamp(quantile(inside_cos, 0.05) + options.phase_margin_cos, -1.0, options.predicted_cos);
+  std::vector<float> values(inside_cos.begin(), inside_cos.end());
+  return std::clamp(quantile(values, 0.05) + options.phase_margin_cos, -1.0, options.predicted_cos);
 }
 
 // Per sector (k of n, direction u_k), the border's distance t_k from the initial ellipse lies between the
@@ -598,6 +595,7 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
   // Each sector's labels' distances t from the initial ellipse, for the brackets.
   std::vector<std::vector<float>> inside_t(sectors.size()), outside_t(sectors.size());
   const double sign = polarity < 0 ? -1.0 : 1.0;
+  std::vector<std::uint32_t> candidates, deep_inside;  // a sector's band samples whose wave cosine is read
   for (std::size_t k = 0; k < sectors.size(); ++k) {
     Sector& s = sectors[k];
     if (s.outer.size() < 20 || s.window.size() < 30 || s.near.empty()) continue;
@@ -616,25 +614,38 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
     // of the background.
     sigma = std::max(sigma, options.min_sigma_crest_fraction * border_crest);
     ++fit.sectors_used;
-    const Eigen::ArrayXf wave_cos = wave.cos_at(s.band);
+    // The wave's cosine is read only at the outside candidates (neither inside labels, nor more than a
+    // quarter period inside, nor above out_sigmas) and, for the brackets, at the inside labels deeper than
+    // that: it is evaluated there alone, and the labels are then taken in band order (the logistic fit keeps
+    // every n-th).
+    candidates.clear();
+    deep_inside.clear();
+    for (std::size_t i = 0; i < s.band.size(); ++i) {
+      const double signal = sign * (s.band[i].value - background);
+      const bool deep = s.band_t[i] < -0.25 * p;
+      if (signal > options.in_sigmas * sigma) {
+        if (deep && !logistic) deep_inside.push_back(static_cast<std::uint32_t>(i));
+      } else if (!deep && signal < options.out_sigmas * sigma) {
+        candidates.push_back(static_cast<std::uint32_t>(i));
+      }
+    }
     const double predicted_cos =
-        logistic ? options.predicted_cos
-                 : bracket_predicted_cos(s, wave_cos, background, sign, sigma, p, options);
+        logistic ? options.predicted_cos : bracket_predicted_cos(wave.cos_at(s.band, deep_inside), options);
+    const Eigen::ArrayXf candidate_cos = wave.cos_at(s.band, candidates);
+    std::size_t next_candidate = 0;
     for (std::size_t i = 0; i < s.band.size(); ++i) {
       const Sample& b = s.band[i];
-      const double signal = sign * (b.value - background);
-      if (signal > options.in_sigmas * sigma) {
+      if (next_candidate < candidates.size() && candidates[next_candidate] == i) {
+        const double c = candidate_cos(static_cast<Eigen::Index>(next_candidate++));
+        if (c > predicted_cos && border_crest * 0.5 * (1.0 + c) > options.visible_sigmas * sigma) {
+          if (logistic) labels.push_back({b.x, b.y, -1.0});
+          outside_t[k].push_back(s.band_t[i]);
+          ++fit.outside_labels;
+        }
+      } else if (sign * (b.value - background) > options.in_sigmas * sigma) {
         if (logistic) labels.push_back({b.x, b.y, 1.0});
         inside_t[k].push_back(s.band_t[i]);
         ++fit.inside_labels;
-        continue;
-      }
-      if (s.band_t[i] < -0.25 * p || signal >= options.out_sigmas * sigma) continue;
-      const double c = wave_cos(static_cast<Eigen::Index>(i));
-      if (c > predicted_cos && border_crest * 0.5 * (1.0 + c) > options.visible_sigmas * sigma) {
-        if (logistic) labels.push_back({b.x, b.y, -1.0});
-        outside_t[k].push_back(s.band_t[i]);
-        ++fit.outside_labels;
       }
     }
   }
