@@ -420,8 +420,9 @@ std::optional<Params> fit_logistic(Params p, const std::vector<Label>& labels, d
 // more than a quarter period inside, plus phase_margin_cos; at most predicted_cos. With the fixed crest side
 // (cosine above 0.3), where ridges show down into their valleys (to a cosine of -0.7 on the bench renderer) a
 // border cutting a flank left a gap of most of a period to the next predicted crest, and the midway border
-// landed far out. With the phase measured, the synthetic trials' centre went 0.529 -> 0.477 px RMS and the
-// bench renderer's 0.438 -> 0.394 px (BENCHMARKS.md, contact/, session 23).
+// landed far out. With the phase measured (and the gap's weights, bracket_centre_shift), the synthetic
+// trials' centre went 0.529 -> 0.477 px RMS, and 60 random scenes of the bench renderer 0.337 -> 0.205 px
+// (ContactSegmenter.CentreOverRandomScenes; BENCHMARKS.md, contact/, session 23).
 double bracket_predicted_cos(const Eigen::ArrayXf& inside_cos, const RidgeLabelOptions& options) {
   if (inside_cos.size() < 10) return options.predicted_cos;
   std::vector<float> values(inside_cos.begin(), inside_cos.end());
