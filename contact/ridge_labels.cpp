@@ -374,7 +374,7 @@ std::optional<Params> fit_logistic(Params p, const std::vector<Label>& labels, d
 // more than a quarter period inside, plus phase_margin_cos; at most predicted_cos. With the fixed crest side
 // (cosine above 0.3), where ridges show down into their valleys (to a cosine of -0.7 on the bench renderer) a
 // border cutting a flank left a gap of most of a period to the next predicted crest, and the midway border
-// landed far out. With the phase measured (and the gap's weights, bracket_centre_shift), the synthetic
+// landed far out. With the phase measured (and the gap's weights, fit_brackets), the synthetic
 // trials' centre went 0.529 -> 0.477 px RMS, and 60 random scenes of the bench renderer 0.337 -> 0.205 px
 // (ContactSegmenter.CentreOverRandomScenes; BENCHMARKS.md, contact/, session 23).
 double bracket_predicted_cos(const Eigen::ArrayXf& inside_cos, const RidgeLabelOptions& options) {
@@ -388,18 +388,32 @@ double bracket_predicted_cos(const Eigen::ArrayXf& inside_cos, const RidgeLabelO
 // taken midway, or just beyond the inside labels (bracket_reach_px) where the sector has no outside labels.
 // Where the gap between the two is wide (a valley along the border, where the border could lie anywhere in
 // it), the sector counts less: weight 1 / (1 + (gap / bracket_gap_px)^2). A sector whose outside labels lie
-// within its inside labels contradicts itself (the wave's phase has drifted) and is left out. The shift is
-// the weighted least-squares fit of t_k = offset + shift . u_k, with a prior of bracket_prior_px on the
-// shift. Where the gap was ignored and the border put just beyond the inside labels, a wide valley along an
-// arc of a sliding contact moved the centre by up to 1.4 px (BENCHMARKS.md, contact/, session 23).
-std::optional<cv::Point2d> bracket_centre_shift(std::vector<std::vector<float>>& inside_t,
-                                                std::vector<std::vector<float>>& outside_t,
-                                                const RidgeLabelOptions& options) {
+// within its inside labels contradicts itself (the wave's phase has drifted) and is left out. Where the gap
+// was ignored and the border put just beyond the inside labels, a wide valley along an arc of a sliding
+// contact moved the centre by up to 1.4 px (BENCHMARKS.md, contact/, session 23).
+//
+// The positions are fitted twice, by weighted least squares with a prior of bracket_prior_px on all but the
+// offset: t_k = offset + shift . u_k gives the centre's shift; t_k = offset + shift . u_k + cos2 cos 2 phi_k
+// + sin2 sin 2 phi_k the shape (elongation and its direction). The offset, the border's mean distance, is not
+// used: the labels' thresholds sit on the foot of the blurred edge, so where a ridge ends at the border the
+// inside labels reach ~1 px and the outside ones ~3.5 px beyond it (both renderers), and the midway border
+// lies ~2 px out; that bias is nearly the same all round, so it leaves the centre and the shape alone but
+// would make the axes ~1.3 % long (BENCHMARKS.md, contact/, session 24).
+struct BracketFit {
+  cv::Point2d shift;
+  double cos2_px = 0.0, sin2_px = 0.0;
+};
+
+std::optional<BracketFit> fit_brackets(std::vector<std::vector<float>>& inside_t,
+                                       std::vector<std::vector<float>>& outside_t,
+                                       const RidgeLabelOptions& options) {
   const double n = static_cast<double>(inside_t.size());
-  Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  using Matrix5d = Eigen::Matrix<double, 5, 5>;
+  using Vector5d = Eigen::Matrix<double, 5, 1>;
+  Matrix5d normal_matrix = Matrix5d::Zero();
+  Vector5d rhs = Vector5d::Zero();
   const double prior_weight = 1.0 / (options.bracket_prior_px * options.bracket_prior_px);
-  normal_matrix(1, 1) = normal_matrix(2, 2) = prior_weight;
+  for (int i = 1; i < 5; ++i) normal_matrix(i, i) = prior_weight;
   int used = 0;
   for (std::size_t k = 0; k < inside_t.size(); ++k) {
     if (inside_t[k].size() < 3) continue;
@@ -413,15 +427,32 @@ std::optional<cv::Point2d> bracket_centre_shift(std::vector<std::vector<float>>&
       weight = 1.0 / (1.0 + std::pow(gap / options.bracket_gap_px, 2));
     }
     const double phi = (static_cast<double>(k) + 0.5) * kTwoPi / n;
-    const Eigen::Vector3d f(1.0, std::cos(phi), std::sin(phi));
+    Vector5d f;
+    f << 1.0, std::cos(phi), std::sin(phi), std::cos(2.0 * phi), std::sin(2.0 * phi);
     normal_matrix += weight * f * f.transpose();
     rhs += weight * border * f;
     ++used;
   }
   if (used < options.min_sectors) return std::nullopt;
-  const Eigen::Vector3d solution = normal_matrix.ldlt().solve(rhs);
-  if (!solution.allFinite()) return std::nullopt;
-  return cv::Point2d(solution(1), solution(2));
+  const Eigen::Vector3d centre = normal_matrix.topLeftCorner<3, 3>().ldlt().solve(rhs.head<3>());
+  const Vector5d shape = normal_matrix.ldlt().solve(rhs);
+  if (!centre.allFinite() || !shape.allFinite()) return std::nullopt;
+  return BracketFit{cv::Point2d(centre(1), centre(2)), shape(3), shape(4)};
+}
+
+// `e` with its border moved radially by cos2 cos 2 phi + sin2 sin 2 phi (phi about its centre): the direct
+// fit of 360 points of that border. The change is symmetric about the centre, which stays.
+Ellipse reshaped(const Ellipse& e, double cos2_px, double sin2_px) {
+  std::vector<cv::Point2d> border;
+  border.reserve(360);
+  const double c = std::cos(e.angle_rad), s = std::sin(e.angle_rad);
+  for (int i = 0; i < 360; ++i) {
+    const double phi = (i + 0.5) * kTwoPi / 360.0, ux = std::cos(phi), uy = std::sin(phi);
+    const double u = (c * ux + s * uy) / e.semi_major_px, v = (-s * ux + c * uy) / e.semi_minor_px;
+    const double r = 1.0 / std::hypot(u, v) + cos2_px * std::cos(2.0 * phi) + sin2_px * std::sin(2.0 * phi);
+    border.emplace_back(e.cx_px + r * ux, e.cy_px + r * uy);
+  }
+  return fit_ellipse_direct(border).value_or(e);
 }
 
 }  // namespace
@@ -607,11 +638,14 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
   if (fit.sectors_used < options.min_sectors || fit.inside_labels == 0 || fit.outside_labels == 0)
     return std::nullopt;
   if (options.method == RidgeLabelMethod::brackets) {
-    const std::optional<cv::Point2d> shift = bracket_centre_shift(inside_t, outside_t, options);
-    if (!shift) return std::nullopt;
-    fit.ellipse = initial;
-    fit.ellipse.cx_px += shift->x;
-    fit.ellipse.cy_px += shift->y;
+    const std::optional<BracketFit> brackets = fit_brackets(inside_t, outside_t, options);
+    if (!brackets) return std::nullopt;
+    Ellipse moved = initial;
+    moved.cx_px += brackets->shift.x;
+    moved.cy_px += brackets->shift.y;
+    fit.shape_cos2_px = brackets->cos2_px;
+    fit.shape_sin2_px = brackets->sin2_px;
+    fit.ellipse = reshaped(moved, brackets->cos2_px, brackets->sin2_px);
     return fit;
   }
   if (labels.size() > kMaxLabels) {

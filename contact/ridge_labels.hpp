@@ -17,10 +17,11 @@
 // The ellipse then comes from those labels by one of two methods (RidgeLabelMethod): the logistic fit of its
 // five parameters (signed distance over a transition of transition_px, Levenberg-Marquardt from the initial
 // ellipse), where thousands of labels pin it where a few extracted ridge ends would not
-// (pipeline/contact_observability.hpp measures what they allow); or per-sector brackets, which move only the
-// centre. The logistic fit's axes run ~2.5 px long (the soft edge's tail is labelled inside), and on a large
-// contact it drifts outward along arcs where valleys run along the border; the segmenter uses it on small
-// contacts and the brackets on large ones, and takes only the centre.
+// (pipeline/contact_observability.hpp measures what they allow); or per-sector brackets, which move the
+// centre and correct the shape (elongation and its direction) but keep the size. The logistic fit's axes
+// run ~2.5 px long (the soft edge's tail is labelled inside), and on a large contact it drifts outward along
+// arcs where valleys run along the border; the segmenter uses it on small contacts and the brackets on large
+// ones. From the logistic fit it takes only the centre; from the brackets the centre and the shape.
 #include <opencv2/core.hpp>
 
 #include <functional>
@@ -32,8 +33,10 @@ namespace tirstrain::contact {
 
 // How the labels set the ellipse. logistic: the ellipse's five parameters fitted to the labels. brackets: per
 // sector, the border is placed midway between the outermost inside labels and the innermost outside labels
-// (sectors with a wide gap between them weigh less), and only the centre (with a common radial offset) is
-// fitted to those positions; the ellipse is `initial` moved to that centre.
+// (sectors with a wide gap between them weigh less); the centre (with a common radial offset) and, in a
+// second fit, the border's cos 2 phi and sin 2 phi terms are fitted to those positions. The ellipse is
+// `initial` moved to that centre and its border moved radially by those terms; its size (the common offset)
+// stays `initial`'s, because the midway border lies ~2 px out wherever a ridge ends at the border.
 enum class RidgeLabelMethod { logistic, brackets };
 
 struct RidgeLabelOptions {
@@ -55,11 +58,15 @@ struct RidgeLabelOptions {
       1.0;                      // brackets: this far beyond the outermost inside labels, without outside ones
   double bracket_gap_px = 6.7;  // brackets: a sector whose inside and outside labels are this far apart
                                 // counts half
-  double bracket_prior_px = 3.0;  // brackets: prior standard deviation of the centre's shift
+  double bracket_prior_px =
+      3.0;  // brackets: prior standard deviation of the centre's shift and the shape terms
 };
 
 struct RidgeLabelFit {
   Ellipse ellipse;
+  // brackets: the border's radial change r(phi) += shape_cos2_px cos 2 phi + shape_sin2_px sin 2 phi (phi
+  // about the centre, from +x towards +y), already in `ellipse`; 0 for the logistic fit.
+  double shape_cos2_px = 0.0, shape_sin2_px = 0.0;
   int inside_labels = 0;
   int outside_labels = 0;
   int sectors_used = 0;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <iostream>
+#include <numbers>
 
 #include "contact/ridge_labels.hpp"
 #include "tests/contact/tir_render.hpp"
@@ -67,13 +68,13 @@ TEST(RidgeLabels, CentreComesBackWithThePeriodTwelvePercentOff) {
   }
 }
 
-// The brackets (the segmenter's method on large contacts): only the centre moves, and from 3.6 px off it
-// comes back for both ridge patterns, the concentric one included, where the logistic fit drifts outward
-// along the arcs where valleys run along the border (measured: whorl 0.16 px, straight 0.42 px: where
-// straight ridges run along the border on two opposite arcs, the border can lie anywhere in the valley
-// between the last ridge and the next; from the level edge's start the segmenter gets 0.14 px on this
-// contact). The axes are
-// kept, so the start's must be close, as the level edge's are (here 2 % short, the axis tolerance).
+// The brackets (the segmenter's method on large contacts): from 3.6 px off the centre comes back for both
+// ridge patterns, the concentric one included, where the logistic fit drifts outward along the arcs where
+// valleys run along the border (measured: whorl 0.16 px, straight 0.42 px: where straight ridges run along
+// the border on two opposite arcs, the border can lie anywhere in the valley between the last ridge and the
+// next; from the level edge's start the segmenter gets 0.14 px on this contact). The size is kept: the start
+// is 2 % small on both axes and stays so (the geometric mean of its semi-axes to 0.3 %), and its shape, right
+// to begin with, stays right (axis ratio to 1 %).
 TEST(RidgeLabels, BracketsBringTheCentreBack) {
   RidgeLabelOptions options;
   options.method = RidgeLabelMethod::brackets;
@@ -85,11 +86,46 @@ TEST(RidgeLabels, BracketsBringTheCentreBack) {
     const Ellipse start = moved(truth, 3.0, -2.0, 0.98);
     const auto fit = fit_ellipse_to_ridge_labels(image, 255.0, start, scene.period_px, -1, options);
     ASSERT_TRUE(fit.has_value()) << (whorl ? "whorl" : "straight");
-    const double centre_px = std::hypot(fit->ellipse.cx_px - truth.cx_px, fit->ellipse.cy_px - truth.cy_px);
-    std::cout << (whorl ? "  whorl" : "  straight") << ": centre error " << centre_px << " px\n";
+    const Ellipse& e = fit->ellipse;
+    const double centre_px = std::hypot(e.cx_px - truth.cx_px, e.cy_px - truth.cy_px);
+    const double size =
+        std::sqrt(e.semi_major_px * e.semi_minor_px / (start.semi_major_px * start.semi_minor_px));
+    const double ratio = (e.semi_major_px / e.semi_minor_px) / (truth.semi_major_px / truth.semi_minor_px);
+    std::cout << (whorl ? "  whorl" : "  straight") << ": centre error " << centre_px << " px, size " << size
+              << " of the start's, axis ratio " << ratio << " of the truth's\n";
     EXPECT_LT(centre_px, 0.5);
-    EXPECT_EQ(fit->ellipse.semi_major_px, start.semi_major_px);
-    EXPECT_EQ(fit->ellipse.angle_rad, start.angle_rad);
+    EXPECT_NEAR(size, 1.0, 0.003);
+    EXPECT_NEAR(ratio, 1.0, 0.01);
+  }
+}
+
+// The brackets' shape terms: a start of the right size and centre but 4 % too elongated (major 2 % long,
+// minor 2 % short) and turned 3 degrees comes back to the truth's shape: the axis ratio from 1.041 to within
+// 1 % and the angle to within 1 degree, for both ridge patterns (measured: see the printed values). The level
+// edge's shape errors on the synthetic trials are of this kind (a valley along the top and bottom arcs, a
+// ridge end at the sides: 2.9 % on affine_stretch_50; BENCHMARKS.md, contact/, session 24).
+TEST(RidgeLabels, BracketsCorrectTheShape) {
+  RidgeLabelOptions options;
+  options.method = RidgeLabelMethod::brackets;
+  for (const bool whorl : {false, true}) {
+    test::TirScene scene;
+    scene.whorl = whorl;
+    const cv::Mat image = test::render_tir(scene);
+    const Ellipse truth = scene.contacts[0];
+    Ellipse start = truth;
+    start.semi_major_px *= 1.02;
+    start.semi_minor_px /= 1.02;
+    start.angle_rad += 3.0 * std::numbers::pi / 180.0;
+    const auto fit = fit_ellipse_to_ridge_labels(image, 255.0, start, scene.period_px, -1, options);
+    ASSERT_TRUE(fit.has_value()) << (whorl ? "whorl" : "straight");
+    const Ellipse& e = fit->ellipse;
+    const double ratio = (e.semi_major_px / e.semi_minor_px) / (truth.semi_major_px / truth.semi_minor_px);
+    const double angle_deg = (e.angle_rad - truth.angle_rad) * 180.0 / std::numbers::pi;
+    std::cout << (whorl ? "  whorl" : "  straight") << ": axis ratio " << ratio << " of the truth's, angle "
+              << angle_deg << " deg off, shape terms " << fit->shape_cos2_px << ", " << fit->shape_sin2_px
+              << " px\n";
+    EXPECT_NEAR(ratio, 1.0, 0.01);
+    EXPECT_NEAR(angle_deg, 0.0, 1.0);
   }
 }
 

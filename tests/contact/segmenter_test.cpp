@@ -237,8 +237,16 @@ TEST(ContactSegmenter, RidgeLabelCentreOnSmallAndLargeContacts) {
     std::cout << "  " << names[size] << ": centre error " << centre_px(labelled)
               << " px from the ridge labels, " << centre_px(level_edge) << " px from the level edge\n";
     EXPECT_LE(centre_px(labelled), 1.0);
-    // The outline is moved, not reshaped.
-    EXPECT_NEAR(labelled.result.area_mm2, level_edge.result.area_mm2, 1e-9);
+    // Small contacts (the logistic fit): the outline is moved, not reshaped. Large ones (the brackets): also
+    // reshaped by the cos 2 phi and sin 2 phi terms, which keep the size, so the area changes only to second
+    // order (measured: 0.06 % and 0.002 %).
+    if (size < 2) {
+      EXPECT_FALSE(labelled.result.ridge_label_shape_px.has_value());
+      EXPECT_NEAR(labelled.result.area_mm2, level_edge.result.area_mm2, 1e-9);
+    } else {
+      EXPECT_TRUE(labelled.result.ridge_label_shape_px.has_value());
+      EXPECT_NEAR(labelled.result.area_mm2 / level_edge.result.area_mm2, 1.0, 0.002);
+    }
   }
 }
 
