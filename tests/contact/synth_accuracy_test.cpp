@@ -214,6 +214,72 @@ TEST(SynthAccuracy, SlidingTrialCentre) {
   EXPECT_LE(worst_px, 1.1);
 }
 
+// Other fingerprints: the default scene with seeds 2, 4 and 6 (ridge flow, minutiae, border irregularity and
+// noise differ), 20 frames over the same 0.6 s of loading and slide. The shipped trials all use seed 1, a
+// concentric whorl whose valleys run along most of the border; with other seeds ridges end against more of
+// it, and the level edge's outline is off by a few px in a pattern of two lobes (its semi-axes 2.8-3.3 %
+// off). The brackets' shape terms take that out, and their centre is nearer too. Measured over the 60
+// frames: worst semi-axis error 3.31 % with the level edge alone, 3.25 % with the brackets' centre only
+// (session 23), 2.75 % with the shape terms; centre RMS 1.41 px with the level edge, 0.67 px with the
+// brackets. Asserted at 3 % and 0.9 px, which the level edge alone and the centre-only rule fail. The size
+// stays the level edge's (about 1.2 % large on these seeds), so the 2 % is not met on every frame
+// (BENCHMARKS.md, contact/, session 24: nine seeds, every frame).
+TEST(SynthAccuracy, ShapeAndCentreOnOtherFingerprints) {
+  SegmenterOptions level_edge_only;
+  double worst_axis[2] = {0.0, 0.0}, sum_squared_axis[2] = {0.0, 0.0}, sum_squared_px2[2] = {0.0, 0.0};
+  int frames = 0;
+  for (const int seed : {2, 4, 6}) {
+    fs::path dir;
+    render(
+        "default", "default_seed_" + std::to_string(seed),
+        [seed](YAML::Node& scene) {
+          scene["synthesis"]["seed"] = seed;
+          scene["synthesis"]["timing"]["frames"] = 20;
+          scene["synthesis"]["timing"]["frame_rate_hz"] = 100.0 / 3.0;
+        },
+        &dir);
+    if (dir.empty()) return;
+    const Scene scene = load_scene((dir / "scene.yaml").string());
+    SegmenterOptions options = pipeline::segmenter_options_for(scene);
+    level_edge_only = options;
+    level_edge_only.ridge_label_centre = false;
+    level_edge_only.ridge_label_below_periods = 0.0;
+    ContactSegmenter segmenters[2] = {ContactSegmenter(options), ContactSegmenter(level_edge_only)};
+    H5Reader truth((dir / "truth.h5").string());
+    H5Shape shape;
+    const auto masks = truth.read_integers("/contact/mask", &shape);
+    for (std::size_t f = 0; f < shape[0]; ++f) {
+      const cv::Mat image = frame_image(dir, f);
+      const TruthContact truth_now = truth_contact(masks, shape, f);
+      ASSERT_TRUE(truth_now.ellipse.has_value());
+      const Ellipse& t = *truth_now.ellipse;
+      for (int k = 0; k < 2; ++k) {
+        const ContactResult r = segmenters[k].segment(image);
+        ASSERT_TRUE(r.ellipse.has_value()) << "seed " << seed << " frame " << f;
+        EXPECT_EQ(r.ridge_label_shape_px.has_value(), k == 0) << "seed " << seed << " frame " << f;
+        const double centre_px = std::hypot(r.ellipse->cx_px - t.cx_px, r.ellipse->cy_px - t.cy_px);
+        sum_squared_px2[k] += centre_px * centre_px;
+        const double major = r.ellipse->semi_major_px / t.semi_major_px - 1.0;
+        const double minor = r.ellipse->semi_minor_px / t.semi_minor_px - 1.0;
+        sum_squared_axis[k] += 0.5 * (major * major + minor * minor);
+        worst_axis[k] = std::max({worst_axis[k], std::abs(major), std::abs(minor)});
+      }
+      ++frames;
+    }
+  }
+  const double rms_px[2] = {std::sqrt(sum_squared_px2[0] / frames), std::sqrt(sum_squared_px2[1] / frames)};
+  const double rms_axis[2] = {std::sqrt(sum_squared_axis[0] / frames),
+                              std::sqrt(sum_squared_axis[1] / frames)};
+  std::cout << "  seeds 2, 4, 6, " << frames << " frames: semi-axis error RMS " << 100.0 * rms_axis[0]
+            << " %, worst " << 100.0 * worst_axis[0] << " % (level edge alone " << 100.0 * rms_axis[1]
+            << " / " << 100.0 * worst_axis[1] << " %), centre RMS " << rms_px[0] << " px (" << rms_px[1]
+            << " px)\n";
+  EXPECT_LE(worst_axis[0], 0.03);
+  EXPECT_LE(rms_px[0], 0.9);
+  EXPECT_GT(worst_axis[1], 0.03);
+  EXPECT_GT(rms_px[1], 0.9);
+}
+
 // The same tiny contact (same truth mask) with the fingerprint's core at the contact's centre and well
 // outside it: the ridge phase along the border decides the outline where a valley lies along it, so the
 // centre is good when ridges cross the border and several pixels off when they run around it (BENCHMARKS.md,
