@@ -134,7 +134,7 @@ struct SegmenterOptions {
   // 0.90 px against the brackets' 0.54). Together: 0.97 -> 0.48 px (BENCHMARKS.md, contact/, sessions 21
   // and 23). The brackets also reshape the outline by the border's cos 2 phi and sin 2 phi terms fitted to
   // the same sectors, keeping its size: worst semi-axis error over the 19 trials 2.87 -> 2.26 %, worst IoU
-  // 0.965 -> 0.969 (session 24).
+  // of the large contacts 0.965 -> 0.969 (session 24; over other fingerprints the axes still reach 2.8 %).
   // Never applied when the contact touches the frame's edge, the frame is saturated or was averaged along
   // the border (the labels would be clipped or noise-limited), or the shift would exceed half a ridge
   // period. Costs about 0.9 ms a frame on a large contact (session 22), 3 ms on a small one.
