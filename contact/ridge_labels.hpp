@@ -18,10 +18,10 @@
 // five parameters (signed distance over a transition of transition_px, Levenberg-Marquardt from the initial
 // ellipse), where thousands of labels pin it where a few extracted ridge ends would not
 // (pipeline/contact_observability.hpp measures what they allow); or per-sector brackets, which move the
-// centre and correct the shape (elongation and its direction) but keep the size. The logistic fit's axes
+// centre and correct the size and shape (elongation and its direction). The logistic fit's axes
 // run ~2.5 px long (the soft edge's tail is labelled inside), and on a large contact it drifts outward along
 // arcs where valleys run along the border; the segmenter uses it on small contacts and the brackets on large
-// ones. From the logistic fit it takes only the centre; from the brackets the centre and the shape.
+// ones. From the logistic fit it takes only the centre; from the brackets the centre, size and shape.
 #include <opencv2/core.hpp>
 
 #include <functional>
@@ -34,9 +34,10 @@ namespace tirstrain::contact {
 // How the labels set the ellipse. logistic: the ellipse's five parameters fitted to the labels. brackets: per
 // sector, the border is placed midway between the outermost inside labels and the innermost outside labels
 // (sectors with a wide gap between them weigh less); the centre (with a common radial offset) and, in a
-// second fit, the border's cos 2 phi and sin 2 phi terms are fitted to those positions. The ellipse is
-// `initial` moved to that centre and its border moved radially by those terms; its size (the common offset)
-// stays `initial`'s, because the midway border lies ~2 px out wherever a ridge ends at the border.
+// second fit, the border's cos 2 phi and sin 2 phi terms are fitted to those positions. The size comes from
+// the sectors where ridges end at the border (a narrow gap), from their inside labels alone: the midway
+// border lies ~2 px out there. The ellipse is `initial` moved to that centre and its border moved radially by
+// the size change and those terms (the size is `initial`'s when too few sectors show ridge ends).
 enum class RidgeLabelMethod { logistic, brackets };
 
 struct RidgeLabelOptions {
@@ -60,13 +61,19 @@ struct RidgeLabelOptions {
                                 // counts half
   double bracket_prior_px =
       3.0;  // brackets: prior standard deviation of the centre's shift and the shape terms
+  // brackets, the size: sectors whose inside and outside labels are at most bracket_size_gap_px apart (ridges
+  // end at the border there) place it at their inside labels' bracket_size_quantile of t, when there are at
+  // least bracket_size_min_sectors of them.
+  double bracket_size_gap_px = 3.5;
+  double bracket_size_quantile = 0.9;
+  int bracket_size_min_sectors = 4;
 };
 
 struct RidgeLabelFit {
   Ellipse ellipse;
-  // brackets: the border's radial change r(phi) += shape_cos2_px cos 2 phi + shape_sin2_px sin 2 phi (phi
-  // about the centre, from +x towards +y), already in `ellipse`; 0 for the logistic fit.
-  double shape_cos2_px = 0.0, shape_sin2_px = 0.0;
+  // brackets: the border's radial change r(phi) += shape_size_px + shape_cos2_px cos 2 phi + shape_sin2_px
+  // sin 2 phi (phi about the centre, from +x towards +y), already in `ellipse`; 0 for the logistic fit.
+  double shape_size_px = 0.0, shape_cos2_px = 0.0, shape_sin2_px = 0.0;
   int inside_labels = 0;
   int outside_labels = 0;
   int sectors_used = 0;

@@ -958,10 +958,10 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
       const cv::Point2d shift(fit->ellipse.cx_px - result.ellipse->cx_px,
                               fit->ellipse.cy_px - result.ellipse->cy_px);
       if (cv::norm(shift) <= 0.5 * period_px) {
-        // The brackets' shape terms as well, where they are of the size the level edge's shape errors have
-        // (a few px: at most half a period); the size stays the level edge's (see fit_brackets).
-        const bool reshape =
-            !small_contact && std::hypot(fit->shape_cos2_px, fit->shape_sin2_px) <= 0.5 * period_px;
+        // The brackets' size and shape terms as well, where they are of the size the level edge's errors
+        // have (a few px: at most half a period; see fit_brackets).
+        const bool reshape = !small_contact && std::hypot(fit->shape_size_px, fit->shape_cos2_px,
+                                                          fit->shape_sin2_px) <= 0.5 * period_px;
         for (auto& p : result.outline_px) p += shift;
         if (reshape) {
           const cv::Point2d centre(fit->ellipse.cx_px, fit->ellipse.cy_px);
@@ -970,16 +970,16 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
             const double r = cv::norm(d);
             if (r < 1e-9) continue;
             // cos 2 phi and sin 2 phi from the direction itself: (dx^2 - dy^2) / r^2 and 2 dx dy / r^2.
-            const double radial_px =
-                (fit->shape_cos2_px * (d.x * d.x - d.y * d.y) + fit->shape_sin2_px * 2.0 * d.x * d.y) /
-                (r * r);
+            const double radial_px = fit->shape_size_px + (fit->shape_cos2_px * (d.x * d.x - d.y * d.y) +
+                                                           fit->shape_sin2_px * 2.0 * d.x * d.y) /
+                                                              (r * r);
             p += d * (radial_px / r);
           }
           result.outline_px = convex_hull(result.outline_px);
           result.hull_px = resample_closed_polygon(result.outline_px, options_.hull_points);
           result.area_mm2 = polygon_area_px2(result.outline_px) / (options_.px_per_mm * options_.px_per_mm);
           *result.ellipse = fit->ellipse;
-          result.ridge_label_shape_px = cv::Point2d(fit->shape_cos2_px, fit->shape_sin2_px);
+          result.ridge_label_shape_px = cv::Vec3d(fit->shape_size_px, fit->shape_cos2_px, fit->shape_sin2_px);
         } else {
           for (auto& p : result.hull_px) p += shift;
           result.ellipse->cx_px += shift.x;

@@ -132,9 +132,10 @@ struct SegmenterOptions {
   // (the tiny contact: 1.70 -> 0.37 px; the brackets there: 0.77); larger ones, when ridge_label_centre,
   // the per-sector brackets (there the logistic fit drifts outward along valley arcs: direction_proximal
   // 0.90 px against the brackets' 0.54). Together: 0.97 -> 0.48 px (BENCHMARKS.md, contact/, sessions 21
-  // and 23). The brackets also reshape the outline by the border's cos 2 phi and sin 2 phi terms fitted to
-  // the same sectors, keeping its size: worst semi-axis error over the 19 trials 2.87 -> 2.26 %, worst IoU
-  // of the large contacts 0.965 -> 0.969 (session 24; over other fingerprints the axes still reach 2.8 %).
+  // and 23). The brackets also give the outline's size (from the sectors where ridges end at the border) and
+  // its shape (the border's cos 2 phi and sin 2 phi terms): worst semi-axis error of the large contacts over
+  // the 19 trials 2.87 -> 1.83 %, their worst IoU 0.965 -> 0.978; the default scene with nine fingerprints
+  // (seeds), worst IoU 0.951-0.978 -> 0.972-0.981 (BENCHMARKS.md, contact/, session 24).
   // Never applied when the contact touches the frame's edge, the frame is saturated or was averaged along
   // the border (the labels would be clipped or noise-limited), or the shift would exceed half a ridge
   // period. Costs about 0.9 ms a frame on a large contact (session 22), 3 ms on a small one.
@@ -171,10 +172,10 @@ struct ContactResult {
   // Shift of the outline and ellipse to the centre fitted to the ridge labels (SegmenterOptions::
   // ridge_label_centre), px; nothing when it was not applied.
   std::optional<cv::Point2d> ridge_label_shift_px;
-  // With the brackets (large contacts), the border's radial change cos2 cos 2 phi + sin2 sin 2 phi (phi about
-  // the centre) fitted to the same labels, (cos2, sin2) px, also applied to the outline, hull, area and
-  // ellipse: the shape is corrected, the size kept (contact/ridge_labels.hpp).
-  std::optional<cv::Point2d> ridge_label_shape_px;
+  // With the brackets (large contacts), the border's radial change size + cos2 cos 2 phi + sin2 sin 2 phi
+  // (phi about the centre) fitted to the same labels, (size, cos2, sin2) px, also applied to the outline,
+  // hull, area and ellipse (contact/ridge_labels.hpp).
+  std::optional<cv::Vec3d> ridge_label_shape_px;
   int polarity = 0;  // -1: contact darker than background (dark ridges), +1 brighter, 0 unknown
 };
 

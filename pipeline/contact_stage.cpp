@@ -22,7 +22,8 @@ struct ContactRecord {
   std::array<double, 5> ellipse{};  // cx, cy, semi-major, semi-minor, angle; zeros without an ellipse
   double texture_snr = 0.0;
   bool border_averaged = false;
-  std::optional<cv::Point2d> ridge_label_shift_px, ridge_label_shape_px;
+  std::optional<cv::Point2d> ridge_label_shift_px;
+  std::optional<cv::Vec3d> ridge_label_shape_px;
   cv::Mat orientation_rad, coherence;
 };
 
@@ -131,7 +132,7 @@ class ContactStage final : public Stage {
     std::vector<std::int32_t> status(n);
     std::vector<double> area(n), hull(n * hull_points * 2, 0.0), ellipse(n * 5, 0.0), snr(n);
     std::vector<std::int8_t> averaged(n), labelled(n);
-    std::vector<double> shift(n * 2, 0.0), shape(n * 2, 0.0);
+    std::vector<double> shift(n * 2, 0.0), shape(n * 3, 0.0);
     std::vector<float> orientation(n * by * bx, 0.0f), coherence(n * by * bx, 0.0f);
     for (std::size_t i = 0; i < n; ++i) {
       const ContactRecord& r = records_[i];
@@ -144,10 +145,8 @@ class ContactStage final : public Stage {
         shift[i * 2] = r.ridge_label_shift_px->x;
         shift[i * 2 + 1] = r.ridge_label_shift_px->y;
       }
-      if (r.ridge_label_shape_px) {
-        shape[i * 2] = r.ridge_label_shape_px->x;
-        shape[i * 2 + 1] = r.ridge_label_shape_px->y;
-      }
+      if (r.ridge_label_shape_px)
+        for (std::size_t j = 0; j < 3; ++j) shape[i * 3 + j] = (*r.ridge_label_shape_px)[static_cast<int>(j)];
       for (std::size_t k = 0; k < r.hull_px.size() && k < hull_points; ++k) {
         hull[(i * hull_points + k) * 2] = r.hull_px[k].x;
         hull[(i * hull_points + k) * 2 + 1] = r.hull_px[k].y;
@@ -170,7 +169,7 @@ class ContactStage final : public Stage {
     out.write("/contact/border_averaged", std::span<const std::int8_t>(averaged), {n});
     out.write("/contact/ridge_label_centre", std::span<const std::int8_t>(labelled), {n});
     out.write("/contact/ridge_label_shift_px", std::span<const double>(shift), {n, 2});
-    out.write("/contact/ridge_label_shape_px", std::span<const double>(shape), {n, 2});
+    out.write("/contact/ridge_label_shape_px", std::span<const double>(shape), {n, 3});
     out.attribute("/contact", "px_per_mm", options_.px_per_mm);
     out.attribute("/contact", "ridge_period_px", period_px());
     out.attribute("/contact", "ridge_period_source", period_source());

@@ -72,9 +72,10 @@ TEST(RidgeLabels, CentreComesBackWithThePeriodTwelvePercentOff) {
 // ridge patterns, the concentric one included, where the logistic fit drifts outward along the arcs where
 // valleys run along the border (measured: whorl 0.16 px, straight 0.42 px: where straight ridges run along
 // the border on two opposite arcs, the border can lie anywhere in the valley between the last ridge and the
-// next; from the level edge's start the segmenter gets 0.14 px on this contact). The size is kept: the start
-// is 2 % small on both axes and stays so (the geometric mean of its semi-axes to 0.3 %), and its shape, right
-// to begin with, stays right (axis ratio to 1 %).
+// next; from the level edge's start the segmenter gets 0.14 px on this contact). The start is 2 % small on
+// both axes; the size from the sectors where ridges end at the border brings it to the truth's (measured
+// 0.997 and 0.998 of it; asserted to 0.5 %, the start's 2 % fails), and the shape, right to begin with,
+// stays right (axis ratio to 1 %).
 TEST(RidgeLabels, BracketsBringTheCentreBack) {
   RidgeLabelOptions options;
   options.method = RidgeLabelMethod::brackets;
@@ -89,12 +90,12 @@ TEST(RidgeLabels, BracketsBringTheCentreBack) {
     const Ellipse& e = fit->ellipse;
     const double centre_px = std::hypot(e.cx_px - truth.cx_px, e.cy_px - truth.cy_px);
     const double size =
-        std::sqrt(e.semi_major_px * e.semi_minor_px / (start.semi_major_px * start.semi_minor_px));
+        std::sqrt(e.semi_major_px * e.semi_minor_px / (truth.semi_major_px * truth.semi_minor_px));
     const double ratio = (e.semi_major_px / e.semi_minor_px) / (truth.semi_major_px / truth.semi_minor_px);
     std::cout << (whorl ? "  whorl" : "  straight") << ": centre error " << centre_px << " px, size " << size
-              << " of the start's, axis ratio " << ratio << " of the truth's\n";
+              << " of the truth's, axis ratio " << ratio << " of the truth's\n";
     EXPECT_LT(centre_px, 0.5);
-    EXPECT_NEAR(size, 1.0, 0.003);
+    EXPECT_NEAR(size, 1.0, 0.005);
     EXPECT_NEAR(ratio, 1.0, 0.01);
   }
 }

@@ -99,7 +99,7 @@ TEST(Process, WritesDocumentedResults) {
   EXPECT_EQ(h5.shape("/contact/border_averaged"), (H5Shape{n}));
   EXPECT_EQ(h5.shape("/contact/ridge_label_centre"), (H5Shape{n}));
   EXPECT_EQ(h5.shape("/contact/ridge_label_shift_px"), (H5Shape{n, 2}));
-  EXPECT_EQ(h5.shape("/contact/ridge_label_shape_px"), (H5Shape{n, 2}));
+  EXPECT_EQ(h5.shape("/contact/ridge_label_shape_px"), (H5Shape{n, 3}));
   EXPECT_NE(h5.attribute_text("/", "software_version").find("tirstrain"), std::string::npos);
   EXPECT_NE(h5.attribute_text("/", "scene_yaml").find("px_per_mm"), std::string::npos);
   EXPECT_NEAR(h5.attribute_number("/contact", "ridge_period_px"), 23.4, 1.0);
@@ -116,7 +116,8 @@ TEST(Process, WritesDocumentedResults) {
   // further from the rendered contact's (measured RMS 0.38 px with the shifts, 0.86 px without).
   const auto labelled = h5.read_integers("/contact/ridge_label_centre");
   const auto shift = h5.read_doubles("/contact/ridge_label_shift_px");
-  // The brackets' shape terms, recorded with the shift: a few px at most (bounded by half a ridge period).
+  // The brackets' size and shape terms, recorded with the shift: a few px at most (bounded by half a ridge
+  // period).
   const auto shape = h5.read_doubles("/contact/ridge_label_shape_px");
   const double truth_area_mm2 = M_PI * 150.0 * 110.0 / (52.0 * 52.0);
   double labelled_sq = 0.0, level_edge_sq = 0.0, largest_shift_px = 0.0, largest_shape_px = 0.0;
@@ -139,7 +140,8 @@ TEST(Process, WritesDocumentedResults) {
     labelled_sq += dx * dx + dy * dy;
     largest_shift_px = std::max(largest_shift_px, std::hypot(shift_x, shift_y));
     const double shape_px =
-        std::hypot(shape[static_cast<std::size_t>(i) * 2], shape[static_cast<std::size_t>(i) * 2 + 1]);
+        std::hypot(shape[static_cast<std::size_t>(i) * 3], shape[static_cast<std::size_t>(i) * 3 + 1],
+                   shape[static_cast<std::size_t>(i) * 3 + 2]);
     EXPECT_LE(shape_px, 0.5 * 23.4) << "frame " << i;
     largest_shape_px = std::max(largest_shape_px, shape_px);
     level_edge_sq += std::pow(dx - shift_x, 2) + std::pow(dy - shift_y, 2);
