@@ -402,7 +402,7 @@ double bracket_predicted_cos(const Eigen::ArrayXf& inside_cos, const RidgeLabelO
 // bracket_size_gap_px): there the inside labels' bracket_size_quantile marks the border; the median over
 // those sectors of its distance from the fitted shape is the border's mean radial change, when at least
 // bracket_size_min_sectors of them exist. Over the default scene with nine fingerprints the worst IoU went
-// 0.951-0.978 -> 0.972-0.981 and the worst semi-axis 1.3-2.8 -> 1.0-1.6 % (BENCHMARKS.md, contact/,
+// 0.951-0.976 -> 0.972-0.980 and the worst semi-axis 1.75-3.25 -> 0.85-1.86 % (BENCHMARKS.md, contact/,
 // session 24).
 struct BracketFit {
   cv::Point2d shift;

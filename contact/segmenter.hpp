@@ -135,7 +135,7 @@ struct SegmenterOptions {
   // and 23). The brackets also give the outline's size (from the sectors where ridges end at the border) and
   // its shape (the border's cos 2 phi and sin 2 phi terms): worst semi-axis error of the large contacts over
   // the 19 trials 2.87 -> 1.83 %, their worst IoU 0.965 -> 0.978; the default scene with nine fingerprints
-  // (seeds), worst IoU 0.951-0.978 -> 0.972-0.981 (BENCHMARKS.md, contact/, session 24).
+  // (seeds), worst IoU 0.951-0.976 -> 0.972-0.980 (BENCHMARKS.md, contact/, session 24).
   // Never applied when the contact touches the frame's edge, the frame is saturated or was averaged along
   // the border (the labels would be clipped or noise-limited), or the shift would exceed half a ridge
   // period. Costs about 0.9 ms a frame on a large contact (session 22), 3 ms on a small one.
