@@ -5,7 +5,8 @@
 // SegmenterOptions::border_average_snr and the edge search runs on the frame averaged along the border. The
 // fourth, when 1, turns the flat field, the border averaging and the centre from the ridge labels off (the
 // segmenter before they were added), for their cost in the same run; when 2, only the centre from the ridge
-// labels is off (SegmenterOptions::ridge_label_centre, ridge_label_below_periods).
+// labels is off (SegmenterOptions::ridge_label_centre, ridge_label_below_periods); when 3, the border band's
+// intensity fit is on (SegmenterOptions::border_band_centre).
 // Run: contact_bench --benchmark_counters_tabular=true
 #include <benchmark/benchmark.h>
 
@@ -35,7 +36,8 @@ void BM_Segment(benchmark::State& state) {
   const int downsample = static_cast<int>(state.range(1));
   tirstrain::test::TirScene scene = scene_for(width, height);
   scene.noise = static_cast<double>(state.range(2)) / 1000.0;
-  const bool plain = state.range(3) == 1, no_ridge_labels = state.range(3) == 2;
+  const bool plain = state.range(3) == 1, no_ridge_labels = state.range(3) == 2,
+             border_band = state.range(3) == 3;
   const cv::Mat image = tirstrain::test::render_tir(scene);
   const cv::Mat truth = tirstrain::test::render_truth_mask(scene);
   SegmenterOptions options;
@@ -49,6 +51,7 @@ void BM_Segment(benchmark::State& state) {
     options.ridge_label_below_periods = 0.0;
     options.ridge_label_centre = false;
   }
+  options.border_band_centre = border_band;
   ContactSegmenter segmenter(options);
   tirstrain::contact::ContactResult result;
   for (auto _ : state) {
@@ -73,6 +76,7 @@ void BM_Segment(benchmark::State& state) {
                  "." + std::to_string(state.range(2) % 10) + " %" +
                  (plain             ? ", no flat field, border averaging or ridge labels"
                   : no_ridge_labels ? ", no ridge labels"
+                  : border_band     ? ", border band"
                                     : ""));
 }
 
@@ -101,6 +105,10 @@ BENCHMARK(BM_Segment)
     ->Args({1280, 0, 80, 1})
     ->Args({640, 0, 20, 2})
     ->Args({1280, 0, 20, 2})
+    ->Args({640, 0, 20, 3})
+    ->Args({1280, 0, 20, 3})
+    ->Args({640, 0, 80, 3})
+    ->Args({1280, 0, 80, 3})
     ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_MeasurePeriod)->Arg(640)->Arg(1280)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -40,6 +40,11 @@ namespace tirstrain::contact {
 // the size change and those terms (the size is `initial`'s when too few sectors show ridge ends).
 enum class RidgeLabelMethod { logistic, brackets };
 
+// The border band's intensity fit (contact/border_band.hpp) on top of the labels: off; with_labels (brackets
+// only): the centre is the mean of the brackets' and the band fit's; alone: the band fit's centre, no labels
+// (for frames too noisy to label: the initial ellipse moved to it).
+enum class BorderBandUse { off, with_labels, alone };
+
 struct RidgeLabelOptions {
   RidgeLabelMethod method = RidgeLabelMethod::logistic;
   int sectors = 24;
@@ -67,6 +72,16 @@ struct RidgeLabelOptions {
   double bracket_size_gap_px = 3.5;
   double bracket_size_quantile = 0.9;
   int bracket_size_min_sectors = 4;
+  BorderBandUse border_band = BorderBandUse::off;
+  // The band fit's pixels: those of the lattice from border_band_inner_periods inside the initial ellipse to
+  // 0.75 period outside, every border_band_stride-th of them (border_band_alone_stride-th when alone: noisy
+  // frames need more). BENCHMARKS.md, contact/, session 26: with the labels every 6th gives the centres all
+  // of them do (13 fingerprints: 0.79 / 1.58 px RMS / worst against 0.78 / 1.63) at a quarter of the cost;
+  // alone, on the noisy scenes, the worst frame is 0.91 px with all, 0.93 with every 3rd, 1.13 with every
+  // 6th.
+  double border_band_inner_periods = 1.5;
+  int border_band_stride = 6;
+  int border_band_alone_stride = 3;
 };
 
 struct RidgeLabelFit {
@@ -77,6 +92,7 @@ struct RidgeLabelFit {
   int inside_labels = 0;
   int outside_labels = 0;
   int sectors_used = 0;
+  bool border_band_used = false;  // the band fit set (or shared in) the centre
 };
 
 // `frame`: the full frame (CV_8UC1, CV_16UC1 or CV_32FC1), `full_scale` its full-scale value (1 for float);

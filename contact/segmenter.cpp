@@ -942,7 +942,8 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
       result.ellipse && std::sqrt(result.ellipse->semi_major_px * result.ellipse->semi_minor_px) <
                             options_.ridge_label_below_periods * period_px;
   if (result.ellipse && (options_.ridge_label_centre || small_contact) && polarity != 0 &&
-      (status & (kTouchesEdge | kSaturated)) == 0 && !result.border_averaged) {
+      (status & (kTouchesEdge | kSaturated)) == 0 &&
+      (!result.border_averaged || (options_.border_band_centre && !small_contact))) {
     // The flat field's surface, from working pixels of the region to frame pixels (none without a flat
     // field).
     std::function<double(double, double)> illumination;
@@ -952,6 +953,8 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
       };
     RidgeLabelOptions label_options;
     label_options.method = small_contact ? RidgeLabelMethod::logistic : RidgeLabelMethod::brackets;
+    if (options_.border_band_centre && !small_contact)
+      label_options.border_band = result.border_averaged ? BorderBandUse::alone : BorderBandUse::with_labels;
     const std::optional<RidgeLabelFit> fit = fit_ellipse_to_ridge_labels(
         image, full_scale, *result.ellipse, period_px, polarity, label_options, illumination);
     if (fit) {
