@@ -290,11 +290,11 @@ TEST(SynthAccuracy, ShapeAndCentreOnOtherFingerprints) {
 // The border band's intensity fit (`segmentation: {border_band_centre: true}`, contact/border_band.hpp) on
 // two of the four shipped trials where the default centre has a frame above 1 px, one for each way the fit
 // is used: the elliptical contact (the centre the mean of the brackets' and the band fit's) and the
-// heavy-noise one (too noisy for labels: the band fit's alone). Over all 60 frames (session 26): elliptical_contact default 0.78
-// px RMS, worst 1.10 (frame 1); with the band 0.23 / 0.52; hard_heavy_noise default 0.67 / 1.09 (frame 11),
-// with the band 0.67 / 0.93 (frame 23). The trials are rendered whole, as shipped, and their first 30 frames
-// segmented (every worst frame lies there). Asserted: with the band every frame within the 1 px;
-// without it some frame above (the comparison shows if either changes).
+// heavy-noise one (too noisy for labels: the band fit's alone). Over all 60 frames (session 26):
+// elliptical_contact default 0.78 px RMS, worst 1.10 (frame 1); with the band 0.23 / 0.52; hard_heavy_noise
+// default 0.67 / 1.09 (frame 11), with the band 0.67 / 0.93 (frame 23). The trials are rendered whole, as
+// shipped, and their first 30 frames segmented (every worst frame lies there). Asserted: with the band every
+// frame within the 1 px; without it some frame above (the comparison shows if either changes).
 TEST(SynthAccuracy, BorderBandCentre) {
   for (const std::string name : {"elliptical_contact", "hard_heavy_noise"}) {
     fs::path dir;
