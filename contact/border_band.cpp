@@ -7,6 +7,8 @@
 #include <numbers>
 #include <utility>
 
+#include "core/smoothstep.hpp"
+
 namespace tirstrain::contact {
 namespace {
 
@@ -15,11 +17,6 @@ constexpr int kParams = 8;
 using Params = Eigen::Matrix<double, kParams, 1>;
 constexpr std::size_t kMinSamples = 100;
 constexpr int kMinSamplesPerSector = 30;
-
-double smoothstep5(double t) {
-  t = std::clamp(t, 0.0, 1.0);
-  return t * t * t * (10.0 + t * (-15.0 + 6.0 * t));
-}
 
 // The border profile A(d) at each sample for the ellipse and profile `p`. d is approximated by r (1 - 1/q),
 // r the distance from the centre and q the normalised radius, as in the ridge labels' logistic fit.

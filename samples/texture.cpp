@@ -5,6 +5,8 @@
 #include <numbers>
 #include <random>
 
+#include "core/smoothstep.hpp"
+
 namespace tirstrain::samples {
 namespace {
 
@@ -18,11 +20,6 @@ std::uint64_t splitmix64(std::uint64_t x) {
 }
 
 // Quintic smoothstep: C2, so the minutia window adds no visible kink to the ridge flow.
-double smoothstep5(double t) {
-  t = std::clamp(t, 0.0, 1.0);
-  return t * t * t * (t * (6.0 * t - 15.0) + 10.0);
-}
-
 double unit(std::uint64_t bits) {
   return static_cast<double>(bits >> 11) * 0x1.0p-53;
 }

@@ -9,6 +9,7 @@
 #include <random>
 
 #include "core/error.hpp"
+#include "core/smoothstep.hpp"
 
 namespace tirstrain::samples {
 namespace {
@@ -18,11 +19,6 @@ constexpr double kTwoPi = 2.0 * std::numbers::pi;
 // contact and the ridge pattern is lost.
 constexpr double kWetLevel = 0.75;
 constexpr int kMotionBlurSamples = 9;
-
-double smoothstep5(double t) {
-  t = std::clamp(t, 0.0, 1.0);
-  return t * t * t * (t * (6.0 * t - 15.0) + 10.0);
-}
 
 std::vector<double> make_frame_times(const SynthConfig& c) {
   std::mt19937_64 rng(mix_seed(c.seed, 0x71AEULL));

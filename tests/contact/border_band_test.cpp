@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "contact/border_band.hpp"
+#include "core/smoothstep.hpp"
 
 namespace tirstrain::contact {
 namespace {
@@ -19,11 +20,6 @@ namespace {
 constexpr double kPeriodPx = 23.0;
 constexpr int kSectors = 24;
 constexpr double kEdgePx = 1.0, kFloor = 0.35, kFadePx = 20.0, kLevel = 0.2;
-
-double smoothstep5(double t) {
-  t = std::clamp(t, 0.0, 1.0);
-  return t * t * t * (10.0 + t * (-15.0 + 6.0 * t));
-}
 
 struct Band {
   std::vector<BorderBandSample> samples;

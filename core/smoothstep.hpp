@@ -1,0 +1,14 @@
+#pragma once
+// The quintic smoothstep shared by the synthetic renderer (samples/) and the border band's model (contact/),
+// so the contact model fits exactly the fade the trials are drawn with.
+#include <algorithm>
+
+namespace tirstrain {
+
+// 0 at t <= 0, 1 at t >= 1, with zero first and second derivatives at both ends.
+inline double smoothstep5(double t) {
+  t = std::clamp(t, 0.0, 1.0);
+  return t * t * t * (t * (6.0 * t - 15.0) + 10.0);
+}
+
+}  // namespace tirstrain
