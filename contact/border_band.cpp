@@ -14,27 +14,9 @@ namespace {
 
 // cx, cy, semi-axes a and b, angle; the border profile's edge width, floor and fade length.
 constexpr int kParams = 8;
-using Params = Eigen::Matrix<double, kParams, 1>;
+using Params = BorderBandParams;
 constexpr std::size_t kMinSamples = 100;
 constexpr int kMinSamplesPerSector = 30;
-
-// The border profile A(d) at each sample for the ellipse and profile `p`. d is approximated by r (1 - 1/q),
-// r the distance from the centre and q the normalised radius, as in the ridge labels' logistic fit.
-Eigen::VectorXd border_profile(const std::vector<BorderBandSample>& samples, const Params& p) {
-  const double c = std::cos(p(4)), s = std::sin(p(4));
-  const double inverse_a = 1.0 / p(2), inverse_b = 1.0 / p(3);
-  const double edge = p(5), floor = p(6), fade = p(7);
-  Eigen::VectorXd profile(static_cast<Eigen::Index>(samples.size()));
-  for (std::size_t i = 0; i < samples.size(); ++i) {
-    const double dx = samples[i].x_px - p(0), dy = samples[i].y_px - p(1);
-    const double u = (c * dx + s * dy) * inverse_a, v = (-s * dx + c * dy) * inverse_b;
-    const double q = std::max(std::hypot(u, v), 1e-9);
-    const double d = std::hypot(dx, dy) * (1.0 - 1.0 / q);
-    const double step = 1.0 / (1.0 + std::exp(std::clamp(d / edge, -50.0, 50.0)));
-    profile(static_cast<Eigen::Index>(i)) = step * (floor + (1.0 - floor) * smoothstep5(-d / fade));
-  }
-  return profile;
-}
 
 // The band against the model with the linear coefficients (the common level c0, each sector's c1 and c2)
 // solved by least squares for `profile`: the residuals.
@@ -47,8 +29,14 @@ class Band {
   std::size_t size() const { return samples_.size(); }
   const std::vector<BorderBandSample>& samples() const { return samples_; }
 
-  // `level` (optional): the fitted common level c0.
-  Eigen::VectorXd residuals(const Eigen::VectorXd& profile, double* level = nullptr) const {
+  // The linear coefficients' least-squares solution for a profile, and the residuals it leaves.
+  struct Solution {
+    Eigen::VectorXd residuals;
+    Eigen::VectorXd coefficients;  // c0, c1_0, c2_0, c1_1, ...
+    Eigen::LDLT<Eigen::MatrixXd> normal;
+  };
+
+  Solution solve(const Eigen::VectorXd& profile) const {
     // Normal equations of [c0, c1_0, c2_0, c1_1, ...]: c0 couples every sector, each pair only its own.
     const int sectors = static_cast<int>(waves_.size());
     const int unknowns = 1 + 2 * sectors;
@@ -71,15 +59,42 @@ class Band {
     normal.triangularView<Eigen::StrictlyLower>() = normal.transpose();
     // A tiny ridge keeps a sector without samples (or with a degenerate phase) solvable.
     normal.diagonal().array() += 1e-9 * (normal.trace() / unknowns + 1e-12);
-    const Eigen::VectorXd x = normal.ldlt().solve(rhs);
-    if (level) *level = x(0);
-    Eigen::VectorXd e(static_cast<Eigen::Index>(samples_.size()));
-    for (std::size_t i = 0; i < samples_.size(); ++i) {
-      const int k = 1 + 2 * samples_[i].sector;
-      e(static_cast<Eigen::Index>(i)) = samples_[i].signal - profile(static_cast<Eigen::Index>(i)) *
-                                                                 (x(0) + x(k) * cos_[i] + x(k + 1) * sin_[i]);
+    Solution solution{Eigen::VectorXd(static_cast<Eigen::Index>(samples_.size())), Eigen::VectorXd(),
+                      normal.ldlt()};
+    solution.coefficients = solution.normal.solve(rhs);
+    for (std::size_t i = 0; i < samples_.size(); ++i)
+      solution.residuals(static_cast<Eigen::Index>(i)) =
+          samples_[i].signal - profile(static_cast<Eigen::Index>(i)) * modulation(solution.coefficients, i);
+    return solution;
+  }
+
+  // The residuals' Jacobian with respect to the eight parameters, from the profile's (`profile_gradient`),
+  // by Kaufman's approximation of the variable projection: the profile's change times the fitted
+  // modulation, projected off the linear basis (the coefficients' own change is what the projection
+  // removes to first order). One pass over the band, against nine evaluations by forward differences.
+  BorderBandGradient jacobian(const Eigen::VectorXd& profile, const BorderBandGradient& profile_gradient,
+                              const Solution& solution) const {
+    const Eigen::Index n = static_cast<Eigen::Index>(samples_.size());
+    BorderBandGradient change(n, kParams);
+    Eigen::MatrixXd basis_dot_change = Eigen::MatrixXd::Zero(solution.coefficients.size(), kParams);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const std::size_t si = static_cast<std::size_t>(i);
+      change.row(i) = profile_gradient.row(i) * modulation(solution.coefficients, si);
+      const int k = 1 + 2 * samples_[si].sector;
+      const double a = profile(i);
+      basis_dot_change.row(0) += a * change.row(i);
+      basis_dot_change.row(k) += a * cos_[si] * change.row(i);
+      basis_dot_change.row(k + 1) += a * sin_[si] * change.row(i);
     }
-    return e;
+    const Eigen::MatrixXd along_basis = solution.normal.solve(basis_dot_change);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const std::size_t si = static_cast<std::size_t>(i);
+      const int k = 1 + 2 * samples_[si].sector;
+      const double a = profile(i);
+      change.row(i) -=
+          a * (along_basis.row(0) + cos_[si] * along_basis.row(k) + sin_[si] * along_basis.row(k + 1));
+    }
+    return -change;
   }
 
   // Each sector's wave vector refined against the band with `profile` held (Levenberg-Marquardt on kx, ky
@@ -97,10 +112,19 @@ class Band {
   }
 
  private:
+  // c0 + c1_k cos + c2_k sin at sample i.
+  double modulation(const Eigen::VectorXd& coefficients, std::size_t i) const {
+    const int k = 1 + 2 * samples_[i].sector;
+    return coefficients(0) + coefficients(k) * cos_[i] + coefficients(k + 1) * sin_[i];
+  }
+
+  // A sector's residuals for the wave vector `wave` (its level and phase solved) and (optional) their
+  // Jacobian with respect to the wave vector, by variable projection as in jacobian().
   Eigen::VectorXd sector_residuals(const std::vector<std::size_t>& members, cv::Vec2d wave,
-                                   const Eigen::VectorXd& profile) const {
+                                   const Eigen::VectorXd& profile,
+                                   Eigen::MatrixX2d* jacobian = nullptr) const {
     const Eigen::Index n = static_cast<Eigen::Index>(members.size());
-    Eigen::MatrixXd basis(n, 3);
+    Eigen::MatrixX3d basis(n, 3);
     Eigen::VectorXd y(n);
     for (Eigen::Index j = 0; j < n; ++j) {
       const BorderBandSample& s = samples_[members[static_cast<std::size_t>(j)]];
@@ -111,7 +135,18 @@ class Band {
     }
     Eigen::Matrix3d normal = basis.transpose() * basis;
     normal.diagonal().array() += 1e-9 * (normal.trace() + 1e-12);
-    const Eigen::Vector3d coefficients = normal.ldlt().solve(basis.transpose() * y);
+    const Eigen::LDLT<Eigen::Matrix3d> factor = normal.ldlt();
+    const Eigen::Vector3d coefficients = factor.solve(basis.transpose() * y);
+    if (jacobian) {
+      // d/dphase of a (c1 cos + c2 sin) = a (c2 cos - c1 sin); dphase/dk = (dx, dy).
+      Eigen::MatrixX2d change(n, 2);
+      for (Eigen::Index j = 0; j < n; ++j) {
+        const BorderBandSample& s = samples_[members[static_cast<std::size_t>(j)]];
+        const double along = coefficients(2) * basis(j, 1) - coefficients(1) * basis(j, 2);
+        change.row(j) << along * s.dx_px, along * s.dy_px;
+      }
+      *jacobian = -(change - basis * factor.solve(basis.transpose() * change));
+    }
     return y - basis * coefficients;
   }
 
@@ -119,13 +154,10 @@ class Band {
                          const Eigen::VectorXd& profile) const {
     const double k0 = std::hypot(wave[0], wave[1]);
     if (!(k0 > 0.0)) return wave;
-    Eigen::VectorXd e = sector_residuals(members, wave, profile);
+    Eigen::MatrixX2d jacobian;
+    Eigen::VectorXd e = sector_residuals(members, wave, profile, &jacobian);
     double cost = e.squaredNorm(), damping = 1e-3;
-    const double h = 1e-4 * k0;
     for (int iteration = 0; iteration < 6; ++iteration) {
-      Eigen::MatrixXd jacobian(e.size(), 2);
-      jacobian.col(0) = (sector_residuals(members, wave + cv::Vec2d(h, 0.0), profile) - e) / h;
-      jacobian.col(1) = (sector_residuals(members, wave + cv::Vec2d(0.0, h), profile) - e) / h;
       const Eigen::Matrix2d jtj = jacobian.transpose() * jacobian;
       const Eigen::Vector2d gradient = jacobian.transpose() * e;
       bool improved = false;
@@ -140,10 +172,13 @@ class Band {
           damping *= 10.0;
           continue;
         }
-        const Eigen::VectorXd candidate_e = sector_residuals(members, candidate, profile);
+        Eigen::MatrixX2d candidate_jacobian;
+        const Eigen::VectorXd candidate_e =
+            sector_residuals(members, candidate, profile, &candidate_jacobian);
         if (candidate_e.squaredNorm() < cost) {
           wave = candidate;
           e = candidate_e;
+          jacobian = std::move(candidate_jacobian);
           cost = e.squaredNorm();
           damping *= 0.3;
           improved = true;
@@ -179,22 +214,16 @@ Params clamped_profile(Params p, double period_px) {
   return p;
 }
 
-// Levenberg-Marquardt on the eight parameters, the Jacobian of the projected residuals by forward
-// differences (each column one evaluation of the band: the linear coefficients move with the parameters).
+// Levenberg-Marquardt on the eight parameters, the Jacobian by variable projection (Band::jacobian).
 Params fit_parameters(const Band& band, Params p, double period_px, int iterations, double* rms) {
-  constexpr std::array<double, kParams> kSteps{0.05, 0.05, 0.05, 0.05, 5e-4, 0.02, 0.005, 0.1};
-  Eigen::VectorXd e = band.residuals(border_profile(band.samples(), p));
-  double cost = e.squaredNorm(), damping = 1e-3;
+  BorderBandGradient profile_gradient;
+  Eigen::VectorXd profile = border_profile(band.samples(), p, &profile_gradient);
+  Band::Solution solution = band.solve(profile);
+  double cost = solution.residuals.squaredNorm(), damping = 1e-3;
   for (int iteration = 0; iteration < iterations; ++iteration) {
-    Eigen::MatrixXd jacobian(e.size(), kParams);
-    for (int j = 0; j < kParams; ++j) {
-      Params stepped = p;
-      stepped(j) += kSteps[static_cast<std::size_t>(j)];
-      jacobian.col(j) =
-          (band.residuals(border_profile(band.samples(), stepped)) - e) / kSteps[static_cast<std::size_t>(j)];
-    }
+    const BorderBandGradient jacobian = band.jacobian(profile, profile_gradient, solution);
     const Eigen::Matrix<double, kParams, kParams> jtj = jacobian.transpose() * jacobian;
-    const Params gradient = jacobian.transpose() * e;
+    const Params gradient = jacobian.transpose() * solution.residuals;
     bool improved = false;
     for (int attempt = 0; attempt < 10 && !improved; ++attempt) {
       Eigen::Matrix<double, kParams, kParams> damped = jtj;
@@ -204,12 +233,16 @@ Params fit_parameters(const Band& band, Params p, double period_px, int iteratio
         damping *= 10.0;
         continue;
       }
-      const Eigen::VectorXd candidate_e = band.residuals(border_profile(band.samples(), candidate));
-      const double candidate_cost = candidate_e.squaredNorm();
+      BorderBandGradient candidate_gradient;
+      Eigen::VectorXd candidate_profile = border_profile(band.samples(), candidate, &candidate_gradient);
+      Band::Solution candidate_solution = band.solve(candidate_profile);
+      const double candidate_cost = candidate_solution.residuals.squaredNorm();
       if (candidate_cost < cost) {
         const double gain = cost - candidate_cost;
         p = candidate;
-        e = candidate_e;
+        profile = std::move(candidate_profile);
+        profile_gradient = std::move(candidate_gradient);
+        solution = std::move(candidate_solution);
         cost = candidate_cost;
         damping *= 0.3;
         improved = true;
@@ -220,11 +253,56 @@ Params fit_parameters(const Band& band, Params p, double period_px, int iteratio
     }
     if (!improved) break;
   }
-  *rms = std::sqrt(cost / static_cast<double>(std::max<Eigen::Index>(1, e.size())));
+  *rms = std::sqrt(cost / static_cast<double>(std::max<Eigen::Index>(1, solution.residuals.size())));
   return p;
 }
 
 }  // namespace
+
+Eigen::VectorXd border_profile(const std::vector<BorderBandSample>& samples, const BorderBandParams& p,
+                               BorderBandGradient* gradient) {
+  const double c = std::cos(p(4)), s = std::sin(p(4));
+  const double inverse_a = 1.0 / p(2), inverse_b = 1.0 / p(3);
+  const double edge = p(5), floor = p(6), fade = p(7);
+  const Eigen::Index n = static_cast<Eigen::Index>(samples.size());
+  Eigen::VectorXd profile(n);
+  if (gradient) gradient->resize(n, kParams);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const BorderBandSample& sample = samples[static_cast<std::size_t>(i)];
+    const double dx = sample.x_px - p(0), dy = sample.y_px - p(1);
+    const double u = (c * dx + s * dy) * inverse_a, v = (-s * dx + c * dy) * inverse_b;
+    const double q = std::max(std::sqrt(u * u + v * v), 1e-9);
+    const double r = std::sqrt(dx * dx + dy * dy);
+    const double d = r * (1.0 - 1.0 / q);
+    const double step = 1.0 / (1.0 + std::exp(std::clamp(d / edge, -50.0, 50.0)));
+    const double t = -d / fade;
+    const double rise = smoothstep5(t);
+    const double contrast = floor + (1.0 - floor) * rise;
+    profile(i) = step * contrast;
+    if (!gradient) continue;
+    // A = L(d) F(d): L the logistic step, F the contrast's rise; smoothstep5'(t) = 30 t^2 (1 - t)^2 on (0,
+    // 1).
+    const double t_inside = std::clamp(t, 0.0, 1.0);
+    const double rise_slope = 30.0 * t_inside * t_inside * (1.0 - t_inside) * (1.0 - t_inside);
+    const double step_slope = step * (1.0 - step);  // -dL/d(d / edge)
+    const double da_dd = -step_slope / edge * contrast - step * (1.0 - floor) * rise_slope / fade;
+    // d = r (1 - 1/q): dd = (1 - 1/q) dr + (r / q^2) dq, dq = (u du + v dv) / q.
+    const double dd_dr = 1.0 - 1.0 / q, dd_dq = r / (q * q);
+    const double inverse_r = r > 1e-12 ? 1.0 / r : 0.0;
+    const double dq_du = u / q, dq_dv = v / q;
+    auto row = gradient->row(i);
+    row(0) = da_dd * (dd_dr * -dx * inverse_r + dd_dq * (dq_du * -c * inverse_a + dq_dv * s * inverse_b));
+    row(1) = da_dd * (dd_dr * -dy * inverse_r + dd_dq * (dq_du * -s * inverse_a + dq_dv * -c * inverse_b));
+    row(2) = da_dd * dd_dq * dq_du * -u * inverse_a;
+    row(3) = da_dd * dd_dq * dq_dv * -v * inverse_b;
+    // du/dtheta = v b / a, dv/dtheta = -u a / b.
+    row(4) = da_dd * dd_dq * (dq_du * v * p(3) * inverse_a - dq_dv * u * p(2) * inverse_b);
+    row(5) = step_slope * d / (edge * edge) * contrast;
+    row(6) = step * (1.0 - rise);
+    row(7) = step * (1.0 - floor) * rise_slope * d / (fade * fade);
+  }
+  return profile;
+}
 
 std::optional<BorderBandFit> fit_border_band(std::vector<BorderBandSample> samples,
                                              std::vector<cv::Vec2d> wave_vectors, const Ellipse& start,
@@ -249,8 +327,7 @@ std::optional<BorderBandFit> fit_border_band(std::vector<BorderBandSample> sampl
   }
   // No ridges in the band (a common level that does not stand five standard errors above the background's):
   // nothing placed the border.
-  double level = 0.0;
-  band.residuals(border_profile(band.samples(), p), &level);
+  const double level = band.solve(border_profile(band.samples(), p)).coefficients(0);
   const double level_error = rms / std::sqrt(static_cast<double>(band.size()));
   if (!p.allFinite() || !std::isfinite(rms) || !(level > 5.0 * level_error)) return std::nullopt;
   BorderBandFit fit;

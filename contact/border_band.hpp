@@ -24,6 +24,7 @@
 // frames too noisy for labels it replaces the level edge's centre. The profile's form is the synthetic
 // generator's (a quintic rise), with its floor and length fitted; where the contrast fades little towards
 // the border the valley arcs carry little, and the fit can cost more than it gives.
+#include <Eigen/Core>
 #include <opencv2/core.hpp>
 
 #include <optional>
@@ -54,6 +55,17 @@ struct BorderBandFit {
   double edge_px = 0.0, fade_floor = 0.0, fade_px = 0.0;  // the fitted border profile A(d)
   double rms_residual = 0.0;                              // signal units
 };
+
+// The model's eight parameters: the ellipse (cx_px, cy_px, semi-axes a and b in px, angle in rad), then the
+// profile (edge_px, floor, fade_px).
+using BorderBandParams = Eigen::Matrix<double, 8, 1>;
+using BorderBandGradient = Eigen::Matrix<double, Eigen::Dynamic, 8>;
+
+// The border profile A(d) at each sample and (optional) its derivatives with respect to the parameters, one
+// column each: the fit's Jacobian is built from them in one pass. d is approximated by r (1 - 1/q), r the
+// distance from the centre and q the normalised radius, as in the ridge labels' logistic fit.
+Eigen::VectorXd border_profile(const std::vector<BorderBandSample>& samples, const BorderBandParams& p,
+                               BorderBandGradient* gradient = nullptr);
 
 // `samples`: the band's pixels (ridge signal, sector), `wave_vectors`: per sector its ridges' wave vector
 // (rad/px; a zero vector for a sector without a wave), `start`: the ellipse to start from (frame px).
