@@ -129,6 +129,18 @@ double ellipse_level(const Ellipse& ellipse, const cv::Point2d& p_px) {
   return u * u + v * v - 1.0;
 }
 
+cv::Matx23d ellipse_to_ellipse(const Ellipse& from, const Ellipse& to) {
+  const double cf = std::cos(from.angle_rad), sf = std::sin(from.angle_rad);
+  const double ct = std::cos(to.angle_rad), st = std::sin(to.angle_rad);
+  // R(to) diag(a_to / a_from, b_to / b_from) R(-from), then the centres.
+  const cv::Matx22d unrotate(cf, sf, -sf, cf), rotate(ct, -st, st, ct);
+  const cv::Matx22d scale(to.semi_major_px / from.semi_major_px, 0.0, 0.0,
+                          to.semi_minor_px / from.semi_minor_px);
+  const cv::Matx22d linear = rotate * scale * unrotate;
+  const cv::Vec2d shift = cv::Vec2d(to.cx_px, to.cy_px) - linear * cv::Vec2d(from.cx_px, from.cy_px);
+  return {linear(0, 0), linear(0, 1), shift[0], linear(1, 0), linear(1, 1), shift[1]};
+}
+
 EllipseNormalization::EllipseNormalization(const Ellipse& ellipse)
     : cx_(ellipse.cx_px),
       cy_(ellipse.cy_px),

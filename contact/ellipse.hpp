@@ -3,6 +3,7 @@
 // Pilu & Fisher (1999) in the numerically stable form of Halíř & Flusser (1998), and the similarity
 // transform (translation, rotation, uniform scale) that carries an ellipse onto the standard normalised
 // ellipse — centred at the origin, major axis along +x, semi-major axis 1 — and back.
+#include <opencv2/core/matx.hpp>
 #include <opencv2/core/types.hpp>
 
 #include <optional>
@@ -30,6 +31,10 @@ std::vector<cv::Point2d> sample_ellipse(const Ellipse& ellipse, int count, doubl
 // Algebraic "distance" normalised so that 0 is on the ellipse, <0 inside, >0 outside:
 // |q|^2 - 1 in the ellipse's own axes scaled to a unit circle.
 double ellipse_level(const Ellipse& ellipse, const cv::Point2d& p_px);
+
+// The affine map that carries `from` onto `to`: a point's position in `from`'s axes, each scaled to 1, put at
+// the same place in `to`'s (centre to centre, border to border). Used to move an outline with its ellipse.
+cv::Matx23d ellipse_to_ellipse(const Ellipse& from, const Ellipse& to);
 
 // q = scale * R(-angle) * (p - centre): the ellipse goes to the standard normalised ellipse
 // x^2 + (y / aspect)^2 = 1 with aspect = semi_minor / semi_major.

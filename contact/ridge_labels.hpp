@@ -21,7 +21,8 @@
 // centre and correct the size and shape (elongation and its direction). The logistic fit's axes
 // run ~2.5 px long (the soft edge's tail is labelled inside), and on a large contact it drifts outward along
 // arcs where valleys run along the border; the segmenter uses it on small contacts and the brackets on large
-// ones. From the logistic fit it takes only the centre; from the brackets the centre, size and shape.
+// ones. From the logistic fit it takes the centre and half the shape (SegmenterOptions::
+// ridge_label_shape_weight); from the brackets the centre, size and shape.
 #include <opencv2/core.hpp>
 
 #include <functional>

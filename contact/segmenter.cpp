@@ -417,6 +417,26 @@ void bridge_valleys(std::vector<cv::Point2d>& points, const std::vector<std::uin
   }
 }
 
+// An ellipse's elongation and direction as the vector (a - b) / 2 (cos 2 angle, sin 2 angle): directions half
+// a turn apart agree, and a near-circle's ill-defined direction carries little weight. Its border's radius is
+// (a + b) / 2 + that vector . (cos 2 phi, sin 2 phi) to first order (phi about the centre).
+cv::Vec2d shape_vector(const Ellipse& e) {
+  const double half_difference = 0.5 * (e.semi_major_px - e.semi_minor_px);
+  return {half_difference * std::cos(2.0 * e.angle_rad), half_difference * std::sin(2.0 * e.angle_rad)};
+}
+
+// `base` with its shape vector moved `weight` of the way to `other`'s, its mean semi-axis kept.
+Ellipse with_blended_shape(const Ellipse& base, const Ellipse& other, double weight) {
+  const cv::Vec2d blended = (1.0 - weight) * shape_vector(base) + weight * shape_vector(other);
+  const double mean_px = 0.5 * (base.semi_major_px + base.semi_minor_px);
+  const double half_difference = std::min(cv::norm(blended), 0.9 * mean_px);
+  Ellipse e = base;
+  e.semi_major_px = mean_px + half_difference;
+  e.semi_minor_px = mean_px - half_difference;
+  e.angle_rad = 0.5 * std::atan2(blended[1], blended[0]);
+  return e;
+}
+
 }  // namespace
 
 std::string contact_status_text(std::uint32_t status) {
@@ -983,6 +1003,23 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
           result.area_mm2 = polygon_area_px2(result.outline_px) / (options_.px_per_mm * options_.px_per_mm);
           *result.ellipse = fit->ellipse;
           result.ridge_label_shape_px = cv::Vec3d(fit->shape_size_px, fit->shape_cos2_px, fit->shape_sin2_px);
+        } else if (small_contact && options_.ridge_label_shape_weight > 0.0) {
+          // The outline (already moved by the shift) goes with its ellipse onto the blended one.
+          Ellipse level_edge = *result.ellipse;
+          level_edge.cx_px += shift.x;
+          level_edge.cy_px += shift.y;
+          const Ellipse blended =
+              with_blended_shape(level_edge, fit->ellipse, options_.ridge_label_shape_weight);
+          const cv::Matx23d map = ellipse_to_ellipse(level_edge, blended);
+          for (auto& p : result.outline_px) {
+            const cv::Vec2d moved = map * cv::Vec3d(p.x, p.y, 1.0);
+            p = cv::Point2d(moved[0], moved[1]);
+          }
+          result.hull_px = resample_closed_polygon(result.outline_px, options_.hull_points);
+          result.area_mm2 = polygon_area_px2(result.outline_px) / (options_.px_per_mm * options_.px_per_mm);
+          const cv::Vec2d shape_change = shape_vector(blended) - shape_vector(level_edge);
+          result.ridge_label_shape_px = cv::Vec3d(0.0, shape_change[0], shape_change[1]);
+          *result.ellipse = blended;
         } else {
           for (auto& p : result.hull_px) p += shift;
           result.ellipse->cx_px += shift.x;

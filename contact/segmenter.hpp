@@ -141,6 +141,12 @@ struct SegmenterOptions {
   // period. Costs about 0.9 ms a frame on a large contact (session 22), 3 ms on a small one.
   double ridge_label_below_periods = 5.0;
   bool ridge_label_centre = true;
+  // Small contacts (the logistic fit): the ellipse's elongation and its direction are this weight of the
+  // fit's, the rest the level edge's; the size stays the level edge's (the fit's axes run ~2.5 px long). Each
+  // errs by where the fingerprint's valleys lie along the border, partly independently: on the tiny contact
+  // with four fingerprints the axes' RMS error went 1.31 -> 1.19 % and the shipped trial's worst frame 2.08
+  // -> 1.70 % (BENCHMARKS.md, contact/, session 27). 0: the level edge's shape.
+  double ridge_label_shape_weight = 0.5;
   // The border band's intensity fit (contact/border_band.hpp) for large contacts, with ridge_label_centre:
   // the centre becomes the mean of the brackets' and the fit's, and on frames averaged along the border (too
   // noisy for labels) the fit's alone. Over 13 fingerprints (the default scene's seeds and two more scenes)
@@ -182,7 +188,8 @@ struct ContactResult {
   std::optional<cv::Point2d> ridge_label_shift_px;
   // With the brackets (large contacts), the border's radial change size + cos2 cos 2 phi + sin2 sin 2 phi
   // (phi about the centre) fitted to the same labels, (size, cos2, sin2) px, also applied to the outline,
-  // hull, area and ellipse (contact/ridge_labels.hpp).
+  // hull, area and ellipse (contact/ridge_labels.hpp). With the logistic fit (small contacts), (0, cos2,
+  // sin2): the ellipse's elongation change from ridge_label_shape_weight, in the same form to first order.
   std::optional<cv::Vec3d> ridge_label_shape_px;
   int polarity = 0;  // -1: contact darker than background (dark ridges), +1 brighter, 0 unknown
 };

@@ -121,6 +121,28 @@ TEST(EllipseNormalization, MapsEllipseOntoStandardEllipseAndBack) {
   EXPECT_LT(worst_px, 1e-9);
 }
 
+// The map between two ellipses carries the border onto the border, point for point at the same parameter,
+// and the centre onto the centre; between an ellipse and itself it is the identity.
+TEST(EllipseToEllipse, CarriesBorderOntoBorder) {
+  const Ellipse from{101.5, 87.25, 45.0, 43.5, 1.2};
+  const Ellipse to{103.0, 86.0, 44.6, 42.9, -0.4};
+  const cv::Matx23d map = ellipse_to_ellipse(from, to);
+  const auto apply = [&](const cv::Point2d& p) {
+    const cv::Vec2d q = map * cv::Vec3d(p.x, p.y, 1.0);
+    return cv::Point2d(q[0], q[1]);
+  };
+  const std::vector<cv::Point2d> border_from = sample_ellipse(from, 36, 0.0, 6.1);
+  const std::vector<cv::Point2d> border_to = sample_ellipse(to, 36, 0.0, 6.1);
+  for (std::size_t i = 0; i < border_from.size(); ++i) {
+    EXPECT_LT(cv::norm(apply(border_from[i]) - border_to[i]), 1e-9) << i;
+    EXPECT_NEAR(ellipse_level(to, apply(border_from[i])), 0.0, 1e-12);
+  }
+  EXPECT_LT(cv::norm(apply({from.cx_px, from.cy_px}) - cv::Point2d(to.cx_px, to.cy_px)), 1e-12);
+  const cv::Matx23d identity = ellipse_to_ellipse(from, from);
+  for (int r = 0; r < 2; ++r)
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(identity(r, c), r == c ? 1.0 : 0.0, 1e-12);
+}
+
 TEST(Geometry, ResampledPolygonPointsAreEquallySpaced) {
   // Perimeter 400 and sides that are multiples of 8, so every step of 400 / 50 = 8 is a straight chord.
   const std::vector<cv::Point2d> rectangle = {{0, 0}, {120, 0}, {120, 80}, {0, 80}};

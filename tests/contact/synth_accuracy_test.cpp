@@ -340,6 +340,55 @@ TEST(SynthAccuracy, BorderBandCentre) {
   }
 }
 
+// The tiny contact's shape (SegmenterOptions::ridge_label_shape_weight): the elongation and direction half
+// the level edge's, half the logistic fit's. The shipped trial, all 60 frames (session 27): the level edge's
+// shape alone, worst semi-axis error 2.08 % (frame 43; the minor axis 1.2 % short on average), RMS over
+// frames and both axes 0.96 %; the blend 1.70 % and 0.55 %. Asserted: every frame within the 2 % and
+// IoU >= 0.93 with the blend, some frame above 2 % without it, and the RMS below 0.7 %.
+TEST(SynthAccuracy, TinyContactShapeFromLabelsAndLevelEdge) {
+  fs::path dir;
+  render(
+      "hard_tiny_contact", "hard_tiny_contact_all_frames", [](YAML::Node&) {}, &dir);
+  if (dir.empty()) return;
+  SegmenterOptions options = pipeline::segmenter_options_for(load_scene((dir / "scene.yaml").string()));
+  ASSERT_GT(options.ridge_label_shape_weight, 0.0);
+  ContactSegmenter blended(options);
+  options.ridge_label_shape_weight = 0.0;
+  ContactSegmenter level_edge(options);
+  H5Reader truth((dir / "truth.h5").string());
+  H5Shape shape;
+  const auto masks = truth.read_integers("/contact/mask", &shape);
+  ASSERT_EQ(shape[0], 60u);
+  const cv::Size size(static_cast<int>(shape[2]), static_cast<int>(shape[1]));
+  double sum_squared_pct2[2] = {0.0, 0.0}, worst_pct[2] = {0.0, 0.0}, worst_iou[2] = {1.0, 1.0};
+  for (std::size_t f = 0; f < shape[0]; ++f) {
+    const cv::Mat image = frame_image(dir, f);
+    const TruthContact truth_now = truth_contact(masks, shape, f);
+    ASSERT_TRUE(truth_now.ellipse.has_value());
+    const Ellipse& t = *truth_now.ellipse;
+    for (int k = 0; k < 2; ++k) {
+      const ContactResult r = (k == 0 ? level_edge : blended).segment(image);
+      ASSERT_TRUE(r.ellipse.has_value()) << "frame " << f;
+      EXPECT_TRUE(r.ridge_label_shift_px.has_value()) << "frame " << f;
+      for (const double error_pct : {100.0 * (r.ellipse->semi_major_px / t.semi_major_px - 1.0),
+                                     100.0 * (r.ellipse->semi_minor_px / t.semi_minor_px - 1.0)}) {
+        sum_squared_pct2[k] += error_pct * error_pct;
+        worst_pct[k] = std::max(worst_pct[k], std::abs(error_pct));
+      }
+      worst_iou[k] = std::min(worst_iou[k], mask_iou(rasterize_polygon(r.hull_px, size), truth_now.mask));
+    }
+  }
+  const double rms_pct[2] = {std::sqrt(sum_squared_pct2[0] / (2.0 * shape[0])),
+                             std::sqrt(sum_squared_pct2[1] / (2.0 * shape[0]))};
+  std::cout << "  tiny contact, 60 frames: semi-axis error RMS / worst " << rms_pct[0] << " / "
+            << worst_pct[0] << " % with the level edge's shape, " << rms_pct[1] << " / " << worst_pct[1]
+            << " % blended; worst IoU " << worst_iou[0] << ", " << worst_iou[1] << "\n";
+  EXPECT_LE(worst_pct[1], 2.0);
+  EXPECT_LE(rms_pct[1], 0.7);
+  EXPECT_GE(worst_iou[1], 0.93);
+  EXPECT_GT(worst_pct[0], 2.0);
+}
+
 // The same tiny contact (same truth mask) with the fingerprint's core at the contact's centre and well
 // outside it: the ridge phase along the border decides the outline where a valley lies along it, so the
 // centre is good when ridges cross the border and several pixels off when they run around it (BENCHMARKS.md,
@@ -389,8 +438,10 @@ TEST(SynthAccuracy, TinyContactCentreDependsOnWhereTheFingerprintLies) {
       EXPECT_GE(centre_px, low_px);
       EXPECT_LE(centre_px, high_px);
       EXPECT_LE(labelled_px, labelled_max_px);
-      EXPECT_NEAR(labelled.ellipse->semi_major_px, r.ellipse->semi_major_px, 1e-9);
-      EXPECT_NEAR(labelled.area_mm2, r.area_mm2, 1e-9);
+      // The labels move the outline and blend its elongation; its mean semi-axis stays the level edge's.
+      EXPECT_NEAR(labelled.ellipse->semi_major_px + labelled.ellipse->semi_minor_px,
+                  r.ellipse->semi_major_px + r.ellipse->semi_minor_px, 1e-9);
+      EXPECT_NEAR(labelled.area_mm2 / r.area_mm2, 1.0, 0.005);
     }
   }
 }
