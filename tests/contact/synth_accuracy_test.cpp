@@ -13,6 +13,7 @@
 #include <functional>
 #include <iostream>
 #include <optional>
+#include <span>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -83,6 +84,58 @@ TruthContact truth_contact(const std::vector<std::int64_t>& masks, const H5Shape
         masks[f * static_cast<std::size_t>(height * width) + static_cast<std::size_t>(i)] != 0 ? 255 : 0;
   truth.ellipse = pipeline::truth_contact_ellipse(truth.mask);
   return truth;
+}
+
+// One segmenter's errors against the truth over a trial's frames: the centre (px), both semi-axes pooled
+// (relative: 0.01 = 1 %), RMS and worst, and the worst mask IoU.
+struct FrameErrors {
+  double sum_squared_centre_px2 = 0.0, worst_centre_px = 0.0;
+  double sum_squared_axis = 0.0, worst_axis = 0.0;
+  double worst_iou = 1.0;
+  int frames = 0;
+
+  void add(const ContactResult& r, const TruthContact& truth, cv::Size size) {
+    const Ellipse& m = *r.ellipse;
+    const Ellipse& t = *truth.ellipse;
+    const double centre_px = std::hypot(m.cx_px - t.cx_px, m.cy_px - t.cy_px);
+    sum_squared_centre_px2 += centre_px * centre_px;
+    worst_centre_px = std::max(worst_centre_px, centre_px);
+    for (const double axis :
+         {m.semi_major_px / t.semi_major_px - 1.0, m.semi_minor_px / t.semi_minor_px - 1.0}) {
+      sum_squared_axis += 0.5 * axis * axis;
+      worst_axis = std::max(worst_axis, std::abs(axis));
+    }
+    worst_iou = std::min(worst_iou, mask_iou(rasterize_polygon(r.hull_px, size), truth.mask));
+    ++frames;
+  }
+  double centre_rms_px() const { return std::sqrt(sum_squared_centre_px2 / std::max(1, frames)); }
+  double axis_rms() const { return std::sqrt(sum_squared_axis / std::max(1, frames)); }
+};
+
+// Segments the first `frames` frames of the trial rendered in `dir` (all of them when 0) with each of
+// `segmenters` in turn, in frame order, adding each one's errors to the matching `errors`. `check`
+// (optional) is called with each result, e.g. to assert which centre was applied.
+void measure_frames(
+    const fs::path& dir, std::size_t frames, std::span<ContactSegmenter> segmenters,
+    std::span<FrameErrors> errors,
+    const std::function<void(std::size_t f, std::size_t k, const ContactResult&)>& check = {}) {
+  ASSERT_EQ(segmenters.size(), errors.size());
+  H5Reader truth((dir / "truth.h5").string());
+  H5Shape shape;
+  const auto masks = truth.read_integers("/contact/mask", &shape);
+  const std::size_t count = frames == 0 ? shape[0] : std::min<std::size_t>(frames, shape[0]);
+  for (std::size_t f = 0; f < count; ++f) {
+    const cv::Mat image = frame_image(dir, f);
+    ASSERT_FALSE(image.empty()) << dir << " frame " << f;
+    const TruthContact truth_now = truth_contact(masks, shape, f);
+    ASSERT_TRUE(truth_now.ellipse.has_value()) << dir << " frame " << f;
+    for (std::size_t k = 0; k < segmenters.size(); ++k) {
+      const ContactResult r = segmenters[k].segment(image);
+      ASSERT_TRUE(r.ellipse.has_value()) << dir << " frame " << f << " segmenter " << k;
+      if (check) check(f, k, r);
+      errors[k].add(r, truth_now, image.size());
+    }
+  }
 }
 
 // Renders samples/scenes/<name>.yaml with two frames and segments both.
@@ -191,28 +244,17 @@ TEST(SynthAccuracy, SlidingTrialCentre) {
   render(
       "affine_stretch_50", "affine_stretch_50_all_frames", [](YAML::Node&) {}, &dir);
   if (dir.empty()) return;
-  const Scene scene = load_scene((dir / "scene.yaml").string());
-  ContactSegmenter segmenter(pipeline::segmenter_options_for(scene));
-  H5Reader truth((dir / "truth.h5").string());
-  H5Shape shape;
-  const auto masks = truth.read_integers("/contact/mask", &shape);
-  ASSERT_EQ(shape[0], 60u);
-  double sum_squared_px2 = 0.0, worst_px = 0.0;
-  for (std::size_t f = 0; f < shape[0]; ++f) {
-    const ContactResult r = segmenter.segment(frame_image(dir, f));
-    const TruthContact truth_now = truth_contact(masks, shape, f);
-    ASSERT_TRUE(r.ellipse && truth_now.ellipse) << "frame " << f;
+  ContactSegmenter segmenter[1] = {
+      ContactSegmenter(pipeline::segmenter_options_for(load_scene((dir / "scene.yaml").string())))};
+  FrameErrors errors[1];
+  measure_frames(dir, 0, segmenter, errors, [](std::size_t f, std::size_t, const ContactResult& r) {
     EXPECT_TRUE(r.ridge_label_shift_px.has_value()) << "frame " << f;
-    const double centre_px =
-        std::hypot(r.ellipse->cx_px - truth_now.ellipse->cx_px, r.ellipse->cy_px - truth_now.ellipse->cy_px);
-    sum_squared_px2 += centre_px * centre_px;
-    worst_px = std::max(worst_px, centre_px);
-  }
-  const double rms_px = std::sqrt(sum_squared_px2 / static_cast<double>(shape[0]));
-  std::cout << "  affine_stretch_50, 60 frames: centre error RMS " << rms_px << " px, worst " << worst_px
-            << " px\n";
-  EXPECT_LE(rms_px, 0.6);
-  EXPECT_LE(worst_px, 1.1);
+  });
+  ASSERT_EQ(errors[0].frames, 60);
+  std::cout << "  affine_stretch_50, 60 frames: centre error RMS " << errors[0].centre_rms_px()
+            << " px, worst " << errors[0].worst_centre_px << " px\n";
+  EXPECT_LE(errors[0].centre_rms_px(), 0.6);
+  EXPECT_LE(errors[0].worst_centre_px, 1.1);
 }
 
 // Other fingerprints: the default scene with seeds 2, 4 and 6 (ridge flow, minutiae, border irregularity and
@@ -227,10 +269,7 @@ TEST(SynthAccuracy, SlidingTrialCentre) {
 // fails on all three and the earlier rules on the axes (BENCHMARKS.md, contact/, session 24: nine seeds,
 // every frame).
 TEST(SynthAccuracy, ShapeAndCentreOnOtherFingerprints) {
-  SegmenterOptions level_edge_only;
-  double worst_axis[2] = {0.0, 0.0}, sum_squared_axis[2] = {0.0, 0.0}, sum_squared_px2[2] = {0.0, 0.0};
-  double worst_iou[2] = {1.0, 1.0};
-  int frames = 0;
+  FrameErrors errors[2];  // the segmenter's defaults, the level edge alone
   for (const int seed : {2, 4, 6}) {
     fs::path dir;
     render(
@@ -242,49 +281,29 @@ TEST(SynthAccuracy, ShapeAndCentreOnOtherFingerprints) {
         },
         &dir);
     if (dir.empty()) return;
-    const Scene scene = load_scene((dir / "scene.yaml").string());
-    SegmenterOptions options = pipeline::segmenter_options_for(scene);
-    level_edge_only = options;
+    const SegmenterOptions options =
+        pipeline::segmenter_options_for(load_scene((dir / "scene.yaml").string()));
+    SegmenterOptions level_edge_only = options;
     level_edge_only.ridge_label_centre = false;
     level_edge_only.ridge_label_below_periods = 0.0;
     ContactSegmenter segmenters[2] = {ContactSegmenter(options), ContactSegmenter(level_edge_only)};
-    H5Reader truth((dir / "truth.h5").string());
-    H5Shape shape;
-    const auto masks = truth.read_integers("/contact/mask", &shape);
-    for (std::size_t f = 0; f < shape[0]; ++f) {
-      const cv::Mat image = frame_image(dir, f);
-      const TruthContact truth_now = truth_contact(masks, shape, f);
-      ASSERT_TRUE(truth_now.ellipse.has_value());
-      const Ellipse& t = *truth_now.ellipse;
-      for (int k = 0; k < 2; ++k) {
-        const ContactResult r = segmenters[k].segment(image);
-        ASSERT_TRUE(r.ellipse.has_value()) << "seed " << seed << " frame " << f;
-        EXPECT_EQ(r.ridge_label_shape_px.has_value(), k == 0) << "seed " << seed << " frame " << f;
-        const double centre_px = std::hypot(r.ellipse->cx_px - t.cx_px, r.ellipse->cy_px - t.cy_px);
-        sum_squared_px2[k] += centre_px * centre_px;
-        const double major = r.ellipse->semi_major_px / t.semi_major_px - 1.0;
-        const double minor = r.ellipse->semi_minor_px / t.semi_minor_px - 1.0;
-        sum_squared_axis[k] += 0.5 * (major * major + minor * minor);
-        worst_axis[k] = std::max({worst_axis[k], std::abs(major), std::abs(minor)});
-        worst_iou[k] =
-            std::min(worst_iou[k], mask_iou(rasterize_polygon(r.hull_px, image.size()), truth_now.mask));
-      }
-      ++frames;
-    }
+    measure_frames(dir, 0, segmenters, errors, [seed](std::size_t f, std::size_t k, const ContactResult& r) {
+      EXPECT_EQ(r.ridge_label_shape_px.has_value(), k == 0) << "seed " << seed << " frame " << f;
+    });
   }
-  const double rms_px[2] = {std::sqrt(sum_squared_px2[0] / frames), std::sqrt(sum_squared_px2[1] / frames)};
-  const double rms_axis[2] = {std::sqrt(sum_squared_axis[0] / frames),
-                              std::sqrt(sum_squared_axis[1] / frames)};
-  std::cout << "  seeds 2, 4, 6, " << frames << " frames: semi-axis error RMS " << 100.0 * rms_axis[0]
-            << " %, worst " << 100.0 * worst_axis[0] << " %, worst IoU " << worst_iou[0] << ", centre RMS "
-            << rms_px[0] << " px; level edge alone " << 100.0 * rms_axis[1] << " / " << 100.0 * worst_axis[1]
-            << " %, IoU " << worst_iou[1] << ", " << rms_px[1] << " px\n";
-  EXPECT_LE(worst_axis[0], 0.015);
-  EXPECT_GE(worst_iou[0], 0.97);
-  EXPECT_LE(rms_px[0], 0.9);
-  EXPECT_GT(worst_axis[1], 0.015);
-  EXPECT_LT(worst_iou[1], 0.97);
-  EXPECT_GT(rms_px[1], 0.9);
+  std::cout << "  seeds 2, 4, 6, " << errors[0].frames << " frames: semi-axis error RMS "
+            << 100.0 * errors[0].axis_rms() << " %, worst " << 100.0 * errors[0].worst_axis
+            << " %, worst IoU " << errors[0].worst_iou << ", centre RMS " << errors[0].centre_rms_px()
+            << " px; level edge alone " << 100.0 * errors[1].axis_rms() << " / "
+            << 100.0 * errors[1].worst_axis << " %, IoU " << errors[1].worst_iou << ", "
+            << errors[1].centre_rms_px() << " px\n";
+  EXPECT_EQ(errors[0].frames, 60);
+  EXPECT_LE(errors[0].worst_axis, 0.015);
+  EXPECT_GE(errors[0].worst_iou, 0.97);
+  EXPECT_LE(errors[0].centre_rms_px(), 0.9);
+  EXPECT_GT(errors[1].worst_axis, 0.015);
+  EXPECT_LT(errors[1].worst_iou, 0.97);
+  EXPECT_GT(errors[1].centre_rms_px(), 0.9);
 }
 
 // The border band's intensity fit (`segmentation: {border_band_centre: true}`, contact/border_band.hpp) on
@@ -303,40 +322,26 @@ TEST(SynthAccuracy, BorderBandCentre) {
     if (dir.empty()) return;
     SegmenterOptions options = pipeline::segmenter_options_for(load_scene((dir / "scene.yaml").string()));
     ASSERT_FALSE(options.border_band_centre);  // opt-in
-    ContactSegmenter defaults(options);
+    const SegmenterOptions defaults = options;
     options.border_band_centre = true;
-    ContactSegmenter band(options);
-    H5Reader truth((dir / "truth.h5").string());
-    H5Shape shape;
-    const auto masks = truth.read_integers("/contact/mask", &shape);
-    ASSERT_EQ(shape[0], 60u);
+    ContactSegmenter segmenters[2] = {ContactSegmenter(defaults), ContactSegmenter(options)};
+    FrameErrors errors[2];  // by default, with the band
     constexpr std::size_t kFrames = 30;
-    double sum_squared_px2[2] = {0.0, 0.0}, worst_px[2] = {0.0, 0.0};
-    for (std::size_t f = 0; f < kFrames; ++f) {
-      const cv::Mat image = frame_image(dir, f);
-      const TruthContact truth_now = truth_contact(masks, shape, f);
-      ASSERT_TRUE(truth_now.ellipse.has_value());
-      const Ellipse& t = *truth_now.ellipse;
-      for (int k = 0; k < 2; ++k) {
-        const ContactResult r = (k == 0 ? defaults : band).segment(image);
-        ASSERT_TRUE(r.ellipse.has_value()) << name << " frame " << f;
-        // On the noisy trial the default leaves the level edge's centre; the band fit moves it.
-        if (name == "hard_heavy_noise") {
-          EXPECT_EQ(r.ridge_label_shift_px.has_value(), k == 1) << "frame " << f;
-        }
-        const double centre_px = std::hypot(r.ellipse->cx_px - t.cx_px, r.ellipse->cy_px - t.cy_px);
-        sum_squared_px2[k] += centre_px * centre_px;
-        worst_px[k] = std::max(worst_px[k], centre_px);
-      }
-    }
-    const double frames = static_cast<double>(kFrames);
+    measure_frames(dir, kFrames, segmenters, errors,
+                   [&](std::size_t f, std::size_t k, const ContactResult& r) {
+                     // On the noisy trial the default leaves the level edge's centre; the band fit moves it.
+                     if (name == "hard_heavy_noise") {
+                       EXPECT_EQ(r.ridge_label_shift_px.has_value(), k == 1) << "frame " << f;
+                     }
+                   });
     std::cout << "  " << name << ", " << kFrames << " frames: centre error RMS / worst "
-              << std::sqrt(sum_squared_px2[0] / frames) << " / " << worst_px[0] << " px by default, "
-              << std::sqrt(sum_squared_px2[1] / frames) << " / " << worst_px[1]
+              << errors[0].centre_rms_px() << " / " << errors[0].worst_centre_px << " px by default, "
+              << errors[1].centre_rms_px() << " / " << errors[1].worst_centre_px
               << " px with the border band\n";
-    EXPECT_LE(worst_px[1], 1.0) << name;
-    EXPECT_LE(std::sqrt(sum_squared_px2[1] / frames), 0.8) << name;
-    EXPECT_GT(worst_px[0], 1.0) << name;
+    EXPECT_EQ(errors[1].frames, static_cast<int>(kFrames));
+    EXPECT_LE(errors[1].worst_centre_px, 1.0) << name;
+    EXPECT_LE(errors[1].centre_rms_px(), 0.8) << name;
+    EXPECT_GT(errors[0].worst_centre_px, 1.0) << name;
   }
 }
 
@@ -352,41 +357,23 @@ TEST(SynthAccuracy, TinyContactShapeFromLabelsAndLevelEdge) {
   if (dir.empty()) return;
   SegmenterOptions options = pipeline::segmenter_options_for(load_scene((dir / "scene.yaml").string()));
   ASSERT_GT(options.ridge_label_shape_weight, 0.0);
-  ContactSegmenter blended(options);
+  const SegmenterOptions blended = options;
   options.ridge_label_shape_weight = 0.0;
-  ContactSegmenter level_edge(options);
-  H5Reader truth((dir / "truth.h5").string());
-  H5Shape shape;
-  const auto masks = truth.read_integers("/contact/mask", &shape);
-  ASSERT_EQ(shape[0], 60u);
-  const cv::Size size(static_cast<int>(shape[2]), static_cast<int>(shape[1]));
-  double sum_squared_pct2[2] = {0.0, 0.0}, worst_pct[2] = {0.0, 0.0}, worst_iou[2] = {1.0, 1.0};
-  for (std::size_t f = 0; f < shape[0]; ++f) {
-    const cv::Mat image = frame_image(dir, f);
-    const TruthContact truth_now = truth_contact(masks, shape, f);
-    ASSERT_TRUE(truth_now.ellipse.has_value());
-    const Ellipse& t = *truth_now.ellipse;
-    for (int k = 0; k < 2; ++k) {
-      const ContactResult r = (k == 0 ? level_edge : blended).segment(image);
-      ASSERT_TRUE(r.ellipse.has_value()) << "frame " << f;
-      EXPECT_TRUE(r.ridge_label_shift_px.has_value()) << "frame " << f;
-      for (const double error_pct : {100.0 * (r.ellipse->semi_major_px / t.semi_major_px - 1.0),
-                                     100.0 * (r.ellipse->semi_minor_px / t.semi_minor_px - 1.0)}) {
-        sum_squared_pct2[k] += error_pct * error_pct;
-        worst_pct[k] = std::max(worst_pct[k], std::abs(error_pct));
-      }
-      worst_iou[k] = std::min(worst_iou[k], mask_iou(rasterize_polygon(r.hull_px, size), truth_now.mask));
-    }
-  }
-  const double rms_pct[2] = {std::sqrt(sum_squared_pct2[0] / (2.0 * shape[0])),
-                             std::sqrt(sum_squared_pct2[1] / (2.0 * shape[0]))};
-  std::cout << "  tiny contact, 60 frames: semi-axis error RMS / worst " << rms_pct[0] << " / "
-            << worst_pct[0] << " % with the level edge's shape, " << rms_pct[1] << " / " << worst_pct[1]
-            << " % blended; worst IoU " << worst_iou[0] << ", " << worst_iou[1] << "\n";
-  EXPECT_LE(worst_pct[1], 2.0);
-  EXPECT_LE(rms_pct[1], 0.7);
-  EXPECT_GE(worst_iou[1], 0.93);
-  EXPECT_GT(worst_pct[0], 2.0);
+  ContactSegmenter segmenters[2] = {ContactSegmenter(options), ContactSegmenter(blended)};
+  FrameErrors errors[2];  // the level edge's shape, blended
+  measure_frames(dir, 0, segmenters, errors, [](std::size_t f, std::size_t, const ContactResult& r) {
+    EXPECT_TRUE(r.ridge_label_shift_px.has_value()) << "frame " << f;
+  });
+  std::cout << "  tiny contact, " << errors[1].frames << " frames: semi-axis error RMS / worst "
+            << 100.0 * errors[0].axis_rms() << " / " << 100.0 * errors[0].worst_axis
+            << " % with the level edge's shape, " << 100.0 * errors[1].axis_rms() << " / "
+            << 100.0 * errors[1].worst_axis << " % blended; worst IoU " << errors[0].worst_iou << ", "
+            << errors[1].worst_iou << "\n";
+  EXPECT_EQ(errors[1].frames, 60);
+  EXPECT_LE(errors[1].worst_axis, 0.02);
+  EXPECT_LE(errors[1].axis_rms(), 0.007);
+  EXPECT_GE(errors[1].worst_iou, 0.93);
+  EXPECT_GT(errors[0].worst_axis, 0.02);
 }
 
 // The same tiny contact (same truth mask) with the fingerprint's core at the contact's centre and well
