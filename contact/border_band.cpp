@@ -2,7 +2,6 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <numbers>
 #include <utility>
@@ -280,8 +279,7 @@ Eigen::VectorXd border_profile(const std::vector<BorderBandSample>& samples, con
     const double contrast = floor + (1.0 - floor) * rise;
     profile(i) = step * contrast;
     if (!gradient) continue;
-    // A = L(d) F(d): L the logistic step, F the contrast's rise; smoothstep5'(t) = 30 t^2 (1 - t)^2 on (0,
-    // 1).
+    // A = L(d) F(d): L the logistic step, F the contrast's rise (smoothstep5' = 30 t^2 (1 - t)^2 inside).
     const double t_inside = std::clamp(t, 0.0, 1.0);
     const double rise_slope = 30.0 * t_inside * t_inside * (1.0 - t_inside) * (1.0 - t_inside);
     const double step_slope = step * (1.0 - step);  // -dL/d(d / edge)

@@ -69,7 +69,7 @@ Eigen::VectorXd border_profile(const std::vector<BorderBandSample>& samples, con
 
 // `samples`: the band's pixels (ridge signal, sector), `wave_vectors`: per sector its ridges' wave vector
 // (rad/px; a zero vector for a sector without a wave), `start`: the ellipse to start from (frame px).
-// Nothing when too few samples, or when the fit leaves finite values.
+// Nothing when too few samples, no ridges in the band, or values that are not finite.
 std::optional<BorderBandFit> fit_border_band(std::vector<BorderBandSample> samples,
                                              std::vector<cv::Vec2d> wave_vectors, const Ellipse& start,
                                              double period_px, const BorderBandOptions& options = {});

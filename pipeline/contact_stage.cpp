@@ -259,12 +259,13 @@ contact::SegmenterOptions segmenter_options_for(const Scene& scene) {
     options.exclude_px = cv::Rect(r.x, r.y, r.width, r.height);
   }
   // segmentation: {downsample: 0, flat_field: true, border_average_snr: 20, ridge_label_centre: true,
-  // ridge_label_below_periods: 5, border_band_centre: false} —
+  // ridge_label_below_periods: 5, ridge_label_shape_weight: 0.5, border_band_centre: false} —
   // working-resolution factor (0 automatic from the ridge period, 1 full); the background flat field; the
   // texture SNR below which the edge is searched on the frame averaged along the border (0: never); the
   // centre from where ridges show near the border, on large contacts and on those under so many ridge
-  // periods in radius (0: none); the border band's intensity fit for the centre of large contacts (slower,
-  // more accurate). See contact/segmenter.hpp.
+  // periods in radius (0: none); on those small ones, the weight of the labels' elongation against the
+  // level edge's (0: the level edge's); the border band's intensity fit for the centre of large contacts
+  // (slower, more accurate). See contact/segmenter.hpp.
   YamlSection s(scene.segmentation, scene.file, "segmentation");
   options.downsample = static_cast<int>(s.integer("downsample", options.downsample, 0, 16));
   options.flat_field = s.boolean("flat_field", options.flat_field);
@@ -272,6 +273,8 @@ contact::SegmenterOptions segmenter_options_for(const Scene& scene) {
   options.ridge_label_centre = s.boolean("ridge_label_centre", options.ridge_label_centre);
   options.ridge_label_below_periods =
       s.number("ridge_label_below_periods", options.ridge_label_below_periods, 0.0, 1e6);
+  options.ridge_label_shape_weight =
+      s.number("ridge_label_shape_weight", options.ridge_label_shape_weight, 0.0, 1.0);
   options.border_band_centre = s.boolean("border_band_centre", options.border_band_centre);
   s.finish();
   return options;

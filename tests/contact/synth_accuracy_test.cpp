@@ -522,13 +522,15 @@ TEST(SynthAccuracy, SegmentationSceneKeys) {
   std::ofstream(path)
       << "calibration: {px_per_mm: 52}\n"
          "segmentation: {downsample: 2, flat_field: false, border_average_snr: 0, "
-         "ridge_label_centre: false, ridge_label_below_periods: 0, border_band_centre: true}\n";
+         "ridge_label_centre: false, ridge_label_below_periods: 0, ridge_label_shape_weight: 0.25, "
+         "border_band_centre: true}\n";
   const SegmenterOptions options = pipeline::segmenter_options_for(load_scene(path.string()));
   EXPECT_EQ(options.downsample, 2);
   EXPECT_FALSE(options.flat_field);
   EXPECT_EQ(options.border_average_snr, 0.0);
   EXPECT_FALSE(options.ridge_label_centre);
   EXPECT_EQ(options.ridge_label_below_periods, 0.0);
+  EXPECT_EQ(options.ridge_label_shape_weight, 0.25);
   EXPECT_TRUE(options.border_band_centre);
   const SegmenterOptions defaults = pipeline::segmenter_options_for(
       load_scene((fs::path(TIRSTRAIN_SOURCE_DIR) / "samples/scenes/default.yaml").string()));
@@ -536,6 +538,7 @@ TEST(SynthAccuracy, SegmentationSceneKeys) {
   EXPECT_EQ(defaults.border_average_snr, 20.0);
   EXPECT_TRUE(defaults.ridge_label_centre);
   EXPECT_EQ(defaults.ridge_label_below_periods, 5.0);
+  EXPECT_EQ(defaults.ridge_label_shape_weight, 0.5);
   EXPECT_FALSE(defaults.border_band_centre);
   std::ofstream(path) << "calibration: {px_per_mm: 52}\nsegmentation: {border_average_snr: -1}\n";
   try {
@@ -543,6 +546,13 @@ TEST(SynthAccuracy, SegmentationSceneKeys) {
     ADD_FAILURE() << "a negative border_average_snr was accepted";
   } catch (const std::exception& e) {
     EXPECT_NE(std::string(e.what()).find("border_average_snr"), std::string::npos) << e.what();
+  }
+  std::ofstream(path) << "calibration: {px_per_mm: 52}\nsegmentation: {ridge_label_shape_weight: 1.5}\n";
+  try {
+    pipeline::segmenter_options_for(load_scene(path.string()));
+    ADD_FAILURE() << "a ridge_label_shape_weight above 1 was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("ridge_label_shape_weight"), std::string::npos) << e.what();
   }
 }
 
