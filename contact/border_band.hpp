@@ -43,7 +43,10 @@ struct BorderBandSample {
 };
 
 struct BorderBandOptions {
-  int iterations = 5;   // Levenberg-Marquardt iterations per fit
+  // Levenberg-Marquardt iterations per fit. With the analytic Jacobian 3 give the centres 5 do (13
+  // fingerprints 0.794 / 1.661 px RMS / worst against 0.798 / 1.660; 2 and 1 the same within 0.02 px: the
+  // start is near) at ~20 % less time for the whole segmentation (BENCHMARKS.md, contact/, session 27).
+  int iterations = 3;
   int wave_rounds = 2;  // refinements of the sectors' wave vectors, each followed by a refit
   double initial_edge_px = 1.0;
   double initial_floor = 0.4;

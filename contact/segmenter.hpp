@@ -152,7 +152,7 @@ struct SegmenterOptions {
   // noisy for labels) the fit's alone. Over 13 fingerprints (the default scene's seeds and two more scenes)
   // the worst frame's centre error went 2.60 -> 1.66 px, on the two noisy scenes' other seeds 6.4 -> 2.3 px,
   // and no shipped trial has a frame above 1 px (1.11 -> 0.94); but where the ridges' contrast fades little
-  // towards the border it can cost (BENCHMARKS.md, contact/, session 26). It costs ~5 ms a frame, ~8 ms on
+  // towards the border it can cost (BENCHMARKS.md, contact/, session 26). It costs ~3.5 ms a frame, ~6 ms on
   // frames averaged along the border (session 27): opt-in.
   bool border_band_centre = false;
   double low_contrast = 0.02;  // texture energy (≈ 0.6 x ridge amplitude) below this: low contrast
