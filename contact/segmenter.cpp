@@ -439,6 +439,23 @@ Ellipse with_blended_shape(const Ellipse& base, const Ellipse& other, double wei
 
 }  // namespace
 
+SegmenterOptions with_preset(SegmenterOptions options, SegmentationPreset preset) {
+  const SegmenterOptions accurate;
+  options.flat_field = accurate.flat_field;
+  options.border_average_snr = accurate.border_average_snr;
+  options.ridge_label_centre = accurate.ridge_label_centre;
+  options.ridge_label_below_periods = accurate.ridge_label_below_periods;
+  options.ridge_label_shape_weight = accurate.ridge_label_shape_weight;
+  options.border_band_centre = preset == SegmentationPreset::accurate;
+  if (preset == SegmentationPreset::fast) {
+    options.flat_field = false;
+    options.border_average_snr = 0.0;
+    options.ridge_label_centre = false;
+    options.ridge_label_below_periods = 0.0;
+  }
+  return options;
+}
+
 std::string contact_status_text(std::uint32_t status) {
   if (status == kContactOk) return "ok";
   static const std::array<const char*, 7> names = {"no_contact",   "touches_edge", "multiple_blobs",
@@ -1029,6 +1046,7 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
             cv::boundingRect(std::vector<cv::Point2f>(result.outline_px.begin(), result.outline_px.end()));
         result.bounding_box_px = moved & cv::Rect(0, 0, full_size.width, full_size.height);
         result.ridge_label_shift_px = shift;
+        result.border_band_used = fit->border_band_used;
       }
     }
   }

@@ -22,6 +22,7 @@ struct ContactRecord {
   std::array<double, 5> ellipse{};  // cx, cy, semi-major, semi-minor, angle; zeros without an ellipse
   double texture_snr = 0.0;
   bool border_averaged = false;
+  bool border_band_used = false;
   std::optional<cv::Point2d> ridge_label_shift_px;
   std::optional<cv::Vec3d> ridge_label_shape_px;
   cv::Mat orientation_rad, coherence;
@@ -58,6 +59,7 @@ class ContactStage final : public Stage {
     record.hull_px = result.hull_px;
     record.texture_snr = result.texture_snr;
     record.border_averaged = result.border_averaged;
+    record.border_band_used = result.border_band_used;
     record.ridge_label_shift_px = result.ridge_label_shift_px;
     record.ridge_label_shape_px = result.ridge_label_shape_px;
     if (result.ellipse) {
@@ -131,7 +133,7 @@ class ContactStage final : public Stage {
     const auto by = static_cast<std::size_t>(blocks_.height), bx = static_cast<std::size_t>(blocks_.width);
     std::vector<std::int32_t> status(n);
     std::vector<double> area(n), hull(n * hull_points * 2, 0.0), ellipse(n * 5, 0.0), snr(n);
-    std::vector<std::int8_t> averaged(n), labelled(n);
+    std::vector<std::int8_t> averaged(n), labelled(n), band(n);
     std::vector<double> shift(n * 2, 0.0), shape(n * 3, 0.0);
     std::vector<float> orientation(n * by * bx, 0.0f), coherence(n * by * bx, 0.0f);
     for (std::size_t i = 0; i < n; ++i) {
@@ -141,6 +143,7 @@ class ContactStage final : public Stage {
       snr[i] = r.texture_snr;
       averaged[i] = r.border_averaged ? 1 : 0;
       labelled[i] = r.ridge_label_shift_px ? 1 : 0;
+      band[i] = r.border_band_used ? 1 : 0;
       if (r.ridge_label_shift_px) {
         shift[i * 2] = r.ridge_label_shift_px->x;
         shift[i * 2 + 1] = r.ridge_label_shift_px->y;
@@ -168,6 +171,7 @@ class ContactStage final : public Stage {
     out.write("/contact/texture_snr", std::span<const double>(snr), {n});
     out.write("/contact/border_averaged", std::span<const std::int8_t>(averaged), {n});
     out.write("/contact/ridge_label_centre", std::span<const std::int8_t>(labelled), {n});
+    out.write("/contact/border_band_centre", std::span<const std::int8_t>(band), {n});
     out.write("/contact/ridge_label_shift_px", std::span<const double>(shift), {n, 2});
     out.write("/contact/ridge_label_shape_px", std::span<const double>(shape), {n, 3});
     out.attribute("/contact", "px_per_mm", options_.px_per_mm);
@@ -187,13 +191,14 @@ class ContactStage final : public Stage {
     std::int64_t with_contact = 0;
     double area_sum = 0.0, area_max = 0.0;
     std::map<std::string, std::int64_t> flags;
-    std::int64_t border_averaged = 0, ridge_label_centre = 0;
+    std::int64_t border_averaged = 0, ridge_label_centre = 0, border_band = 0;
     std::vector<double> snr;
     for (const auto& r : records_) {
       if ((r.status & (contact::kNoContact | contact::kFrameSkipped)) == 0) {
         ++with_contact;
         if (r.border_averaged) ++border_averaged;
         if (r.ridge_label_shift_px) ++ridge_label_centre;
+        if (r.border_band_used) ++border_band;
         if (r.texture_snr > 0.0) snr.push_back(r.texture_snr);
         area_sum += r.area_mm2;
         area_max = std::max(area_max, r.area_mm2);
@@ -218,6 +223,7 @@ class ContactStage final : public Stage {
     }
     c["frames_border_averaged"] = border_averaged;
     c["frames_ridge_label_centre"] = ridge_label_centre;
+    c["frames_border_band_centre"] = border_band;
     c["segment_ms_per_frame"] = segmented_ > 0 ? 1e3 * segment_s_ / static_cast<double>(segmented_) : 0.0;
     summary["contact"] = c;
   }
@@ -258,15 +264,20 @@ contact::SegmenterOptions segmenter_options_for(const Scene& scene) {
     const RoiPx& r = *scene.reference_pattern_roi;
     options.exclude_px = cv::Rect(r.x, r.y, r.width, r.height);
   }
-  // segmentation: {downsample: 0, flat_field: true, border_average_snr: 20, ridge_label_centre: true,
-  // ridge_label_below_periods: 5, ridge_label_shape_weight: 0.5, border_band_centre: false} —
-  // working-resolution factor (0 automatic from the ridge period, 1 full); the background flat field; the
-  // texture SNR below which the edge is searched on the frame averaged along the border (0: never); the
-  // centre from where ridges show near the border, on large contacts and on those under so many ridge
-  // periods in radius (0: none); on those small ones, the weight of the labels' elongation against the
-  // level edge's (0: the level edge's); the border band's intensity fit for the centre of large contacts
-  // (slower, more accurate). See contact/segmenter.hpp.
+  // segmentation: {preset: accurate, downsample: 0, flat_field: true, border_average_snr: 20,
+  // ridge_label_centre: true, ridge_label_below_periods: 5, ridge_label_shape_weight: 0.5,
+  // border_band_centre: true} — the preset (accurate, balanced or fast: contact::SegmentationPreset) sets the
+  // switches after it, which then override it one by one; the working-resolution factor (0 automatic from
+  // the ridge period, 1 full); the background flat field; the texture SNR below which the edge is searched
+  // on the frame averaged along the border (0: never); the centre from where ridges show near the border, on
+  // large contacts and on those under so many ridge periods in radius (0: none); on those small ones, the
+  // weight of the labels' elongation against the level edge's (0: the level edge's); the border band's
+  // intensity fit for the centre of large contacts. See contact/segmenter.hpp.
   YamlSection s(scene.segmentation, scene.file, "segmentation");
+  const std::string preset = s.choice("preset", "accurate", {"accurate", "balanced", "fast"});
+  options = contact::with_preset(options, preset == "fast"       ? contact::SegmentationPreset::fast
+                                          : preset == "balanced" ? contact::SegmentationPreset::balanced
+                                                                 : contact::SegmentationPreset::accurate);
   options.downsample = static_cast<int>(s.integer("downsample", options.downsample, 0, 16));
   options.flat_field = s.boolean("flat_field", options.flat_field);
   options.border_average_snr = s.number("border_average_snr", options.border_average_snr, 0.0, 1e9);

@@ -59,6 +59,8 @@ const std::vector<Config>& all_configs() {
       {"auto_affine", "{preset: auto, refine: affine}", ""},
       {"auto_subset_9", "{preset: auto, subset_radius_px: 9}", ""},
       {"auto_segment_full_res", "{preset: auto}", "{downsample: 1}"},
+      {"auto_segment_balanced", "{preset: auto}", "{preset: balanced}"},
+      {"auto_segment_fast", "{preset: auto}", "{preset: fast}"},
   };
   return configs;
 }
@@ -276,8 +278,9 @@ void add_bench_command(CLI::App& app) {
       "Writes OUT/bench.csv and OUT/bench.png (strain error against frames/s, Pareto front marked).\n"
       "Configurations: delhaye2016 (the paper's preset), default (automatic), and one-setting sweeps of the\n"
       "automatic preset (window, pyramid levels, grid spacing, feature cap, shape function, subset radius,\n"
-      "full-resolution segmentation). Scenes (samples/scenes): default (640x512 CM), paper_camera_1280\n"
-      "(1280x1024, ~3000 tracks), hard_heavy_noise, hard_low_contrast, hard_large_displacement.\n"
+      "full-resolution segmentation, the balanced and fast segmentation presets).\n"
+      "Scenes (samples/scenes): default (640x512 CM), paper_camera_1280 (1280x1024, ~3000 tracks),\n"
+      "hard_heavy_noise, hard_low_contrast, hard_large_displacement.\n"
       "--quick: a 12-frame cut of the default scene, the two presets, one repeat (a CI smoke run, < 1 min).");
   sub->add_option("--out", args->out, "Output folder (default bench-output)");
   sub->add_option("--scenes-dir", args->scenes_dir, "Folder of the scene files")

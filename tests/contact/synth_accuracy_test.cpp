@@ -39,7 +39,9 @@ struct Tolerance {
   double centre_px;
   double axis_relative;
   bool border_averaged;  // texture SNR below SegmenterOptions::border_average_snr
-  bool ridge_labels;     // the centre from the ridge labels applied (ContactResult::ridge_label_shift_px)
+  // The centre moved from the level edge's (ContactResult::ridge_label_shift_px): by the ridge labels, or on
+  // frames averaged along the border by the border band's fit alone.
+  bool ridge_labels;
 };
 
 // Where the ellipse's centre comes from: the segmenter's defaults (the ridge labels) or the level edge alone.
@@ -201,10 +203,12 @@ void check_scene(const std::string& name, const Tolerance& tolerance,
 
 // Issue targets: IoU >= 0.97 on the default scene and >= 0.93 on hard cases with contact; centre <= 1 px and
 // axes <= 2 % of the truth's ellipse, asserted at those tolerances on these two frames at rest with the
-// segmenter's defaults: the centre from the ridge labels (brackets on the large contacts, the logistic fit on
-// the tiny one), the level edge's on the frames averaged along the border. Measured centre errors (session
-// 22): default 0.14 / 0.28 px, sweat 0.11 / 0.27, low contrast 0.38 / 0.39, heavy noise 0.27 / 0.41, tiny
-// 0.33 / 0.11. Over whole trials, while the skin slides under the contact, some sliding frames exceed 1 px
+// segmenter's defaults: the centre from the ridge labels (brackets and the border band's fit on the large
+// contacts, the logistic fit on the tiny one), the border band's fit alone on the frames averaged along the
+// border. Measured centre errors (session 28): default 0.49 / 0.28 px, sweat 0.11 / 0.18, low contrast 0.29 /
+// 0.43, heavy noise 0.40 / 0.59, tiny 0.33 / 0.11 (session 22, without the band: 0.14 / 0.28, 0.11 / 0.27,
+// 0.38 / 0.39, 0.27 / 0.41, 0.33 / 0.11). Over whole trials, while the skin slides under the contact, some
+// sliding frames exceed 1 px
 // (`tirstrain validate` reports every frame; BENCHMARKS.md, contact/, session 21).
 TEST(SynthAccuracy, DefaultScene) {
   check_scene("default", {0.97, 1.0, 0.02, false, true});
@@ -213,10 +217,10 @@ TEST(SynthAccuracy, SweatBlobs) {
   check_scene("hard_sweat_blobs", {0.93, 1.0, 0.02, false, true});
 }
 TEST(SynthAccuracy, LowContrast) {
-  check_scene("hard_low_contrast", {0.93, 1.0, 0.02, true, false});
+  check_scene("hard_low_contrast", {0.93, 1.0, 0.02, true, true});
 }
 TEST(SynthAccuracy, HeavyNoise) {
-  check_scene("hard_heavy_noise", {0.93, 1.0, 0.02, true, false});
+  check_scene("hard_heavy_noise", {0.93, 1.0, 0.02, true, true});
 }
 TEST(SynthAccuracy, TinyContact) {
   check_scene("hard_tiny_contact", {0.93, 1.0, 0.02, false, true});
@@ -307,14 +311,15 @@ TEST(SynthAccuracy, ShapeAndCentreOnOtherFingerprints) {
   EXPECT_GT(errors[1].centre_rms_px(), 0.9);
 }
 
-// The border band's intensity fit (`segmentation: {border_band_centre: true}`, contact/border_band.hpp) on
-// two of the four shipped trials where the default centre has a frame above 1 px, one for each way the fit
-// is used: the elliptical contact (the centre the mean of the brackets' and the band fit's) and the
-// heavy-noise one (too noisy for labels: the band fit's alone). Over all 60 frames (session 26):
-// elliptical_contact default 0.78 px RMS, worst 1.10 (frame 1); with the band 0.23 / 0.52; hard_heavy_noise
-// default 0.67 / 1.09 (frame 11), with the band 0.67 / 0.93 (frame 23). The trials are rendered whole, as
-// shipped, and their first 30 frames segmented (every worst frame lies there). Asserted: with the band every
-// frame within the issue's 1 px; without it some frame above (the comparison shows if either changes).
+// The border band's intensity fit (`segmentation: {border_band_centre: true}`, contact/border_band.hpp; on
+// by default since session 28) on two of the four shipped trials where the balanced preset's centre (the
+// band off) has a frame above 1 px, one for each way the fit is used: the elliptical contact (the centre the
+// mean of the brackets' and the band fit's) and the heavy-noise one (too noisy for labels: the band fit's
+// alone). Over all 60 frames (session 26): elliptical_contact default 0.78 px RMS, worst 1.10 (frame 1); with
+// the band 0.23 / 0.52; hard_heavy_noise default 0.67 / 1.09 (frame 11), with the band 0.67 / 0.93 (frame
+// 23). The trials are rendered whole, as shipped, and their first 30 frames segmented (every worst frame lies
+// there). Asserted: with the band every frame within the issue's 1 px; without it some frame above (the
+// comparison shows if either changes).
 TEST(SynthAccuracy, BorderBandCentre) {
   for (const std::string name : {"elliptical_contact", "hard_heavy_noise"}) {
     fs::path dir;
@@ -322,21 +327,23 @@ TEST(SynthAccuracy, BorderBandCentre) {
         name, name + "_all_frames", [](YAML::Node&) {}, &dir);
     if (dir.empty()) return;
     SegmenterOptions options = pipeline::segmenter_options_for(load_scene((dir / "scene.yaml").string()));
-    ASSERT_FALSE(options.border_band_centre);  // opt-in
-    const SegmenterOptions defaults = options;
-    options.border_band_centre = true;
-    ContactSegmenter segmenters[2] = {ContactSegmenter(defaults), ContactSegmenter(options)};
-    FrameErrors errors[2];  // by default, with the band
+    ASSERT_TRUE(options.border_band_centre);  // the default
+    const SegmenterOptions balanced = with_preset(options, SegmentationPreset::balanced);
+    ASSERT_FALSE(balanced.border_band_centre);
+    ContactSegmenter segmenters[2] = {ContactSegmenter(balanced), ContactSegmenter(options)};
+    FrameErrors errors[2];  // without the band, with it
     constexpr std::size_t kFrames = 30;
     measure_frames(dir, kFrames, segmenters, errors,
                    [&](std::size_t f, std::size_t k, const ContactResult& r) {
-                     // On the noisy trial the default leaves the level edge's centre; the band fit moves it.
+                     // On the noisy trial the balanced preset leaves the level edge's centre; the band fit
+                     // moves it.
                      if (name == "hard_heavy_noise") {
                        EXPECT_EQ(r.ridge_label_shift_px.has_value(), k == 1) << "frame " << f;
                      }
+                     EXPECT_EQ(r.border_band_used, k == 1) << name << " frame " << f;
                    });
     std::cout << "  " << name << ", " << kFrames << " frames: centre error RMS / worst "
-              << errors[0].centre_rms_px() << " / " << errors[0].worst_centre_px << " px by default, "
+              << errors[0].centre_rms_px() << " / " << errors[0].worst_centre_px << " px without the band, "
               << errors[1].centre_rms_px() << " / " << errors[1].worst_centre_px
               << " px with the border band\n";
     EXPECT_EQ(errors[1].frames, static_cast<int>(kFrames));
@@ -471,7 +478,11 @@ TEST(SynthAccuracy, BorderAveragingOnATinyContact) {
 // that only the illumination differs, rendered with flat light and with strong vignetting (30 % at the
 // corners): with the flat field the two ellipses agree; without it the vignetted one is measured smaller
 // (grey closing flattens the background that rises outward beside the contact, so the edge level is
-// reached too early).
+// reached too early). On the balanced preset: the border band's fit (on by default) moves its centre by up to
+// 0.4 px between any two renders that differ a little, not steadily with the light (band fit alone, flat
+// light to 30 % vignetting in steps of 5 %: x 319.41, 319.57, 319.17, 319.43, 319.31, 319.29, 319.06 px;
+// session 28); that is its scatter, not a dependence on the light. With it, both centres are asserted against
+// the truth's instead.
 TEST(SynthAccuracy, OutlineDoesNotDependOnVignetting) {
   const auto edit = [](double vignetting) {
     return [vignetting](YAML::Node& yaml) {
@@ -492,7 +503,8 @@ TEST(SynthAccuracy, OutlineDoesNotDependOnVignetting) {
   ASSERT_FALSE(vignetted_image.empty());
   const Scene scene = load_scene((flat_dir / "scene.yaml").string());
   for (const bool flat_field : {true, false}) {
-    SegmenterOptions options = pipeline::segmenter_options_for(scene);
+    SegmenterOptions options =
+        with_preset(pipeline::segmenter_options_for(scene), SegmentationPreset::balanced);
     options.flat_field = flat_field;
     const ContactResult flat = ContactSegmenter(options).segment(flat_image);
     const ContactResult vignetted = ContactSegmenter(options).segment(vignetted_image);
@@ -512,6 +524,22 @@ TEST(SynthAccuracy, OutlineDoesNotDependOnVignetting) {
       // The effect the flat field removes is there to be removed (the test can fail).
       EXPECT_GT(std::max(std::abs(major), std::abs(minor)), 0.01);
     }
+  }
+  H5Reader truth((flat_dir / "truth.h5").string());
+  H5Shape shape;
+  const std::optional<Ellipse> truth_ellipse =
+      truth_contact(truth.read_integers("/contact/mask", &shape), shape, 0).ellipse;
+  ASSERT_TRUE(truth_ellipse.has_value());
+  const ContactSegmenter accurate(pipeline::segmenter_options_for(scene));
+  ASSERT_TRUE(accurate.options().border_band_centre);
+  for (const cv::Mat& image : {flat_image, vignetted_image}) {
+    const ContactResult r = ContactSegmenter(accurate.options()).segment(image);
+    ASSERT_TRUE(r.ellipse.has_value());
+    EXPECT_TRUE(r.border_band_used);
+    const double centre_px =
+        std::hypot(r.ellipse->cx_px - truth_ellipse->cx_px, r.ellipse->cy_px - truth_ellipse->cy_px);
+    std::cout << "  border band on: centre " << centre_px << " px from the truth's\n";
+    EXPECT_LE(centre_px, 0.3);
   }
 }
 
@@ -540,10 +568,26 @@ TEST(SynthAccuracy, SegmentationSceneKeys) {
   EXPECT_TRUE(defaults.ridge_label_centre);
   EXPECT_EQ(defaults.ridge_label_below_periods, 5.0);
   EXPECT_EQ(defaults.ridge_label_shape_weight, 0.5);
-  EXPECT_FALSE(defaults.border_band_centre);
+  EXPECT_TRUE(defaults.border_band_centre);
+  // A preset sets the switches; keys after it override them one by one.
+  std::ofstream(path) << "calibration: {px_per_mm: 52}\nsegmentation: {preset: fast}\n";
+  const SegmenterOptions fast = pipeline::segmenter_options_for(load_scene(path.string()));
+  EXPECT_FALSE(fast.flat_field);
+  EXPECT_EQ(fast.border_average_snr, 0.0);
+  EXPECT_FALSE(fast.ridge_label_centre);
+  EXPECT_EQ(fast.ridge_label_below_periods, 0.0);
+  EXPECT_FALSE(fast.border_band_centre);
+  std::ofstream(path)
+      << "calibration: {px_per_mm: 52}\nsegmentation: {preset: balanced, flat_field: false}\n";
+  const SegmenterOptions balanced = pipeline::segmenter_options_for(load_scene(path.string()));
+  EXPECT_FALSE(balanced.border_band_centre);
+  EXPECT_TRUE(balanced.ridge_label_centre);
+  EXPECT_EQ(balanced.ridge_label_below_periods, 5.0);
+  EXPECT_FALSE(balanced.flat_field);
   // An out-of-range value is refused, and the message names the key.
   for (const auto& [key, value] :
-       {std::pair{"border_average_snr", "-1"}, std::pair{"ridge_label_shape_weight", "1.5"}}) {
+       {std::pair{"border_average_snr", "-1"}, std::pair{"ridge_label_shape_weight", "1.5"},
+        std::pair{"preset", "quick"}}) {
     std::ofstream(path) << "calibration: {px_per_mm: 52}\nsegmentation: {" << key << ": " << value << "}\n";
     try {
       pipeline::segmenter_options_for(load_scene(path.string()));

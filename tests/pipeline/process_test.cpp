@@ -98,6 +98,7 @@ TEST(Process, WritesDocumentedResults) {
   EXPECT_EQ(h5.shape("/contact/texture_snr"), (H5Shape{n}));
   EXPECT_EQ(h5.shape("/contact/border_averaged"), (H5Shape{n}));
   EXPECT_EQ(h5.shape("/contact/ridge_label_centre"), (H5Shape{n}));
+  EXPECT_EQ(h5.shape("/contact/border_band_centre"), (H5Shape{n}));
   EXPECT_EQ(h5.shape("/contact/ridge_label_shift_px"), (H5Shape{n, 2}));
   EXPECT_EQ(h5.shape("/contact/ridge_label_shape_px"), (H5Shape{n, 3}));
   EXPECT_NE(h5.attribute_text("/", "software_version").find("tirstrain"), std::string::npos);
@@ -167,6 +168,7 @@ TEST(Process, WritesDocumentedResults) {
   EXPECT_EQ(summary["contact"]["frames_with_contact"], kFrames);
   EXPECT_EQ(summary["contact"]["frames_border_averaged"], 0);
   EXPECT_EQ(summary["contact"]["frames_ridge_label_centre"], kFrames);
+  EXPECT_EQ(summary["contact"]["frames_border_band_centre"], kFrames);  // on by default, on large contacts
   EXPECT_GT(summary["contact"]["texture_snr_median"].get<double>(), 20.0);
   EXPECT_EQ(summary["time_measured"], true);
 
