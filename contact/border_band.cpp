@@ -123,13 +123,18 @@ class Band {
                                    const Eigen::VectorXd& profile,
                                    Eigen::MatrixX2d* jacobian = nullptr) const {
     const Eigen::Index n = static_cast<Eigen::Index>(members.size());
+    Eigen::ArrayXf phase(n);
+    for (Eigen::Index j = 0; j < n; ++j) {
+      const BorderBandSample& s = samples_[members[static_cast<std::size_t>(j)]];
+      phase(j) = static_cast<float>(wave[0] * s.dx_px + wave[1] * s.dy_px);
+    }
+    const Eigen::ArrayXf cosine = phase.cos(), sine = phase.sin();  // in float, a vector register at a time
     Eigen::MatrixX3d basis(n, 3);
     Eigen::VectorXd y(n);
     for (Eigen::Index j = 0; j < n; ++j) {
       const BorderBandSample& s = samples_[members[static_cast<std::size_t>(j)]];
       const double a = profile(static_cast<Eigen::Index>(members[static_cast<std::size_t>(j)]));
-      const double phase = wave[0] * s.dx_px + wave[1] * s.dy_px;
-      basis.row(j) << a, a * std::cos(phase), a * std::sin(phase);
+      basis.row(j) << a, a * cosine(j), a * sine(j);
       y(j) = s.signal;
     }
     Eigen::Matrix3d normal = basis.transpose() * basis;
@@ -191,14 +196,15 @@ class Band {
   }
 
   void update_phases() {
-    cos_.resize(samples_.size());
-    sin_.resize(samples_.size());
+    Eigen::ArrayXf phase(static_cast<Eigen::Index>(samples_.size()));
     for (std::size_t i = 0; i < samples_.size(); ++i) {
       const cv::Vec2d& k = waves_[static_cast<std::size_t>(samples_[i].sector)];
-      const double phase = k[0] * samples_[i].dx_px + k[1] * samples_[i].dy_px;
-      cos_[i] = std::cos(phase);
-      sin_[i] = std::sin(phase);
+      phase(static_cast<Eigen::Index>(i)) =
+          static_cast<float>(k[0] * samples_[i].dx_px + k[1] * samples_[i].dy_px);
     }
+    const Eigen::ArrayXf cosine = phase.cos(), sine = phase.sin();
+    cos_.assign(cosine.begin(), cosine.end());
+    sin_.assign(sine.begin(), sine.end());
   }
 
   std::vector<BorderBandSample> samples_;
