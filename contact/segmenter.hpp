@@ -171,7 +171,7 @@ struct SegmenterOptions {
 // Three settings of the switches above by what they cost and give (BENCHMARKS.md, contact/, "Where contact/
 // stands"; 1280x1024, the 19 shipped synthetic trials, worst frame):
 //   accurate (the defaults): ~5.5 ms a frame, centre 0.93 px, semi-axes 2.0 %, IoU 0.956;
-//   balanced: the border band off: ~2.2 ms, centre 1.11 px, semi-axes 2.0 %;
+//   balanced: the border band off: ~2.0 ms, centre 1.11 px, semi-axes 2.0 %;
 //   fast: the flat field, the border averaging, the ridge labels and the band off: ~1.1 ms, centre 2.5 px,
 //         semi-axes 3.5 % (the default scene's IoU 0.975).
 enum class SegmentationPreset { fast, balanced, accurate };
