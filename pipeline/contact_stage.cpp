@@ -224,6 +224,14 @@ class ContactStage final : public Stage {
     c["frames_border_averaged"] = border_averaged;
     c["frames_ridge_label_centre"] = ridge_label_centre;
     c["frames_border_band_centre"] = border_band;
+    // The switches in effect (the preset's, after the scene's own keys and --segmentation).
+    c["settings"] = {{"flat_field", options_.flat_field},
+                     {"border_average_snr", options_.border_average_snr},
+                     {"ridge_label_centre", options_.ridge_label_centre},
+                     {"ridge_label_below_periods", options_.ridge_label_below_periods},
+                     {"ridge_label_shape_weight", options_.ridge_label_shape_weight},
+                     {"border_band_centre", options_.border_band_centre},
+                     {"downsample", options_.downsample}};
     c["segment_ms_per_frame"] = segmented_ > 0 ? 1e3 * segment_s_ / static_cast<double>(segmented_) : 0.0;
     summary["contact"] = c;
   }

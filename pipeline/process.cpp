@@ -155,6 +155,8 @@ Scene scene_with_overrides(const ProcessOptions& options, const std::optional<st
   };
   if (!options.tracking_preset.empty())
     scene.tracking = with_key(scene.tracking, "preset", options.tracking_preset);
+  if (!options.segmentation_preset.empty())
+    scene.segmentation = with_key(scene.segmentation, "preset", options.segmentation_preset);
   if (!options.strain_mode.empty()) scene.strain = with_key(scene.strain, "mode", options.strain_mode);
   return scene;
 }

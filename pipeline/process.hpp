@@ -25,9 +25,11 @@ struct ProcessOptions {
   bool strict = false;
   OverlayMode overlay = OverlayMode::kMp4;
   // Overrides of the scene (empty: the scene's value): extra stages to compute, the tracking preset, the
-  // strain mode.
+  // segmentation preset (accurate, balanced or fast: segmentation.preset; keys the scene's segmentation
+  // section sets itself still apply), the strain mode.
   std::vector<std::string> compute;
   std::string tracking_preset;
+  std::string segmentation_preset;
   std::string strain_mode;
   std::FILE* log = stderr;  // warnings and progress
 };

@@ -183,6 +183,7 @@ ValidationReport run_validate(const ValidateOptions& options) {
     process.overlay = OverlayMode::kNone;
     process.compute = {"contact", "tracking", "strain"};
     process.tracking_preset = options.tracking_preset;
+    process.segmentation_preset = options.segmentation_preset;
     process.strain_mode = options.strain_mode;
     process.log = options.log;
     const auto t0 = std::chrono::steady_clock::now();

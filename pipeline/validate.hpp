@@ -27,8 +27,9 @@ struct ValidateOptions {
   // Scene used for processing (e.g. with other tracking settings); default: the trial's own scene.yaml. The
   // truth always comes from the trial's scene.
   std::optional<std::string> process_scene_path;
-  std::string tracking_preset;  // "" = the scene's
-  std::string strain_mode;      // "" = the scene's
+  std::string tracking_preset;      // "" = the scene's
+  std::string segmentation_preset;  // "" = the scene's
+  std::string strain_mode;          // "" = the scene's
   double border_exclusion_mm = 0.3;
   int map_frame = -1;  // frame drawn in the side-by-side maps; −1: the frame of largest true energy
   bool write_maps = true;

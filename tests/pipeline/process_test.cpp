@@ -280,6 +280,23 @@ TEST(Process, StagesAskedForBringWhatTheyNeed) {
                                 out.string() + " --strict --quiet");
   EXPECT_EQ(strict.exit_code, 1);
   EXPECT_NE(strict.output.find("no timestamps"), std::string::npos) << strict.output;
+  // --segmentation replaces the scene's segmentation preset: fast turns the ridge labels and the band off.
+  const fs::path fast_out = scratch("stages_fast_out");
+  const CliRun fast = run_cli("process " + trial.string() + " --scene " + scene.string() + " --out " +
+                              fast_out.string() + " --overlay none --quiet --segmentation fast");
+  ASSERT_EQ(fast.exit_code, 0) << fast.output;
+  std::ifstream fast_file(fast_out / "summary.json");
+  const nlohmann::json fast_summary = nlohmann::json::parse(fast_file);
+  EXPECT_EQ(summary["contact"]["settings"]["border_band_centre"], true);
+  EXPECT_EQ(summary["contact"]["frames_border_band_centre"], 3);
+  EXPECT_EQ(fast_summary["contact"]["settings"]["border_band_centre"], false);
+  EXPECT_EQ(fast_summary["contact"]["settings"]["flat_field"], false);
+  EXPECT_EQ(fast_summary["contact"]["frames_border_band_centre"], 0);
+  EXPECT_EQ(fast_summary["contact"]["frames_ridge_label_centre"], 0);
+  const CliRun quick =
+      run_cli("process " + trial.string() + " --out " + out.string() + " --segmentation quick");
+  EXPECT_NE(quick.exit_code, 0);
+  EXPECT_NE(quick.output.find("quick"), std::string::npos) << quick.output;
   // --compute adds stages to the scene's list; an unknown name is an error.
   const CliRun unknown =
       run_cli("process " + trial.string() + " --out " + out.string() + " --compute straim");
