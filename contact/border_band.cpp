@@ -129,29 +129,42 @@ class Band {
       phase(j) = static_cast<float>(wave[0] * s.dx_px + wave[1] * s.dy_px);
     }
     const Eigen::ArrayXf cosine = phase.cos(), sine = phase.sin();  // in float, a vector register at a time
+    // The products below in fixed 3 x 3 and 3 x 2 sizes, accumulated sample by sample: a sector holds a few
+    // hundred samples, where Eigen's general matrix product spent more on its set-up than on the sums.
     Eigen::MatrixX3d basis(n, 3);
     Eigen::VectorXd y(n);
+    Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
     for (Eigen::Index j = 0; j < n; ++j) {
       const BorderBandSample& s = samples_[members[static_cast<std::size_t>(j)]];
       const double a = profile(static_cast<Eigen::Index>(members[static_cast<std::size_t>(j)]));
-      basis.row(j) << a, a * cosine(j), a * sine(j);
+      const Eigen::Vector3d b(a, a * cosine(j), a * sine(j));
+      basis.row(j) = b.transpose();
       y(j) = s.signal;
+      normal.noalias() += b * b.transpose();
+      rhs += b * y(j);
     }
-    Eigen::Matrix3d normal = basis.transpose() * basis;
     normal.diagonal().array() += 1e-9 * (normal.trace() + 1e-12);
     const Eigen::LDLT<Eigen::Matrix3d> factor = normal.ldlt();
-    const Eigen::Vector3d coefficients = factor.solve(basis.transpose() * y);
+    const Eigen::Vector3d coefficients = factor.solve(rhs);
+    Eigen::VectorXd residuals(n);
+    for (Eigen::Index j = 0; j < n; ++j) residuals(j) = y(j) - basis.row(j).dot(coefficients);
     if (jacobian) {
       // d/dphase of a (c1 cos + c2 sin) = a (c2 cos - c1 sin); dphase/dk = (dx, dy).
       Eigen::MatrixX2d change(n, 2);
+      Eigen::Matrix<double, 3, 2> basis_dot_change = Eigen::Matrix<double, 3, 2>::Zero();
       for (Eigen::Index j = 0; j < n; ++j) {
         const BorderBandSample& s = samples_[members[static_cast<std::size_t>(j)]];
         const double along = coefficients(2) * basis(j, 1) - coefficients(1) * basis(j, 2);
-        change.row(j) << along * s.dx_px, along * s.dy_px;
+        const Eigen::RowVector2d c(along * s.dx_px, along * s.dy_px);
+        change.row(j) = c;
+        basis_dot_change.noalias() += basis.row(j).transpose() * c;
       }
-      *jacobian = -(change - basis * factor.solve(basis.transpose() * change));
+      const Eigen::Matrix<double, 3, 2> along_basis = factor.solve(basis_dot_change);
+      jacobian->resize(n, 2);
+      for (Eigen::Index j = 0; j < n; ++j) jacobian->row(j) = basis.row(j) * along_basis - change.row(j);
     }
-    return y - basis * coefficients;
+    return residuals;
   }
 
   cv::Vec2d refined_wave(const std::vector<std::size_t>& members, cv::Vec2d wave,
@@ -162,8 +175,12 @@ class Band {
     Eigen::VectorXd e = sector_residuals(members, wave, profile, &jacobian);
     double cost = e.squaredNorm(), damping = 1e-3;
     for (int iteration = 0; iteration < 6; ++iteration) {
-      const Eigen::Matrix2d jtj = jacobian.transpose() * jacobian;
-      const Eigen::Vector2d gradient = jacobian.transpose() * e;
+      Eigen::Matrix2d jtj = Eigen::Matrix2d::Zero();
+      Eigen::Vector2d gradient = Eigen::Vector2d::Zero();
+      for (Eigen::Index j = 0; j < e.size(); ++j) {
+        jtj.noalias() += jacobian.row(j).transpose() * jacobian.row(j);
+        gradient += jacobian.row(j).transpose() * e(j);
+      }
       bool improved = false;
       for (int attempt = 0; attempt < 8 && !improved; ++attempt) {
         Eigen::Matrix2d damped = jtj;
