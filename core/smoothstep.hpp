@@ -11,4 +11,11 @@ inline double smoothstep5(double t) {
   return t * t * t * (t * (6.0 * t - 15.0) + 10.0);
 }
 
+// The same, element by element, for an Eigen array (a vector register at a time).
+template <typename Array>
+auto smoothstep5_array(const Array& t) {
+  const auto c = t.max(0.0).min(1.0).eval();
+  return (c * c * c * (c * (6.0 * c - 15.0) + 10.0)).eval();
+}
+
 }  // namespace tirstrain

@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
+
 #include "core/smoothstep.hpp"
 
 namespace tirstrain {
@@ -21,6 +23,12 @@ TEST(Smoothstep5, FlatAtBothEnds) {
   const double h = 1e-4;
   EXPECT_NEAR(smoothstep5(h), 10.0 * h * h * h, 1e-14);
   EXPECT_NEAR(1.0 - smoothstep5(1.0 - h), 10.0 * h * h * h, 1e-14);
+}
+
+TEST(Smoothstep5, ArrayFormMatchesTheScalarOne) {
+  const Eigen::ArrayXd t = Eigen::ArrayXd::LinSpaced(41, -0.5, 1.5);
+  const Eigen::ArrayXd s = smoothstep5_array(t);
+  for (Eigen::Index i = 0; i < t.size(); ++i) EXPECT_DOUBLE_EQ(s(i), smoothstep5(t(i))) << t(i);
 }
 
 }  // namespace
