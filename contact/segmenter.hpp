@@ -154,7 +154,7 @@ struct SegmenterOptions {
   // with a stronger contrast fade than the generator's 5.0 -> 2.7 px, and no shipped trial has a frame above
   // 1 px (1.11 -> 0.93); where the ridges' contrast fades little towards the border it costs (1.80 -> 1.91
   // px; BENCHMARKS.md, contact/, sessions 26 and 28). On by default since session 28: the issue's accuracy
-  // targets hold on every shipped trial only with it. It costs ~3.5 ms a frame, ~6 ms on frames averaged
+  // targets hold on every shipped trial only with it. It costs ~2.2 ms a frame, ~4 ms on frames averaged
   // along the border; SegmentationPreset::balanced turns it off.
   bool border_band_centre = true;
   double low_contrast = 0.02;  // texture energy (≈ 0.6 x ridge amplitude) below this: low contrast
@@ -170,7 +170,7 @@ struct SegmenterOptions {
 
 // Three settings of the switches above by what they cost and give (BENCHMARKS.md, contact/, "Where contact/
 // stands"; 1280x1024, the 19 shipped synthetic trials, worst frame):
-//   accurate (the defaults): ~5.5 ms a frame, centre 0.93 px, semi-axes 2.0 %, IoU 0.956;
+//   accurate (the defaults): ~4.2 ms a frame, centre 0.93 px, semi-axes 2.0 %, IoU 0.956;
 //   balanced: the border band off: ~2.0 ms, centre 1.11 px, semi-axes 2.0 %;
 //   fast: the flat field, the border averaging, the ridge labels and the band off: ~1.1 ms, centre 2.5 px,
 //         semi-axes 3.5 % (the default scene's IoU 0.975).

@@ -40,7 +40,7 @@ void add_process_command(CLI::App& app) {
   sub->add_option(
          "--segmentation", args->segmentation,
          "Contact segmentation preset, replacing the scene's segmentation.preset: accurate (default; "
-         "~5.5 ms per 1280x1024 frame), balanced (~2 ms), fast (~1 ms, centre to ~2.5 px)")
+         "~4 ms per 1280x1024 frame), balanced (~2 ms), fast (~1 ms, centre to ~2.5 px)")
       ->check(CLI::IsMember({"accurate", "balanced", "fast"}));
   sub->add_option("--strain-mode", args->strain_mode,
                   "exact (Green-Lagrange from F against the reference; default) or incremental (the paper's "
