@@ -208,8 +208,7 @@ void check_scene(const std::string& name, const Tolerance& tolerance,
 // border. Measured centre errors (session 28): default 0.49 / 0.28 px, sweat 0.11 / 0.18, low contrast 0.29 /
 // 0.43, heavy noise 0.40 / 0.59, tiny 0.33 / 0.11 (session 22, without the band: 0.14 / 0.28, 0.11 / 0.27,
 // 0.38 / 0.39, 0.27 / 0.41, 0.33 / 0.11). Over whole trials, while the skin slides under the contact, some
-// sliding frames exceed 1 px
-// (`tirstrain validate` reports every frame; BENCHMARKS.md, contact/, session 21).
+// sliding frames exceed 1 px (`tirstrain validate` reports every frame; BENCHMARKS.md, contact/, session 21).
 TEST(SynthAccuracy, DefaultScene) {
   check_scene("default", {0.97, 1.0, 0.02, false, true});
 }
@@ -530,10 +529,10 @@ TEST(SynthAccuracy, OutlineDoesNotDependOnVignetting) {
   const std::optional<Ellipse> truth_ellipse =
       truth_contact(truth.read_integers("/contact/mask", &shape), shape, 0).ellipse;
   ASSERT_TRUE(truth_ellipse.has_value());
-  const ContactSegmenter accurate(pipeline::segmenter_options_for(scene));
-  ASSERT_TRUE(accurate.options().border_band_centre);
+  const SegmenterOptions accurate = pipeline::segmenter_options_for(scene);
+  ASSERT_TRUE(accurate.border_band_centre);
   for (const cv::Mat& image : {flat_image, vignetted_image}) {
-    const ContactResult r = ContactSegmenter(accurate.options()).segment(image);
+    const ContactResult r = ContactSegmenter(accurate).segment(image);
     ASSERT_TRUE(r.ellipse.has_value());
     EXPECT_TRUE(r.border_band_used);
     const double centre_px =
@@ -569,7 +568,7 @@ TEST(SynthAccuracy, SegmentationSceneKeys) {
   EXPECT_EQ(defaults.ridge_label_below_periods, 5.0);
   EXPECT_EQ(defaults.ridge_label_shape_weight, 0.5);
   EXPECT_TRUE(defaults.border_band_centre);
-  // A preset sets the switches; keys after it override them one by one.
+  // A preset sets the switches; keys set beside it override them one by one.
   std::ofstream(path) << "calibration: {px_per_mm: 52}\nsegmentation: {preset: fast}\n";
   const SegmenterOptions fast = pipeline::segmenter_options_for(load_scene(path.string()));
   EXPECT_FALSE(fast.flat_field);
