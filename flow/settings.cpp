@@ -229,6 +229,8 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   s.reanchor_interval_frames =
       static_cast<int>(t.integer("reanchor_interval_frames", s.reanchor_interval_frames, 0, 100000));
   s.rest_average_frames = static_cast<int>(t.integer("rest_average_frames", s.rest_average_frames, 1, 10000));
+  s.rest_max_chi2_per_dof = t.number("rest_max_chi2_per_dof", s.rest_max_chi2_per_dof, 0.0, 100.0);
+  s.rest_max_correlation_z = t.number("rest_max_correlation_z", s.rest_max_correlation_z, 0.0, 100.0);
   s.rest_tolerance_px = t.number("rest_tolerance_px", s.rest_tolerance_px, 0.0, 10.0);
   s.rest_noise_sigmas = t.number("rest_noise_sigmas", s.rest_noise_sigmas, 0.0, 10.0);
   s.smooth_in_time = t.choice("smooth_in_time", s.smooth_in_time, {"auto", "on", "off"});
@@ -265,6 +267,8 @@ void validate(const TrackerSettings& s) {
   if (s.birth_interval_frames < 1) fail("birth_interval_frames", "must be at least 1");
   if (!(s.forward_backward_px > 0.0)) fail("forward_backward_px", "must be positive");
   if (s.rest_average_frames < 1) fail("rest_average_frames", "must be at least 1");
+  if (!(s.rest_max_chi2_per_dof >= 0.0)) fail("rest_max_chi2_per_dof", "must not be negative");
+  if (!(s.rest_max_correlation_z >= 0.0)) fail("rest_max_correlation_z", "must not be negative");
   if (!(s.rest_tolerance_px >= 0.0)) fail("rest_tolerance_px", "must not be negative");
   if (!(s.rest_noise_sigmas >= 0.0)) fail("rest_noise_sigmas", "must not be negative");
   if (s.fixed_shape_node_grid < 1 || s.fixed_shape_node_grid > 8)

@@ -131,14 +131,19 @@ struct TrackerSettings {
   // Refined tracking matches every frame against its anchor, so the anchor's pixel noise is in every
   // frame's error, frame after frame. While the skin has not moved since frame 0 (the hold before the
   // plate moves), frame 0's anchor becomes the mean of up to `rest_average_frames` such frames; 1 = off.
-  // "Not moved": an affine fit of the frame-0 tracks' displacements since frame 0 has an RMS over the
-  // tracks within `rest_tolerance_px`, or within `rest_noise_sigmas` of that fit's own noise (estimated from
-  // the tracks' scatter about it; on a small noisy contact the fit cannot tell less motion from noise, and
-  // a creep hidden in it blurs the anchor by less than the noise the averaging removes). The first frame
-  // that moves ends the averaging for good. The automatic preset averages up to 16 frames, and only noisy
-  // texture (SNR below min_unfiltered_snr), where the anchor's noise matters. While the skin rests (however
-  // long), the frame-0 tracks report the affine fit of their motion instead of their own matches.
+  // "Not moved" is a test on the frame's own evidence (flow/model_check.hpp): an affine fit of the frame-0
+  // tracks' own matches must describe them, its residuals consistent with each match's predicted noise (χ²
+  // per degree of freedom at most `rest_max_chi2_per_dof`) and without spatial structure (the correlation
+  // of independent neighbours' residuals at most `rest_max_correlation_z` as a z-score); and the fitted
+  // motion itself must be nil: its RMS over the tracks within `rest_tolerance_px`, or within
+  // `rest_noise_sigmas` of the fit's own uncertainty predicted from the matches' noise. A creep, a load or
+  // a first partial slip fails it, and the first frame that fails ends the averaging for good. While the
+  // test accepts, each frame-0 track reports the fit where it lies within its own match's noise. The
+  // automatic preset averages up to 16 frames, and only noisy texture (SNR below min_unfiltered_snr),
+  // where the anchor's noise matters.
   int rest_average_frames = 1;
+  double rest_max_chi2_per_dof = 1.5;
+  double rest_max_correlation_z = 3.0;
   double rest_tolerance_px = 0.05;
   double rest_noise_sigmas = 3.0;
 

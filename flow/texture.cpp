@@ -4,11 +4,39 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 
 #include "flow/mask_erosion.hpp"
 
 namespace tirstrain::flow {
+namespace {
+
+// The structure tensor of `smooth` (already low-passed at the ridge scale), integrated by a Gaussian of
+// P/2: over a window of about one period, ridges give one dominant gradient direction, a speckle none.
+double ridge_coherence(const cv::Mat& smooth, const cv::Mat& interior, double ridge_period_px) {
+  cv::Mat gx, gy;
+  cv::Sobel(smooth, gx, CV_32F, 1, 0, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
+  cv::Sobel(smooth, gy, CV_32F, 0, 1, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
+  cv::Mat jxx = gx.mul(gx), jyy = gy.mul(gy), jxy = gx.mul(gy);
+  const double sigma = 0.5 * ridge_period_px;
+  for (cv::Mat* j : {&jxx, &jyy, &jxy})
+    cv::GaussianBlur(*j, *j, cv::Size(), sigma, 0.0, cv::BORDER_REPLICATE);
+  double anisotropy = 0.0, energy = 0.0;
+  for (int y = 0; y < smooth.rows; ++y) {
+    const auto* in = interior.ptr<std::uint8_t>(y);
+    const auto *xx = jxx.ptr<float>(y), *yy = jyy.ptr<float>(y), *xy = jxy.ptr<float>(y);
+    for (int x = 0; x < smooth.cols; ++x) {
+      if (!in[x]) continue;
+      const double d = static_cast<double>(xx[x]) - yy[x];
+      anisotropy += std::sqrt(d * d + 4.0 * static_cast<double>(xy[x]) * xy[x]);
+      energy += static_cast<double>(xx[x]) + yy[x];
+    }
+  }
+  return energy > 0.0 ? anisotropy / energy : 0.0;
+}
+
+}  // namespace
 
 TextureQuality measure_texture(const cv::Mat& image, const cv::Mat& mask, double ridge_period_px) {
   CV_Assert(image.type() == CV_32F &&
@@ -46,6 +74,12 @@ TextureQuality measure_texture(const cv::Mat& image, const cv::Mat& mask, double
   cv::meanStdDev(fine - coarse, mean, stddev, interior);
   q.ridge_rms = stddev[0];
   q.snr = q.ridge_rms / std::max(q.noise_sigma, 1e-9);
+  q.coherence = ridge_coherence(fine, interior, ridge_period_px);
+  cv::Mat gx, gy;
+  cv::Sobel(view, gx, CV_32F, 1, 0, 3, 1.0 / 8.0, 0.0, cv::BORDER_REPLICATE);
+  cv::Sobel(view, gy, CV_32F, 0, 1, 3, 1.0 / 8.0, 0.0, cv::BORDER_REPLICATE);
+  q.gradient_energy = 0.5 * (cv::mean(gx.mul(gx), interior)[0] + cv::mean(gy.mul(gy), interior)[0]);
+  q.ridges = q.coherence >= kMinRidgeCoherence;
   return q;
 }
 

@@ -11,7 +11,19 @@ struct TextureQuality {
   double ridge_rms = 0.0;    // RMS of the ridge band (periods P/2..2P, roughly) over the contact interior
   double snr = 0.0;          // ridge_rms / noise_sigma
   int pixels = 0;            // interior pixels measured; 0 = nothing to measure (snr is then 0)
+  // How one-dimensional the texture is at the ridge scale: the structure tensor's coherence
+  // (λ1 − λ2) / (λ1 + λ2), integrated over P/2 and averaged over the interior weighted by its energy.
+  // Fingerprint ridges 0.5–0.95; isotropic texture (speckle) well under 0.3.
+  double coherence = 0.0;
+  // The texture has ridges (coherence ≥ kMinRidgeCoherence): the ridge period and the SNR above describe
+  // it. Without ridges the heuristics sized from the period (smoothing, the low-SNR subsets) do not apply.
+  bool ridges = false;
+  // Mean squared intensity gradient per pixel and direction, (⟨g_x²⟩ + ⟨g_y²⟩) / 2 (full scale 1 per px):
+  // with the noise, what a subset of n pixels pins its translation to, σ ≈ sqrt(2 σ_n² / (n ⟨g²⟩)).
+  double gradient_energy = 0.0;
 };
+
+constexpr double kMinRidgeCoherence = 0.35;
 
 // `image` CV_32F (full scale 1), `mask` CV_8U (non-zero = contact) of the same size or empty. The noise is
 // Immerkær's estimator (the mean absolute response to a kernel that cancels any locally linear, and very

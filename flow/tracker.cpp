@@ -56,10 +56,21 @@ struct TrackState {
   // The information of the subset the fixed-shape pass matched this frame for its translation.
   Eigen::Matrix2d fixed_information = Eigen::Matrix2d::Zero();
   MatchResult match;
+  // This frame's main subset match (match_track), when the track took one: the rest test's evidence, as
+  // its subset alone decides it (the later rounds blend in the neighbours' field).
+  int main_frame = -1;
+  OwnMatch main;
+  // This frame's own match before any model (record_own_matches): what a model must stay within.
+  bool own_valid = false;
+  OwnMatch own;
+  TrackModel model = TrackModel::kOwnMatch;
+  double model_mahalanobis2 = std::numeric_limits<double>::quiet_NaN();
 };
 
 // A contact with fewer grid points than this is small enough to be mostly border (adapt_to_texture).
 constexpr double kFewTracks = 300.0;
+// Texture without ridges: the noise the final (fixed-shape) subset is sized for, px.
+constexpr double kTargetNoisePx = 0.01;
 
 bool inside_mask(const cv::Mat& mask, Vec2 p) {
   const long ix = std::lround(p.x), iy = std::lround(p.y);
@@ -261,6 +272,9 @@ struct FeatureTracker::Impl {
         settings.fixed_shape_resampled)
       st.wide.release_pixels();
   }
+  void record_own_matches();
+  void decline_fusion_beyond_noise();
+  RestTestOptions rest_test_options() const;
   void follow_rest();
   double ridge_reach_px() const { return 0.25 * settings.window_px; }
   // The global shift's images are reduced by 2 or 4 while the ridges stay at least 5 px apart there.
@@ -329,7 +343,26 @@ void FeatureTracker::Impl::adapt_to_texture(double expected_tracks) {
     if (!settings.pinned.main_match_period) settings.main_match_period_frames = 1;
   }
   texture = measure_texture(current_f, mask, period);
-  if (!settings.adapt_to_texture || texture.pixels == 0 || texture.snr >= settings.min_unfiltered_snr) return;
+  if (!settings.adapt_to_texture || texture.pixels == 0) return;
+  // Without ridges (speckle, any isotropic texture) the smoothing and the low-SNR subsets below, sized from
+  // the ridge period and tuned on ridges, do not apply: the subsets keep the preset's sizes. Unsmoothed,
+  // neighbouring pixels carry independent noise, so a subset sampled on every s-th pixel would see s² times
+  // the noise variance: every pixel is matched.
+  if (!texture.ridges) {
+    if (!settings.pinned.subset_stride) settings.subset_stride = 1;
+    if (!settings.pinned.fixed_shape_stride) settings.fixed_shape_stride = 1;
+    // The wide subset that sets the final positions grows (up to twice the preset's) until its
+    // predicted noise reaches kTargetNoisePx: sqrt(2 σ_n² / (n ⟨g²⟩)) with n = (2r + 1)² pixels.
+    if (!settings.pinned.subset_radius && texture.gradient_energy > 0.0) {
+      const double side = std::sqrt(2.0 * texture.noise_sigma * texture.noise_sigma /
+                                    (kTargetNoisePx * kTargetNoisePx * texture.gradient_energy));
+      const int wide = std::max(settings.fixed_shape_radius_px, settings.subset_radius_px);
+      settings.fixed_shape_radius_px =
+          std::clamp(static_cast<int>(std::ceil(0.5 * (side - 1.0))), wide, 2 * wide);
+    }
+    return;
+  }
+  if (texture.snr >= settings.min_unfiltered_snr) return;
   // Light smoothing keeps 97 % of the ridge contrast and takes most pixel noise out of the reference
   // gradients: faster convergence and a lower error on noisy frames (not on noise-free ones).
   const auto& pinned = settings.pinned;
@@ -477,11 +510,67 @@ bool FeatureTracker::Impl::build_subsets(const AnchorImage& anchor, cv::Point ce
   return true;
 }
 
+// Each matched track's own position and its predicted noise, before any model (the fusion, the rest fit)
+// may stand in for it: the evidence those models are tested against.
+void FeatureTracker::Impl::record_own_matches() {
+  for (int i : alive) {
+    TrackState& st = states[static_cast<std::size_t>(i)];
+    st.model = TrackModel::kOwnMatch;
+    st.model_mahalanobis2 = std::numeric_limits<double>::quiet_NaN();
+    st.own_valid = is_alive(tracks[static_cast<std::size_t>(i)].status) && st.matched && !st.suspect;
+    if (!st.own_valid) continue;
+    const Subset& matched = st.fixed_shape && !st.wide.empty() ? st.wide : st.subset;
+    const Eigen::Matrix2d& information =
+        st.fixed_shape ? st.fixed_information : st.subset.translation_information();
+    st.own.reference_px = tracks[static_cast<std::size_t>(i)].reference_px;
+    st.own.position_px = st.candidate;
+    st.own.covariance_px2 =
+        predicted_match_covariance(st.match.zncc, matched.pixel_count(), information,
+                                   correlated_pixels(settings.prefilter_sigma_px, matched.stride()));
+  }
+}
+
+// The fusion decides the directions a subset's texture leaves open (along its ridges); where it moves a
+// track further than that track's own match allows, it speaks for a motion the match does not show (a
+// sharp local feature, a short wavelength), and the own match stands.
+void FeatureTracker::Impl::decline_fusion_beyond_noise() {
+  for (int i : alive) {
+    TrackState& st = states[static_cast<std::size_t>(i)];
+    if (!st.own_valid) continue;
+    const Vec2 shift{st.candidate.x - st.own.position_px.x, st.candidate.y - st.own.position_px.y};
+    if (shift.x == 0.0 && shift.y == 0.0) continue;
+    const double d2 = mahalanobis2(shift, st.own.covariance_px2);
+    if (d2 <= kModelShiftChi2) {
+      st.model = TrackModel::kFused;
+      st.model_mahalanobis2 = d2;
+      ++stats.fused;
+    } else {
+      st.candidate = st.own.position_px;
+      ++stats.fusion_declined;
+    }
+  }
+}
+
+// Two tracks' main matches are independent when no pixel of one's subset (smoothed by the prefilter) enters
+// the other's.
+RestTestOptions FeatureTracker::Impl::rest_test_options() const {
+  RestTestOptions o;
+  o.max_chi2_per_dof = settings.rest_max_chi2_per_dof;
+  o.max_correlation_z = settings.rest_max_correlation_z;
+  const double reach = settings.subset_radius_px + 2.0 * settings.prefilter_sigma_px;
+  o.independence_px = 2.0 * reach + 1.0;
+  o.pair_band_px = 2.0 * settings.grid_step_px;
+  o.tolerance_px = settings.rest_tolerance_px;
+  o.noise_sigmas = settings.rest_noise_sigmas;
+  o.correlated_tracks = std::numbers::pi * std::pow(reach / settings.grid_step_px, 2);
+  return o;
+}
+
 // While nothing has moved since frame 0, frame 0's anchor becomes the mean of the frames so far (see
 // TrackerSettings::rest_average_frames): every later match then sees the anchor's pixel noise divided by
 // the square root of their number; and the tracks report the fitted rest motion rather than their own
-// noise. Rest is judged on an affine fit of the frame-0 tracks' displacements since frame 0, against that
-// fit's own noise (below).
+// noise. Rest is a test of an affine fit of the frame-0 tracks' own matches against their predicted
+// noise (test_affine_model).
 void FeatureTracker::Impl::follow_rest() {
   if (!resting) return;
   const auto end_averaging = [this] {
@@ -494,68 +583,45 @@ void FeatureTracker::Impl::follow_rest() {
     end_averaging();
   };
   if (keys.empty() || !keys[0] || keys[0]->frame != 0) return stop();
-  // Least squares d = a + B (X - X0) over the live frame-0 tracks.
-  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
-  Eigen::Matrix<double, 3, 2> rhs = Eigen::Matrix<double, 3, 2>::Zero();
+  // Tested on the tracks whose own subset matched them this frame; reported on every frame-0 track.
   std::vector<int> members;
+  std::vector<OwnMatch> tested;
   for (int i : alive) {
     const Track& t = tracks[static_cast<std::size_t>(i)];
     const TrackState& st = states[static_cast<std::size_t>(i)];
-    if (!is_alive(t.status) || st.key != 0 || !st.exact_reference) continue;
+    if (!is_alive(t.status) || st.key != 0 || !st.exact_reference || !st.own_valid) continue;
     members.push_back(i);
+    if (st.main_frame == frame) tested.push_back(st.main);
   }
-  if (members.size() < 6) return stop();
-  Vec2 X0;
-  for (int i : members) {
-    X0.x += tracks[static_cast<std::size_t>(i)].reference_px.x / static_cast<double>(members.size());
-    X0.y += tracks[static_cast<std::size_t>(i)].reference_px.y / static_cast<double>(members.size());
-  }
-  for (int i : members) {
-    const Track& t = tracks[static_cast<std::size_t>(i)];
-    const Eigen::Vector3d b(1.0, t.reference_px.x - X0.x, t.reference_px.y - X0.y);
-    const Eigen::RowVector2d d(t.position_px.x - t.reference_px.x, t.position_px.y - t.reference_px.y);
-    normal += b * b.transpose();
-    rhs += b * d;
-  }
-  const Eigen::LDLT<Eigen::Matrix3d> solver(normal);
-  if (solver.info() != Eigen::Success || !solver.isPositive()) return stop();
-  const Eigen::Matrix<double, 3, 2> coef = solver.solve(rhs);
-  // At rest the fit is noise too, and more than its track count suggests: the tracks' errors are correlated
-  // over the fusion's and the subset's reach (ℓ), so the fit averages about N / c independent errors, c =
-  // π (ℓ / grid step)² tracks per correlated patch: σ_fit ≈ scatter · sqrt(3 c / N). Measured at rest: 0.006-
-  // 0.010 px on the default scene (estimate 0.005), 0.024-0.055 px on the noisiest ones (0.034), 0.05-0.11
-  // px on a small noisy contact of 94 tracks (0.063); the first frame the plate moves gives >= 1 px. At
-  // rest: the fitted motion's RMS within rest_tolerance_px or rest_noise_sigmas σ_fit.
-  double fitted2 = 0.0, scatter2 = 0.0;
-  for (int i : members) {
-    const Track& t = tracks[static_cast<std::size_t>(i)];
-    const Eigen::Vector3d b(1.0, t.reference_px.x - X0.x, t.reference_px.y - X0.y);
-    const Eigen::Vector2d fitted = coef.transpose() * b;
-    const Eigen::Vector2d measured(t.position_px.x - t.reference_px.x, t.position_px.y - t.reference_px.y);
-    fitted2 += fitted.squaredNorm();
-    scatter2 += (measured - fitted).squaredNorm();
-  }
-  const double count = static_cast<double>(members.size());
-  const double reach = std::max(settings.fusion_sigma_px, static_cast<double>(settings.subset_radius_px));
-  const double per_patch = std::max(1.0, std::numbers::pi * std::pow(reach / settings.grid_step_px, 2));
-  const double fit_sigma = std::sqrt(scatter2 / count) * std::sqrt(3.0 * per_patch / count);
-  if (!(std::sqrt(fitted2 / count) <=
-        std::max(settings.rest_tolerance_px, settings.rest_noise_sigmas * fit_sigma)))
-    return stop();
+  const RestTest test = test_affine_model(tested, rest_test_options());
+  stats.rest_tested = true;
+  stats.rest_chi2_per_dof = test.chi2_per_dof;
+  stats.rest_correlation_z = test.correlation_z;
+  stats.rest_pairs = test.pairs;
+  stats.rest_motion_px = test.motion_rms_px;
+  if (!test.accepted) return stop();
   // At rest each track's own position carries the pixel noise of its subset (≈ 0.3 px along the ridges near
-  // the border of a noisy contact), while the motion is the fit, known to σ_fit: report the fit. A track
-  // further from it than 3 scatter RMS (motion of its own, e.g. a local creep) keeps its measurement.
-  const double keep_px = 3.0 * std::sqrt(scatter2 / count);
+  // the border of a noisy contact), while the motion is the fit: each track reports the fit where it lies
+  // within its own match's noise, and keeps its match where not.
   stats.at_rest = true;
+  const Gradient2 gradient = test.gradient();
   for (int i : members) {
     Track& t = tracks[static_cast<std::size_t>(i)];
-    const Eigen::Vector3d b(1.0, t.reference_px.x - X0.x, t.reference_px.y - X0.y);
-    const Eigen::Vector2d fitted = coef.transpose() * b;
-    const Vec2 on_fit{t.reference_px.x + fitted.x(), t.reference_px.y + fitted.y()};
-    if (std::hypot(t.position_px.x - on_fit.x, t.position_px.y - on_fit.y) > keep_px) continue;
+    const OwnMatch& own = states[static_cast<std::size_t>(i)].own;
+    const Vec2 d = test.displacement_px(t.reference_px);
+    const Vec2 on_fit{t.reference_px.x + d.x, t.reference_px.y + d.y};
+    const double d2 =
+        mahalanobis2({on_fit.x - own.position_px.x, on_fit.y - own.position_px.y}, own.covariance_px2);
+    if (!(d2 <= kModelShiftChi2)) continue;  // a motion of its own: it keeps what it reports
     t.position_px = on_fit;
-    t.gradient = {coef(1, 0), coef(2, 0), coef(1, 1), coef(2, 1)};
+    t.gradient = gradient;
+    t.model = TrackModel::kRestFit;
+    t.model_mahalanobis2 = d2;
+    ++stats.on_rest_fit;
   }
+  stats.fused = static_cast<int>(std::count_if(tracks.begin(), tracks.end(), [](const Track& t) {
+    return is_alive(t.status) && t.model == TrackModel::kFused;
+  }));
   if (rest_count < 1 || rest_count >= settings.rest_average_frames) return end_averaging();
   rest_sum += match_f;
   ++rest_count;
@@ -669,6 +735,12 @@ void FeatureTracker::Impl::match_track(int index, Vec2 guess, const Warp* initia
   if (st.matched) {
     const Mat2d a = Mat2d::Identity() + to_matrix(st.warp.gradient(st.offset.x, st.offset.y));
     st.deformation = a * st.birth;
+    st.main_frame = frame;
+    st.main.reference_px = tracks[static_cast<std::size_t>(index)].reference_px;
+    st.main.position_px = st.candidate;
+    st.main.covariance_px2 = predicted_match_covariance(
+        st.match.zncc, st.subset.pixel_count(), st.subset.translation_information(),
+        correlated_pixels(settings.prefilter_sigma_px, st.subset.stride()));
   }
 }
 
@@ -1587,6 +1659,12 @@ void FeatureTracker::Impl::finish_frame() {
     st.velocity = {st.candidate.x - st.previous.x, st.candidate.y - st.previous.y};
     st.previous = st.candidate;
     t.position_px = st.candidate;
+    t.model = st.model;
+    t.model_mahalanobis2 = st.model_mahalanobis2;
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const Eigen::Matrix2d& c = st.own.covariance_px2;
+    t.covariance_px2 = st.own_valid ? std::array<double, 3>{c(0, 0), c(0, 1), c(1, 1)}
+                                    : std::array<double, 3>{nan, nan, nan};
     if (settings.refine) {
       t.zncc = st.match.zncc;
       const Mat2d h = st.deformation - Mat2d::Identity();
@@ -1699,7 +1777,11 @@ const FrameStats& FeatureTracker::track(const cv::Mat& image, const cv::Mat& con
   if (m.settings.refine && m.settings.fixed_shape_pass)
     for (int k = 0; k < m.settings.fixed_shape_iterations; ++k)
       m.fixed_shape_pass(k + 1 == m.settings.fixed_shape_iterations);
-  if (m.settings.refine && m.settings.fusion_sigma_px > 0.0) m.fuse();
+  if (m.settings.refine) m.record_own_matches();
+  if (m.settings.refine && m.settings.fusion_sigma_px > 0.0) {
+    m.fuse();
+    m.decline_fusion_beyond_noise();
+  }
   if (!m.settings.refine && m.settings.reanchor_interval_frames > 0 &&
       m.frame % m.settings.reanchor_interval_frames == 0)
     m.reanchor();

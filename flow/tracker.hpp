@@ -15,13 +15,16 @@
 // reference map, then, where frame 0 saw that skin, matched in frame 0 itself. See docs/flow.md.
 #include <opencv2/core.hpp>
 
+#include <array>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <vector>
 
 #include "core/scene.hpp"
 #include "core/tensor2.hpp"
+#include "flow/model_check.hpp"
 #include "flow/settings.hpp"
 #include "flow/texture.hpp"
 
@@ -55,6 +58,16 @@ struct Track {
   int retired_frame = -1;
   double zncc = 0.0;   // correlation of the last refined match (1 for unrefined tracks)
   Gradient2 gradient;  // du/dX at the track from its subset's shape function (zero if unrefined)
+  // What position_px is this frame: the track's own match, or a model a test on the frame accepted
+  // (flow/model_check.hpp), with that test's statistic for this track: the squared Mahalanobis distance of
+  // the model's position from the own match, in the match's predicted noise (NaN for the own match).
+  TrackModel model = TrackModel::kOwnMatch;
+  double model_mahalanobis2 = std::numeric_limits<double>::quiet_NaN();
+  // The own match's predicted covariance this frame, px² (xx, xy, yy; flow/model_check.hpp); NaN where the
+  // track was not matched by a subset (unrefined tracking, a frame whose match failed).
+  std::array<double, 3> covariance_px2{std::numeric_limits<double>::quiet_NaN(),
+                                       std::numeric_limits<double>::quiet_NaN(),
+                                       std::numeric_limits<double>::quiet_NaN()};
 };
 
 struct FrameStats {
@@ -68,6 +81,15 @@ struct FrameStats {
   Vec2 global_shift_px;          // phase-correlation shift of the contact since the previous frame
   int rest_frames_averaged = 0;  // 1: this frame was at rest and joined frame 0's averaged anchor
   bool at_rest = false;  // this frame was at rest: its frame-0 tracks report the affine fit of their motion
+  // The rest test of this frame (tested: while the anchor may still be averaged), RestTest's statistics.
+  bool rest_tested = false;
+  double rest_chi2_per_dof = std::numeric_limits<double>::quiet_NaN();
+  double rest_correlation_z = std::numeric_limits<double>::quiet_NaN();
+  int rest_pairs = 0;
+  double rest_motion_px = std::numeric_limits<double>::quiet_NaN();  // the fitted motion's RMS
+  int on_rest_fit = 0;                                               // tracks reporting the rest fit
+  int fused = 0;            // tracks reporting the neighbour fusion's position
+  int fusion_declined = 0;  // tracks whose fused position lay outside their own match's noise: own match
 };
 
 class PlateTracker;

@@ -1,5 +1,6 @@
 #include "pipeline/tracking_stage.hpp"
 
+#include <Eigen/Core>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -9,8 +10,10 @@
 #include <limits>
 
 #include "core/csv.hpp"
+#include "flow/model_check.hpp"
 #include "flow/settings.hpp"
 #include "flow/temporal_smoothing.hpp"
+#include "pipeline/tracking_report.hpp"
 
 namespace tirstrain::pipeline {
 namespace {
@@ -18,6 +21,7 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // /tracks/status for a track that does not exist in a frame (not born yet, or retired in an earlier frame).
 constexpr std::int8_t kAbsent = -1;
+constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
 // Contacts with semi-minor/semi-major above this are treated as circles by the normalised maps.
 constexpr double kCircularAspect = 0.95;
 
@@ -27,6 +31,12 @@ struct TrackFrame {
   int tracker_frame = -1;  // -1: not tracked (before the reference frame, or unusable)
   std::vector<Vec2> position_px;
   std::vector<std::int8_t> status;
+  // What each position is (flow::TrackModel) and the statistic that let a model stand in for the match.
+  std::vector<std::uint8_t> model;
+  std::vector<float> model_mahalanobis2;
+  std::vector<std::array<float, 3>> covariance_px2;  // the own match's, xx xy yy
+  bool rest_tested = false, at_rest = false;
+  double rest_chi2_per_dof = kNaN, rest_correlation_z = kNaN;
   std::optional<Vec2> plate_px;
   std::int8_t plate_status = kAbsent;  // flow::PlateStatus, kAbsent where not measured
   int alive = 0, born = 0, retired = 0;
@@ -86,6 +96,11 @@ class TrackingStage final : public Stage {
           tracker_->track(context.frame->image, mask_, context.frame->device_time_s);
       rest_frames_averaged_ += stats.rest_frames_averaged;
       rest_frames_on_fit_ += stats.at_rest ? 1 : 0;
+      record.rest_tested = stats.rest_tested;
+      record.at_rest = stats.at_rest;
+      record.rest_chi2_per_dof = stats.rest_chi2_per_dof;
+      record.rest_correlation_z = stats.rest_correlation_z;
+      fusion_declined_ += stats.fusion_declined;
     }
     track_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     ++tracked_frames_;
@@ -96,11 +111,19 @@ class TrackingStage final : public Stage {
     const auto& tracks = tracker_->tracks();
     record.position_px.resize(tracks.size(), Vec2{kNaN, kNaN});
     record.status.resize(tracks.size(), kAbsent);
+    record.model.resize(tracks.size(), 0);
+    record.model_mahalanobis2.resize(tracks.size(), kNaNf);
+    record.covariance_px2.resize(tracks.size(), {kNaNf, kNaNf, kNaNf});
     for (std::size_t k = 0; k < tracks.size(); ++k) {
       const flow::Track& t = tracks[k];
       if (flow::is_alive(t.status)) {
         record.position_px[k] = t.position_px;
         record.status[k] = static_cast<std::int8_t>(t.status);
+        record.model[k] = static_cast<std::uint8_t>(t.model);
+        record.model_mahalanobis2[k] = static_cast<float>(t.model_mahalanobis2);
+        for (std::size_t c = 0; c < 3; ++c)
+          record.covariance_px2[k][c] = static_cast<float>(t.covariance_px2[c]);
+        ++model_track_frames_[static_cast<std::size_t>(t.model)];
         ++record.alive;
         if (t.status == flow::TrackStatus::kBorn && frame > 0) ++record.born;
       } else if (t.retired_frame == frame) {
@@ -210,6 +233,10 @@ class TrackingStage final : public Stage {
     std::vector<double> reference(k * 2), position(n * k * 2, kNaN), plate(n * 2, kNaN);
     std::vector<std::int8_t> plate_status(n, kAbsent);
     std::vector<std::int8_t> status(n * k, kAbsent);
+    std::vector<std::uint8_t> model(n * k, 0);
+    std::vector<float> model_d2(n * k, kNaNf), covariance(n * k * 3, kNaNf);
+    std::vector<std::int8_t> rest_tested(n, 0), at_rest(n, 0);
+    std::vector<double> rest_chi2(n, kNaN), rest_z(n, kNaN);
     std::vector<std::int32_t> born(k), retired(k);
     for (std::size_t j = 0; j < k; ++j) {
       const flow::Track& t = tracker_->tracks()[j];
@@ -225,7 +252,14 @@ class TrackingStage final : public Stage {
         position[(i * k + j) * 2] = f.position_px[j].x;
         position[(i * k + j) * 2 + 1] = f.position_px[j].y;
         status[i * k + j] = f.status[j];
+        model[i * k + j] = f.model[j];
+        model_d2[i * k + j] = f.model_mahalanobis2[j];
+        for (std::size_t c = 0; c < 3; ++c) covariance[(i * k + j) * 3 + c] = f.covariance_px2[j][c];
       }
+      rest_tested[i] = f.rest_tested ? 1 : 0;
+      at_rest[i] = f.at_rest ? 1 : 0;
+      rest_chi2[i] = f.rest_chi2_per_dof;
+      rest_z[i] = f.rest_correlation_z;
       plate_status[i] = f.plate_status;
       if (f.plate_px) {
         plate[2 * i] = f.plate_px->x;
@@ -235,6 +269,17 @@ class TrackingStage final : public Stage {
     out.write("/tracks/reference_px", std::span<const double>(reference), {k, 2});
     out.write("/tracks/position_px", std::span<const double>(position), {n, k, 2});
     out.write("/tracks/status", std::span<const std::int8_t>(status), {n, k});
+    out.write("/tracks/model", std::span<const std::uint8_t>(model), {n, k});
+    out.attribute(
+        "/tracks", "model_codes",
+        "0 own match; 1 neighbour fusion within the match's noise; 2 affine fit of a frame at rest; "
+        "3 smoothed in time within the match's noise (docs/flow.md, what a position is)");
+    out.write("/tracks/model_mahalanobis2", std::span<const float>(model_d2), {n, k});
+    out.write("/tracks/covariance_px2", std::span<const float>(covariance), {n, k, 3});
+    out.write("/tracks/rest_tested", std::span<const std::int8_t>(rest_tested), {n});
+    out.write("/tracks/at_rest", std::span<const std::int8_t>(at_rest), {n});
+    out.write("/tracks/rest_chi2_per_dof", std::span<const double>(rest_chi2), {n});
+    out.write("/tracks/rest_correlation_z", std::span<const double>(rest_z), {n});
     out.write("/tracks/born_frame", std::span<const std::int32_t>(born), {k});
     out.write("/tracks/retired_frame", std::span<const std::int32_t>(retired), {k});
     out.attribute("/tracks", "preset", settings_.preset);
@@ -262,6 +307,14 @@ class TrackingStage final : public Stage {
     s["rest_frames_averaged"] = rest_frames_averaged_;
     // Frames at rest whose frame-0 tracks report the affine fit of their motion (docs/flow.md, step 5).
     s["rest_frames_on_fit"] = rest_frames_on_fit_;
+    // Track-frames by what their position is (docs/flow.md, what a position is): no model stands in for a
+    // match unless a test on that frame accepted it.
+    s["track_frames_by_model"] = {{"own_match", model_track_frames_[0]},
+                                  {"fused", model_track_frames_[1]},
+                                  {"rest_fit", model_track_frames_[2]},
+                                  {"smoothed_in_time", model_track_frames_[3]}};
+    s["fusion_declined_track_frames"] = fusion_declined_;
+    s["smoothing_declined_track_frames"] = smoothing_declined_;
     s["tracks_total"] = tracker_ ? tracker_->tracks().size() : 0;
     double alive_sum = 0.0;
     int alive_last = 0;
@@ -309,6 +362,26 @@ class TrackingStage final : public Stage {
                 cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * inset + 1, 2 * inset + 1)));
   }
 
+  // The smoothed position stands in for the frame's own where it lies within that match's predicted
+  // noise; further away the series has a motion the smoothing would erase (a slip, a jump), and the
+  // track keeps what it measured.
+  bool adopt_smoothed(TrackFrame& f, std::size_t k, Vec2 smoothed) {
+    Vec2& p = f.position_px[k];
+    const auto& c = f.covariance_px2[k];
+    Eigen::Matrix2d covariance;
+    covariance << c[0], c[1], c[1], c[2];
+    const double d2 = covariance.allFinite()
+                          ? flow::mahalanobis2({smoothed.x - p.x, smoothed.y - p.y}, covariance)
+                          : std::numeric_limits<double>::infinity();
+    if (!(d2 <= flow::kModelShiftChi2)) return false;
+    p = smoothed;
+    --model_track_frames_[f.model[k]];
+    ++model_track_frames_[static_cast<std::size_t>(flow::TrackModel::kSmoothedInTime)];
+    f.model[k] = static_cast<std::uint8_t>(flow::TrackModel::kSmoothedInTime);
+    f.model_mahalanobis2[k] = static_cast<float>(d2);
+    return true;
+  }
+
   // Each track's runs of consecutive alive rows, x and y apart, smoothed with their own noise level; the
   // reference frame keeps its exact position (the displacement is zero there by definition).
   void smooth_tracks(const flow::TemporalSmoothing& options) {
@@ -316,6 +389,7 @@ class TrackingStage final : public Stage {
     std::vector<double> noise;
     std::vector<std::size_t> run;
     std::vector<double> t, x;
+    std::array<std::vector<double>, 2> smoothed;
     const auto smooth_run = [&](std::size_t k) {
       if (static_cast<int>(run.size()) < options.min_samples) return;
       t.clear();
@@ -326,14 +400,15 @@ class TrackingStage final : public Stage {
           x.push_back(c == 0 ? frames_[row].position_px[k].x : frames_[row].position_px[k].y);
         const double sigma = flow::series_noise(x);
         noise.push_back(sigma);
-        const std::vector<double> smoothed = flow::smooth_in_time(t, x, sigma, options);
-        for (std::size_t i = 0; i < run.size(); ++i) {
-          if (static_cast<std::int64_t>(run[i]) == reference_row_) continue;
-          Vec2& p = frames_[run[i]].position_px[k];
-          (c == 0 ? p.x : p.y) = smoothed[i];
-        }
+        smoothed[static_cast<std::size_t>(c)] = flow::smooth_in_time(t, x, sigma, options);
       }
-      smoothed_track_frames_ += static_cast<std::int64_t>(run.size());
+      for (std::size_t i = 0; i < run.size(); ++i) {
+        if (static_cast<std::int64_t>(run[i]) == reference_row_) continue;
+        if (adopt_smoothed(frames_[run[i]], k, {smoothed[0][i], smoothed[1][i]}))
+          ++smoothed_track_frames_;
+        else
+          ++smoothing_declined_;
+      }
     };
     for (std::size_t k = 0; k < k_total; ++k) {
       run.clear();
@@ -359,30 +434,8 @@ class TrackingStage final : public Stage {
 
   // The settings in effect: the tracker may have adapted them to frame 0's texture.
   nlohmann::json settings_summary() const {
-    const flow::TrackerSettings& s = tracker_ ? tracker_->settings() : settings_;
-    nlohmann::json j = {{"preset", s.preset},
-                        {"grid_step_px", s.grid_step_px},
-                        {"max_features", s.max_features},
-                        {"window_px", s.window_px},
-                        {"pyramid_levels", s.pyramid_levels},
-                        {"refine", s.refine ? flow::to_string(s.shape) : std::string("none")},
-                        {"subset_radius_px", s.subset_radius_px},
-                        {"subset_stride", s.subset_stride},
-                        {"fixed_shape_stride", s.fixed_shape_stride},
-                        {"main_match_period_frames", s.main_match_period_frames},
-                        {"prefilter_sigma_px", s.prefilter_sigma_px},
-                        {"border_exclusion_px", s.border_exclusion_px},
-                        {"contact_inset_px", s.contact_inset_px},
-                        {"max_displacement_px", s.max_displacement_px},
-                        {"rest_average_frames", s.rest_average_frames},
-                        {"smooth_in_time", s.smooth_in_time}};
-    if (tracker_ && s.refine) {
-      const flow::TextureQuality& q = tracker_->texture();
-      j["texture_snr"] = q.snr;
-      j["texture_noise_sigma"] = q.noise_sigma;
-      j["texture_ridge_rms"] = q.ridge_rms;
-      j["low_snr_texture"] = tracker_->low_snr_texture();
-    }
+    nlohmann::json j = tracking_settings_json(tracker_ ? tracker_->settings() : settings_);
+    if (tracker_ && tracker_->settings().refine) j["texture"] = texture_json(*tracker_);
     return j;
   }
 
@@ -403,6 +456,8 @@ class TrackingStage final : public Stage {
   std::array<std::int64_t, 2> plate_frames_not_matched_{};  // predicted, LK only (/plate/status 1, 2)
   std::int64_t rest_frames_averaged_ = 0;
   std::int64_t rest_frames_on_fit_ = 0;
+  std::array<std::int64_t, 4> model_track_frames_{};
+  std::int64_t fusion_declined_ = 0, smoothing_declined_ = 0;
   bool smoothed_ = false;
   std::int64_t smoothed_track_frames_ = 0;
   double smoothing_noise_px_median_ = 0.0;

@@ -1,7 +1,12 @@
 // `tirstrain track`: tracks given points (or a grid) through any image sequence with the flow/ tracker, no
 // contact segmentation involved — for textures that are not fingerprints (speckle) and for checking the
-// tracker alone. Output: frame,id,X_px,Y_px,x_px,y_px,status (reference and current position; a retired
-// track appears once more, in the frame it was retired, at its last good position with the reason).
+// tracker alone. Output: frame,id,X_px,Y_px,x_px,y_px,status,model (reference and current position; a
+// retired track appears once more, in the frame it was retired, at its last good position with the reason;
+// model: what the position is, flow::TrackModel), and beside it <out>.json: the settings in effect, the
+// texture as judged, and per frame the rest test and how many tracks a model stood in for.
+#include <nlohmann/json.hpp>
+
+#include <array>
 #include <cmath>
 #include <iostream>
 #include <memory>
@@ -10,11 +15,13 @@
 #include <vector>
 
 #include "capture/frame_source.hpp"
+#include "core/atomic_output.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/scene.hpp"
 #include "flow/settings.hpp"
 #include "flow/tracker.hpp"
+#include "pipeline/tracking_report.hpp"
 #include "tirstrain/commands.hpp"
 
 namespace tirstrain::cli {
@@ -52,6 +59,14 @@ cv::Rect parse_roi(const std::string& text, const cv::Size& frame) {
                     std::to_string(frame.height) + " frame",
                 {.key = "--roi"});
   return r;
+}
+
+// t.csv -> t.json beside it.
+std::string settings_path(const std::string& csv) {
+  const std::size_t dot = csv.find_last_of('.');
+  const std::size_t slash = csv.find_last_of('/');
+  const bool has_extension = dot != std::string::npos && (slash == std::string::npos || dot > slash);
+  return (has_extension ? csv.substr(0, dot) : csv) + ".json";
 }
 
 void run_track(const TrackOptions& o) {
@@ -92,14 +107,35 @@ void run_track(const TrackOptions& o) {
   }
 
   flow::FeatureTracker tracker(settings);
-  CsvWriter out(o.out, {"frame", "id", "X_px", "Y_px", "x_px", "y_px", "status"});
+  CsvWriter out(o.out, {"frame", "id", "X_px", "Y_px", "x_px", "y_px", "status", "model"});
+  nlohmann::json frames_json = nlohmann::json::array();
+  std::array<long, 4> by_model{};
   const auto write = [&](int frame) {
     for (const flow::Track& t : tracker.tracks()) {
       if (!flow::is_alive(t.status) && t.retired_frame != frame) continue;
       out.row_text({std::to_string(frame), std::to_string(t.id), format_double(t.reference_px.x),
                     format_double(t.reference_px.y), format_double(t.position_px.x),
-                    format_double(t.position_px.y), std::to_string(static_cast<int>(t.status))});
+                    format_double(t.position_px.y), std::to_string(static_cast<int>(t.status)),
+                    std::to_string(static_cast<int>(t.model))});
+      if (flow::is_alive(t.status)) ++by_model[static_cast<std::size_t>(t.model)];
     }
+  };
+  const auto record_frame = [&](const flow::FrameStats& s) {
+    nlohmann::json f = {{"frame", s.frame},
+                        {"alive", s.alive},
+                        {"fused", s.fused},
+                        {"fusion_declined", s.fusion_declined},
+                        {"rest_tested", s.rest_tested},
+                        {"at_rest", s.at_rest},
+                        {"on_rest_fit", s.on_rest_fit}};
+    if (s.rest_tested) {
+      f["rest_chi2_per_dof"] =
+          std::isfinite(s.rest_chi2_per_dof) ? nlohmann::json(s.rest_chi2_per_dof) : nullptr;
+      f["rest_correlation_z"] =
+          std::isfinite(s.rest_correlation_z) ? nlohmann::json(s.rest_correlation_z) : nullptr;
+      f["rest_pairs"] = s.rest_pairs;
+    }
+    frames_json.push_back(f);
   };
   try {
     tracker.start(first->image, mask, first->device_time_s, points);
@@ -107,6 +143,7 @@ void run_track(const TrackOptions& o) {
     throw Error(e.message(), {.file = o.input, .frame = 0});
   }
   write(0);
+  record_frame(tracker.stats());
   int frames = 1;
   while (std::optional<capture::Frame> f = source->next()) {
     if (f->status == capture::FrameStatus::kCorrupt || f->status == capture::FrameStatus::kIncomplete) {
@@ -121,14 +158,34 @@ void run_track(const TrackOptions& o) {
       throw Error(e.message(), {.file = o.input, .frame = f->index});
     }
     write(tracker.frame_index());
+    record_frame(tracker.stats());
     ++frames;
   }
+  const std::string json_path = settings_path(o.out);
+  nlohmann::json report = {{"settings", pipeline::tracking_settings_json(tracker.settings())},
+                           {"texture", pipeline::texture_json(tracker)},
+                           {"input", o.input},
+                           {"frames", frames},
+                           {"track_frames_by_model",
+                            {{"own_match", by_model[0]},
+                             {"fused", by_model[1]},
+                             {"rest_fit", by_model[2]},
+                             {"smoothed_in_time", by_model[3]}}},
+                           {"per_frame", frames_json}};
+  write_text_file(json_path, report.dump(2) + "\n");
   out.commit();
   long alive = 0;
   for (const flow::Track& t : tracker.tracks()) alive += flow::is_alive(t.status) ? 1 : 0;
-  if (!o.quiet)
+  if (!o.quiet) {
     std::cout << "tracked " << tracker.tracks().size() << " points through " << frames << " frames (" << alive
-              << " alive at the end, preset " << settings.preset << "); wrote " << o.out << '\n';
+              << " alive at the end, preset " << settings.preset << "); wrote " << o.out << " and "
+              << json_path << '\n';
+    std::cout << "texture: " << pipeline::texture_note(tracker) << '\n';
+    std::cout << "positions: " << by_model[0] << " own matches, " << by_model[1] << " neighbour-fused, "
+              << by_model[2]
+              << " on the rest fit (track-frames; column model, and the rest test per frame in " << json_path
+              << ")\n";
+  }
 }
 
 }  // namespace
@@ -138,7 +195,11 @@ void add_track_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "track",
       "Track points (or a grid) through an image sequence: pyramidal Lucas-Kanade between frames, refined\n"
-      "against the first frame by subset correlation. Writes frame,id,X_px,Y_px,x_px,y_px,status.");
+      "against the first frame by subset correlation. Writes frame,id,X_px,Y_px,x_px,y_px,status,model\n"
+      "(model: 0 own match, 1 neighbour-fused, 2 rest fit; each only where a test on that frame accepted "
+      "it)\n"
+      "and, beside the CSV, a JSON of the settings in effect, the texture and the per-frame tests.\n"
+      "Example: tirstrain track frames/ --grid 10 --out tracks.csv   (writes tracks.csv and tracks.json)");
   cmd->add_option("input", o->input, "Image folder, printf/glob pattern or video file")->required();
   CLI::Option* points =
       cmd->add_option("--points", o->points_csv, "CSV with columns x_px,y_px (first frame)");

@@ -83,10 +83,10 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_EQ(parse_tracking_settings(scene_with("{}")).rest_average_frames, 16);
   EXPECT_EQ(parse_tracking_settings(scene_with("{}"), "delhaye2016").rest_average_frames, 1);
   const TrackerSettings rest = parse_tracking_settings(
-      scene_with("{rest_average_frames: 4, rest_tolerance_px: 0.02, rest_noise_sigmas: 2}"));
+      scene_with("{rest_average_frames: 4, rest_max_chi2_per_dof: 2, rest_max_correlation_z: 4}"));
   EXPECT_EQ(rest.rest_average_frames, 4);
-  EXPECT_EQ(rest.rest_tolerance_px, 0.02);
-  EXPECT_EQ(rest.rest_noise_sigmas, 2.0);
+  EXPECT_EQ(rest.rest_max_chi2_per_dof, 2.0);
+  EXPECT_EQ(rest.rest_max_correlation_z, 4.0);
   // The plate's band is smoothed by 0.7 px unless the scene says otherwise; negative is an error.
   EXPECT_EQ(parse_tracking_settings(scene_with("{}")).plate_prefilter_sigma_px, 0.7);
   EXPECT_EQ(parse_tracking_settings(scene_with("{plate_prefilter_sigma_px: 0}")).plate_prefilter_sigma_px,

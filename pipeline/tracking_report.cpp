@@ -1,0 +1,65 @@
+#include "pipeline/tracking_report.hpp"
+
+#include <cstdio>
+
+namespace tirstrain::pipeline {
+
+nlohmann::json tracking_settings_json(const flow::TrackerSettings& s) {
+  return {{"preset", s.preset},
+          {"grid_step_px", s.grid_step_px},
+          {"max_features", s.max_features},
+          {"window_px", s.window_px},
+          {"pyramid_levels", s.pyramid_levels},
+          {"refine", s.refine ? flow::to_string(s.shape) : std::string("none")},
+          {"subset_radius_px", s.subset_radius_px},
+          {"subset_stride", s.subset_stride},
+          {"fixed_shape_pass", s.fixed_shape_pass},
+          {"fixed_shape_radius_px", s.fixed_shape_radius_px},
+          {"fixed_shape_stride", s.fixed_shape_stride},
+          {"main_match_period_frames", s.main_match_period_frames},
+          {"prefilter_sigma_px", s.prefilter_sigma_px},
+          {"fusion_sigma_px", s.fusion_sigma_px},
+          {"fusion_weight", s.fusion_weight},
+          {"border_exclusion_px", s.border_exclusion_px},
+          {"contact_inset_px", s.contact_inset_px},
+          {"max_displacement_px", s.max_displacement_px},
+          {"rest_average_frames", s.rest_average_frames},
+          {"rest_max_chi2_per_dof", s.rest_max_chi2_per_dof},
+          {"rest_max_correlation_z", s.rest_max_correlation_z},
+          {"smooth_in_time", s.smooth_in_time},
+          {"ridge_period_px", s.ridge_period_px},
+          {"adapt_to_texture", s.adapt_to_texture}};
+}
+
+nlohmann::json texture_json(const flow::FeatureTracker& tracker) {
+  const flow::TextureQuality& q = tracker.texture();
+  return {{"snr", q.snr},
+          {"noise_sigma", q.noise_sigma},
+          {"ridge_rms", q.ridge_rms},
+          {"coherence", q.coherence},
+          {"ridges", q.ridges},
+          {"low_snr_texture", tracker.low_snr_texture()},
+          {"note", texture_note(tracker)}};
+}
+
+std::string texture_note(const flow::FeatureTracker& tracker) {
+  const flow::TrackerSettings& s = tracker.settings();
+  const flow::TextureQuality& q = tracker.texture();
+  char text[320];
+  if (!s.refine || q.pixels == 0)
+    std::snprintf(text, sizeof text, "texture not measured (unrefined tracking or nothing to measure)");
+  else if (!q.ridges)
+    std::snprintf(text, sizeof text,
+                  "no ridges (coherence %.2f < %.2f): ridge-period heuristics off; subsets of radius %d px "
+                  "(fixed-shape %d px) as the preset sizes them for a %.1f px period, no smoothing",
+                  q.coherence, flow::kMinRidgeCoherence, s.subset_radius_px, s.fixed_shape_radius_px,
+                  s.ridge_period_px);
+  else
+    std::snprintf(text, sizeof text,
+                  "ridges (coherence %.2f), SNR %.1f: subsets of radius %d px, smoothing sigma %.1f px%s",
+                  q.coherence, q.snr, s.subset_radius_px, s.prefilter_sigma_px,
+                  tracker.low_snr_texture() ? ", low-SNR subsets" : "");
+  return text;
+}
+
+}  // namespace tirstrain::pipeline
