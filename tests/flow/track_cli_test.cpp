@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <string>
@@ -62,6 +64,24 @@ TEST(TrackCli, SubPixelShiftOfSpeckle) {
   EXPECT_GE(n, 25);
   EXPECT_LT(worst, 0.02);  // measured: see the test log
   std::printf("speckle: %d points, worst error %.4f px\n", n, worst);
+
+  // Two frames: no rest test runs (the texture is noise-free), no model stands in for a match beyond the
+  // fusion, and the JSON beside the CSV says the texture has no ridges and which settings ran.
+  for (std::size_t i = 0; i < t.rows(); ++i) EXPECT_LE(t.column("model")[i], 1.0);
+  std::ifstream json_file(dir / "tracks.json");
+  ASSERT_TRUE(json_file.good());
+  const nlohmann::json j = nlohmann::json::parse(json_file);
+  EXPECT_FALSE(j["texture"]["ridges"].get<bool>());
+  EXPECT_LT(j["texture"]["coherence"].get<double>(), 0.35);
+  EXPECT_EQ(j["settings"]["subset_stride"].get<int>(), 1);
+  EXPECT_EQ(j["settings"]["preset"].get<std::string>(), "auto");
+  EXPECT_EQ(j["per_frame"].size(), 2u);
+  EXPECT_FALSE(j["per_frame"][1]["at_rest"].get<bool>());
+  const auto& by_model = j["track_frames_by_model"];
+  EXPECT_EQ(by_model["rest_fit"].get<long>(), 0);
+  long alive_rows = 0;
+  for (std::size_t i = 0; i < t.rows(); ++i) alive_rows += t.column("status")[i] < 10 ? 1 : 0;
+  EXPECT_EQ(by_model["own_match"].get<long>() + by_model["fused"].get<long>(), alive_rows);
 }
 
 TEST(TrackCli, RequiresPointsOrGrid) {

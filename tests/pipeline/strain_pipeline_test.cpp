@@ -2,6 +2,7 @@
 // `tirstrain validate`'s comparison: datasets and shapes, strain against an affine field, the compressed
 // side of a Cattaneo–Mindlin contact facing the plate's motion for the four stimulus directions.
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <yaml-cpp/yaml.h>
 
@@ -567,7 +568,14 @@ TEST(StrainPipeline, SmoothedTracksFeedTheStrainAroundASkippedFrame) {
   ASSERT_EQ(shape[0], static_cast<std::size_t>(frames));
   const std::size_t k_count = shape[1];
   ASSERT_EQ(tracked.size(), smoothed.size());
-  int moved = 0, finite_skipped = 0;
+  H5Shape model_shape;
+  const std::vector<std::int64_t> model = on.read_integers("/tracks/model", &model_shape);
+  const std::vector<std::int64_t> model_off = off.read_integers("/tracks/model");
+  const std::vector<double> distance = on.read_doubles("/tracks/model_mahalanobis2");
+  ASSERT_EQ(model_shape, (H5Shape{shape[0], shape[1]}));
+  EXPECT_EQ(on.shape("/tracks/covariance_px2"), (H5Shape{shape[0], shape[1], 3}));
+  EXPECT_EQ(on.shape("/tracks/rest_chi2_per_dof"), (H5Shape{shape[0]}));
+  int moved = 0, finite_skipped = 0, smoothed_in_place = 0;
   double largest = 0.0;
   for (std::size_t f = 0; f < shape[0]; ++f)
     for (std::size_t k = 0; k < k_count; ++k) {
@@ -587,8 +595,24 @@ TEST(StrainPipeline, SmoothedTracksFeedTheStrainAroundASkippedFrame) {
       const double d = std::hypot(p[0] - q[0], p[1] - q[1]);
       largest = std::max(largest, d);
       moved += d > 0.0 ? 1 : 0;
+      // Every smoothed position is flagged as such, with the distance that accepted it; every other one
+      // is what the tracker reported.
+      const std::size_t at = f * k_count + k;
+      if (d > 0.0) {
+        EXPECT_EQ(model[at], 3) << "frame " << f << " track " << k;
+        EXPECT_LE(distance[at], 13.8) << "frame " << f << " track " << k;
+      } else if (model[at] == 3) {
+        ++smoothed_in_place;  // the smoothing landed on the match itself
+      }
+      EXPECT_LE(model_off[at], 2) << "frame " << f << " track " << k;
     }
   EXPECT_EQ(finite_skipped, 0);
+  EXPECT_LT(smoothed_in_place, moved / 100 + 1);
+  const nlohmann::json summary = nlohmann::json::parse(std::ifstream(dir / "out_on" / "summary.json"));
+  const auto& by_model = summary["tracking"]["track_frames_by_model"];
+  EXPECT_EQ(by_model["smoothed_in_time"].get<long>(),
+            summary["tracking"]["smoothed_track_frames"].get<long>());
+  EXPECT_GE(by_model["smoothed_in_time"].get<long>(), moved);
   EXPECT_GT(moved, 100);
   // Noise-free frames: the tracks' own noise is a few hundredths of a pixel, and no sample moves by more
   // than 2γσ of its series.
