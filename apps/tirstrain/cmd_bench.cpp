@@ -28,6 +28,8 @@
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/yaml_reader.hpp"
+#include "flow/settings.hpp"
+#include "pipeline/generalisation.hpp"
 #include "tirstrain/commands.hpp"
 
 extern char** environ;
@@ -251,11 +253,75 @@ void write_plot(const std::vector<Row>& rows, const std::vector<std::string>& sc
   fs::rename(partial, path);
 }
 
+void print_generalisation_header() {
+  std::printf("%-15s %-11s %6s %-11s %6s %8s %8s %8s %8s %7s %8s %4s %8s\n", "case", "texture", "noise%",
+              "preset", "alive", "rms_px", "bias_px", "max_px", "res_px", "res_r", "long_px", "rest",
+              "ms/frame");
+}
+
+void print_generalisation_row(const pipeline::GeneralisationResult& r) {
+  std::printf("%-15s %-11s %6.1f %-11s %6.0f %8.4f %8.4f %8.3f %8.1f %7.2f %8.4f %4d %8.1f\n",
+              r.field.c_str(), r.texture.c_str(), 100.0 * r.noise_fraction, r.preset.c_str(), r.alive_mean,
+              r.rms_px, r.bias_px, r.max_px, r.resolution_px, r.resolution_radii, r.long_wave_rms_px,
+              r.rest_frames, r.ms_per_frame);
+  std::fflush(stdout);
+}
+
+void write_generalisation_csv(const std::vector<pipeline::GeneralisationResult>& results,
+                              const fs::path& out) {
+  CsvWriter summary((out / "generalisation.csv").string(),
+                    {"case", "texture", "noise_fraction", "preset", "width_px", "height_px", "frames",
+                     "seeded", "alive_mean", "rms_px", "bias_px", "max_px", "radius_px", "resolution_px",
+                     "resolution_radii", "long_wave_rms_px", "rest_frames", "ms_per_frame"});
+  for (const pipeline::GeneralisationResult& r : results)
+    summary.row_text({r.field, r.texture, format_double(r.noise_fraction), r.preset,
+                      std::to_string(r.width_px), std::to_string(r.height_px), std::to_string(r.frames),
+                      std::to_string(r.seeded), format_double(r.alive_mean), format_double(r.rms_px),
+                      format_double(r.bias_px), format_double(r.max_px), format_double(r.radius_px),
+                      format_double(r.resolution_px), format_double(r.resolution_radii),
+                      format_double(r.long_wave_rms_px), std::to_string(r.rest_frames),
+                      format_double(r.ms_per_frame)});
+  summary.commit();
+  CsvWriter frames((out / "generalisation_frames.csv").string(),
+                   {"case", "texture", "noise_fraction", "preset", "frame", "alive", "rms_px", "bias_x_px",
+                    "bias_y_px", "max_px", "at_rest", "track_ms"});
+  for (const pipeline::GeneralisationResult& r : results)
+    for (const pipeline::GeneralisationFrame& f : r.per_frame)
+      frames.row_text({r.field, r.texture, format_double(r.noise_fraction), r.preset, std::to_string(f.frame),
+                       std::to_string(f.alive), format_double(f.rms_px), format_double(f.bias_px.x),
+                       format_double(f.bias_px.y), format_double(f.max_px), f.at_rest ? "1" : "0",
+                       format_double(f.track_ms)});
+  frames.commit();
+  CsvWriter chirp(
+      (out / "generalisation_chirp.csv").string(),
+      {"texture", "noise_fraction", "preset", "centre_px", "wavelength_px", "gain", "quadrature", "tracks"});
+  for (const pipeline::GeneralisationResult& r : results)
+    for (const pipeline::ChirpWindow& w : r.chirp.windows)
+      chirp.row_text({r.texture, format_double(r.noise_fraction), r.preset, format_double(w.centre_px),
+                      format_double(w.wavelength_px), format_double(w.gain), format_double(w.quadrature),
+                      std::to_string(w.tracks)});
+  chirp.commit();
+}
+
+// `--suite generalisation`: the tracker alone on exact-truth textures and fields it was not tuned on.
+void run_generalisation_bench(const fs::path& out, bool quick, const std::vector<std::string>& presets) {
+  pipeline::GeneralisationSuite suite;
+  suite.small = quick;
+  if (!presets.empty()) suite.presets = presets;
+  for (const std::string& p : suite.presets) flow::preset_settings(p, {});  // unknown names throw here
+  print_generalisation_header();
+  const std::vector<pipeline::GeneralisationResult> results =
+      pipeline::run_generalisation_suite(suite, print_generalisation_row);
+  write_generalisation_csv(results, out);
+  std::cerr << "bench: wrote " << (out / "generalisation.csv").string() << ", generalisation_frames.csv and "
+            << "generalisation_chirp.csv\n";
+}
+
 }  // namespace
 
 void add_bench_command(CLI::App& app) {
   struct Args {
-    std::string out = "bench-output", scenes_dir = TIRSTRAIN_SCENES_DIR;
+    std::string out = "bench-output", scenes_dir = TIRSTRAIN_SCENES_DIR, suite = "pipeline";
     std::vector<std::string> scenes, configs;
     int repeats = 3;
     bool quick = false, fresh = false;
@@ -281,7 +347,23 @@ void add_bench_command(CLI::App& app) {
       "full-resolution segmentation, the balanced and fast segmentation presets).\n"
       "Scenes (samples/scenes): default (640x512 CM), paper_camera_1280 (1280x1024, ~3000 tracks),\n"
       "hard_heavy_noise, hard_low_contrast, hard_large_displacement.\n"
-      "--quick: a 12-frame cut of the default scene, the two presets, one repeat (a CI smoke run, < 1 min).");
+      "--quick: a 12-frame cut of the default scene, the two presets, one repeat (a CI smoke run, < 1 min).\n"
+      "\n"
+      "--suite generalisation: the tracker alone (flow::FeatureTracker, as `tirstrain track --grid 10` runs "
+      "it\n"
+      "without a scene) on exact-truth sequences it was not tuned on (docs/generalisation.md): speckle and\n"
+      "fingerprint textures x subpixel_shift, integer_shift, chirp, step, stretch, rotation, creep x noise "
+      "0.5\n"
+      "and 2 % of full scale (16-bit frames) x presets auto and delhaye2016 (--configs picks presets). Per "
+      "row:\n"
+      "tracks alive (mean), displacement error RMS, largest per-frame bias |mean error| and max (px), the\n"
+      "chirp's resolution (shortest wavelength reproduced with >= 90 % of its amplitude, px and in radii: "
+      "the\n"
+      "subset radius, or half the LK window for delhaye2016), the chirp's RMS over wavelengths >= 10 radii,\n"
+      "frames the tracker declared at rest, and ms per tracked frame. Writes OUT/generalisation.csv,\n"
+      "generalisation_frames.csv (per frame) and generalisation_chirp.csv (the chirp's windows).\n"
+      "With --quick: the small test sizes (192x128, chirp 512x96), a few seconds.\n"
+      "Example: tirstrain bench --suite generalisation --out gen-output");
   sub->add_option("--out", args->out, "Output folder (default bench-output)");
   sub->add_option("--scenes-dir", args->scenes_dir, "Folder of the scene files")
       ->check(CLI::ExistingDirectory);
@@ -292,9 +374,17 @@ void add_bench_command(CLI::App& app) {
       ->check(CLI::Range(1, 50));
   sub->add_flag("--quick", args->quick, "A quick smoke run (see above)");
   sub->add_flag("--fresh", args->fresh, "Synthesise the trials again even if cached");
+  sub->add_option("--suite", args->suite,
+                  "pipeline (default: the whole pipeline on the shipped scenes) or generalisation (the "
+                  "tracker on exact-truth speckle and fingerprint fields)")
+      ->check(CLI::IsMember({"pipeline", "generalisation"}));
   sub->callback([args] {
     ensure_output_dir(args->out, "--out");
     const fs::path out(args->out);
+    if (args->suite == "generalisation") {
+      run_generalisation_bench(out, args->quick, args->configs);
+      return;
+    }
     std::vector<std::string> scenes = args->scenes;
     std::vector<std::string> config_names = args->configs;
     int repeats = args->repeats;
