@@ -36,8 +36,8 @@ constexpr double kCreepFirstStepPx = 0.02;
 constexpr double kCreepLastStepPx = 0.1;
 constexpr double kCreepDirectionDeg = 30.0;
 
-// The speckle's dots: spacing, radius (1/e of the peak) and the saturation gain, chosen so about half the
-// surface is darker than mid-grey, as in a sprayed DIC pattern.
+// The speckle's dots: spacing, radius (1/e of the peak) and the saturation gain, chosen so the levels spread
+// over most of [0.1, 0.9] around mid-grey (mean 0.45, sd 0.15), as in a sprayed DIC pattern.
 constexpr double kSpeckleSpacingPx = 5.0;
 constexpr double kSpeckleRadiusPx = 2.5;
 constexpr double kSpeckleGain = 1.6;
