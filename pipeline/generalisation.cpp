@@ -36,12 +36,14 @@ std::vector<Vec2> grid_points(const flow::TrackerSettings& s, cv::Size size, dou
 struct ErrorSums {
   double sum2 = 0.0, max = 0.0;
   Vec2 sum;
-  int n = 0;
+  int n = 0, over_1px = 0;
   void add(Vec2 e) {
+    const double length = std::hypot(e.x, e.y);
+    over_1px += length > 1.0 ? 1 : 0;
     sum2 += e.x * e.x + e.y * e.y;
     sum.x += e.x;
     sum.y += e.y;
-    max = std::max(max, std::hypot(e.x, e.y));
+    max = std::max(max, length);
     ++n;
   }
   double rms() const { return n ? std::sqrt(sum2 / n) : kNaN; }
@@ -85,6 +87,10 @@ void measure_chirp(const samples::GeneralisationCase& sequence, const flow::Feat
   result.resolution_px = result.chirp.resolved_wavelength_px;
   result.resolution_radii = result.resolution_px / result.radius_px;
   result.long_wave_rms_px = long_waves.rms();
+  if (!result.chirp.windows.empty()) {
+    result.longest_wavelength_px = result.chirp.windows.front().wavelength_px;
+    result.longest_gain = result.chirp.windows.front().gain;
+  }
 }
 
 // In-phase and quadrature amplitude of u_x ~ a sin(phi) + b cos(phi) + c over the window's tracks.
@@ -204,6 +210,7 @@ GeneralisationResult run_generalisation(const samples::GeneralisationCase& seque
   result.ms_per_frame = ms_sum / tracked_frames;
   result.rms_px = totals.rms();
   result.max_px = totals.n ? totals.max : kNaN;
+  result.over_1px = totals.over_1px;
   if (config.field == samples::GeneralisationField::kChirp) measure_chirp(sequence, tracker, options, result);
   return result;
 }

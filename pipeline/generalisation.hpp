@@ -62,9 +62,14 @@ struct GeneralisationResult {
   double rms_px = std::numeric_limits<double>::quiet_NaN();   // over every track-frame after frame 0
   double bias_px = std::numeric_limits<double>::quiet_NaN();  // largest per-frame |mean error|
   double max_px = std::numeric_limits<double>::quiet_NaN();
+  int over_1px = 0;  // track-frames more than 1 px off: lost or mismatched tracks
   double resolution_px = std::numeric_limits<double>::quiet_NaN();  // chirp only
   double resolution_radii = std::numeric_limits<double>::quiet_NaN();
   double long_wave_rms_px = std::numeric_limits<double>::quiet_NaN();  // chirp only
+  // The chirp's longest window (the first of chirp.windows) and its gain: where the resolution is nan
+  // (no window reaches the threshold), how much of the longest wavelength the frame holds is reproduced.
+  double longest_wavelength_px = std::numeric_limits<double>::quiet_NaN();
+  double longest_gain = std::numeric_limits<double>::quiet_NaN();
   double ms_per_frame = 0.0;  // FeatureTracker::track, mean over frames 1..N-1
   int rest_frames = 0;        // frames after 0 the tracker declared at rest
   std::vector<GeneralisationFrame> per_frame;

@@ -254,25 +254,54 @@ void write_plot(const std::vector<Row>& rows, const std::vector<std::string>& sc
 }
 
 void print_generalisation_header() {
-  std::printf("%-15s %-11s %6s %-11s %6s %8s %8s %8s %8s %7s %8s %4s %8s\n", "case", "texture", "noise%",
-              "preset", "alive", "rms_px", "bias_px", "max_px", "res_px", "res_r", "long_px", "rest",
-              "ms/frame");
+  std::printf("%-15s %-11s %6s %-11s %6s %8s %8s %8s %6s %8s %7s %7s %8s %4s %8s\n", "case", "texture",
+              "noise%", "preset", "alive", "rms_px", "bias_px", "max_px", ">1px", "res_px", "res_r", "gain_l",
+              "long_px", "rest", "ms/frame");
+}
+
+// The chirp's resolution: its wavelength, or ">L" when not even the longest window L reaches the gain.
+std::string resolution_cell(const pipeline::GeneralisationResult& r) {
+  char text[32];
+  if (std::isfinite(r.resolution_px))
+    std::snprintf(text, sizeof text, "%.1f", r.resolution_px);
+  else if (std::isfinite(r.longest_wavelength_px))
+    std::snprintf(text, sizeof text, ">%.0f", r.longest_wavelength_px);
+  else
+    std::snprintf(text, sizeof text, "-");
+  return text;
 }
 
 void print_generalisation_row(const pipeline::GeneralisationResult& r) {
-  std::printf("%-15s %-11s %6.1f %-11s %6.0f %8.4f %8.4f %8.3f %8.1f %7.2f %8.4f %4d %8.1f\n",
+  std::printf("%-15s %-11s %6.1f %-11s %6.0f %8.4f %8.4f %8.3f %6d %8s %7.2f %7.3f %8.4f %4d %8.1f\n",
               r.field.c_str(), r.texture.c_str(), 100.0 * r.noise_fraction, r.preset.c_str(), r.alive_mean,
-              r.rms_px, r.bias_px, r.max_px, r.resolution_px, r.resolution_radii, r.long_wave_rms_px,
-              r.rest_frames, r.ms_per_frame);
+              r.rms_px, r.bias_px, r.max_px, r.over_1px, resolution_cell(r).c_str(), r.resolution_radii,
+              r.longest_gain, r.long_wave_rms_px, r.rest_frames, r.ms_per_frame);
   std::fflush(stdout);
 }
 
 void write_generalisation_csv(const std::vector<pipeline::GeneralisationResult>& results,
                               const fs::path& out) {
-  CsvWriter summary((out / "generalisation.csv").string(),
-                    {"case", "texture", "noise_fraction", "preset", "width_px", "height_px", "frames",
-                     "seeded", "alive_mean", "rms_px", "bias_px", "max_px", "radius_px", "resolution_px",
-                     "resolution_radii", "long_wave_rms_px", "rest_frames", "ms_per_frame"});
+  CsvWriter summary((out / "generalisation.csv").string(), {"case",
+                                                            "texture",
+                                                            "noise_fraction",
+                                                            "preset",
+                                                            "width_px",
+                                                            "height_px",
+                                                            "frames",
+                                                            "seeded",
+                                                            "alive_mean",
+                                                            "rms_px",
+                                                            "bias_px",
+                                                            "max_px",
+                                                            "over_1px",
+                                                            "radius_px",
+                                                            "resolution_px",
+                                                            "resolution_radii",
+                                                            "longest_wavelength_px",
+                                                            "longest_gain",
+                                                            "long_wave_rms_px",
+                                                            "rest_frames",
+                                                            "ms_per_frame"});
   for (const pipeline::GeneralisationResult& r : results)
     summary.row_text({r.field, r.texture, format_double(r.noise_fraction), r.preset,
                       std::to_string(r.width_px), std::to_string(r.height_px), std::to_string(r.frames),
@@ -356,13 +385,19 @@ void add_bench_command(CLI::App& app) {
       "0.5\n"
       "and 2 % of full scale (16-bit frames) x presets auto and delhaye2016 (--configs picks presets). Per "
       "row:\n"
-      "tracks alive (mean), displacement error RMS, largest per-frame bias |mean error| and max (px), the\n"
-      "chirp's resolution (shortest wavelength reproduced with >= 90 % of its amplitude, px and in radii: "
-      "the\n"
-      "subset radius, or half the LK window for delhaye2016), the chirp's RMS over wavelengths >= 10 radii,\n"
-      "frames the tracker declared at rest, and ms per tracked frame. Writes OUT/generalisation.csv,\n"
-      "generalisation_frames.csv (per frame) and generalisation_chirp.csv (the chirp's windows).\n"
-      "With --quick: the small test sizes (192x128, chirp 512x96), a few seconds.\n"
+      "tracks alive (mean), displacement error RMS, the largest per-frame bias |mean error| and max (px),\n"
+      "track-frames more than 1 px off (>1px); for the chirp (u = 0.1 px sin, wavelength 1000 -> 20 px "
+      "along\n"
+      "x): the resolution res_px, the shortest wavelength reproduced with >= 90 % of its amplitude ('>L': "
+      "not\n"
+      "even the longest window L the frame holds), res_r the same in radii (the subset radius, or half the "
+      "LK\n"
+      "window for delhaye2016), gain_l the gain at that longest window, long_px the RMS over wavelengths >= "
+      "10\n"
+      "radii; rest: frames the tracker declared at rest; ms per tracked frame (FeatureTracker::track).\n"
+      "Writes OUT/generalisation.csv, generalisation_frames.csv (per frame) and generalisation_chirp.csv "
+      "(the\n"
+      "chirp's windows). With --quick: the small test sizes (192x128, chirp 512x96), a few seconds.\n"
       "Example: tirstrain bench --suite generalisation --out gen-output");
   sub->add_option("--out", args->out, "Output folder (default bench-output)");
   sub->add_option("--scenes-dir", args->scenes_dir, "Folder of the scene files")
