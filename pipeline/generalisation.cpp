@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "core/error.hpp"
 #include "core/scene.hpp"
 #include "flow/tracker.hpp"
 
@@ -120,9 +121,19 @@ bool fit_window(const samples::GeneralisationCase& sequence, const std::vector<V
 
 }  // namespace
 
+const std::vector<std::string>& generalisation_presets() {
+  static const std::vector<std::string> names = {"auto", "delhaye2016", "auto_no_rest"};
+  return names;
+}
+
 flow::TrackerSettings generalisation_settings(const std::string& preset) {
-  flow::TrackerSettings settings = flow::parse_tracking_settings(Scene{}, preset);
+  const bool no_rest = preset == "auto_no_rest";
+  if (!no_rest && preset != "auto" && preset != "delhaye2016")
+    throw Error("unknown generalisation configuration '" + preset +
+                "' (known: auto, delhaye2016, auto_no_rest)");
+  flow::TrackerSettings settings = flow::parse_tracking_settings(Scene{}, no_rest ? "auto" : preset);
   settings.births = false;
+  if (no_rest) settings.rest_average_frames = 1;
   return settings;
 }
 

@@ -76,8 +76,12 @@ struct GeneralisationResult {
   ChirpResolution chirp;
 };
 
-// What `tirstrain track` runs without a scene: the preset from the default hints, births off.
+// What `tirstrain track` runs without a scene: the preset from the default hints, births off. Besides the
+// presets, "auto_no_rest" is the automatic preset without its rest handling (rest_average_frames 1: no
+// averaged anchor, no affine fit reported on frames found at rest), to show what that handling costs.
+// Throws Error for another name.
 flow::TrackerSettings generalisation_settings(const std::string& preset);
+const std::vector<std::string>& generalisation_presets();
 
 // Tracks `frames` (16-bit, as GeneralisationCase::add_noise makes them) with the preset and measures them
 // against the case's field.

@@ -28,7 +28,6 @@
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/yaml_reader.hpp"
-#include "flow/settings.hpp"
 #include "pipeline/generalisation.hpp"
 #include "tirstrain/commands.hpp"
 
@@ -352,7 +351,8 @@ void run_generalisation_bench(const fs::path& out, bool quick, const std::vector
   pipeline::GeneralisationSuite suite;
   suite.small = quick;
   if (!presets.empty()) suite.presets = presets;
-  for (const std::string& p : suite.presets) flow::preset_settings(p, {});  // unknown names throw here
+  for (const std::string& p : suite.presets)
+    pipeline::generalisation_settings(p);  // unknown names throw here
   print_generalisation_header();
   const std::vector<pipeline::GeneralisationResult> results =
       pipeline::run_generalisation_suite(suite, print_generalisation_row);
