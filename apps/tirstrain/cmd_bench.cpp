@@ -29,6 +29,7 @@
 #include "core/error.hpp"
 #include "core/yaml_reader.hpp"
 #include "pipeline/generalisation.hpp"
+#include "samples/generalisation.hpp"
 #include "tirstrain/commands.hpp"
 
 extern char** environ;
@@ -347,10 +348,16 @@ void write_generalisation_csv(const std::vector<pipeline::GeneralisationResult>&
 }
 
 // `--suite generalisation`: the tracker alone on exact-truth textures and fields it was not tuned on.
-void run_generalisation_bench(const fs::path& out, bool quick, const std::vector<std::string>& presets) {
+void run_generalisation_bench(const fs::path& out, bool quick, const std::vector<std::string>& presets,
+                              const std::vector<std::string>& cases) {
   pipeline::GeneralisationSuite suite;
   suite.small = quick;
   if (!presets.empty()) suite.presets = presets;
+  if (!cases.empty()) {
+    suite.fields.clear();
+    for (const std::string& name : cases)
+      suite.fields.push_back(samples::generalisation_field_from_string(name));
+  }
   for (const std::string& p : suite.presets)
     pipeline::generalisation_settings(p);  // unknown names throw here
   print_generalisation_header();
@@ -366,7 +373,7 @@ void run_generalisation_bench(const fs::path& out, bool quick, const std::vector
 void add_bench_command(CLI::App& app) {
   struct Args {
     std::string out = "bench-output", scenes_dir = TIRSTRAIN_SCENES_DIR, suite = "pipeline";
-    std::vector<std::string> scenes, configs;
+    std::vector<std::string> scenes, configs, cases;
     int repeats = 3;
     bool quick = false, fresh = false;
   };
@@ -393,26 +400,20 @@ void add_bench_command(CLI::App& app) {
       "hard_heavy_noise, hard_low_contrast, hard_large_displacement.\n"
       "--quick: a 12-frame cut of the default scene, the two presets, one repeat (a CI smoke run, < 1 min).\n"
       "\n"
-      "--suite generalisation: the tracker alone (flow::FeatureTracker, as `tirstrain track --grid 10` runs "
-      "it\n"
-      "without a scene) on exact-truth sequences it was not tuned on (docs/generalisation.md): speckle and\n"
-      "fingerprint textures x subpixel_shift, integer_shift, chirp, step, stretch, rotation, creep x noise "
-      "0.5\n"
-      "and 2 % of full scale (16-bit frames) x presets auto and delhaye2016 (--configs picks presets). Per "
-      "row:\n"
+      "--suite generalisation: the tracker alone (flow::FeatureTracker, as `tirstrain track --grid 10`\n"
+      "runs it without a scene) on exact-truth sequences it was not tuned on (docs/generalisation.md):\n"
+      "speckle and fingerprint textures x subpixel_shift, integer_shift, chirp, step, stretch, rotation,\n"
+      "creep (--cases picks them) x noise 0.5 and 2 % of full scale (16-bit frames) x presets auto and\n"
+      "delhaye2016 (--configs picks them; also auto_no_rest: auto without its rest handling). Per row:\n"
       "tracks alive (mean), displacement error RMS, the largest per-frame bias |mean error| and max (px),\n"
-      "track-frames more than 1 px off (>1px); for the chirp (u = 0.1 px sin, wavelength 1000 -> 20 px "
-      "along\n"
-      "x): the resolution res_px, the shortest wavelength reproduced with >= 90 % of its amplitude ('>L': "
-      "not\n"
-      "even the longest window L the frame holds), res_r the same in radii (the subset radius, or half the "
-      "LK\n"
-      "window for delhaye2016), gain_l the gain at that longest window, long_px the RMS over wavelengths >= "
-      "10\n"
-      "radii; rest: frames the tracker declared at rest; ms per tracked frame (FeatureTracker::track).\n"
-      "Writes OUT/generalisation.csv, generalisation_frames.csv (per frame) and generalisation_chirp.csv "
-      "(the\n"
-      "chirp's windows). With --quick: the small test sizes (192x128, chirp 512x96), a few seconds.\n"
+      "track-frames more than 1 px off (>1px); for the chirp (u = 0.1 px sin, wavelength 1000 -> 20 px\n"
+      "along x): res_px, the shortest wavelength reproduced with >= 90 % of its amplitude ('>L': not even\n"
+      "the longest window L the frame holds), res_r the same in radii (the subset radius, or half the LK\n"
+      "window for delhaye2016), gain_l the gain at that longest window, long_px the RMS over wavelengths\n"
+      ">= 10 radii; rest: frames the tracker declared at rest; ms per tracked frame\n"
+      "(FeatureTracker::track).\n"
+      "Writes OUT/generalisation.csv, generalisation_frames.csv (per frame) and generalisation_chirp.csv\n"
+      "(the chirp's windows). With --quick: the small test sizes (192x128, chirp 512x96), a few seconds.\n"
       "Example: tirstrain bench --suite generalisation --out gen-output");
   sub->add_option("--out", args->out, "Output folder (default bench-output)");
   sub->add_option("--scenes-dir", args->scenes_dir, "Folder of the scene files")
@@ -428,11 +429,13 @@ void add_bench_command(CLI::App& app) {
                   "pipeline (default: the whole pipeline on the shipped scenes) or generalisation (the "
                   "tracker on exact-truth speckle and fingerprint fields)")
       ->check(CLI::IsMember({"pipeline", "generalisation"}));
+  sub->add_option("--cases", args->cases, "With --suite generalisation: the cases to run (default: all)")
+      ->delimiter(',');
   sub->callback([args] {
     ensure_output_dir(args->out, "--out");
     const fs::path out(args->out);
     if (args->suite == "generalisation") {
-      run_generalisation_bench(out, args->quick, args->configs);
+      run_generalisation_bench(out, args->quick, args->configs, args->cases);
       return;
     }
     std::vector<std::string> scenes = args->scenes;
