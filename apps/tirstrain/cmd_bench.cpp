@@ -28,6 +28,8 @@
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/yaml_reader.hpp"
+#include "pipeline/generalisation.hpp"
+#include "samples/generalisation.hpp"
 #include "tirstrain/commands.hpp"
 
 extern char** environ;
@@ -251,12 +253,127 @@ void write_plot(const std::vector<Row>& rows, const std::vector<std::string>& sc
   fs::rename(partial, path);
 }
 
+void print_generalisation_header() {
+  std::printf("%-15s %-11s %6s %-11s %6s %8s %8s %8s %6s %8s %7s %7s %8s %4s %8s\n", "case", "texture",
+              "noise%", "preset", "alive", "rms_px", "bias_px", "max_px", ">1px", "res_px", "res_r", "gain_l",
+              "long_px", "rest", "ms/frame");
+}
+
+// The chirp's resolution: its wavelength, or ">L" when not even the longest window L reaches the gain.
+std::string resolution_cell(const pipeline::GeneralisationResult& r) {
+  char text[32];
+  if (std::isfinite(r.resolution_px))
+    std::snprintf(text, sizeof text, "%.1f", r.resolution_px);
+  else if (std::isfinite(r.longest_wavelength_px))
+    std::snprintf(text, sizeof text, ">%.0f", r.longest_wavelength_px);
+  else
+    std::snprintf(text, sizeof text, "-");
+  return text;
+}
+
+void print_generalisation_row(const pipeline::GeneralisationResult& r) {
+  std::printf("%-15s %-11s %6.1f %-11s %6.0f %8.4f %8.4f %8.3f %6d %8s %7.2f %7.3f %8.4f %4d %8.1f\n",
+              r.field.c_str(), r.texture.c_str(), 100.0 * r.noise_fraction, r.preset.c_str(), r.alive_mean,
+              r.rms_px, r.bias_px, r.max_px, r.over_1px, resolution_cell(r).c_str(), r.resolution_radii,
+              r.longest_gain, r.long_wave_rms_px, r.rest_frames, r.ms_per_frame);
+  std::fflush(stdout);
+}
+
+void write_generalisation_csv(const std::vector<pipeline::GeneralisationResult>& results,
+                              const fs::path& out) {
+  static const std::vector<std::string> columns = {"case",
+                                                   "texture",
+                                                   "noise_fraction",
+                                                   "preset",
+                                                   "width_px",
+                                                   "height_px",
+                                                   "frames",
+                                                   "seeded",
+                                                   "alive_mean",
+                                                   "rms_px",
+                                                   "bias_px",
+                                                   "max_px",
+                                                   "over_1px",
+                                                   "radius_px",
+                                                   "resolution_px",
+                                                   "resolution_radii",
+                                                   "longest_wavelength_px",
+                                                   "longest_gain",
+                                                   "long_wave_rms_px",
+                                                   "rest_frames",
+                                                   "ms_per_frame"};
+  CsvWriter summary((out / "generalisation.csv").string(), columns);
+  for (const pipeline::GeneralisationResult& r : results)
+    summary.row_text({r.field,
+                      r.texture,
+                      format_double(r.noise_fraction),
+                      r.preset,
+                      std::to_string(r.width_px),
+                      std::to_string(r.height_px),
+                      std::to_string(r.frames),
+                      std::to_string(r.seeded),
+                      format_double(r.alive_mean),
+                      format_double(r.rms_px),
+                      format_double(r.bias_px),
+                      format_double(r.max_px),
+                      std::to_string(r.over_1px),
+                      format_double(r.radius_px),
+                      format_double(r.resolution_px),
+                      format_double(r.resolution_radii),
+                      format_double(r.longest_wavelength_px),
+                      format_double(r.longest_gain),
+                      format_double(r.long_wave_rms_px),
+                      std::to_string(r.rest_frames),
+                      format_double(r.ms_per_frame)});
+  summary.commit();
+  CsvWriter frames((out / "generalisation_frames.csv").string(),
+                   {"case", "texture", "noise_fraction", "preset", "frame", "alive", "rms_px", "bias_x_px",
+                    "bias_y_px", "max_px", "at_rest", "track_ms"});
+  for (const pipeline::GeneralisationResult& r : results)
+    for (const pipeline::GeneralisationFrame& f : r.per_frame)
+      frames.row_text({r.field, r.texture, format_double(r.noise_fraction), r.preset, std::to_string(f.frame),
+                       std::to_string(f.alive), format_double(f.rms_px), format_double(f.bias_px.x),
+                       format_double(f.bias_px.y), format_double(f.max_px), f.at_rest ? "1" : "0",
+                       format_double(f.track_ms)});
+  frames.commit();
+  CsvWriter chirp(
+      (out / "generalisation_chirp.csv").string(),
+      {"texture", "noise_fraction", "preset", "centre_px", "wavelength_px", "gain", "quadrature", "tracks"});
+  for (const pipeline::GeneralisationResult& r : results)
+    for (const pipeline::ChirpWindow& w : r.chirp.windows)
+      chirp.row_text({r.texture, format_double(r.noise_fraction), r.preset, format_double(w.centre_px),
+                      format_double(w.wavelength_px), format_double(w.gain), format_double(w.quadrature),
+                      std::to_string(w.tracks)});
+  chirp.commit();
+}
+
+// `--suite generalisation`: the tracker alone on exact-truth textures and fields it was not tuned on.
+void run_generalisation_bench(const fs::path& out, bool quick, const std::vector<std::string>& presets,
+                              const std::vector<std::string>& cases) {
+  pipeline::GeneralisationSuite suite;
+  suite.small = quick;
+  if (!presets.empty()) suite.presets = presets;
+  if (!cases.empty()) {
+    suite.fields.clear();
+    for (const std::string& name : cases)
+      suite.fields.push_back(samples::generalisation_field_from_string(name));
+  }
+  for (const std::string& p : suite.presets)
+    pipeline::generalisation_settings(p);  // unknown names throw here
+  print_generalisation_header();
+  const std::vector<pipeline::GeneralisationResult> results =
+      pipeline::run_generalisation_suite(suite, print_generalisation_row);
+  write_generalisation_csv(results, out);
+  std::cerr << "bench: wrote " << (out / "generalisation.csv").string() << ", generalisation_frames.csv and "
+            << "generalisation_chirp.csv\n";
+}
+
 }  // namespace
 
 void add_bench_command(CLI::App& app) {
   struct Args {
-    std::string out = "bench-output", scenes_dir = TIRSTRAIN_SCENES_DIR;
-    std::vector<std::string> scenes, configs;
+    std::string out = "bench-output", scenes_dir = TIRSTRAIN_SCENES_DIR, suite = "pipeline";
+    std::vector<std::string> scenes, configs, cases;
     int repeats = 3;
     bool quick = false, fresh = false;
   };
@@ -281,7 +398,23 @@ void add_bench_command(CLI::App& app) {
       "full-resolution segmentation, the balanced and fast segmentation presets).\n"
       "Scenes (samples/scenes): default (640x512 CM), paper_camera_1280 (1280x1024, ~3000 tracks),\n"
       "hard_heavy_noise, hard_low_contrast, hard_large_displacement.\n"
-      "--quick: a 12-frame cut of the default scene, the two presets, one repeat (a CI smoke run, < 1 min).");
+      "--quick: a 12-frame cut of the default scene, the two presets, one repeat (a CI smoke run, < 1 min).\n"
+      "\n"
+      "--suite generalisation: the tracker alone (flow::FeatureTracker, as `tirstrain track --grid 10`\n"
+      "runs it without a scene) on exact-truth sequences it was not tuned on (docs/generalisation.md):\n"
+      "speckle and fingerprint textures x subpixel_shift, integer_shift, chirp, step, stretch, rotation,\n"
+      "creep (--cases picks them) x noise 0.5 and 2 % of full scale (16-bit frames) x presets auto and\n"
+      "delhaye2016 (--configs picks them; also auto_no_rest: auto without its rest handling). Per row:\n"
+      "tracks alive (mean), displacement error RMS, the largest per-frame bias |mean error| and max (px),\n"
+      "track-frames more than 1 px off (>1px); for the chirp (u = 0.1 px sin, wavelength 1000 -> 20 px\n"
+      "along x): res_px, the shortest wavelength reproduced with >= 90 % of its amplitude ('>L': not even\n"
+      "the longest window L the frame holds), res_r the same in radii (the subset radius, or half the LK\n"
+      "window for delhaye2016), gain_l the gain at that longest window, long_px the RMS over wavelengths\n"
+      ">= 10 radii; rest: frames the tracker declared at rest; ms per tracked frame\n"
+      "(FeatureTracker::track).\n"
+      "Writes OUT/generalisation.csv, generalisation_frames.csv (per frame) and generalisation_chirp.csv\n"
+      "(the chirp's windows). With --quick: the small test sizes (192x128, chirp 512x96), a few seconds.\n"
+      "Example: tirstrain bench --suite generalisation --out gen-output");
   sub->add_option("--out", args->out, "Output folder (default bench-output)");
   sub->add_option("--scenes-dir", args->scenes_dir, "Folder of the scene files")
       ->check(CLI::ExistingDirectory);
@@ -292,9 +425,19 @@ void add_bench_command(CLI::App& app) {
       ->check(CLI::Range(1, 50));
   sub->add_flag("--quick", args->quick, "A quick smoke run (see above)");
   sub->add_flag("--fresh", args->fresh, "Synthesise the trials again even if cached");
+  sub->add_option("--suite", args->suite,
+                  "pipeline (default: the whole pipeline on the shipped scenes) or generalisation (the "
+                  "tracker on exact-truth speckle and fingerprint fields)")
+      ->check(CLI::IsMember({"pipeline", "generalisation"}));
+  sub->add_option("--cases", args->cases, "With --suite generalisation: the cases to run (default: all)")
+      ->delimiter(',');
   sub->callback([args] {
     ensure_output_dir(args->out, "--out");
     const fs::path out(args->out);
+    if (args->suite == "generalisation") {
+      run_generalisation_bench(out, args->quick, args->configs, args->cases);
+      return;
+    }
     std::vector<std::string> scenes = args->scenes;
     std::vector<std::string> config_names = args->configs;
     int repeats = args->repeats;

@@ -69,6 +69,37 @@ TEST(BenchCli, QuickRunWritesTheTableAndThePlot) {
   EXPECT_NE(bad.output.find("fastest"), std::string::npos) << bad.output;
 }
 
+TEST(BenchCli, GeneralisationSuiteWritesOneRowPerCaseTextureNoiseAndPreset) {
+  // The chirp at its test size, the automatic preset: 2 textures x 2 noise levels = 4 rows.
+  const std::string out = fresh_dir("bench_generalisation");
+  const auto run = run_cli("bench --suite generalisation --quick --cases chirp --configs auto --out " + out);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("res_px"), std::string::npos) << run.output;
+  std::ifstream csv(out + "/generalisation.csv");
+  std::string header_line, line;
+  std::getline(csv, header_line);
+  const std::vector<std::string> header = split(header_line);
+  int rows = 0;
+  while (std::getline(csv, line)) {
+    if (line.empty()) continue;
+    ++rows;
+    const std::vector<std::string> row = split(line);
+    ASSERT_EQ(row.size(), header.size()) << line;
+    EXPECT_EQ(row[0], "chirp") << line;
+    EXPECT_EQ(row[3], "auto") << line;
+  }
+  EXPECT_EQ(rows, 4);
+  EXPECT_TRUE(fs::exists(fs::path(out) / "generalisation_frames.csv"));
+  EXPECT_TRUE(fs::exists(fs::path(out) / "generalisation_chirp.csv"));
+
+  const auto bad_case = run_cli("bench --suite generalisation --quick --cases wobble --out " + out);
+  EXPECT_EQ(bad_case.exit_code, 1);
+  EXPECT_NE(bad_case.output.find("wobble"), std::string::npos) << bad_case.output;
+  const auto bad_config = run_cli("bench --suite generalisation --quick --configs fastest --out " + out);
+  EXPECT_EQ(bad_config.exit_code, 1);
+  EXPECT_NE(bad_config.output.find("fastest"), std::string::npos) << bad_config.output;
+}
+
 // The one data row of a bench.csv, by column name.
 std::map<std::string, std::string> single_row(const std::string& csv_path) {
   std::ifstream csv(csv_path);
