@@ -131,18 +131,29 @@ RestTest test_affine_model(const std::vector<OwnMatch>& matches, const RestTestO
     test.origin_px.x += m.reference_px.x / test.tracks;
     test.origin_px.y += m.reference_px.y / test.tracks;
   }
-  // Least squares d = a + B (X − X0).
-  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
-  Eigen::Matrix<double, 3, 2> rhs = Eigen::Matrix<double, 3, 2>::Zero();
+  // Generalised least squares d = a + B (X − X0), each match weighted by its inverse covariance: a
+  // subset's along-ridge noise then does not enter the fit, its neighbours' other ridge directions decide.
+  // θ = (a_x, B_xx, B_xy, a_y, B_yx, B_yy).
+  using Vector6 = Eigen::Matrix<double, 6, 1>;
+  using Matrix6 = Eigen::Matrix<double, 6, 6>;
+  Matrix6 normal = Matrix6::Zero();
+  Vector6 rhs = Vector6::Zero();
   for (const OwnMatch& m : matches) {
-    const Eigen::Vector3d b(1.0, m.reference_px.x - test.origin_px.x, m.reference_px.y - test.origin_px.y);
-    normal += b * b.transpose();
-    rhs += b * Eigen::RowVector2d(m.position_px.x - m.reference_px.x, m.position_px.y - m.reference_px.y);
+    const double dx = m.reference_px.x - test.origin_px.x, dy = m.reference_px.y - test.origin_px.y;
+    Eigen::Matrix<double, 2, 6> b = Eigen::Matrix<double, 2, 6>::Zero();
+    b.row(0) << 1.0, dx, dy, 0.0, 0.0, 0.0;
+    b.row(1) << 0.0, 0.0, 0.0, 1.0, dx, dy;
+    const Eigen::Matrix2d weight = m.covariance_px2.inverse();
+    if (!weight.allFinite()) continue;
+    const Eigen::Vector2d d(m.position_px.x - m.reference_px.x, m.position_px.y - m.reference_px.y);
+    normal += b.transpose() * weight * b;
+    rhs += b.transpose() * weight * d;
   }
-  const Eigen::LDLT<Eigen::Matrix3d> solver(normal);
+  const Eigen::LDLT<Matrix6> solver(normal);
   if (solver.info() != Eigen::Success || !solver.isPositive()) return test;
-  test.coefficients = solver.solve(rhs);
-  if (!test.coefficients.allFinite()) return test;
+  const Vector6 theta = solver.solve(rhs);
+  if (!theta.allFinite()) return test;
+  test.coefficients << theta(0), theta(3), theta(1), theta(4), theta(2), theta(5);
 
   const std::vector<Eigen::Vector2d> w = whitened_residuals(matches, test);
   double chi2 = 0.0;
@@ -153,19 +164,17 @@ RestTest test_affine_model(const std::vector<OwnMatch>& matches, const RestTestO
       test.correlation_z > options.max_correlation_z && test.correlation > options.max_correlation;
   test.affine =
       test.chi2_per_dof <= options.max_chi2_per_dof && test.pairs >= options.min_pairs && !structured;
-  // The fitted values of a 3-parameter fit per component carry on average 3/N of one track's variance,
-  // times the tracks that share their noise.
-  double motion2 = 0.0, variance = 0.0;
+  // Nil motion: θ against zero in its covariance, the inverse normal matrix times the tracks that share
+  // their noise (overlapping subsets); χ² with 6 degrees of freedom when nothing moved.
+  double motion2 = 0.0;
   for (const OwnMatch& m : matches) {
     const Vec2 d = test.displacement_px(m.reference_px);
     motion2 += d.x * d.x + d.y * d.y;
-    variance += m.covariance_px2.trace();
   }
-  const double n = test.tracks;
-  test.motion_rms_px = std::sqrt(motion2 / n);
-  test.motion_sigma_px = std::sqrt(3.0 * std::max(1.0, options.correlated_tracks) * variance / (n * n));
-  test.accepted = test.affine && test.motion_rms_px <= std::max(options.tolerance_px,
-                                                                options.noise_sigmas * test.motion_sigma_px);
+  test.motion_rms_px = std::sqrt(motion2 / test.tracks);
+  test.motion_chi2 = theta.dot(normal * theta) / std::max(1.0, options.correlated_tracks);
+  test.accepted = test.affine &&
+                  (test.motion_rms_px <= options.tolerance_px || test.motion_chi2 <= options.max_motion_chi2);
   return test;
 }
 

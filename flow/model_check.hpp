@@ -67,10 +67,11 @@ struct RestTestOptions {
   // Fewer pairs than this: the spatial test cannot speak, and the frame is not at rest.
   int min_pairs = 20;
   int min_tracks = 6;
-  // The fitted motion is nil when its RMS over the tracks is within this (px), or within `noise_sigmas`
-  // of its own uncertainty; tracks share noise over `correlated_tracks` of them (overlapping subsets).
-  double tolerance_px = 0.05;
-  double noise_sigmas = 3.0;
+  // The fitted motion is nil when its RMS over the tracks is within `tolerance_px`, or when its six
+  // parameters are zero within their uncertainty (χ²(6) at most `max_motion_chi2`, 22.5: 99.9 %); tracks
+  // share noise over `correlated_tracks` of them (overlapping subsets).
+  double tolerance_px = 0.01;
+  double max_motion_chi2 = 22.5;
   double correlated_tracks = 1.0;
 };
 
@@ -82,10 +83,10 @@ struct RestTest {
   double correlation = std::numeric_limits<double>::quiet_NaN();
   double correlation_z = std::numeric_limits<double>::quiet_NaN();
   bool affine = false;  // the affine model describes the matches (χ² and correlation within bounds)
-  double motion_rms_px = std::numeric_limits<double>::quiet_NaN();    // the fitted motion over the tracks
-  double motion_sigma_px = std::numeric_limits<double>::quiet_NaN();  // its predicted uncertainty
-  bool accepted = false;                                              // affine and nil: at rest
-  Vec2 origin_px;                                                     // X0
+  double motion_rms_px = std::numeric_limits<double>::quiet_NaN();  // the fitted motion over the tracks
+  double motion_chi2 = std::numeric_limits<double>::quiet_NaN();    // the fit's parameters against zero
+  bool accepted = false;                                            // affine and nil: at rest
+  Vec2 origin_px;                                                   // X0
   Eigen::Matrix<double, 3, 2> coefficients = Eigen::Matrix<double, 3, 2>::Zero();  // rows a, B's columns
   Vec2 displacement_px(Vec2 reference_px) const;
   Gradient2 gradient() const;

@@ -232,7 +232,7 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   s.rest_max_chi2_per_dof = t.number("rest_max_chi2_per_dof", s.rest_max_chi2_per_dof, 0.0, 100.0);
   s.rest_max_correlation_z = t.number("rest_max_correlation_z", s.rest_max_correlation_z, 0.0, 100.0);
   s.rest_tolerance_px = t.number("rest_tolerance_px", s.rest_tolerance_px, 0.0, 10.0);
-  s.rest_noise_sigmas = t.number("rest_noise_sigmas", s.rest_noise_sigmas, 0.0, 10.0);
+  s.rest_max_motion_chi2 = t.number("rest_max_motion_chi2", s.rest_max_motion_chi2, 0.0, 1e6);
   s.smooth_in_time = t.choice("smooth_in_time", s.smooth_in_time, {"auto", "on", "off"});
   s.smooth_in_time_gamma = t.number("smooth_in_time_gamma", s.smooth_in_time_gamma, 0.1, 100.0);
   s.plate_subset_radius_px =
@@ -270,7 +270,7 @@ void validate(const TrackerSettings& s) {
   if (!(s.rest_max_chi2_per_dof >= 0.0)) fail("rest_max_chi2_per_dof", "must not be negative");
   if (!(s.rest_max_correlation_z >= 0.0)) fail("rest_max_correlation_z", "must not be negative");
   if (!(s.rest_tolerance_px >= 0.0)) fail("rest_tolerance_px", "must not be negative");
-  if (!(s.rest_noise_sigmas >= 0.0)) fail("rest_noise_sigmas", "must not be negative");
+  if (!(s.rest_max_motion_chi2 >= 0.0)) fail("rest_max_motion_chi2", "must not be negative");
   if (s.fixed_shape_node_grid < 1 || s.fixed_shape_node_grid > 8)
     fail("fixed_shape_node_grid", "must lie in [1, 8] grid steps");
   if (s.plate_subset_radius_px != 0 && s.plate_subset_radius_px < 3)

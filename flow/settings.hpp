@@ -135,8 +135,10 @@ struct TrackerSettings {
   // tracks' own matches must describe them, its residuals consistent with each match's predicted noise (χ²
   // per degree of freedom at most `rest_max_chi2_per_dof`) and without spatial structure (the correlation
   // of independent neighbours' residuals at most `rest_max_correlation_z` as a z-score); and the fitted
-  // motion itself must be nil: its RMS over the tracks within `rest_tolerance_px`, or within
-  // `rest_noise_sigmas` of the fit's own uncertainty predicted from the matches' noise. A creep, a load or
+  // motion itself must be nil: its RMS over the tracks within `rest_tolerance_px`, or its parameters zero
+  // within their uncertainty predicted from the matches' noise (χ²(6) at most `rest_max_motion_chi2`). An
+  // averaged anchor holds the mean of its frames' positions, so any motion let in here would bias every
+  // later frame by its share. A creep, a load or
   // a first partial slip fails it, and the first frame that fails ends the averaging for good. While the
   // test accepts, each frame-0 track reports the fit where it lies within its own match's noise. The
   // automatic preset averages up to 16 frames, and only noisy texture (SNR below min_unfiltered_snr),
@@ -144,8 +146,8 @@ struct TrackerSettings {
   int rest_average_frames = 1;
   double rest_max_chi2_per_dof = 1.5;
   double rest_max_correlation_z = 3.0;
-  double rest_tolerance_px = 0.05;
-  double rest_noise_sigmas = 3.0;
+  double rest_tolerance_px = 0.01;
+  double rest_max_motion_chi2 = 22.5;
 
   // Positions smoothed in time once the whole trial is tracked (flow/temporal_smoothing.hpp; `process`
   // applies it, the strain is then computed from the smoothed tracks): "auto" only where the texture is

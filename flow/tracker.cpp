@@ -561,7 +561,7 @@ RestTestOptions FeatureTracker::Impl::rest_test_options() const {
   o.independence_px = 2.0 * reach + 1.0;
   o.pair_band_px = 2.0 * settings.grid_step_px;
   o.tolerance_px = settings.rest_tolerance_px;
-  o.noise_sigmas = settings.rest_noise_sigmas;
+  o.max_motion_chi2 = settings.rest_max_motion_chi2;
   o.correlated_tracks = std::numbers::pi * std::pow(reach / settings.grid_step_px, 2);
   return o;
 }

@@ -26,6 +26,8 @@ nlohmann::json tracking_settings_json(const flow::TrackerSettings& s) {
           {"rest_average_frames", s.rest_average_frames},
           {"rest_max_chi2_per_dof", s.rest_max_chi2_per_dof},
           {"rest_max_correlation_z", s.rest_max_correlation_z},
+          {"rest_tolerance_px", s.rest_tolerance_px},
+          {"rest_max_motion_chi2", s.rest_max_motion_chi2},
           {"smooth_in_time", s.smooth_in_time},
           {"ridge_period_px", s.ridge_period_px},
           {"adapt_to_texture", s.adapt_to_texture}};
