@@ -368,16 +368,159 @@ void run_generalisation_bench(const fs::path& out, bool quick, const std::vector
             << "generalisation_chirp.csv\n";
 }
 
+struct BenchArgs {
+  std::string out = "bench-output", scenes_dir = TIRSTRAIN_SCENES_DIR, suite = "pipeline";
+  std::vector<std::string> scenes, configs, cases;
+  int repeats = 3;
+  bool quick = false, fresh = false;
+};
+
+// The configurations named (all when none is), refusing an unknown name.
+std::vector<Config> select_configs(const std::vector<std::string>& names) {
+  std::vector<Config> configs;
+  for (const Config& c : all_configs())
+    if (names.empty() || std::find(names.begin(), names.end(), c.name) != names.end()) configs.push_back(c);
+  for (const std::string& name : names)
+    if (std::none_of(configs.begin(), configs.end(), [&](const Config& c) { return c.name == name; }))
+      throw Error("unknown configuration '" + name + "'");
+  return configs;
+}
+
+// The scene's trial in OUT/trials/SCENE, synthesised in a child process unless cached (or --fresh).
+fs::path synthesise_trial(const BenchArgs& args, const fs::path& out, const std::string& scene_name) {
+  const fs::path trial = out / "trials" / scene_name;
+  if (!args.fresh && fs::exists(trial / "truth.h5")) return trial;
+  fs::path scene_file = fs::path(args.scenes_dir) / (scene_name + ".yaml");
+  fs::create_directories(out / "trials");
+  if (scene_name == "quick") {
+    // The default scene cut to 12 frames: five at rest, then partial slip.
+    YAML::Node s = load_yaml_file((fs::path(args.scenes_dir) / "default.yaml").string());
+    s["synthesis"]["timing"]["frames"] = 12;
+    YAML::Emitter e;
+    e << s;
+    scene_file = out / "trials" / "quick.yaml";
+    write_text_file(scene_file.string(), std::string(e.c_str()) + "\n");
+  }
+  if (!fs::exists(scene_file)) throw Error("no such scene", {.file = scene_file.string()});
+  std::cerr << "bench: synthesising " << scene_name << " -> " << trial.string() << "\n";
+  double peak = 0.0;
+  const std::string log = (out / "trials" / (scene_name + ".log")).string();
+  if (run_child({"synth", "--scene", scene_file.string(), "--out", trial.string(), "--quiet"}, log, &peak) !=
+      0)
+    throw Error("synthesis failed: " + tail_of(log), {.file = scene_file.string()});
+  return trial;
+}
+
+// One configuration on one trial, REPEATS child runs of `tirstrain validate`: medians of the speeds, the
+// errors of the first run (they are deterministic).
+Row measure_config(const fs::path& out, const fs::path& trial, const std::string& scene_name,
+                   const Config& config, int repeats, std::size_t& run_index, std::size_t total_runs) {
+  Row row;
+  row.scene = scene_name;
+  row.config = config.name;
+  const fs::path run_dir = out / "runs" / scene_name / config.name;
+  fs::create_directories(run_dir);
+  const std::string scene_file = write_config_scene(trial, config, run_dir / "scene.yaml");
+  std::vector<double> fps, contact_ms, track_ms, strain_ms, tracks;
+  for (int r = 0; r < repeats; ++r) {
+    ++run_index;
+    const fs::path rep = run_dir / ("repeat" + std::to_string(r));
+    double peak = 0.0;
+    const std::string log = (run_dir / ("repeat" + std::to_string(r) + ".log")).string();
+    const int code = run_child({"validate", "--trial", trial.string(), "--process-scene", scene_file, "--out",
+                                rep.string(), "--no-maps", "--quiet"},
+                               log, &peak);
+    std::cerr << "bench: [" << run_index << "/" << total_runs << "] " << scene_name << " " << config.name
+              << " repeat " << r + 1 << (code == 0 ? "" : " FAILED") << "\n";
+    if (code != 0) {
+      row.error = tail_of(log);
+      break;
+    }
+    row.peak_mb = std::isfinite(row.peak_mb) ? std::max(row.peak_mb, peak) : peak;
+    std::ifstream summary_file(rep / "result" / "summary.json");
+    const nlohmann::json summary = nlohmann::json::parse(summary_file);
+    row.frames = summary["frames"]["total"].get<int>();
+    fps.push_back(row.frames / summary["wall_time_s"].get<double>());
+    contact_ms.push_back(summary["contact"]["segment_ms_per_frame"].get<double>());
+    track_ms.push_back(summary["tracking"]["track_ms_per_frame"].get<double>());
+    strain_ms.push_back(summary["strain"]["strain_ms_per_frame"].get<double>());
+    tracks.push_back(summary["tracking"]["tracks_alive_mean"].get<double>());
+    if (r == 0) read_validation(rep, row);
+  }
+  row.frames_per_s = median(fps);
+  row.contact_ms = median(contact_ms);
+  row.track_ms = median(track_ms);
+  row.strain_ms = median(strain_ms);
+  row.tracks_mean = median(tracks);
+  return row;
+}
+
+void print_rows(const std::vector<Row>& rows) {
+  std::printf("%-24s %-22s %8s %8s %7s %8s %8s %8s %7s %9s %9s %9s %9s %8s\n", "scene", "config", "frames/s",
+              "contact", "ctr_px", "track", "strain", "peak_MB", "tracks", "disp_px", "E_xx", "E_yy", "E_xy",
+              "U_err%");
+  for (const Row& r : rows) {
+    if (!r.error.empty()) {
+      std::printf("%-24s %-22s failed: %s\n", r.scene.c_str(), r.config.c_str(), r.error.c_str());
+      continue;
+    }
+    std::printf("%-24s %-22s %8.3g %8.3g %7.2f %8.3g %8.3g %8.0f %7.0f %9.4f %9.5f %9.5f %9.5f %8.2f\n",
+                r.scene.c_str(), r.config.c_str(), r.frames_per_s, r.contact_ms, r.contact_centre_rms_px,
+                r.track_ms, r.strain_ms, r.peak_mb, r.tracks_mean, r.disp_rms_px, r.strain_rms[0],
+                r.strain_rms[1], r.strain_rms[2], r.energy_err_pct);
+  }
+}
+
+void write_bench_csv(const std::vector<Row>& rows, const fs::path& path) {
+  CsvWriter csv(path.string(), {"scene", "config", "frames", "frames_per_s", "contact_ms", "track_ms",
+                                "strain_ms", "peak_mb", "tracks_mean", "disp_rms_px", "strain_rms",
+                                "strain_rms_exx", "strain_rms_eyy", "strain_rms_exy", "energy_err_pct",
+                                "plate_rms_px", "contact_centre_rms_px", "contact_iou_min", "error"});
+  for (const Row& r : rows)
+    csv.row_text(
+        {r.scene, r.config, std::to_string(r.frames), format_double(r.frames_per_s),
+         format_double(r.contact_ms), format_double(r.track_ms), format_double(r.strain_ms),
+         format_double(r.peak_mb), format_double(r.tracks_mean), format_double(r.disp_rms_px),
+         format_double(r.strain_rms_all), format_double(r.strain_rms[0]), format_double(r.strain_rms[1]),
+         format_double(r.strain_rms[2]), format_double(r.energy_err_pct), format_double(r.plate_rms_px),
+         format_double(r.contact_centre_rms_px), format_double(r.contact_iou_min), csv_safe(r.error)});
+  csv.commit();
+}
+
+// The pipeline suite: every scene x configuration through `tirstrain validate`, a table, bench.csv and the
+// Pareto plot.
+void run_pipeline_bench(const BenchArgs& args, const fs::path& out) {
+  std::vector<std::string> scenes = args.scenes;
+  std::vector<std::string> config_names = args.configs;
+  int repeats = args.repeats;
+  if (args.quick) {
+    if (scenes.empty()) scenes = {"quick"};
+    if (config_names.empty()) config_names = {"delhaye2016", "default"};
+    repeats = 1;
+  }
+  if (scenes.empty())
+    scenes = {"default", "paper_camera_1280", "hard_heavy_noise", "hard_low_contrast",
+              "hard_large_displacement"};
+  const std::vector<Config> configs = select_configs(config_names);
+  std::vector<Row> rows;
+  const std::size_t total_runs = scenes.size() * configs.size() * static_cast<std::size_t>(repeats);
+  std::size_t run_index = 0;
+  for (const std::string& scene_name : scenes) {
+    const fs::path trial = synthesise_trial(args, out, scene_name);
+    for (const Config& config : configs)
+      rows.push_back(measure_config(out, trial, scene_name, config, repeats, run_index, total_runs));
+  }
+  print_rows(rows);
+  write_bench_csv(rows, out / "bench.csv");
+  write_plot(rows, scenes, (out / "bench.png").string());
+  std::cerr << "bench: wrote " << (out / "bench.csv").string() << " and " << (out / "bench.png").string()
+            << "\n";
+}
+
 }  // namespace
 
 void add_bench_command(CLI::App& app) {
-  struct Args {
-    std::string out = "bench-output", scenes_dir = TIRSTRAIN_SCENES_DIR, suite = "pipeline";
-    std::vector<std::string> scenes, configs, cases;
-    int repeats = 3;
-    bool quick = false, fresh = false;
-  };
-  auto args = std::make_shared<Args>();
+  auto args = std::make_shared<BenchArgs>();
   CLI::App* sub = app.add_subcommand(
       "bench", "Speed against error: the whole pipeline on synthetic trials with exact truth");
   sub->footer(
@@ -434,130 +577,10 @@ void add_bench_command(CLI::App& app) {
   sub->callback([args] {
     ensure_output_dir(args->out, "--out");
     const fs::path out(args->out);
-    if (args->suite == "generalisation") {
+    if (args->suite == "generalisation")
       run_generalisation_bench(out, args->quick, args->configs, args->cases);
-      return;
-    }
-    std::vector<std::string> scenes = args->scenes;
-    std::vector<std::string> config_names = args->configs;
-    int repeats = args->repeats;
-    if (args->quick) {
-      if (scenes.empty()) scenes = {"quick"};
-      if (config_names.empty()) config_names = {"delhaye2016", "default"};
-      repeats = 1;
-    }
-    if (scenes.empty())
-      scenes = {"default", "paper_camera_1280", "hard_heavy_noise", "hard_low_contrast",
-                "hard_large_displacement"};
-    std::vector<Config> configs;
-    for (const Config& c : all_configs())
-      if (config_names.empty() ||
-          std::find(config_names.begin(), config_names.end(), c.name) != config_names.end())
-        configs.push_back(c);
-    for (const std::string& name : config_names)
-      if (std::none_of(configs.begin(), configs.end(), [&](const Config& c) { return c.name == name; }))
-        throw Error("unknown configuration '" + name + "'");
-
-    std::vector<Row> rows;
-    const std::size_t total_runs = scenes.size() * configs.size() * static_cast<std::size_t>(repeats);
-    std::size_t run_index = 0;
-    for (const std::string& scene_name : scenes) {
-      const fs::path trial = out / "trials" / scene_name;
-      if (args->fresh || !fs::exists(trial / "truth.h5")) {
-        fs::path scene_file = fs::path(args->scenes_dir) / (scene_name + ".yaml");
-        if (scene_name == "quick") {
-          // The default scene cut to 12 frames: five at rest, then partial slip.
-          YAML::Node s = load_yaml_file((fs::path(args->scenes_dir) / "default.yaml").string());
-          s["synthesis"]["timing"]["frames"] = 12;
-          YAML::Emitter e;
-          e << s;
-          fs::create_directories(out / "trials");
-          scene_file = out / "trials" / "quick.yaml";
-          write_text_file(scene_file.string(), std::string(e.c_str()) + "\n");
-        }
-        if (!fs::exists(scene_file)) throw Error("no such scene", {.file = scene_file.string()});
-        std::cerr << "bench: synthesising " << scene_name << " -> " << trial.string() << "\n";
-        double peak = 0.0;
-        const std::string log = (out / "trials" / (scene_name + ".log")).string();
-        fs::create_directories(out / "trials");
-        if (run_child({"synth", "--scene", scene_file.string(), "--out", trial.string(), "--quiet"}, log,
-                      &peak) != 0)
-          throw Error("synthesis failed: " + tail_of(log), {.file = scene_file.string()});
-      }
-      for (const Config& config : configs) {
-        Row row;
-        row.scene = scene_name;
-        row.config = config.name;
-        const fs::path run_dir = out / "runs" / scene_name / config.name;
-        fs::create_directories(run_dir);
-        const std::string scene_file = write_config_scene(trial, config, run_dir / "scene.yaml");
-        std::vector<double> fps, contact_ms, track_ms, strain_ms, tracks;
-        for (int r = 0; r < repeats; ++r) {
-          ++run_index;
-          const fs::path rep = run_dir / ("repeat" + std::to_string(r));
-          double peak = 0.0;
-          const std::string log = (run_dir / ("repeat" + std::to_string(r) + ".log")).string();
-          const int code = run_child({"validate", "--trial", trial.string(), "--process-scene", scene_file,
-                                      "--out", rep.string(), "--no-maps", "--quiet"},
-                                     log, &peak);
-          std::cerr << "bench: [" << run_index << "/" << total_runs << "] " << scene_name << " "
-                    << config.name << " repeat " << r + 1 << (code == 0 ? "" : " FAILED") << "\n";
-          if (code != 0) {
-            row.error = tail_of(log);
-            break;
-          }
-          row.peak_mb = std::isfinite(row.peak_mb) ? std::max(row.peak_mb, peak) : peak;
-          std::ifstream summary_file(rep / "result" / "summary.json");
-          const nlohmann::json summary = nlohmann::json::parse(summary_file);
-          row.frames = summary["frames"]["total"].get<int>();
-          fps.push_back(row.frames / summary["wall_time_s"].get<double>());
-          contact_ms.push_back(summary["contact"]["segment_ms_per_frame"].get<double>());
-          track_ms.push_back(summary["tracking"]["track_ms_per_frame"].get<double>());
-          strain_ms.push_back(summary["strain"]["strain_ms_per_frame"].get<double>());
-          tracks.push_back(summary["tracking"]["tracks_alive_mean"].get<double>());
-          if (r == 0) read_validation(rep, row);
-        }
-        row.frames_per_s = median(fps);
-        row.contact_ms = median(contact_ms);
-        row.track_ms = median(track_ms);
-        row.strain_ms = median(strain_ms);
-        row.tracks_mean = median(tracks);
-        rows.push_back(row);
-      }
-    }
-
-    std::printf("%-24s %-22s %8s %8s %7s %8s %8s %8s %7s %9s %9s %9s %9s %8s\n", "scene", "config",
-                "frames/s", "contact", "ctr_px", "track", "strain", "peak_MB", "tracks", "disp_px", "E_xx",
-                "E_yy", "E_xy", "U_err%");
-    for (const Row& r : rows) {
-      if (!r.error.empty()) {
-        std::printf("%-24s %-22s failed: %s\n", r.scene.c_str(), r.config.c_str(), r.error.c_str());
-        continue;
-      }
-      std::printf("%-24s %-22s %8.3g %8.3g %7.2f %8.3g %8.3g %8.0f %7.0f %9.4f %9.5f %9.5f %9.5f %8.2f\n",
-                  r.scene.c_str(), r.config.c_str(), r.frames_per_s, r.contact_ms, r.contact_centre_rms_px,
-                  r.track_ms, r.strain_ms, r.peak_mb, r.tracks_mean, r.disp_rms_px, r.strain_rms[0],
-                  r.strain_rms[1], r.strain_rms[2], r.energy_err_pct);
-    }
-    {
-      CsvWriter csv(
-          (out / "bench.csv").string(),
-          {"scene", "config", "frames", "frames_per_s", "contact_ms", "track_ms", "strain_ms", "peak_mb",
-           "tracks_mean", "disp_rms_px", "strain_rms", "strain_rms_exx", "strain_rms_eyy", "strain_rms_exy",
-           "energy_err_pct", "plate_rms_px", "contact_centre_rms_px", "contact_iou_min", "error"});
-      for (const Row& r : rows)
-        csv.row_text(
-            {r.scene, r.config, std::to_string(r.frames), format_double(r.frames_per_s),
-             format_double(r.contact_ms), format_double(r.track_ms), format_double(r.strain_ms),
-             format_double(r.peak_mb), format_double(r.tracks_mean), format_double(r.disp_rms_px),
-             format_double(r.strain_rms_all), format_double(r.strain_rms[0]), format_double(r.strain_rms[1]),
-             format_double(r.strain_rms[2]), format_double(r.energy_err_pct), format_double(r.plate_rms_px),
-             format_double(r.contact_centre_rms_px), format_double(r.contact_iou_min), csv_safe(r.error)});
-      csv.commit();
-    }
-    write_plot(rows, scenes, (out / "bench.png").string());
-    std::cerr << "bench: wrote " << (out / "bench.csv").string() << " and " << (out / "bench.png").string()
-              << "\n";
+    else
+      run_pipeline_bench(*args, out);
   });
 }
 
