@@ -28,7 +28,14 @@ struct Scene {
   std::string ridge_polarity = "auto";    // "dark", "bright" or "auto" (ridges in contact dark/bright)
   Tissue tissue;
   std::optional<RoiPx> reference_pattern_roi;  // band of the image showing the pattern printed on the glass
+  // reference_pattern.detect: without roi_px, `process` looks for the band along the image edges
+  // (pipeline/pattern_band.hpp); false says the plate shows no pattern.
+  bool reference_pattern_detect = true;
   std::vector<std::string> compute = {"contact"};  // stages requested, in pipeline order
+  bool compute_given = false;                      // the file has a compute list (else `process` picks)
+  // Which calibration and tissue values the file gives; the others are defaults, and results say so.
+  bool px_per_mm_given = false;
+  bool tissue_given = false;
   // Module-owned sections, parsed by their modules.
   YAML::Node synthesis;
   YAML::Node segmentation;  // contact stage settings (pipeline/contact_stage.cpp)
