@@ -137,11 +137,11 @@ void draw_band(cv::Mat& bgr, const PatternBandChoice& band) {
   } else {
     std::snprintf(text, sizeof text, "pattern band (%s, from the scene)", band.edge.c_str());
   }
-  // Inside the band, on the side away from the image's edge it runs along.
+  // Along the image's bottom, clear of the status lines at the top: just above the band when it is there.
   const int text_y =
-      band.edge == "top" ? r.y + r.height - static_cast<int>(6 * scale) : r.y + static_cast<int>(16 * scale);
-  cv::putText(bgr, text, cv::Point(r.x + static_cast<int>(8 * scale), text_y), cv::FONT_HERSHEY_SIMPLEX,
-              0.4 * scale, cv::Scalar(255, 120, 0), thick, cv::LINE_AA);
+      band.edge == "bottom" ? r.y - static_cast<int>(6 * scale) : bgr.rows - static_cast<int>(8 * scale);
+  cv::putText(bgr, text, cv::Point(static_cast<int>(8 * scale) + (band.edge == "left" ? r.width : 0), text_y),
+              cv::FONT_HERSHEY_SIMPLEX, 0.45 * scale, cv::Scalar(255, 120, 0), thick, cv::LINE_AA);
 }
 
 void remove_stale(const fs::path& path) {

@@ -87,7 +87,7 @@ std::vector<std::string> default_stages(Scene& scene, const std::string& input, 
   }
   const std::string file = default_channel_file(input);
   YAML::Node section = default_channels_section(file);
-  if (!section) {
+  if (!section || section.IsNull()) {
     reason += "; no channels (no channels section, no " + file + " with known columns)";
     return stages;
   }

@@ -438,6 +438,9 @@ TEST(Process, WithoutASceneRunsEveryStageTheImagesFeed) {
   for (const char* line :
        {"px_per_mm = 52 is the default", "E = 1e+06 Pa, nu = 0.4, depth = 0.002 m are the"})
     EXPECT_NE(run.output.find(line), std::string::npos) << line << "\n" << run.output;
+  EXPECT_NE(summary["stages_source"].get<std::string>().find("no channels (no channels section, no "),
+            std::string::npos)
+      << summary["stages_source"];
   EXPECT_EQ(summary["reference_pattern"]["source"], "none");
   EXPECT_TRUE(summary["reference_pattern"]["roi_px"].is_null());
   EXPECT_EQ(summary["contact"]["frames_with_contact"], kFrames);
@@ -510,6 +513,37 @@ TEST(Process, ContactComingLateAndLiftingOff) {
     ASSERT_EQ(shape.size(), 3u);
     EXPECT_GT(shape[1], 200u) << c.name;
   }
+}
+
+// A channels.csv beside the frames with tirstrain synth's column names: without a scene the channels stage
+// runs on it (its columns mapped by name, in SI); one with unknown names is left out and the reason said.
+TEST(Process, ChannelsFileBesideTheFramesIsRead) {
+  constexpr int kFrames = 3;
+  const fs::path trial = write_recording("channels_trial", kFrames, [](int) { return true; });
+  {
+    std::ofstream csv(trial / "channels.csv");
+    csv << "t_s,normal_N,tangential_N,plate_x_mm,plate_y_mm\n";
+    for (int i = 0; i <= 40; ++i)
+      csv << format_double(0.001 * i) << ",1.5,0.25," << format_double(0.01 * i) << ",0\n";
+  }
+  const fs::path out = scratch("channels_out");
+  const CliRun run = run_cli("process " + trial.string() + " --out " + out.string() + " --overlay none");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  nlohmann::json summary = read_summary(out);
+  EXPECT_EQ(summary["stages_run"], (std::vector<std::string>{"contact", "tracking", "strain", "channels"}));
+  H5Reader h5((out / "result.h5").string());
+  const auto normal = h5.read_doubles("/channels/normal_force_N");
+  ASSERT_EQ(normal.size(), 41u);
+  EXPECT_DOUBLE_EQ(normal[7], 1.5);
+  const auto plate_x = h5.read_doubles("/channels/plate_position_x_m");
+  EXPECT_NEAR(plate_x[10], 1e-4, 1e-12);  // 0.1 mm
+
+  std::ofstream(trial / "channels.csv") << "time,force\n0,1\n0.001,1\n";
+  const CliRun other = run_cli("process " + trial.string() + " --out " + out.string() + " --overlay none");
+  ASSERT_EQ(other.exit_code, 0) << other.output;
+  summary = read_summary(out);
+  EXPECT_EQ(summary["stages_run"], (std::vector<std::string>{"contact", "tracking", "strain"}));
+  EXPECT_NE(summary["stages_source"].get<std::string>().find("no channels"), std::string::npos);
 }
 
 // `scene init` on a recording with the band along the left and the finger arriving at frame 2: the band's
