@@ -152,7 +152,8 @@ PatternBand band_along(const EdgeProfile& profile, double typical, const cv::Mat
     band.confidence = 0.5 * clamp01(std::min(contrast_score, 0.99));
     return band;
   }
-  const int width_px = static_cast<int>(std::lround(width));
+  band.width_px = width;
+  const int width_px = std::max(1, static_cast<int>(std::floor(width)) - std::max(0, options.inset_px));
   const cv::Rect roi = band_rect(profile.edge, width_px, lambda.size());
   // Fill: the band's pixels above the geometric mean of the two levels (between dots lambda_min dips, so the
   // pixel test sits lower than the line test).

@@ -22,9 +22,10 @@ enum class ImageEdge { kNone, kTop, kBottom, kLeft, kRight };
 std::string to_string(ImageEdge edge);
 
 struct PatternBandOptions {
-  // Gaussian smoothing before the gradients (px): takes pixel noise down by ~25x in lambda_min while keeping
-  // dots a few pixels wide.
-  double presmooth_sigma_px = 1.0;
+  // Gaussian smoothing before the gradients (px): pixel noise's lambda_min falls as sigma^-4 while that of
+  // dots a few pixels wide falls far less (at 2 px against 1 px, the synthetic heavy-noise trial's band went
+  // from 8 to 34 times its noise, the default trial's from 200 to 940).
+  double presmooth_sigma_px = 2.0;
   // Integration scale of the structure tensor (px): a few dots' spacing would blur the inner boundary; this
   // spans about one dot spacing of the patterns seen (0.2 mm at 52 px/mm is 11 px).
   double integration_sigma_px = 3.0;
@@ -41,10 +42,17 @@ struct PatternBandOptions {
   // Width limits as fractions of the image's size across the edge, and in pixels.
   double max_width_fraction = 0.4;
   int min_width_px = 6;
+  // The rectangle ends this far inside the boundary found: the boundary moves by about +-2 px from frame to
+  // frame as the plate carries the dots it cuts, and a rectangle reaching past the band would average the
+  // still background into the plate's motion.
+  int inset_px = 2;
 };
 
 struct PatternBand {
   ImageEdge edge = ImageEdge::kNone;
+  // The inner boundary's distance from the edge (px, sub-pixel); roi_px ends inset_px inside it, in whole
+  // pixels, so that the plate is measured on pattern only.
+  double width_px = 0.0;
   cv::Rect roi_px;          // empty when edge is kNone
   double confidence = 0.0;  // 0..1; 0 with no band
   double contrast = 0.0;    // band level over the typical line's level (the best edge's, also when none)
