@@ -171,6 +171,7 @@ PatternBand band_along(const EdgeProfile& profile, double typical, const cv::Mat
   band.confidence = 0.5 + 0.5 * std::min(contrast_part, fill_part);
   band.edge = profile.edge;
   band.roi_px = roi;
+  band.margin_px = 2 * std::max(0, options.inset_px) + 1;
   return band;
 }
 

@@ -53,7 +53,10 @@ struct PatternBand {
   // The inner boundary's distance from the edge (px, sub-pixel); roi_px ends inset_px inside it, in whole
   // pixels, so that the plate is measured on pattern only.
   double width_px = 0.0;
-  cv::Rect roi_px;          // empty when edge is kNone
+  cv::Rect roi_px;  // empty when edge is kNone
+  // How far past roi_px the band may reach: the inset plus the boundary's frame-to-frame scatter, what a
+  // consumer that must leave out all of the band (contact segmentation) adds on the inner side.
+  int margin_px = 0;
   double confidence = 0.0;  // 0..1; 0 with no band
   double contrast = 0.0;    // band level over the typical line's level (the best edge's, also when none)
   double snr = 0.0;         // band level over its pixel noise's

@@ -120,6 +120,7 @@ nlohmann::json PatternBandChoice::to_json() const {
   } else {
     j["confidence"] = nullptr;
   }
+  j["contact_exclusion_margin_px"] = margin_px;
   return j;
 }
 
@@ -169,7 +170,9 @@ PatternBandChoice resolve_pattern_band(Scene& scene, const cv::Mat& first_frame)
   choice.source = "detected";
   const cv::Rect& r = band.roi_px;
   choice.roi_px = RoiPx{r.x, r.y, r.width, r.height};
+  choice.margin_px = band.margin_px;
   scene.reference_pattern_roi = choice.roi_px;
+  scene.reference_pattern_margin_px = band.margin_px;
   return choice;
 }
 

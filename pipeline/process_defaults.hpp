@@ -33,6 +33,7 @@ struct PatternBandChoice {
   std::optional<RoiPx> roi_px;
   std::string edge;  // top, bottom, left, right, none; "inside" for a scene band off the edges
   std::optional<double> confidence;  // detection only
+  int margin_px = 0;                 // contact segmentation leaves out roi_px grown by this (detection only)
   nlohmann::json to_json() const;
   std::string describe() const;  // one line for the console
 };

@@ -475,6 +475,7 @@ TEST(Process, FindsTheBandExcludesItAndMeasuresThePlate) {
   EXPECT_EQ(found["roi_px"][1].get<int>() + found["roi_px"][3].get<int>(), band.y + band.height);
   EXPECT_EQ(found["roi_px"][2].get<int>(), band.width);
   EXPECT_GE(found["confidence"].get<double>(), 0.8);
+  EXPECT_EQ(found["contact_exclusion_margin_px"], 5);
   EXPECT_NE(run.output.find("detected along the bottom edge"), std::string::npos) << run.output;
   H5Reader h5((out / "result.h5").string());
   const auto status = h5.read_integers("/contact/status");
