@@ -171,7 +171,8 @@ PatternBand band_along(const EdgeProfile& profile, double typical, const cv::Mat
   band.confidence = 0.5 + 0.5 * std::min(contrast_part, fill_part);
   band.edge = profile.edge;
   band.roi_px = roi;
-  band.margin_px = 2 * std::max(0, options.inset_px) + 1;
+  // The inset, the boundary's scatter from frame to frame (2 px) and the rounding down of the rectangle.
+  band.margin_px = std::max(0, options.inset_px) + 3;
   return band;
 }
 

@@ -53,7 +53,7 @@ class PatternBandEdge : public ::testing::TestWithParam<ImageEdge> {};
 
 // Edge right, boundary within 2 px of the truth (the band's edge cuts through dots 8 px apart, and where the
 // last ones fall moves the boundary found by about a quarter of that), rectangle inside the band and short of
-// it by the inset (2 px) plus at most 2 px, confidence high.
+// it by the inset (1 px) plus at most 3 px, confidence high.
 TEST_P(PatternBandEdge, FoundWithItsRectangle) {
   const ImageEdge edge = GetParam();
   cv::Mat image = test::render_tir(small_scene());

@@ -469,13 +469,13 @@ TEST(Process, FindsTheBandExcludesItAndMeasuresThePlate) {
   EXPECT_EQ(found["source"], "detected");
   EXPECT_EQ(found["edge"], "bottom");
   ASSERT_TRUE(found["roi_px"].is_array());
-  // Inside the band, short of it by the detector's 2 px inset plus at most 2 px.
+  // Inside the band, short of it by the detector's 1 px inset plus at most 3 px.
   EXPECT_GE(found["roi_px"][1].get<int>(), band.y);
   EXPECT_LE(found["roi_px"][1].get<int>(), band.y + 4);
   EXPECT_EQ(found["roi_px"][1].get<int>() + found["roi_px"][3].get<int>(), band.y + band.height);
   EXPECT_EQ(found["roi_px"][2].get<int>(), band.width);
   EXPECT_GE(found["confidence"].get<double>(), 0.8);
-  EXPECT_EQ(found["contact_exclusion_margin_px"], 5);
+  EXPECT_EQ(found["contact_exclusion_margin_px"], 4);
   EXPECT_NE(run.output.find("detected along the bottom edge"), std::string::npos) << run.output;
   H5Reader h5((out / "result.h5").string());
   const auto status = h5.read_integers("/contact/status");
