@@ -437,6 +437,28 @@ Ellipse with_blended_shape(const Ellipse& base, const Ellipse& other, double wei
   return e;
 }
 
+// For each label of `labels` (CV_32S, `count` labels, 0 background), the smallest distance in pixels from
+// its pixels to those of label `from` (0 for `from` itself; infinity for the background and, with no other
+// label, for all).
+std::vector<double> gaps_to_region(const cv::Mat& labels, int count, int from) {
+  std::vector<double> gap(static_cast<std::size_t>(count), std::numeric_limits<double>::infinity());
+  if (from > 0 && from < count) gap[static_cast<std::size_t>(from)] = 0.0;
+  if (count <= 2) return gap;
+  cv::Mat outside, distance;
+  cv::compare(labels, from, outside, cv::CMP_NE);
+  cv::distanceTransform(outside, distance, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  for (int y = 0; y < labels.rows; ++y) {
+    const int* l = labels.ptr<int>(y);
+    const float* d = distance.ptr<float>(y);
+    for (int x = 0; x < labels.cols; ++x) {
+      if (l[x] == 0) continue;
+      double& g = gap[static_cast<std::size_t>(l[x])];
+      g = std::min(g, static_cast<double>(d[x]));
+    }
+  }
+  return gap;
+}
+
 }  // namespace
 
 SegmenterOptions with_preset(SegmenterOptions options, SegmentationPreset preset) {
@@ -684,11 +706,14 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
 
   std::uint32_t status = saturated_flag;
   std::vector<std::uint8_t> keep(static_cast<std::size_t>(labels), 0);
+  const std::vector<double> gap_w = gaps_to_region(buf_.labels, labels, largest);
+  const double max_gap_w = options_.merge_gap_periods * period_w;
   cv::Rect kept_box_w;
   for (int i = 1; i < labels; ++i) {
     const int area = buf_.stats.at<int>(i, cv::CC_STAT_AREA);
     if (i != largest && area * mm2_per_working_px >= options_.min_area_mm2) status |= kMultipleBlobs;
-    if (i == largest || area >= options_.merge_fraction * largest_area) {
+    if (i == largest ||
+        (area >= options_.merge_fraction * largest_area && gap_w[static_cast<std::size_t>(i)] <= max_gap_w)) {
       keep[static_cast<std::size_t>(i)] = 1;
       const cv::Rect box(buf_.stats.at<int>(i, cv::CC_STAT_LEFT), buf_.stats.at<int>(i, cv::CC_STAT_TOP),
                          buf_.stats.at<int>(i, cv::CC_STAT_WIDTH), buf_.stats.at<int>(i, cv::CC_STAT_HEIGHT));

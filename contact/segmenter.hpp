@@ -65,7 +65,7 @@ enum ContactFlag : std::uint32_t {
   kTouchesEdge = 1u << 1,    // contact runs off the frame or into the excluded band: the hull is cut
                              // there, and the ellipse is fitted to the free part of the outline only
   kMultipleBlobs = 1u << 2,  // more than one textured region; those >= merge_fraction of the largest
-                             // are joined in one hull
+                             // and within merge_gap_periods of it are joined in one hull
   kSaturated = 1u << 3,      // >= saturated_fraction of the pixels at full scale
   kLowContrast = 1u << 4,    // ridge amplitude below low_contrast (fraction of full scale): kept, less sure
   kNoEllipse = 1u << 5,      // contact found but too little free outline to fit an ellipse: ellipse 0
@@ -93,7 +93,12 @@ struct SegmenterOptions {
   double min_area_mm2 = 0.5;           // smaller textured regions are noise, not contact
   double min_energy_ratio = 3.0;       // texture energy inside / outside needed to call it contact
   double min_energy = 0.003;           // and in absolute terms (fraction of full scale)
-  double merge_fraction = 0.1;         // join regions at least this fraction of the largest one
+  // Regions joined to the largest one: at least merge_fraction of its area and no further from it than
+  // merge_gap_periods ridge periods. One fingertip makes one contact; what splits it (a dry or wet patch, a
+  // faint stretch of border) leaves gaps of a ridge period or so, while another textured thing in view (a
+  // patterned band on the glass, an object at the image's edge) lies apart and is not contact.
+  double merge_fraction = 0.1;
+  double merge_gap_periods = 2.0;
   double saturated_fraction = 0.02;
   // Flat field: the level edge is searched on the frame divided by a quadratic surface fitted to the
   // background around the contact (vignetting, the light's tilt). Without it, grey closing flattens a

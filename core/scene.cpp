@@ -20,6 +20,7 @@ Scene parse_scene(const YAML::Node& root, const std::string& file) {
   YamlSection top(root, file);
 
   YamlSection calibration = top.section("calibration");
+  scene.px_per_mm_given = calibration.has("px_per_mm");
   scene.px_per_mm = calibration.number("px_per_mm", 52.0, 1e-3, 1e5);
   if (calibration.has("ridge_period_mm"))
     scene.ridge_period_mm = calibration.number("ridge_period_mm", 0.45, 0.05, 5.0);
@@ -27,6 +28,7 @@ Scene parse_scene(const YAML::Node& root, const std::string& file) {
   calibration.finish();
 
   YamlSection tissue = top.section("tissue");
+  scene.tissue_given = tissue.has("E_Pa") || tissue.has("nu") || tissue.has("depth_m");
   scene.tissue.young_Pa = tissue.number("E_Pa", 1.0e6, 1.0, 1.0e12);
   scene.tissue.poisson = tissue.number("nu", 0.4, -0.999, 0.4999);
   scene.tissue.depth_m = tissue.number("depth_m", 0.002, 1e-6, 1.0);
@@ -41,12 +43,14 @@ Scene parse_scene(const YAML::Node& root, const std::string& file) {
     scene.reference_pattern_roi = RoiPx{static_cast<int>(roi[0]), static_cast<int>(roi[1]),
                                         static_cast<int>(roi[2]), static_cast<int>(roi[3])};
   }
+  scene.reference_pattern_detect = pattern.boolean("detect", true);
   pattern.finish();
 
   if (top.has("compute")) {
     const YAML::Node stages = top.raw("compute");
     if (!stages.IsSequence()) throw Error("expected a list of stage names", {.file = file, .key = "compute"});
     scene.compute.clear();
+    scene.compute_given = true;
     for (const auto& s : stages) {
       const std::string name = s.as<std::string>();
       const auto& known = known_stages();
@@ -88,10 +92,13 @@ YAML::Node scene_to_yaml(const Scene& scene) {
     roi.SetStyle(YAML::EmitterStyle::Flow);
     root["reference_pattern"]["roi_px"] = roi;
   }
-  YAML::Node compute;
-  for (const auto& s : scene.compute) compute.push_back(s);
-  compute.SetStyle(YAML::EmitterStyle::Flow);
-  root["compute"] = compute;
+  if (!scene.reference_pattern_detect) root["reference_pattern"]["detect"] = false;
+  if (scene.compute_given) {
+    YAML::Node compute;
+    for (const auto& s : scene.compute) compute.push_back(s);
+    compute.SetStyle(YAML::EmitterStyle::Flow);
+    root["compute"] = compute;
+  }
   if (scene.synthesis && !scene.synthesis.IsNull()) root["synthesis"] = scene.synthesis;
   if (scene.segmentation && !scene.segmentation.IsNull()) root["segmentation"] = scene.segmentation;
   if (scene.tracking && !scene.tracking.IsNull()) root["tracking"] = scene.tracking;

@@ -28,7 +28,18 @@ struct Scene {
   std::string ridge_polarity = "auto";    // "dark", "bright" or "auto" (ridges in contact dark/bright)
   Tissue tissue;
   std::optional<RoiPx> reference_pattern_roi;  // band of the image showing the pattern printed on the glass
+  // reference_pattern.detect: without roi_px, `process` looks for the band along the image edges
+  // (pipeline/pattern_band.hpp); false says the plate shows no pattern.
+  bool reference_pattern_detect = true;
+  // Set by `process` for a detected band, not read from files: contact segmentation leaves out the band grown
+  // by this much (px), because a detected rectangle lies inside the band (the plate is measured on pattern
+  // only) and the band's true edge may be up to this much further in. A scene's roi_px is exact: 0.
+  int reference_pattern_margin_px = 0;
   std::vector<std::string> compute = {"contact"};  // stages requested, in pipeline order
+  bool compute_given = false;                      // the file has a compute list (else `process` picks)
+  // Which calibration and tissue values the file gives; the others are defaults, and results say so.
+  bool px_per_mm_given = false;
+  bool tissue_given = false;
   // Module-owned sections, parsed by their modules.
   YAML::Node synthesis;
   YAML::Node segmentation;  // contact stage settings (pipeline/contact_stage.cpp)

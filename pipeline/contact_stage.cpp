@@ -270,7 +270,8 @@ contact::SegmenterOptions segmenter_options_for(const Scene& scene) {
   if (scene.ridge_polarity == "bright") options.polarity = 1;
   if (scene.reference_pattern_roi) {
     const RoiPx& r = *scene.reference_pattern_roi;
-    options.exclude_px = cv::Rect(r.x, r.y, r.width, r.height);
+    const int m = std::max(0, scene.reference_pattern_margin_px);
+    options.exclude_px = cv::Rect(r.x - m, r.y - m, r.width + 2 * m, r.height + 2 * m);
   }
   // segmentation: {preset: accurate, downsample: 0, flat_field: true, border_average_snr: 20,
   // ridge_label_centre: true, ridge_label_below_periods: 5, ridge_label_shape_weight: 0.5,

@@ -20,6 +20,7 @@
 #include "core/scene.hpp"
 #include "core/version.hpp"
 #include "pipeline/prefetch.hpp"
+#include "pipeline/process_defaults.hpp"
 #include "pipeline/stage.hpp"
 
 namespace tirstrain::pipeline {
@@ -122,6 +123,27 @@ cv::Mat to_display(const cv::Mat& grey, cv::Size size) {
   return bgr;
 }
 
+// The pattern band's rectangle and where it came from, on the overlay.
+void draw_band(cv::Mat& bgr, const PatternBandChoice& band) {
+  if (!band.roi_px) return;
+  const RoiPx& r = *band.roi_px;
+  const double scale = std::max(1.0, bgr.cols / 640.0);
+  const int thick = static_cast<int>(std::lround(scale));
+  cv::rectangle(bgr, cv::Rect(r.x, r.y, r.width, r.height), cv::Scalar(255, 120, 0), thick);
+  char text[96];
+  if (band.confidence) {
+    std::snprintf(text, sizeof text, "pattern band (%s, detected, confidence %.2f)", band.edge.c_str(),
+                  *band.confidence);
+  } else {
+    std::snprintf(text, sizeof text, "pattern band (%s, from the scene)", band.edge.c_str());
+  }
+  // Along the image's bottom, clear of the status lines at the top: just above the band when it is there.
+  const int text_y =
+      band.edge == "bottom" ? r.y - static_cast<int>(6 * scale) : bgr.rows - static_cast<int>(8 * scale);
+  cv::putText(bgr, text, cv::Point(static_cast<int>(8 * scale) + (band.edge == "left" ? r.width : 0), text_y),
+              cv::FONT_HERSHEY_SIMPLEX, 0.45 * scale, cv::Scalar(255, 120, 0), thick, cv::LINE_AA);
+}
+
 void remove_stale(const fs::path& path) {
   std::error_code ec;
   fs::remove(path, ec);
@@ -132,14 +154,23 @@ void remove_stale(const fs::path& path) {
 // would know nothing of the folder's reference-pattern band and segment its dots as contact.
 std::optional<std::string> scene_path_for(const ProcessOptions& options) {
   if (options.scene_path) return options.scene_path;
+  if (!options.folder_scene) return std::nullopt;
   std::error_code ec;
   const fs::path beside = fs::path(options.input) / "scene.yaml";
   if (fs::is_directory(options.input, ec) && fs::is_regular_file(beside, ec)) return beside.string();
   return std::nullopt;
 }
 
-Scene scene_with_overrides(const ProcessOptions& options, const std::optional<std::string>& scene_path) {
+// The scene's compute list, or (without one) every stage whose inputs exist, then --compute's additions.
+Scene scene_with_overrides(const ProcessOptions& options, const std::optional<std::string>& scene_path,
+                           std::string& stages_reason) {
   Scene scene = scene_path ? load_scene(*scene_path) : Scene{};
+  if (scene.compute_given) {
+    stages_reason = "the scene's compute list";
+  } else {
+    scene.compute = default_stages(scene, options.input, stages_reason);
+    scene.compute_given = true;  // result.h5's copy of the scene shows the list that ran
+  }
   for (const std::string& name : options.compute) {
     const auto& known = known_stages();
     if (std::find(known.begin(), known.end(), name) == known.end())
@@ -215,7 +246,14 @@ ProcessReport run_process(const ProcessOptions& options) {
   if (scene_path && !options.scene_path && !options.quiet)
     std::fprintf(options.log, "tirstrain: scene from the input folder: %s (--scene overrides it)\n",
                  scene_path->c_str());
-  const Scene scene = scene_with_overrides(options, scene_path);
+  std::string stages_reason;
+  Scene scene = scene_with_overrides(options, scene_path, stages_reason);
+  if (!options.quiet) std::fprintf(options.log, "tirstrain: stages: %s\n", stages_reason.c_str());
+  const std::vector<std::string> default_notes = default_value_notes(scene);
+  for (const std::string& note : default_notes)
+    if (!options.quiet) std::fprintf(options.log, "tirstrain: %s\n", note.c_str());
+  // Made now so that a bad scene section stops the run before any frame is read; made again once the first
+  // frame has told where the pattern band is.
   StagePlan plan = plan_stages(scene);
   for (const auto& name : plan.unavailable) {
     const std::string message = "stage '" + name +
@@ -256,6 +294,9 @@ ProcessReport run_process(const ProcessOptions& options) {
   std::vector<char> usable;
   std::optional<TrialInfo> trial;
   cv::Size display_size;
+  PatternBandChoice band;
+  // Frames before the first usable one, given again to the stages made once that frame is seen.
+  std::vector<capture::Frame> before_first;
 
   {
     PrefetchingReader reader(*source, 4);
@@ -273,11 +314,26 @@ ProcessReport run_process(const ProcessOptions& options) {
                           {.file = frame->origin, .frame = frame->index}));
         ++report.frames_skipped;
       } else if (!trial) {
+        band = resolve_pattern_band(scene, frame->image);
+        if (!options.quiet) std::fprintf(options.log, "tirstrain: %s\n", band.describe().c_str());
+        plan = plan_stages(scene);
         trial = TrialInfo{frame->image.size(), frame->image.depth(), source->frame_count(), &scene};
         display_size = frame->image.size();
         for (auto& stage : plan.stages) stage->start(*trial);
+        for (const capture::Frame& earlier : before_first) {
+          FrameContext unusable;
+          unusable.frame = &earlier;
+          for (auto& stage : plan.stages) stage->process(unusable);
+        }
+        before_first.clear();
       }
-      for (auto& stage : plan.stages) stage->process(context);
+      if (trial) {
+        for (auto& stage : plan.stages) stage->process(context);
+      } else {
+        capture::Frame kept = *frame;
+        kept.image.release();
+        before_first.push_back(std::move(kept));
+      }
 
       index.push_back(frame->index);
       device_id.push_back(frame->device_frame_id);
@@ -290,6 +346,7 @@ ProcessReport run_process(const ProcessOptions& options) {
 
       if (overlay.enabled() && trial) {
         cv::Mat bgr = to_display(context.usable ? frame->image : cv::Mat(), display_size);
+        draw_band(bgr, band);
         for (const auto& stage : plan.stages) stage->draw(bgr, context);
         const double scale = std::max(1.0, bgr.cols / 640.0);
         char text[160];
@@ -336,6 +393,14 @@ ProcessReport run_process(const ProcessOptions& options) {
   summary["time_measured"] = time_measured;
   summary["scene"] = scene.file.empty() ? "defaults" : scene.file;
   summary["px_per_mm"] = scene.px_per_mm;
+  summary["px_per_mm_source"] = scene.px_per_mm_given ? "scene" : "default";
+  summary["tissue"] = {{"E_Pa", scene.tissue.young_Pa},
+                       {"nu", scene.tissue.poisson},
+                       {"depth_m", scene.tissue.depth_m},
+                       {"source", scene.tissue_given ? "scene" : "default"}};
+  summary["defaults_used"] = default_notes;
+  summary["stages_source"] = stages_reason;
+  summary["reference_pattern"] = band.to_json();
   std::vector<std::string> run_names;
   for (const auto& stage : plan.stages) run_names.push_back(stage->name());
   summary["stages_run"] = run_names;

@@ -1,6 +1,7 @@
 #pragma once
 // `tirstrain process`: frames in, result.h5 + frames.csv + summary.json + overlay out. Runs the stages the
-// scene's `compute` list asks for (pipeline/stage.hpp) over a frame source (capture/), with decoding
+// scene's `compute` list asks for, or without one every stage whose inputs exist (pipeline/stage.hpp,
+// pipeline/process_defaults.hpp) over a frame source (capture/), with decoding
 // overlapped with analysis, and writes every output under a temporary name, renamed only when complete:
 // result.h5 last, so its presence means the run finished.
 #include <cstdint>
@@ -18,6 +19,8 @@ struct ProcessOptions {
   // Absent: INPUT/scene.yaml when INPUT is a folder holding one (a synthesised or saved trial), otherwise
   // the documented defaults with the rest measured from the images.
   std::optional<std::string> scene_path;
+  // false: without scene_path, the defaults even when INPUT holds a scene.yaml (--no-scene).
+  bool folder_scene = true;
   std::string out_dir;
   bool quiet = false;
   // Stop at the first corrupt frame, at a requested stage that is not available, or when the input has

@@ -192,10 +192,7 @@ class TrackingStage final : public Stage {
                                                                             : cv::Scalar(0, 255, 0);
       cv::circle(bgr, fixed(t.position_px), thick * (1 << kShift), colour, cv::FILLED, cv::LINE_AA, kShift);
     }
-    if (scene_.reference_pattern_roi) {
-      const RoiPx& r = *scene_.reference_pattern_roi;
-      cv::rectangle(bgr, cv::Rect(r.x, r.y, r.width, r.height), cv::Scalar(255, 120, 0), thick);
-    }
+    // The pattern band's rectangle is drawn by process (pipeline/process.cpp), with where it came from.
     const TrackFrame& f = frames_.back();
     char text[200];
     // A plate displacement that was not matched into the pattern mosaic says how it was obtained.

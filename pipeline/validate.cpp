@@ -177,7 +177,13 @@ ValidationReport run_validate(const ValidateOptions& options) {
     report.result_dir = (out / "result").string();
     ProcessOptions process;
     process.input = trial_dir;
-    process.scene_path = options.process_scene_path.value_or(scene_path);
+    if (options.process_defaults) {
+      if (options.process_scene_path)
+        throw Error("validate takes --process-scene or --process-defaults, not both");
+      process.folder_scene = false;
+    } else {
+      process.scene_path = options.process_scene_path.value_or(scene_path);
+    }
     process.out_dir = report.result_dir;
     process.quiet = options.quiet;
     process.overlay = OverlayMode::kNone;

@@ -27,6 +27,9 @@ struct ValidateOptions {
   // Scene used for processing (e.g. with other tracking settings); default: the trial's own scene.yaml. The
   // truth always comes from the trial's scene.
   std::optional<std::string> process_scene_path;
+  // Process with no scene at all (what a recording without one gets: defaults, stages and pattern band
+  // found from the images); the truth still comes from the trial's scene.
+  bool process_defaults = false;
   std::string tracking_preset;      // "" = the scene's
   std::string segmentation_preset;  // "" = the scene's
   std::string strain_mode;          // "" = the scene's

@@ -134,12 +134,19 @@ LoadHistory::LoadHistory(const SynthConfig& config)
   const double w = config.image.width_px, h = config.image.height_px;
   centre_px_ = {0.5 * (w - 1), 0.5 * (h - 1)};
   if (config.scene.reference_pattern_roi) {
-    // Centre the contact in what the pattern band leaves free when the band runs along the top or bottom.
+    // Centre the contact in what the pattern band leaves free when the band runs along one edge (the full
+    // width along the top or bottom, the full height along the left or right).
     const RoiPx& r = *config.scene.reference_pattern_roi;
-    if (r.y == 0 && r.height < h)
+    const bool full_width = r.x == 0 && r.width == static_cast<int>(w);
+    const bool full_height = r.y == 0 && r.height == static_cast<int>(h);
+    if (full_width && r.y == 0 && r.height < h)
       centre_px_.y = 0.5 * (r.height + h - 1);
-    else if (r.y + r.height == static_cast<int>(h) && r.y > 0)
+    else if (full_width && r.y + r.height == static_cast<int>(h) && r.y > 0)
       centre_px_.y = 0.5 * (r.y - 1);
+    else if (full_height && r.x == 0 && r.width < w)
+      centre_px_.x = 0.5 * (r.width + w - 1);
+    else if (full_height && r.x + r.width == static_cast<int>(w) && r.x > 0)
+      centre_px_.x = 0.5 * (r.x - 1);
   }
   if (contact_.centre_px) centre_px_ = *contact_.centre_px;
 

@@ -14,26 +14,33 @@ void add_process_command(CLI::App& app) {
   struct Args {
     std::string input, scene, out, overlay = "mp4", preset, segmentation, strain_mode;
     std::vector<std::string> compute;
-    bool quiet = false, strict = false;
+    bool quiet = false, strict = false, no_scene = false;
   };
   auto args = std::make_shared<Args>();
   CLI::App* sub = app.add_subcommand(
       "process",
-      "Measure contact, tracks, strain and channels (as the scene's compute list asks) from a recording.\n"
+      "Measure contact, tracks, strain and channels from a recording: the stages the scene's compute list\n"
+      "asks for, or without one every stage whose inputs exist (channels: a channels: section, or\n"
+      "channels.csv beside the frames with tirstrain synth's column names).\n"
       "INPUT: a folder of frames (DIR/frames/*.png + DIR/frames.csv, or images directly in DIR), a printf "
       "or\n"
       "glob pattern ('run/img_%05d.tif', 'run/*.png'), or a video file. Time comes from frames.csv "
       "(index,t_s)\n"
       "or the video's timestamps. Without --scene: INPUT/scene.yaml if INPUT is a folder holding one (as\n"
-      "tirstrain synth writes), else 52 px/mm, E = 1 MPa, nu = 0.4, depth 2 mm, and ridge period, polarity\n"
-      "and contact measured from the images.\n"
+      "tirstrain synth writes), else 52 px/mm, E = 1 MPa, nu = 0.4, depth 2 mm (each default is said on\n"
+      "the console and in summary.json), and ridge period, polarity, contact and the glass's printed\n"
+      "pattern band (along any image edge, or none) found from the images.\n"
       "Writes DIR/result.h5, DIR/frames.csv, DIR/summary.json and DIR/overlay.mp4 (see docs/formats.md).");
   sub->add_option("INPUT", args->input, "Frames folder, image pattern or video file")->required();
   sub->add_option("--scene", args->scene, "Scene file (YAML) for calibration and what to compute");
+  sub->add_flag(
+      "--no-scene", args->no_scene,
+      "Use the defaults even when INPUT holds a scene.yaml (what a recording without a scene gets)");
   sub->add_option("--out", args->out, "Output folder (created if needed)")->required();
   sub->add_option(
          "--compute", args->compute,
-         "Stages to run in addition to the scene's compute list: contact, tracking, strain, channels")
+         "Stages to run in addition to the scene's compute list (or the default one): contact, tracking, "
+         "strain, channels")
       ->delimiter(',');
   sub->add_option("--preset", args->preset, "Tracking preset, replacing the scene's: auto or delhaye2016")
       ->check(CLI::IsMember({"auto", "delhaye2016"}));
@@ -56,6 +63,7 @@ void add_process_command(CLI::App& app) {
     pipeline::ProcessOptions options;
     options.input = args->input;
     if (!args->scene.empty()) options.scene_path = args->scene;
+    options.folder_scene = !args->no_scene;
     options.out_dir = args->out;
     options.quiet = args->quiet;
     options.strict = args->strict;

@@ -36,7 +36,7 @@ void add_validate_command(CLI::App& app) {
     std::string scene, trial, result, out, preset, segmentation, strain_mode, process_scene;
     double border_mm = 0.3;
     int map_frame = -1;
-    bool quiet = false, no_maps = false;
+    bool quiet = false, no_maps = false, process_defaults = false;
   };
   auto args = std::make_shared<Args>();
   CLI::App* sub = app.add_subcommand("validate",
@@ -72,6 +72,9 @@ void add_validate_command(CLI::App& app) {
   sub->add_option("--process-scene", args->process_scene,
                   "Process with this scene (e.g. other tracking settings) instead of the trial's own")
       ->check(CLI::ExistingFile);
+  sub->add_flag("--process-defaults", args->process_defaults,
+                "Process with no scene (defaults; stages and pattern band found from the images), as a "
+                "recording without a scene file is; the truth still comes from the trial's scene");
   sub->add_option("--preset", args->preset, "Tracking preset: auto or delhaye2016")
       ->check(CLI::IsMember({"auto", "delhaye2016"}));
   sub->add_option(
@@ -94,6 +97,7 @@ void add_validate_command(CLI::App& app) {
     if (!args->result.empty()) o.result_dir = args->result;
     o.out_dir = args->out;
     if (!args->process_scene.empty()) o.process_scene_path = args->process_scene;
+    o.process_defaults = args->process_defaults;
     o.tracking_preset = args->preset;
     o.segmentation_preset = args->segmentation;
     o.strain_mode = args->strain_mode;

@@ -32,6 +32,15 @@ TEST(Scene, DefaultsWhenSectionsAreAbsent) {
   EXPECT_DOUBLE_EQ(s.tissue.depth_m, 0.002);
   EXPECT_FALSE(s.ridge_period_mm.has_value());
   EXPECT_EQ(s.compute, std::vector<std::string>{"contact"});
+  // What the file leaves out is marked, so `process` can pick the stages and say which values are defaults.
+  EXPECT_FALSE(s.compute_given);
+  EXPECT_FALSE(s.px_per_mm_given);
+  EXPECT_FALSE(s.tissue_given);
+  EXPECT_TRUE(s.reference_pattern_detect);
+  // Saved back without a compute list, it still has none.
+  const std::string copy = std::string(TIRSTRAIN_TEST_TMP) + "/empty_copy.yaml";
+  save_scene(s, copy);
+  EXPECT_FALSE(load_scene(copy).compute_given);
 }
 
 TEST(Scene, ReadsValuesAndRoundTrips) {
@@ -50,6 +59,9 @@ TEST(Scene, ReadsValuesAndRoundTrips) {
   ASSERT_TRUE(s.reference_pattern_roi);
   EXPECT_EQ(s.reference_pattern_roi->y, 400);
   EXPECT_EQ(s.compute.size(), 2u);
+  EXPECT_TRUE(s.compute_given);
+  EXPECT_TRUE(s.px_per_mm_given);
+  EXPECT_TRUE(s.tissue_given);
   EXPECT_EQ(s.synthesis["frames"].as<int>(), 10);
 
   const std::string copy = std::string(TIRSTRAIN_TEST_TMP) + "/copy.yaml";
@@ -59,6 +71,16 @@ TEST(Scene, ReadsValuesAndRoundTrips) {
   EXPECT_DOUBLE_EQ(t.tissue.young_Pa, 2.0e5);
   EXPECT_EQ(t.reference_pattern_roi->height, 100);
   EXPECT_EQ(t.compute, s.compute);
+  EXPECT_TRUE(t.compute_given);
+}
+
+TEST(Scene, PatternDetectionCanBeTurnedOff) {
+  const Scene s = load_scene(write_scene("nodetect.yaml", "reference_pattern: {detect: false}\n"));
+  EXPECT_FALSE(s.reference_pattern_detect);
+  EXPECT_FALSE(s.reference_pattern_roi.has_value());
+  const std::string copy = std::string(TIRSTRAIN_TEST_TMP) + "/nodetect_copy.yaml";
+  save_scene(s, copy);
+  EXPECT_FALSE(load_scene(copy).reference_pattern_detect);
 }
 
 TEST(Scene, BadFilesNameTheKeyAndFile) {

@@ -61,6 +61,24 @@ TEST(SamplesField, CattaneoMindlinFramesSpanPartialAndFullSlip) {
   EXPECT_TRUE(trial.load(2).full_slip);
 }
 
+// The contact is centred in what a pattern band along one edge leaves free, on every edge; a band that does
+// not span the image (not along an edge) leaves the image centre.
+TEST(SamplesField, ContactCentredBesideTheBandOnEveryEdge) {
+  struct Case {
+    const char* roi;
+    double x, y;
+  };
+  for (const Case& c : {Case{"[0, 0, 160, 20]", 79.5, 69.5}, Case{"[0, 100, 160, 20]", 79.5, 49.5},
+                        Case{"[0, 0, 24, 120]", 91.5, 59.5}, Case{"[136, 0, 24, 120]", 67.5, 59.5},
+                        Case{"[40, 0, 60, 20]", 79.5, 59.5}}) {
+    YAML::Node root = clean_scene(160, 120, 2, 100.0);
+    root["reference_pattern"]["roi_px"] = YAML::Load(c.roi);
+    const Trial trial(config_of(root));
+    EXPECT_DOUBLE_EQ(trial.history().contact_centre_px().x, c.x) << c.roi;
+    EXPECT_DOUBLE_EQ(trial.history().contact_centre_px().y, c.y) << c.roi;
+  }
+}
+
 TEST(SamplesField, TruthStrainEqualsModelStrainAtTheSameReferencePoints) {
   const SynthConfig cfg = config_of(clean_scene(192, 192, 3, 20.0));
   const Trial trial(cfg);

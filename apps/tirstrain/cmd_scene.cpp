@@ -1,0 +1,35 @@
+// `tirstrain scene init RECORDING --out scene.yaml`: a commented starting scene file from what the images
+// show.
+#include <iostream>
+#include <memory>
+#include <string>
+
+#include "pipeline/scene_init.hpp"
+#include "tirstrain/commands.hpp"
+
+namespace tirstrain::cli {
+
+void add_scene_command(CLI::App& app) {
+  CLI::App* scene = app.add_subcommand("scene", "Scene files: init writes a starting one from a recording");
+  scene->require_subcommand(1);
+  auto options = std::make_shared<pipeline::SceneInitOptions>();
+  CLI::App* init = scene->add_subcommand(
+      "init",
+      "Write a commented starting scene file from what a recording's images show: frame size, frame rate\n"
+      "(from the timestamps), the glass's printed dot band (along any edge, or none), ridge period and\n"
+      "polarity, contact size; calibration and tissue as PLACEHOLDERS holding the defaults.");
+  init->add_option("RECORDING", options->input,
+                   "Frames folder, image pattern or video file (as process takes)")
+      ->required();
+  init->add_option("--out", options->out_path, "Scene file to write (YAML)")->required();
+  init->add_option("--frames", options->max_frames, "Frames read at most (default 300)")
+      ->check(CLI::Range(1, 1000000));
+  init->callback([options] {
+    const pipeline::SceneSurvey survey = pipeline::write_initial_scene(*options);
+    std::cerr << "scene from " << survey.frames_read << " frames (band: " << survey.band_edge
+              << ", contact first in frame " << survey.first_contact_frame << ") -> " << options->out_path
+              << "\n";
+  });
+}
+
+}  // namespace tirstrain::cli
