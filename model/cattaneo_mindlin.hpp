@@ -1,7 +1,7 @@
 #pragma once
 // Hertz + Cattaneo–Mindlin partial-slip contact of an elastic sphere on a rigid flat: closed-form surface
 // displacement, displacement gradient, Green–Lagrange strain and plane-strain energy density.
-// Formulas: ../shared/MODEL_NOTES.md (Johnson 1985 §3.4, §3.6, §7.2; Hamilton & Goodman 1966).
+// Formulas: docs/model.md (Johnson 1985 §3.4, §3.6, §7.2; Hamilton & Goodman 1966).
 // Allocation-free: every evaluation is a handful of flops on the stack.
 #include <stdexcept>
 #include <string>

@@ -1,5 +1,5 @@
 #pragma once
-// Building blocks of the Cattaneo–Mindlin surface field (../../shared/MODEL_NOTES.md): the shape functions
+// Building blocks of the Cattaneo–Mindlin surface field (docs/model.md): the shape functions
 // φ(ρ), d(ρ) of a semi-ellipsoidal tangential traction outside its circle, and the Hertz radial term.
 // Internal to model/; in a header so the tests can hold the far-field series against the direct forms.
 #include <algorithm>
