@@ -232,6 +232,38 @@ void finish_stages(const Scene& scene, const TrialInfo& trial, const FrameRows& 
   }
 }
 
+// The stages the scene asks for, made now so that a bad scene section stops the run before any frame is
+// read; a stage this build lacks is skipped with a warning (an error with --strict).
+template <typename Warn>
+StagePlan checked_plan(const Scene& scene, bool strict, const Warn& warn) {
+  StagePlan plan = plan_stages(scene);
+  for (const auto& name : plan.unavailable) {
+    const std::string message = "stage '" + name +
+                                "' requested by the scene's compute list is not available in this "
+                                "build yet; it is skipped";
+    if (strict) throw Error(message + " (--strict)", {.file = scene.file, .key = "compute"});
+    warn(message);
+  }
+  if (plan.stages.empty())
+    throw Error("nothing to compute: the scene's compute list has no available stage",
+                {.file = scene.file, .key = "compute"});
+  return plan;
+}
+
+// Where the scene's values came from: the file, the defaults, or what the first frame showed.
+void summarize_scene_sources(nlohmann::json& summary, const Scene& scene,
+                             const std::vector<std::string>& default_notes, const std::string& stages_reason,
+                             const PatternBandChoice& band) {
+  summary["px_per_mm_source"] = scene.px_per_mm_given ? "scene" : "default";
+  summary["tissue"] = {{"E_Pa", scene.tissue.young_Pa},
+                       {"nu", scene.tissue.poisson},
+                       {"depth_m", scene.tissue.depth_m},
+                       {"source", scene.tissue_given ? "scene" : "default"}};
+  summary["defaults_used"] = default_notes;
+  summary["stages_source"] = stages_reason;
+  summary["reference_pattern"] = band.to_json();
+}
+
 }  // namespace
 
 ProcessReport run_process(const ProcessOptions& options) {
@@ -252,19 +284,8 @@ ProcessReport run_process(const ProcessOptions& options) {
   const std::vector<std::string> default_notes = default_value_notes(scene);
   for (const std::string& note : default_notes)
     if (!options.quiet) std::fprintf(options.log, "tirstrain: %s\n", note.c_str());
-  // Made now so that a bad scene section stops the run before any frame is read; made again once the first
-  // frame has told where the pattern band is.
-  StagePlan plan = plan_stages(scene);
-  for (const auto& name : plan.unavailable) {
-    const std::string message = "stage '" + name +
-                                "' requested by the scene's compute list is not available in this "
-                                "build yet; it is skipped";
-    if (options.strict) throw Error(message + " (--strict)", {.file = scene.file, .key = "compute"});
-    warn(message);
-  }
-  if (plan.stages.empty())
-    throw Error("nothing to compute: the scene's compute list has no available stage",
-                {.file = scene.file, .key = "compute"});
+  // Made again once the first frame has told where the pattern band is.
+  StagePlan plan = checked_plan(scene, options.strict, warn);
 
   std::unique_ptr<capture::FrameSource> source = capture::open_source(options.input);
   const auto settings = source->settings();
@@ -393,14 +414,7 @@ ProcessReport run_process(const ProcessOptions& options) {
   summary["time_measured"] = time_measured;
   summary["scene"] = scene.file.empty() ? "defaults" : scene.file;
   summary["px_per_mm"] = scene.px_per_mm;
-  summary["px_per_mm_source"] = scene.px_per_mm_given ? "scene" : "default";
-  summary["tissue"] = {{"E_Pa", scene.tissue.young_Pa},
-                       {"nu", scene.tissue.poisson},
-                       {"depth_m", scene.tissue.depth_m},
-                       {"source", scene.tissue_given ? "scene" : "default"}};
-  summary["defaults_used"] = default_notes;
-  summary["stages_source"] = stages_reason;
-  summary["reference_pattern"] = band.to_json();
+  summarize_scene_sources(summary, scene, default_notes, stages_reason, band);
   std::vector<std::string> run_names;
   for (const auto& stage : plan.stages) run_names.push_back(stage->name());
   summary["stages_run"] = run_names;
