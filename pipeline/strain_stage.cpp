@@ -12,6 +12,7 @@
 #include "strain/normalised_map.hpp"
 #include "strain/settings.hpp"
 #include "strain/stick_zone.hpp"
+#include "strain/uncertainty.hpp"
 
 namespace tirstrain::pipeline {
 namespace {
@@ -34,6 +35,9 @@ enum Value : int {
   kRateXy,
   kRotation,
   kEnergy,
+  kSdXx,  // predicted standard deviations of the total strain (strain/uncertainty.hpp)
+  kSdYy,
+  kSdXy,
   kValueCount
 };
 
@@ -86,11 +90,13 @@ class StrainStage final : public Stage {
     }
     reference_px_.resize(tracks.size());
     current_px_.assign(tracks.size(), Vec2{kNaN, kNaN});
+    covariance_px2_.assign(tracks.size(), {kNaN, kNaN, kNaN});
     alive_.clear();
     for (std::size_t k = 0; k < tracks.size(); ++k) {
       reference_px_[k] = tracks[k].reference_px;
       if (flow::is_alive(tracks[k].status)) {
         current_px_[k] = tracks[k].position_px;
+        covariance_px2_[k] = tracks[k].covariance_px2;
         alive_.push_back(static_cast<std::int32_t>(k));
       }
     }
@@ -150,6 +156,10 @@ class StrainStage final : public Stage {
       v[kEnergy] =
           plane_strain_energy_density_J_m3(chosen, settings_.strain.young_Pa, settings_.strain.poisson);
       const Triangle& tri = mesh_.active_triangles()[t];
+      const Strain2 sd = total_standard_deviation(tri);
+      v[kSdXx] = sd.xx;
+      v[kSdYy] = sd.yy;
+      v[kSdXy] = sd.xy;
       const double area_m2 = std::abs(strain::signed_area(reference_px_[static_cast<std::size_t>(tri[0])],
                                                           reference_px_[static_cast<std::size_t>(tri[1])],
                                                           reference_px_[static_cast<std::size_t>(tri[2])])) *
@@ -224,7 +234,7 @@ class StrainStage final : public Stage {
     for (std::size_t t = 0; t < t_count; ++t)
       for (int v = 0; v < 3; ++v)
         mesh[t * 3 + static_cast<std::size_t>(v)] = triangles[t][static_cast<std::size_t>(v)];
-    std::vector<double> total(n * t_count * 3, kNaN), other(n * t_count * 3, kNaN),
+    std::vector<double> total(n * t_count * 3, kNaN), other(n * t_count * 3, kNaN), sd(n * t_count * 3, kNaN),
         rate(n * t_count * 3, kNaN), principal(n * t_count * 3, kNaN), rotation(n * t_count, kNaN),
         density(n * t_count, kNaN);
     std::vector<std::uint8_t> status(n * t_count, kNotInMesh);
@@ -265,6 +275,7 @@ class StrainStage final : public Stage {
           total[cell * 3 + static_cast<std::size_t>(c3)] = v[kExx + c3];
           other[cell * 3 + static_cast<std::size_t>(c3)] = v[kOtherExx + c3];
           rate[cell * 3 + static_cast<std::size_t>(c3)] = v[kRateXx + c3];
+          sd[cell * 3 + static_cast<std::size_t>(c3)] = v[kSdXx + c3];
         }
         if (std::isfinite(v[kExx])) {
           const Principal2 p = principal_strains({v[kExx], v[kEyy], v[kExy]});
@@ -301,6 +312,11 @@ class StrainStage final : public Stage {
     out.write("/strain/total", std::span<const double>(total), {n, t_count, 3});
     out.write(incremental ? "/strain/total_exact" : "/strain/total_incremental",
               std::span<const double>(other), {n, t_count, 3});
+    out.write("/strain/total_sd", std::span<const double>(sd), {n, t_count, 3});
+    out.attribute("/strain", "total_sd",
+                  "predicted standard deviation of each total strain component from the vertices' match "
+                  "covariances (/tracks/covariance_px2), vertices taken as independent: an upper bound of "
+                  "the noise; NaN where a vertex has no covariance");
     out.write("/strain/rate", std::span<const double>(rate), {n, t_count, 3});
     out.write("/strain/principal", std::span<const double>(principal), {n, t_count, 3});
     out.write("/strain/rotation_rad", std::span<const double>(rotation), {n, t_count});
@@ -460,12 +476,25 @@ class StrainStage final : public Stage {
                       format_double(m(1, 0)) + "," + format_double(m(1, 1)) + "," + format_double(m(1, 2)));
   }
 
+  Strain2 total_standard_deviation(const Triangle& tri) const {
+    std::array<Vec2, 3> X, x;
+    std::array<strain::PositionCovariance, 3> c;
+    for (std::size_t v = 0; v < 3; ++v) {
+      const auto k = static_cast<std::size_t>(tri[v]);
+      X[v] = reference_px_[k];
+      x[v] = current_px_[k];
+      c[v] = covariance_px2_[k];
+    }
+    return strain::strain_standard_deviation(X, x, c);
+  }
+
   strain::StrainStageSettings settings_;
   strain::EvolvingMesh mesh_;
   contact::EllipseNormalization reference_normalization_;
   bool reference_has_ellipse_ = false;
   strain::ContactDisk disk_;
   std::vector<Vec2> reference_px_, current_px_, previous_px_;
+  std::vector<strain::PositionCovariance> covariance_px2_;  // per track, this frame's match covariance
   std::vector<std::int32_t> alive_;
   std::vector<Strain2> incremental_;  // per union triangle; NaN until the triangle is first usable
   double previous_t_s_ = kNaN;

@@ -23,7 +23,9 @@
 #include "core/heatmap.hpp"
 #include "core/tensor2.hpp"
 #include "pipeline/contact_observability.hpp"
+#include "pipeline/error_accumulator.hpp"
 #include "pipeline/process.hpp"
+#include "pipeline/validate_rings.hpp"
 #include "samples/synth.hpp"
 #include "samples/trial.hpp"
 #include "strain/deformation.hpp"
@@ -35,29 +37,7 @@ namespace {
 namespace fs = std::filesystem;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-struct Accumulator {
-  double sum = 0.0, sum2 = 0.0, max_abs = 0.0;
-  long n = 0;
-  void add(double error) {
-    if (!std::isfinite(error)) return;
-    sum += error;
-    sum2 += error * error;
-    max_abs = std::max(max_abs, std::abs(error));
-    ++n;
-  }
-  ErrorStats stats(std::string quantity, std::string reference, std::string mode, std::string unit) const {
-    ErrorStats s{std::move(quantity), std::move(reference), std::move(mode), std::move(unit)};
-    s.samples = n;
-    if (n > 0) {
-      s.rms = std::sqrt(sum2 / static_cast<double>(n));
-      s.mean = sum / static_cast<double>(n);
-      s.max_abs = max_abs;
-    } else {
-      s.rms = s.mean = s.max_abs = kNaN;
-    }
-    return s;
-  }
-};
+using Accumulator = ErrorAccumulator;
 
 // The six strain quantities compared per triangle.
 constexpr const char* kComponents[] = {"E_xx", "E_yy", "E_xy", "e1", "e2", "energy_density"};
@@ -217,6 +197,9 @@ ValidationReport run_validate(const ValidateOptions& options) {
   const std::vector<double> reference = read(h5, "/tracks/reference_px", &shape);
   const std::size_t k = shape[0];
   const std::vector<double> position = read(h5, "/tracks/position_px", &shape);
+  const std::vector<double> covariance = h5.has("/tracks/covariance_px2")
+                                             ? h5.read_doubles("/tracks/covariance_px2", &shape)
+                                             : std::vector<double>(position.size() / 2 * 3, kNaN);
   const std::vector<double> plate = read(h5, "/plate/displacement_px", &shape);
   const std::vector<double> triangles = read(h5, "/mesh/triangles", &shape);
   const std::size_t t_count = shape[0];
@@ -225,6 +208,9 @@ ValidationReport run_validate(const ValidateOptions& options) {
   const std::vector<double> total = read(h5, "/strain/total", &shape);
   const std::vector<double> other = read(h5, "/strain/total_" + other_mode, &shape);
   const std::vector<double> energy = read(h5, "/energy/total_J", &shape);
+  const std::vector<double> total_sd = h5.has("/strain/total_sd")
+                                           ? h5.read_doubles("/strain/total_sd", &shape)
+                                           : std::vector<double>(total.size(), kNaN);
   const std::vector<double> stick_ratio = read(h5, "/stick/ratio", &shape);
   const std::vector<std::int64_t> stuck = h5.read_integers("/stick/stuck");
   const double tolerance_px = h5.attribute_number("/stick", "tolerance_px");
@@ -255,6 +241,10 @@ ValidationReport run_validate(const ValidateOptions& options) {
     contact_minor.add(e.semi_minor_pct);
     contact_area_error.add(e.area_pct);
   }
+
+  if (!true_contact.ellipse)
+    throw Error("the trial's contact mask does not fit an ellipse", {.file = trial_dir});
+  RingValidation rings(true_contact.mask, *true_contact.ellipse);
 
   const double young = scene.tissue.young_Pa, nu = scene.tissue.poisson, depth = scene.tissue.depth_m;
   const double px_per_mm = scene.px_per_mm;
@@ -301,6 +291,9 @@ ValidationReport run_validate(const ValidateOptions& options) {
       const double error = std::hypot(x.x - X.x - u.x, x.y - X.y - u.y);
       displacement.add(error);
       frame_disp.add(error);
+      const std::size_t c = 3 * (i * k + j);
+      rings.add_track({X.x + u.x, X.y + u.y}, {x.x - X.x - u.x, x.y - X.y - u.y},
+                      {covariance[c], covariance[c + 1], covariance[c + 2]});
       const double inside_px = -std::max(trial.contact_signed_distance_px(X),
                                          trial.contact_signed_distance_px({X.x + u.x, X.y + u.y}));
       if (inside_px > border_px) displacement_interior.add(error);
@@ -322,6 +315,7 @@ ValidationReport run_validate(const ValidateOptions& options) {
     double truth_energy = 0.0, stuck_area_mm2 = 0.0, stuck_truth_area = 0.0, valid_area = 0.0;
     double interior_energy = 0.0, interior_truth_energy = 0.0, truth_triangle_energy = 0.0;
     Accumulator frame_exx;
+    std::vector<std::array<Vec2, 3>> measured_triangles;
     for (std::size_t t = 0; t < t_count; ++t) {
       const std::size_t cell = i * t_count + t;
       if (!std::isfinite(total[cell * 3])) continue;
@@ -371,6 +365,15 @@ ValidationReport run_validate(const ValidateOptions& options) {
       truth_triangle_energy += plane_strain_energy_density_J_m3(e_triangle, young, nu) * area_m2;
       const Strain2 measured = {total[cell * 3], total[cell * 3 + 1], total[cell * 3 + 2]};
       const Vec2 current{centroid.x + at.displacement_px.x, centroid.y + at.displacement_px.y};
+      rings.add_triangle(current,
+                         {measured.xx - e_point.xx, measured.yy - e_point.yy, measured.xy - e_point.xy},
+                         {total_sd[cell * 3], total_sd[cell * 3 + 1], total_sd[cell * 3 + 2]});
+      {
+        std::array<Vec2, 3> x_measured;
+        for (std::size_t v = 0; v < 3; ++v)
+          x_measured[v] = vec(position, i * k + static_cast<std::size_t>(triangles[t * 3 + v]));
+        measured_triangles.push_back(x_measured);
+      }
       if (trial.contact_signed_distance_px(centroid) >= -border_px ||
           trial.contact_signed_distance_px(current) >= -border_px)
         continue;
@@ -411,6 +414,7 @@ ValidationReport run_validate(const ValidateOptions& options) {
       }
     }
     exx_rms[i] = frame_exx.stats("", "", "", "").rms;
+    rings.add_frame_coverage(measured_triangles);
     std::swap(true_now, true_before);
     if (valid_area > 0.0) {
       u_truth[i] = depth * truth_energy;
@@ -485,6 +489,7 @@ ValidationReport run_validate(const ValidateOptions& options) {
   // fitted c (/stick/radius_mm) is the reference row; the radius of the stuck labels' area is reported next
   // to it; every frame once the plate moves (full slip c = 0 and c near a included) as an absolute error.
   const double a_mm = trial.history().contact_radius_m() * 1e3;
+  Accumulator c_of_a_error;  // every frame in partial slip, in % of the contact radius
   for (std::size_t i = 0; i < n; ++i) {
     const double c = c_model[i];
     if (c > 0.2 * a_mm && c < a_mm - 2.0 * options.border_exclusion_mm) {
@@ -495,6 +500,7 @@ ValidationReport run_validate(const ValidateOptions& options) {
     }
     if (trial.load(static_cast<int>(i)).tangential_N > 0.0 && std::isfinite(c_fit[i]))
       c_all_error.add(c_fit[i] - c);
+    if (c > 0.0 && c < a_mm && std::isfinite(c_fit[i])) c_of_a_error.add(100.0 * (c_fit[i] - c) / a_mm);
   }
 
   // Per track at the map frame: where the displacement errors are (for finding a tracking bias).
@@ -553,11 +559,15 @@ ValidationReport run_validate(const ValidateOptions& options) {
   report.rows.push_back(c_exact_error.stats("stick_radius_c_exact_tracks", "model", "", "%"));
   report.rows.push_back(c_true_contact_error.stats("stick_radius_c_true_contact", "model", "", "%"));
   report.rows.push_back(c_all_error.stats("stick_radius_c_all_frames", "model", "", "mm"));
+  report.rows.push_back(c_of_a_error.stats("stick_radius_c_of_a", "model", "", "%"));
   report.rows.push_back(contact_iou_deficit.stats("contact_1-IoU", "truth mask", "", ""));
   report.rows.push_back(contact_centre.stats("contact_centre", "truth ellipse", "", "px"));
   report.rows.push_back(contact_major.stats("contact_semi_major", "truth ellipse", "", "%"));
   report.rows.push_back(contact_minor.stats("contact_semi_minor", "truth ellipse", "", "%"));
   report.rows.push_back(contact_area_error.stats("contact_area", "truth mask", "", "%"));
+  for (ErrorStats& row : rings.rows()) report.rows.push_back(std::move(row));
+  rings.write_csv((out / "validation_rings.csv").string());
+  report.outputs.push_back((out / "validation_rings.csv").string());
 
   {
     CsvWriter csv((out / "validation.csv").string(),

@@ -74,6 +74,11 @@ struct Row {
   double tracks_mean = kNaN, disp_rms_px = kNaN, strain_rms[3] = {kNaN, kNaN, kNaN}, strain_rms_all = kNaN;
   double energy_err_pct = kNaN, plate_rms_px = kNaN;
   double contact_centre_rms_px = kNaN, contact_iou_min = kNaN;  // ellipse centre, hull against the truth
+  // Coverage of the true contact by valid strain (mean and worst frame, %), and by ring of r/a
+  // (pipeline/validate_rings.hpp): coverage %, displacement RMS (px), strain RMS (pooled components).
+  double coverage_pct = kNaN, coverage_min_pct = kNaN;
+  std::map<std::string, double> ring_coverage_pct, ring_disp_px, ring_strain;
+  double c_of_a_rms_pct = kNaN;  // stick radius c against the model, in % of the contact radius
 };
 
 double median(std::vector<double> v) {
@@ -128,6 +133,30 @@ std::string tail_of(const std::string& path) {
 }
 
 // validation.csv → the numbers a row needs.
+// validation.csv's coverage and ring rows (cells: quantity, reference, mode, unit, rms, max_abs, mean, n).
+void read_ring_row(const std::string& q, const std::vector<std::string>& cells, Row& row) {
+  const auto number = [&](std::size_t i) { return std::strtod(cells[i].c_str(), nullptr); };
+  const auto suffix = [&](const std::string& prefix) {
+    return q.rfind(prefix, 0) == 0 ? q.substr(prefix.size()) : std::string();
+  };
+  if (q == "coverage_deficit_contact") {
+    row.coverage_pct = 100.0 - number(6);
+    row.coverage_min_pct = 100.0 - number(5);
+  } else if (const std::string ring = suffix("coverage_deficit_ring_"); !ring.empty()) {
+    row.ring_coverage_pct[ring] = 100.0 - number(6);
+  } else if (const std::string ring_d = suffix("displacement_ring_"); !ring_d.empty()) {
+    row.ring_disp_px[ring_d] = number(4);
+  } else if (q == "stick_radius_c_of_a") {
+    row.c_of_a_rms_pct = number(4);
+  } else {
+    for (const char* component : {"E_xx_ring_", "E_yy_ring_", "E_xy_ring_"})
+      if (const std::string ring_e = suffix(component); !ring_e.empty()) {
+        const double rms = number(4);
+        row.ring_strain[ring_e] += std::isfinite(rms) ? rms * rms : rms;
+      }
+  }
+}
+
 void read_validation(const fs::path& dir, Row& row) {
   std::ifstream in(dir / "validation.csv");
   std::string line;
@@ -161,7 +190,9 @@ void read_validation(const fs::path& dir, Row& row) {
     if (q == "U" && mode == "exact") row.energy_err_pct = rms;
     if (q == "contact_centre") row.contact_centre_rms_px = rms;
     if (q == "contact_1-IoU") row.contact_iou_min = 1.0 - std::strtod(cells[5].c_str(), nullptr);
+    read_ring_row(q, cells, row);
   }
+  for (auto& [ring, sum2] : row.ring_strain) sum2 = std::sqrt(sum2 / 3.0);
   if (components == 3) row.strain_rms_all = std::sqrt(sum2 / 3.0);
 }
 
@@ -455,35 +486,89 @@ Row measure_config(const fs::path& out, const fs::path& trial, const std::string
   return row;
 }
 
+// The ring the table's "rim" column shows: where slip begins, inside the last few pixels of the border.
+constexpr const char* kRim = "0.85-0.95";
+
+double ring_value(const std::map<std::string, double>& values, const std::string& ring) {
+  const auto it = values.find(ring);
+  return it == values.end() ? kNaN : it->second;
+}
+
 void print_rows(const std::vector<Row>& rows) {
-  std::printf("%-24s %-22s %8s %8s %7s %8s %8s %8s %7s %9s %9s %9s %9s %8s\n", "scene", "config", "frames/s",
-              "contact", "ctr_px", "track", "strain", "peak_MB", "tracks", "disp_px", "E_xx", "E_yy", "E_xy",
-              "U_err%");
+  std::printf("%-24s %-22s %8s %8s %7s %8s %8s %8s %7s %9s %9s %9s %9s %8s %7s %8s\n", "scene", "config",
+              "frames/s", "contact", "ctr_px", "track", "strain", "peak_MB", "tracks", "disp_px", "E_xx",
+              "E_yy", "E_xy", "U_err%", "cover%", "rim_px");
   for (const Row& r : rows) {
     if (!r.error.empty()) {
       std::printf("%-24s %-22s failed: %s\n", r.scene.c_str(), r.config.c_str(), r.error.c_str());
       continue;
     }
-    std::printf("%-24s %-22s %8.3g %8.3g %7.2f %8.3g %8.3g %8.0f %7.0f %9.4f %9.5f %9.5f %9.5f %8.2f\n",
-                r.scene.c_str(), r.config.c_str(), r.frames_per_s, r.contact_ms, r.contact_centre_rms_px,
-                r.track_ms, r.strain_ms, r.peak_mb, r.tracks_mean, r.disp_rms_px, r.strain_rms[0],
-                r.strain_rms[1], r.strain_rms[2], r.energy_err_pct);
+    std::printf(
+        "%-24s %-22s %8.3g %8.3g %7.2f %8.3g %8.3g %8.0f %7.0f %9.4f %9.5f %9.5f %9.5f %8.2f %7.1f %8.3f\n",
+        r.scene.c_str(), r.config.c_str(), r.frames_per_s, r.contact_ms, r.contact_centre_rms_px, r.track_ms,
+        r.strain_ms, r.peak_mb, r.tracks_mean, r.disp_rms_px, r.strain_rms[0], r.strain_rms[1],
+        r.strain_rms[2], r.energy_err_pct, r.coverage_pct, ring_value(r.ring_disp_px, kRim));
   }
 }
 
 void write_bench_csv(const std::vector<Row>& rows, const fs::path& path) {
-  CsvWriter csv(path.string(), {"scene", "config", "frames", "frames_per_s", "contact_ms", "track_ms",
-                                "strain_ms", "peak_mb", "tracks_mean", "disp_rms_px", "strain_rms",
-                                "strain_rms_exx", "strain_rms_eyy", "strain_rms_exy", "energy_err_pct",
-                                "plate_rms_px", "contact_centre_rms_px", "contact_iou_min", "error"});
+  CsvWriter csv(path.string(), {"scene",
+                                "config",
+                                "frames",
+                                "frames_per_s",
+                                "contact_ms",
+                                "track_ms",
+                                "strain_ms",
+                                "peak_mb",
+                                "tracks_mean",
+                                "disp_rms_px",
+                                "strain_rms",
+                                "strain_rms_exx",
+                                "strain_rms_eyy",
+                                "strain_rms_exy",
+                                "energy_err_pct",
+                                "plate_rms_px",
+                                "contact_centre_rms_px",
+                                "contact_iou_min",
+                                "coverage_pct",
+                                "coverage_min_pct",
+                                "c_of_a_rms_pct",
+                                "coverage_ring_0.85-0.95_pct",
+                                "coverage_ring_0.95-1_pct",
+                                "disp_ring_0.85-0.95_px",
+                                "disp_ring_0.95-1_px",
+                                "strain_ring_0.85-0.95",
+                                "strain_ring_0.95-1",
+                                "error"});
   for (const Row& r : rows)
-    csv.row_text(
-        {r.scene, r.config, std::to_string(r.frames), format_double(r.frames_per_s),
-         format_double(r.contact_ms), format_double(r.track_ms), format_double(r.strain_ms),
-         format_double(r.peak_mb), format_double(r.tracks_mean), format_double(r.disp_rms_px),
-         format_double(r.strain_rms_all), format_double(r.strain_rms[0]), format_double(r.strain_rms[1]),
-         format_double(r.strain_rms[2]), format_double(r.energy_err_pct), format_double(r.plate_rms_px),
-         format_double(r.contact_centre_rms_px), format_double(r.contact_iou_min), csv_safe(r.error)});
+    csv.row_text({r.scene,
+                  r.config,
+                  std::to_string(r.frames),
+                  format_double(r.frames_per_s),
+                  format_double(r.contact_ms),
+                  format_double(r.track_ms),
+                  format_double(r.strain_ms),
+                  format_double(r.peak_mb),
+                  format_double(r.tracks_mean),
+                  format_double(r.disp_rms_px),
+                  format_double(r.strain_rms_all),
+                  format_double(r.strain_rms[0]),
+                  format_double(r.strain_rms[1]),
+                  format_double(r.strain_rms[2]),
+                  format_double(r.energy_err_pct),
+                  format_double(r.plate_rms_px),
+                  format_double(r.contact_centre_rms_px),
+                  format_double(r.contact_iou_min),
+                  format_double(r.coverage_pct),
+                  format_double(r.coverage_min_pct),
+                  format_double(r.c_of_a_rms_pct),
+                  format_double(ring_value(r.ring_coverage_pct, "0.85-0.95")),
+                  format_double(ring_value(r.ring_coverage_pct, "0.95-1")),
+                  format_double(ring_value(r.ring_disp_px, "0.85-0.95")),
+                  format_double(ring_value(r.ring_disp_px, "0.95-1")),
+                  format_double(ring_value(r.ring_strain, "0.85-0.95")),
+                  format_double(ring_value(r.ring_strain, "0.95-1")),
+                  csv_safe(r.error)});
   csv.commit();
 }
 
