@@ -172,7 +172,8 @@ struct FeatureTracker::Impl {
   cv::Size size;
   double eigen_threshold = 0.0;
 
-  cv::Mat first_mask;  // frame 0's contact
+  // Where frame 0 seeded tracks: its contact eroded by border_margin_px, as the births' mask is.
+  cv::Mat first_seeded;
   cv::Mat current_f, current_u8, previous_u8, mask, match_mask, birth_mask, eigen, eigen_scratch;
   cv::Mat erosion_scratch;
   cv::Mat match_f;  // what subsets are matched in: current_f, smoothed by prefilter_sigma_px
@@ -1119,6 +1120,10 @@ void FeatureTracker::Impl::fixed_shape_pass(bool last) {
     TrackState& st = states[static_cast<std::size_t>(i)];
     if (!is_alive(tracks[static_cast<std::size_t>(i)].status) || !st.matched || st.suspect) continue;
     if (!resampled_done.empty() && resampled_done[static_cast<std::size_t>(i)]) continue;
+    // A track whose reference position is extrapolated keeps its own match: the rounds fit the field in
+    // reference coordinates, where its extrapolation error would pull it (and, through the fits, its
+    // newborn neighbours) a little further each frame, compounding from one generation of births to the next.
+    if (tracks[static_cast<std::size_t>(i)].reference_extrapolated) continue;
     const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
     gather_neighbours(st.candidate, radius, -1);  // includes the track itself
     if (neighbours.size() < 6) continue;
@@ -1636,11 +1641,16 @@ void FeatureTracker::Impl::births() {
         // Nor, by default, skin that slid into a contact that did not grow: its reference position would be
         // an extrapolation of the field past the contact border (0.5 px RMS on the default scene, against
         // 0.24 px for newborns matched in frame 0). Only where the contact grew is extrapolation the way.
-        if (!settings.extrapolate_all_births && keys[0] && keys[0]->frame == 0 && inside_mask(first_mask, x))
+        // The test is against where frame 0 seeded, not its whole contact: a contact that grows carries its
+        // births across frame 0's border band (seeded by neither frame 0 nor, unless extrapolated, by
+        // births), and a contact that does not grow has no birth candidates in that band anyway.
+        if (!settings.extrapolate_all_births && keys[0] && keys[0]->frame == 0 &&
+            inside_mask(first_seeded, x))
           continue;
       }
       if (key < 0) key = add_key_frame();
       if (create_track(x, {coef(0, 0), coef(0, 1)}, dX_dx, velocity, key, TrackStatus::kBorn)) {
+        tracks.back().reference_extrapolated = true;
         states.back().candidate = x;
         states.back().matched = true;
         ++live;
@@ -1667,6 +1677,7 @@ void FeatureTracker::Impl::finish_frame() {
                                     : std::array<double, 3>{nan, nan, nan};
     if (settings.refine) {
       t.zncc = st.match.zncc;
+      t.subset_inside_fraction = st.match.valid_fraction;
       const Mat2d h = st.deformation - Mat2d::Identity();
       t.gradient = {h(0, 0), h(0, 1), h(1, 0), h(1, 1)};
     }
@@ -1711,7 +1722,9 @@ void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, do
     m.global_correlation.set_reference(m.previous_hp);
   }
   m.add_key_frame();
-  m.mask.copyTo(m.first_mask);
+  const int margin = static_cast<int>(std::ceil(m.settings.border_margin_px));
+  cv::erode(m.mask, m.first_seeded,
+            cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * margin + 1, 2 * margin + 1)));
   m.rest_count = 0;
   // Noise-free frames gain nothing from a mean anchor, and would only risk the blur of a slow creep.
   const bool noisy = !m.settings.adapt_to_texture || m.texture.snr < m.settings.min_unfiltered_snr;

@@ -56,7 +56,13 @@ struct Track {
   TrackStatus status = TrackStatus::kTracked;
   int born_frame = 0;
   int retired_frame = -1;
-  double zncc = 0.0;   // correlation of the last refined match (1 for unrefined tracks)
+  // X was not matched in the reference frame but extrapolated from the neighbours' map current → reference:
+  // skin the reference frame did not see (where the contact grew). Its displacement is then partly a model.
+  bool reference_extrapolated = false;
+  double zncc = 0.0;  // correlation of the last refined match (1 for unrefined tracks)
+  // Share of the last refined match's subset pixels that lay inside the contact (and the image): below 1
+  // where the subset crosses the contact's border; the rest of its pixels are not used.
+  double subset_inside_fraction = 1.0;
   Gradient2 gradient;  // du/dX at the track from its subset's shape function (zero if unrefined)
   // What position_px is this frame: the track's own match, or a model a test on the frame accepted
   // (flow/model_check.hpp), with that test's statistic for this track: the squared Mahalanobis distance of

@@ -21,6 +21,9 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 using strain::Triangle;
 // /mesh/status for a triangle that is not part of a frame's mesh.
 constexpr std::uint8_t kNotInMesh = 255;
+// /strain/source bits: where a triangle's strain is partly a model rather than matches.
+constexpr std::uint8_t kSourceExtrapolatedReference = 1;  // a vertex's reference position is extrapolated
+constexpr std::uint8_t kSourceVertexModel = 2;  // a vertex reports a model this frame (/tracks/model)
 
 // Per active triangle of a frame, in this order (NaN where the triangle was not usable).
 enum Value : int {
@@ -46,7 +49,8 @@ struct StrainFrame {
   std::vector<std::int32_t> active;  // union triangle indices
   std::vector<std::uint8_t> status;  // strain::TriangleStatus per active triangle
   std::vector<std::int8_t> stuck;
-  std::vector<double> values;  // active.size() × kValueCount
+  std::vector<std::uint8_t> sources;  // per active triangle: kSource* bits of its vertices
+  std::vector<double> values;         // active.size() × kValueCount
   strain::TriangleCounts counts;
   double energy_J = kNaN;
   double stick_ratio = kNaN;
@@ -91,12 +95,14 @@ class StrainStage final : public Stage {
     reference_px_.resize(tracks.size());
     current_px_.assign(tracks.size(), Vec2{kNaN, kNaN});
     covariance_px2_.assign(tracks.size(), {kNaN, kNaN, kNaN});
+    vertex_source_.assign(tracks.size(), 0);
     alive_.clear();
     for (std::size_t k = 0; k < tracks.size(); ++k) {
       reference_px_[k] = tracks[k].reference_px;
       if (flow::is_alive(tracks[k].status)) {
         current_px_[k] = tracks[k].position_px;
         covariance_px2_[k] = tracks[k].covariance_px2;
+        vertex_source_[k] = vertex_source(tracks[k]);
         alive_.push_back(static_cast<std::int32_t>(k));
       }
     }
@@ -120,6 +126,7 @@ class StrainStage final : public Stage {
     record.active = mesh_.active();
     record.status.resize(n);
     record.stuck = fs.stuck;
+    record.sources.assign(n, 0);
     record.values.assign(n * kValueCount, kNaN);
     record.counts = fs.counts;
     incremental_.resize(mesh_.triangles().size(), Strain2{kNaN, kNaN, kNaN});
@@ -157,6 +164,8 @@ class StrainStage final : public Stage {
           plane_strain_energy_density_J_m3(chosen, settings_.strain.young_Pa, settings_.strain.poisson);
       const Triangle& tri = mesh_.active_triangles()[t];
       const Strain2 sd = total_standard_deviation(tri);
+      for (std::size_t v = 0; v < 3; ++v)
+        record.sources[t] |= vertex_source_[static_cast<std::size_t>(tri[v])];
       v[kSdXx] = sd.xx;
       v[kSdYy] = sd.yy;
       v[kSdXy] = sd.xy;
@@ -239,6 +248,7 @@ class StrainStage final : public Stage {
         density(n * t_count, kNaN);
     std::vector<std::uint8_t> status(n * t_count, kNotInMesh);
     std::vector<std::int8_t> stuck(n * t_count, -1);
+    std::vector<std::uint8_t> source(n * t_count, 0);
     std::vector<double> energy(n, kNaN), stick(n, kNaN), energy_rate(n, kNaN);
     std::vector<double> radius_mm(n, kNaN), radius_ratio(n, kNaN), slip_px(n, kNaN), residual_px(n, kNaN),
         shift_px(n * 2, kNaN), amplitude_px(n * 2, kNaN), chi2(n * 2, kNaN);
@@ -270,6 +280,7 @@ class StrainStage final : public Stage {
         const std::size_t cell = i * t_count + static_cast<std::size_t>(f.active[a]);
         status[cell] = f.status[a];
         stuck[cell] = f.stuck[a];
+        source[cell] = f.sources[a];
         const double* v = &f.values[a * kValueCount];
         for (int c3 = 0; c3 < 3; ++c3) {
           total[cell * 3 + static_cast<std::size_t>(c3)] = v[kExx + c3];
@@ -317,6 +328,11 @@ class StrainStage final : public Stage {
                   "predicted standard deviation of each total strain component from the vertices' match "
                   "covariances (/tracks/covariance_px2), vertices taken as independent: an upper bound of "
                   "the noise; NaN where a vertex has no covariance");
+    out.write("/strain/source", std::span<const std::uint8_t>(source), {n, t_count});
+    out.attribute(
+        "/strain", "source_bits",
+        "0 every vertex matched; bit 1: a vertex's reference position is extrapolated "
+        "(/tracks/reference_extrapolated); bit 2: a vertex reports a model this frame (/tracks/model)");
     out.write("/strain/rate", std::span<const double>(rate), {n, t_count, 3});
     out.write("/strain/principal", std::span<const double>(principal), {n, t_count, 3});
     out.write("/strain/rotation_rad", std::span<const double>(rotation), {n, t_count});
@@ -476,6 +492,11 @@ class StrainStage final : public Stage {
                       format_double(m(1, 0)) + "," + format_double(m(1, 1)) + "," + format_double(m(1, 2)));
   }
 
+  static std::uint8_t vertex_source(const flow::Track& t) {
+    return static_cast<std::uint8_t>((t.reference_extrapolated ? kSourceExtrapolatedReference : 0) |
+                                     (t.model != flow::TrackModel::kOwnMatch ? kSourceVertexModel : 0));
+  }
+
   Strain2 total_standard_deviation(const Triangle& tri) const {
     std::array<Vec2, 3> X, x;
     std::array<strain::PositionCovariance, 3> c;
@@ -495,6 +516,7 @@ class StrainStage final : public Stage {
   strain::ContactDisk disk_;
   std::vector<Vec2> reference_px_, current_px_, previous_px_;
   std::vector<strain::PositionCovariance> covariance_px2_;  // per track, this frame's match covariance
+  std::vector<std::uint8_t> vertex_source_;                 // per track, kSource* bits this frame
   std::vector<std::int32_t> alive_;
   std::vector<Strain2> incremental_;  // per union triangle; NaN until the triangle is first usable
   double previous_t_s_ = kNaN;

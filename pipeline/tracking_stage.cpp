@@ -34,6 +34,7 @@ struct TrackFrame {
   // What each position is (flow::TrackModel) and the statistic that let a model stand in for the match.
   std::vector<std::uint8_t> model;
   std::vector<float> model_mahalanobis2;
+  std::vector<float> inside_fraction;                // share of the match's subset inside the contact
   std::vector<std::array<float, 3>> covariance_px2;  // the own match's, xx xy yy
   bool rest_tested = false, at_rest = false;
   double rest_chi2_per_dof = kNaN, rest_correlation_z = kNaN;
@@ -113,6 +114,7 @@ class TrackingStage final : public Stage {
     record.status.resize(tracks.size(), kAbsent);
     record.model.resize(tracks.size(), 0);
     record.model_mahalanobis2.resize(tracks.size(), kNaNf);
+    record.inside_fraction.resize(tracks.size(), kNaNf);
     record.covariance_px2.resize(tracks.size(), {kNaNf, kNaNf, kNaNf});
     for (std::size_t k = 0; k < tracks.size(); ++k) {
       const flow::Track& t = tracks[k];
@@ -121,6 +123,7 @@ class TrackingStage final : public Stage {
         record.status[k] = static_cast<std::int8_t>(t.status);
         record.model[k] = static_cast<std::uint8_t>(t.model);
         record.model_mahalanobis2[k] = static_cast<float>(t.model_mahalanobis2);
+        record.inside_fraction[k] = static_cast<float>(t.subset_inside_fraction);
         for (std::size_t c = 0; c < 3; ++c)
           record.covariance_px2[k][c] = static_cast<float>(t.covariance_px2[c]);
         ++model_track_frames_[static_cast<std::size_t>(t.model)];
@@ -231,12 +234,14 @@ class TrackingStage final : public Stage {
     std::vector<std::int8_t> plate_status(n, kAbsent);
     std::vector<std::int8_t> status(n * k, kAbsent);
     std::vector<std::uint8_t> model(n * k, 0);
-    std::vector<float> model_d2(n * k, kNaNf), covariance(n * k * 3, kNaNf);
+    std::vector<float> model_d2(n * k, kNaNf), covariance(n * k * 3, kNaNf), inside(n * k, kNaNf);
     std::vector<std::int8_t> rest_tested(n, 0), at_rest(n, 0);
     std::vector<double> rest_chi2(n, kNaN), rest_z(n, kNaN);
     std::vector<std::int32_t> born(k), retired(k);
+    std::vector<std::int8_t> extrapolated(k, 0);
     for (std::size_t j = 0; j < k; ++j) {
       const flow::Track& t = tracker_->tracks()[j];
+      extrapolated[j] = t.reference_extrapolated ? 1 : 0;
       reference[2 * j] = t.reference_px.x;
       reference[2 * j + 1] = t.reference_px.y;
       // Tracker frames count from the reference frame; stored as result.h5 frame rows (−1: never retired).
@@ -251,6 +256,7 @@ class TrackingStage final : public Stage {
         status[i * k + j] = f.status[j];
         model[i * k + j] = f.model[j];
         model_d2[i * k + j] = f.model_mahalanobis2[j];
+        if (j < f.inside_fraction.size()) inside[i * k + j] = f.inside_fraction[j];
         for (std::size_t c = 0; c < 3; ++c) covariance[(i * k + j) * 3 + c] = f.covariance_px2[j][c];
       }
       rest_tested[i] = f.rest_tested ? 1 : 0;
@@ -273,12 +279,22 @@ class TrackingStage final : public Stage {
         "3 smoothed in time within the match's noise (docs/flow.md, what a position is)");
     out.write("/tracks/model_mahalanobis2", std::span<const float>(model_d2), {n, k});
     out.write("/tracks/covariance_px2", std::span<const float>(covariance), {n, k, 3});
+    out.write("/tracks/subset_inside_fraction", std::span<const float>(inside), {n, k});
+    out.attribute(
+        "/tracks", "subset_inside_fraction",
+        "share of each match's subset pixels inside the contact (and the image); the others are not "
+        "used: below 1 where a subset crosses the contact's border");
     out.write("/tracks/rest_tested", std::span<const std::int8_t>(rest_tested), {n});
     out.write("/tracks/at_rest", std::span<const std::int8_t>(at_rest), {n});
     out.write("/tracks/rest_chi2_per_dof", std::span<const double>(rest_chi2), {n});
     out.write("/tracks/rest_correlation_z", std::span<const double>(rest_z), {n});
     out.write("/tracks/born_frame", std::span<const std::int32_t>(born), {k});
     out.write("/tracks/retired_frame", std::span<const std::int32_t>(retired), {k});
+    out.write("/tracks/reference_extrapolated", std::span<const std::int8_t>(extrapolated), {k});
+    out.attribute("/tracks", "reference_extrapolated",
+                  "1: the track's reference position was not matched in the reference frame but extrapolated "
+                  "from its neighbours' map (skin the reference frame did not see); its displacement is "
+                  "partly a model");
     out.attribute("/tracks", "preset", settings_.preset);
     out.attribute("/tracks", "reference_frame_row", static_cast<double>(reference_row_));
     out.attribute("/tracks", "status_codes",
