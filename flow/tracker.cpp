@@ -172,7 +172,8 @@ struct FeatureTracker::Impl {
   cv::Size size;
   double eigen_threshold = 0.0;
 
-  // Where frame 0 seeded tracks: its contact eroded by border_margin_px, as the births' mask is.
+  // Where frame 0 seeded tracks, with a tolerance for the outline's jitter: its contact eroded by a little
+  // less than border_margin_px (start()).
   cv::Mat first_seeded;
   cv::Mat current_f, current_u8, previous_u8, mask, match_mask, birth_mask, eigen, eigen_scratch;
   cv::Mat erosion_scratch;
@@ -1722,7 +1723,11 @@ void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, do
     m.global_correlation.set_reference(m.previous_hp);
   }
   m.add_key_frame();
-  const int margin = static_cast<int>(std::ceil(m.settings.border_margin_px));
+  // The measured outline moves by a pixel or two from frame to frame: only skin this far beyond where frame
+  // 0 seeded counts as a contact that grew.
+  constexpr int kGrowthTolerancePx = 4;
+  const int margin =
+      std::max(0, static_cast<int>(std::ceil(m.settings.border_margin_px)) - kGrowthTolerancePx);
   cv::erode(m.mask, m.first_seeded,
             cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * margin + 1, 2 * margin + 1)));
   m.rest_count = 0;
