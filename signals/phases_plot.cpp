@@ -134,12 +134,12 @@ cv::Mat render_phases_plot(const std::vector<double>& time_s, const Phases& phas
   std::vector<double> mu(time_s.size(), 0.0);
   std::vector<char> valid(time_s.size(), 0);
   for (std::size_t i = 0; i < mu.size(); ++i)
-    if (phases.normal_N[i] * phases.normal_sign > 0.05 * std::abs(phases.normal_level_N)) {
+    if (phases.normal_N[i] * phases.normal_sign > 0.2 * std::abs(phases.normal_level_N)) {
       mu[i] = phases.tangential_N[i] / phases.normal_N[i];
       valid[i] = 1;
     }
   const std::vector<std::string> labels{"normal force W (N, tared)", "tangential force F_t (N, tared)",
-                                        "mu = F_t / W (where W > 5 % of its level)"};
+                                        "mu = F_t / W (where W > 20 % of its level)"};
   const std::vector<const std::vector<double>*> values{&phases.normal_N, &phases.tangential_N, &mu};
   PhasesPlotLayout lay{ax.left, ax.right, {}, {}};
   for (int k = 0; k < 3; ++k) {
@@ -150,8 +150,9 @@ cv::Mat render_phases_plot(const std::vector<double>& time_s, const Phases& phas
   }
   stroke_labels(img, ax, lay.panel_top[2], phases);
   time_ticks(img, ax, lay.panel_bottom.back());
-  put(img, options.title + "   grey: no contact, blue: press, yellow: loading, green: slide, red: release",
-      {kLeft, 22}, 0.45);
+  put(img, options.title, {kLeft, 22}, 0.45);
+  put(img, "grey: no contact  blue: press  yellow: loading  green: slide  red: release",
+      {options.width_px - kRight - 560, 22}, 0.42);
   if (layout) *layout = lay;
   return img;
 }

@@ -159,7 +159,8 @@ void add_signals_phases_verb(CLI::App& signals) {
       return ts::detect_phases(rec.table.time_s, rec.normal, rec.tangential, rec.position, o->r.phases);
     });
     const std::string plot = o->plot.empty() ? default_plot_path(o->out) : o->plot;
-    ts::write_phases_png(plot, rec.table.time_s, phases, {.title = o->r.input});
+    ts::write_phases_png(plot, rec.table.time_s, phases,
+                         {.title = std::filesystem::path(o->r.input).filename().string()});
     json j = ts::phases_json(phases);
     j["input"] = o->r.input;
     j["sample_rate_Hz"] = rec.table.sample_rate_Hz;
