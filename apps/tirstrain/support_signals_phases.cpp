@@ -118,6 +118,38 @@ std::string default_plot_path(const std::string& out) {
   return std::filesystem::path(out).replace_extension(".png").string();
 }
 
+// The friction summary: μ of the first slide under the names a single-trial summary always had, every
+// slide's μ, the events, the phases and the warnings.
+json friction_summary(const ts::FrictionTrial& trial, const RecordingOptions& o,
+                      const ts::EventOptions& events, std::size_t rows_below_min_normal,
+                      double sample_rate_Hz) {
+  const ts::Stroke& first = trial.phases.strokes.front();
+  const ts::TrialEvents& ev = trial.events;
+  json j = {{"mu_dynamic", first.mu_mean},
+            {"mu_plateau_start_s", first.slide_start_s},
+            {"mu_plateau_end_s", first.slide_end_s},
+            {"mu_plateau_stddev", first.mu_sd},
+            {"mu_over", "the whole first slide (phases.strokes[0]); every slide in strokes"},
+            {"onset_s", ev.onset_s},
+            {"onset_index", ev.onset_index},
+            {"onset_source", ev.onset_source},
+            {"t90_s", ev.fraction_s},
+            {"t90_index", ev.fraction_index},
+            {"fraction", events.plateau_fraction},
+            {"full_slip_s", ev.full_slip_s},
+            {"full_slip_index", ev.full_slip_index},
+            {"plateau_tangential_N", ev.tangential_plateau.mean},
+            {"rows_below_min_normal", rows_below_min_normal},
+            {"sample_rate_Hz", sample_rate_Hz},
+            {"phases", ts::phases_json(trial.phases)},
+            {"signs", signs_json(o)},
+            {"warnings", ts::warnings_json(trial.warnings)}};
+  j["strokes"] = j["phases"]["strokes"];
+  j["tare"] = j["phases"]["tare"];
+  if (ev.external_work_J) j["external_work_J"] = *ev.external_work_J;
+  return j;
+}
+
 }  // namespace
 
 void add_signals_phases_verb(CLI::App& signals) {
@@ -221,33 +253,10 @@ void add_signals_friction_verb(CLI::App& signals) {
       }
       out.row({rec.table.time_s[i], p.tangential_N[i] / p.normal_N[i]});
     }
-    if (!o->summary.empty()) {
-      const ts::Stroke& first = p.strokes.front();
-      const ts::TrialEvents& ev = trial.events;
-      json j = {{"mu_dynamic", first.mu_mean},
-                {"mu_plateau_start_s", first.slide_start_s},
-                {"mu_plateau_end_s", first.slide_end_s},
-                {"mu_plateau_stddev", first.mu_sd},
-                {"mu_over", "the whole first slide (phases.strokes[0]); every slide in strokes"},
-                {"onset_s", ev.onset_s},
-                {"onset_index", ev.onset_index},
-                {"onset_source", ev.onset_source},
-                {"t90_s", ev.fraction_s},
-                {"t90_index", ev.fraction_index},
-                {"fraction", o->events.plateau_fraction},
-                {"full_slip_s", ev.full_slip_s},
-                {"full_slip_index", ev.full_slip_index},
-                {"plateau_tangential_N", ev.tangential_plateau.mean},
-                {"rows_below_min_normal", below},
-                {"sample_rate_Hz", rec.table.sample_rate_Hz},
-                {"phases", ts::phases_json(p)},
-                {"signs", signs_json(o->r)},
-                {"warnings", ts::warnings_json(trial.warnings)}};
-      j["strokes"] = j["phases"]["strokes"];
-      j["tare"] = j["phases"]["tare"];
-      if (ev.external_work_J) j["external_work_J"] = *ev.external_work_J;
-      write_text_file(o->summary, j.dump(2) + "\n");
-    }
+    if (!o->summary.empty())
+      write_text_file(
+          o->summary,
+          friction_summary(trial, o->r, o->events, below, rec.table.sample_rate_Hz).dump(2) + "\n");
     out.commit();
     print_warnings(trial.warnings);
   });
