@@ -241,3 +241,19 @@ TEST(FrictionTrial, EventsOnTheFirstStrokeWithPositionAndWork) {
   ASSERT_TRUE(trial.events.external_work_J);
   EXPECT_GT(*trial.events.external_work_J, 0.0);
 }
+
+TEST(FrictionTrial, EventsOutsideThePhasesAreNamedWarnings) {
+  // A position channel 0.3 s late (a wrong clock or a mis-wired channel): the plate "starts" after the
+  // slide has begun, which the checks say instead of reporting an onset inside the slide silently.
+  SynthRecording c;
+  const auto rec = ts::testing::synthesise(c);
+  const auto shift = static_cast<std::size_t>(0.3 * c.fs_Hz);
+  std::vector<double> late(rec.position_m.size(), 0.0);
+  for (std::size_t i = shift; i < late.size(); ++i) late[i] = rec.position_m[i - shift];
+  const auto trial = ts::analyse_friction_trial(rec.t_s, rec.normal_N, rec.tangential_N, &late, {});
+  EXPECT_TRUE(has_warning(trial.warnings, "onset_outside_loading")) << codes(trial.warnings);
+  EXPECT_GT(trial.events.onset_s, trial.phases.strokes[0].slide_start_s);
+  // The same recording with its own position: no warning.
+  const auto good = ts::analyse_friction_trial(rec.t_s, rec.normal_N, rec.tangential_N, &rec.position_m, {});
+  EXPECT_TRUE(good.warnings.empty()) << codes(good.warnings);
+}
