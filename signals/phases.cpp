@@ -291,21 +291,20 @@ std::vector<double> slope_of(const std::vector<double>& t, const std::vector<dou
   return d;
 }
 
-// Where a rise ends: after its steepest sample in [from, to], the first sample whose slope (`rising`, in the
-// stroke's direction) drops below knee × the steepest. Searched backwards for the end of a slide.
-std::size_t knee(const std::vector<double>& rising, std::size_t from, std::size_t to, double fraction,
-                 bool forward) {
+// Where a rise ends: the steepest sample of `rising` (slope in the stroke's direction) is searched in
+// [from, to], then the walk goes on from it (forward up to `limit`, or backward down to it for the end of a
+// slide) to the first sample whose slope is below `fraction` of the steepest.
+std::size_t knee(const std::vector<double>& rising, std::size_t from, std::size_t to, std::size_t limit,
+                 double fraction, bool forward) {
   std::size_t steepest = from;
   for (std::size_t i = from; i <= to; ++i)
     if (rising[i] > rising[steepest]) steepest = i;
-  const double limit = fraction * rising[steepest];
-  if (forward) {
-    std::size_t i = steepest;
-    while (i < to && rising[i] >= limit) ++i;
-    return i;
-  }
+  const double floor = fraction * rising[steepest];
   std::size_t i = steepest;
-  while (i > from && rising[i] >= limit) --i;
+  if (forward)
+    while (i < limit && rising[i] >= floor) ++i;
+  else
+    while (i > limit && rising[i] >= floor) --i;
   return i;
 }
 
@@ -329,8 +328,9 @@ std::optional<Stroke> slide_of(const StrokeSearch& s, std::size_t a, std::size_t
   while (rise_from > lo && rise_from + w > a && sign * s.mu_smooth[rise_from - 1] > 0.0) --rise_from;
   while (fall_to + 1 < n && fall_to < b + w && sign * s.mu_smooth[fall_to + 1] > 0.0) ++fall_to;
   std::size_t first = a, last = b;
-  if (a > lo) first = knee(rising, rise_from, std::min(b, a + w), o.knee_fraction, true);
-  if (b + 1 < hi) last = knee(falling, std::max(first, b >= w ? b - w : 0), fall_to, o.knee_fraction, false);
+  if (a > lo) first = knee(rising, rise_from, std::min(b, a + w), b, o.knee_fraction, true);
+  if (b + 1 < hi)
+    last = knee(falling, std::max(first, b >= w ? b - w : 0), fall_to, first, o.knee_fraction, false);
   last = std::min(last, b);
   if (last <= first) return std::nullopt;
   Stroke k;
@@ -383,17 +383,19 @@ void find_strokes(const std::vector<double>& t, const std::vector<double>* posit
     return;
   }
   std::sort(magnitudes.begin(), magnitudes.end());
+  // The 98th percentile: a stroke that fills only a few percent of the contact still sets the level.
   const double typical =
-      magnitudes[static_cast<std::size_t>(0.9 * static_cast<double>(magnitudes.size() - 1))];
+      magnitudes[static_cast<std::size_t>(0.98 * static_cast<double>(magnitudes.size() - 1))];
+  const double threshold = std::max(o.stroke_fraction * typical, o.min_stroke_mu);
   const auto slope = slope_of(t, mu_smooth, smooth / 2);
   const StrokeSearch s{t, mu, valid, mu_smooth, slope, position};
-  for (const auto& [a, b] :
-       stroke_runs(s, o.stroke_fraction * typical, lo, hi, samples_in(o.min_stroke_s, dt)))
+  for (const auto& [a, b] : stroke_runs(s, threshold, lo, hi, samples_in(o.min_stroke_s, dt)))
     if (auto k = slide_of(s, a, b, lo, hi, o, dt)) p.strokes.push_back(*k);
   if (p.strokes.empty())
     warn(p, "no_slide",
-         "no stretch of at least " + fmt(o.min_stroke_s) + " s where |μ| exceeds " + fmt(o.stroke_fraction) +
-             " of its typical level " + fmt(typical));
+         "no stretch of at least " + fmt(o.min_stroke_s) + " s where |μ| exceeds " + fmt(threshold) + " (" +
+             fmt(o.stroke_fraction) + " of its typical level " + fmt(typical) + ", at least " +
+             fmt(o.min_stroke_mu) + ")");
 }
 
 }  // namespace

@@ -13,11 +13,12 @@
 //     extrapolated to 0 % (contact start) and 100 % (loaded); release and contact end likewise on the way
 //     down. A threshold crossing moves with the threshold and the noise, the extrapolated line does not, and
 //     a ramp's ends are where it meets the two levels.
-//   - strokes: stretches between loaded and release where |μ| (smoothed) exceeds half its typical level; each
-//     stroke's slide starts where the loading rise of μ ends (its slope falls to a fraction of the rise's
-//     steepest: the Cattaneo–Mindlin curve meets μW with zero slope) and ends where the fall begins, and
-//     never runs past the start of the release. A μ that wanders along the slide changes far more slowly
-//     than the rise and the fall, so the slide is not cut short where μ dips.
+//   - strokes: stretches between loaded and release where |μ| (smoothed) exceeds half its typical level
+//     (98th percentile, at least μ 0.02); each stroke's slide starts where the loading rise of μ ends (its
+//     slope falls to a fraction of the rise's steepest: the Cattaneo–Mindlin curve meets μW with zero
+//     slope) and ends where the fall begins, and never runs past the start of the release. A μ that wanders
+//     along the slide changes far more slowly than the rise and the fall, so the slide is not cut short
+//     where μ dips.
 // All times are on the channel file's clock, in seconds.
 #include <cstddef>
 #include <optional>
@@ -48,6 +49,7 @@ struct PhaseOptions {
   bool tare_enabled = true;         // false: the channels are used as recorded
   double min_normal_N = 0.05;       // μ is undefined below this normal force, N
   double stroke_fraction = 0.5;     // a stroke is where |μ| exceeds this fraction of its typical level
+  double min_stroke_mu = 0.02;      // ... and at least this: a hold's noise is never a stroke
   double knee_fraction = 0.2;  // a rise ends (a fall begins) where μ's slope is this fraction of its steepest
   double knee_window_s = 0.15;   // the steepest slope is searched this far around the stroke's edges, s
   double level_window_s = 0.25;  // the tangential force's level at a slide's start is its median over this, s
