@@ -162,10 +162,11 @@ TEST(Phases, GivenTareStretchAndRecordsInContactThroughout) {
   EXPECT_THROW(ts::detect_phases(t, std::vector<double>(t.size(), 0.0), ft, nullptr, {}), tirstrain::Error);
 }
 
-// The recording the issue describes (8.5 s; press from 2.5 s; one slide from 4.54 s to the lift at 7.41 s;
-// DAQ offsets; a lateral channel drifting before contact; μ wandering along the slide) analysed the old way
-// on the whole record, then inside its phases.
-TEST(FrictionTrial, TheIssuesFailuresAreGone) {
+// A tribometer recording as users meet it (8.5 s; press from 2.5 s; one slide from 4.54 s to the lift at
+// 7.41 s; DAQ offsets; a lateral channel drifting before contact; μ wandering along the slide), analysed as a
+// single loading-then-slip trial on the whole record (what goes wrong there is asserted first), then inside
+// its phases.
+TEST(FrictionTrial, RealRecordingAsOneTrialFailsAndInsideItsPhasesDoesNot) {
   SynthRecording c;
   c.fs_Hz = 5000.0;
   c.first_stroke_s = 4.44;
@@ -205,7 +206,8 @@ TEST(FrictionTrial, TheIssuesFailuresAreGone) {
   EXPECT_TRUE(trial.warnings.empty()) << codes(trial.warnings);
   const auto& s = p.strokes[0];
   std::printf(
-      "[ measured ] issue recording: slide %.4f-%.4f s (truth %.4f-%.4f), mu %.4f +- %.4f (truth %.4f, %+.2f "
+      "[ measured ] tribometer recording: slide %.4f-%.4f s (truth %.4f-%.4f), mu %.4f +- %.4f (truth %.4f, "
+      "%+.2f "
       "%%); "
       "onset %.4f s, t90 %.4f s, full slip %.4f s\n",
       s.slide_start_s, s.slide_end_s, slide.slide_start_s, slide.slide_end_s, s.mu_mean, s.mu_sd,
