@@ -15,6 +15,8 @@
 #include "core/yaml_reader.hpp"
 #include "signals/channels.hpp"
 #include "signals/friction.hpp"
+#include "signals/friction_trial.hpp"
+#include "signals/phases_json.hpp"
 
 namespace tirstrain::pipeline {
 namespace {
@@ -301,6 +303,7 @@ struct Fused {
   std::vector<std::uint8_t> mu_valid;
   std::optional<ts::Plateau> mu_plateau;
   std::optional<ts::TrialEvents> events;
+  std::optional<ts::FrictionTrial> trial;  // phases, tare and strokes when normal and tangential are mapped
   std::int64_t onset_frame = -1, t90_frame = -1, full_slip_frame = -1;
   std::vector<double> external_cumulative_J;  // at frames, from the onset; 0 before it and outside the span
   std::optional<double> strain_energy_at_t90_J, energy_ratio;
@@ -517,6 +520,10 @@ class ChannelsStage final : public Stage {
                      {"plateau_tangential_N", e.tangential_plateau.mean}};
       if (e.external_work_J) c["external_work_J"] = *e.external_work_J;
     }
+    if (f.trial) {
+      c["phases"] = ts::phases_json(f.trial->phases);
+      c["mu_over"] = "the whole first slide (phases.strokes[0]), on the tared channels";
+    }
     c["frames_with_strain_energy"] = f.frames_with_energy;
     if (f.strain_energy_at_t90_J) c["strain_energy_at_t90_J"] = *f.strain_energy_at_t90_J;
     if (f.energy_ratio) c["energy_ratio"] = *f.energy_ratio;
@@ -602,6 +609,54 @@ class ChannelsStage final : public Stage {
     return {};
   }
 
+  // μ per slide and the events inside the phases of the tared channels (signals/friction_trial.hpp); the
+  // phases' and the consistency checks' warnings go into summary.json with their codes.
+  void measure_friction(Fused& f) const {
+    ts::FrictionTrialOptions options;
+    options.phases.min_normal_N = config_.min_normal_N;
+    options.events = config_.events;
+    const std::vector<double>* position = position_ ? &series_[*position_].values : nullptr;
+    try {
+      f.trial = ts::analyse_friction_trial(f.t_s, series_[*normal_].values, series_[*tangential_].values,
+                                           position, options);
+    } catch (const Error& e) {
+      f.warnings.push_back("friction not measured: " + e.message());
+    }
+    if (f.trial) {
+      for (const auto& w : f.trial->warnings) f.warnings.push_back(w.code + ": " + w.message);
+      const ts::Stroke& s = f.trial->phases.strokes.front();
+      f.mu_plateau = ts::Plateau{0, 0, s.slide_start_s, s.slide_end_s, s.mu_mean, s.mu_sd};
+      f.events = f.trial->events;
+    }
+    mu_at_frames(f);
+  }
+
+  // F_t/W at the frames in the channel record: on the tared channels when the phases were found, as
+  // recorded otherwise; valid where W ≥ min_normal_N.
+  void mu_at_frames(Fused& f) const {
+    const std::size_t frames = frame_t_s_.size();
+    std::vector<double> w = f.at_frames[*normal_], ft = f.at_frames[*tangential_];
+    if (f.trial) {
+      std::vector<double> query;
+      for (std::size_t k = 0; k < frames; ++k)
+        if (f.in_span[k]) query.push_back(frame_t_s_[k]);
+      const auto wq = ts::resample_linear(f.t_s, f.trial->phases.normal_N, query);
+      const auto fq = ts::resample_linear(f.t_s, f.trial->phases.tangential_N, query);
+      for (std::size_t k = 0, q = 0; k < frames; ++k)
+        if (f.in_span[k]) {
+          w[k] = wq[q];
+          ft[k] = fq[q++];
+        }
+    }
+    f.mu.assign(frames, 0.0);
+    f.mu_valid.assign(frames, 0);
+    for (std::size_t k = 0; k < frames; ++k)
+      if (f.in_span[k] && w[k] >= config_.min_normal_N && w[k] > 0.0) {
+        f.mu[k] = ft[k] / w[k];
+        f.mu_valid[k] = 1;
+      }
+  }
+
   const Fused& fused() const {
     if (fused_) return *fused_;
     if (frame_t_s_.empty() || series_.empty())
@@ -638,22 +693,8 @@ class ChannelsStage final : public Stage {
     }
 
     if (normal_ && tangential_) {
-      const auto& w = f.at_frames[*normal_];
-      const auto& ft = f.at_frames[*tangential_];
-      f.mu.assign(frames, 0.0);
-      f.mu_valid.assign(frames, 0);
-      for (std::size_t k = 0; k < frames; ++k)
-        if (f.in_span[k] && w[k] >= config_.min_normal_N && w[k] > 0.0) {
-          f.mu[k] = ft[k] / w[k];
-          f.mu_valid[k] = 1;
-        }
-      const auto raw = ts::friction_coefficient(series_[*tangential_].values, series_[*normal_].values,
-                                                config_.min_normal_N);
-      f.mu_plateau = ts::detect_plateau(f.t_s, raw.mu, raw.valid, config_.events.plateau);
-      if (!f.mu_plateau)
-        f.warnings.push_back("no full-slip plateau of mu found; adjust channels.friction.plateau_* settings");
-    }
-    if (tangential_) {
+      measure_friction(f);
+    } else if (tangential_) {
       try {
         const std::vector<double>* position = position_ ? &series_[*position_].values : nullptr;
         f.events = ts::detect_events(f.t_s, series_[*tangential_].values, position, config_.events);

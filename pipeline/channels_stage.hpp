@@ -2,9 +2,10 @@
 // The channels stage: force, plate-position, accelerometer and trigger channels (signals/) fused with the
 // frames. It reads the channel file named by the scene's `channels:` section, puts the channels on the
 // camera clock (explicit offset, trigger edge, or cross-correlation of the plate position with the
-// image-measured plate displacement), resamples them to the frame times, and derives friction (μ at
-// frames, dynamic μ on the full-slip plateau), loading events (onset, 90 % plateau, full slip), the external
-// work U_ext and, with the strain stage, U/U_ext. Writes /channels, /friction, /events and /work of
+// image-measured plate displacement), resamples them to the frame times, tares the force channels and
+// segments the recording into its phases (signals/phases.hpp), and derives friction (μ at frames, μ over
+// each slide), the first stroke's loading events inside the phases (onset, 90 % point, full slip), the
+// external work U_ext and, with the strain stage, U/U_ext. Writes /channels, /friction, /events and /work of
 // result.h5 (docs/formats.md) and the "channels" part of summary.json.
 #include <memory>
 

@@ -191,95 +191,141 @@ double external_work_J(const std::vector<double>& time_s, const std::vector<doub
   return work;
 }
 
-TrialEvents detect_events(const std::vector<double>& time_s, const std::vector<double>& tangential_N,
-                          const std::vector<double>* position_m, const EventOptions& options) {
+namespace {
+
+struct BaselineStats {
+  double mean = 0.0, sigma = 0.0;
+};
+
+BaselineStats baseline_stats(const std::vector<double>& v, std::size_t end) {
+  BaselineStats b;
+  for (std::size_t i = 0; i < end; ++i) b.mean += v[i];
+  b.mean /= static_cast<double>(end);
+  double var = 0.0;
+  for (std::size_t i = 0; i < end; ++i) var += (v[i] - b.mean) * (v[i] - b.mean);
+  b.sigma = std::sqrt(var / static_cast<double>(end - 1));
+  return b;
+}
+
+// Checks the inputs and returns the end of the baseline stretch.
+std::size_t event_baseline_end(const std::vector<double>& time_s, const std::vector<double>& tangential_N,
+                               const std::vector<double>* position_m, const EventOptions& options) {
   require_same_length(time_s.size(), tangential_N.size(), "tangential force");
   if (position_m) require_same_length(time_s.size(), position_m->size(), "position");
   const std::size_t n = time_s.size();
   if (n < 4) throw Error("event detection needs at least 4 samples");
-  TrialEvents ev;
-  const std::vector<double>& driver = position_m ? *position_m : tangential_N;
-  ev.onset_source = position_m ? "position" : "tangential";
-
   const std::size_t baseline_end = first_index_at_or_after(time_s, time_s.front() + options.baseline_s);
   if (baseline_end < 2 || baseline_end >= n)
     throw Error("baseline of " + std::to_string(options.baseline_s) +
                     " s must cover at least 2 samples and end before the record does",
                 {.key = "baseline_s"});
-  auto baseline_stats = [&](const std::vector<double>& v, double& mean, double& sigma) {
-    mean = 0.0;
-    for (std::size_t i = 0; i < baseline_end; ++i) mean += v[i];
-    mean /= static_cast<double>(baseline_end);
-    double var = 0.0;
-    for (std::size_t i = 0; i < baseline_end; ++i) var += (v[i] - mean) * (v[i] - mean);
-    sigma = std::sqrt(var / static_cast<double>(baseline_end - 1));
-  };
-  double base = 0.0, sigma = 0.0;
-  baseline_stats(driver, base, sigma);
+  return baseline_end;
+}
+
+// The driver leaves its baseline by onset_fraction of its excursion; the onset is the last sample before
+// that still inside the baseline noise band.
+void find_onset(const std::vector<double>& time_s, const std::vector<double>& driver,
+                std::size_t baseline_end, const EventOptions& options, TrialEvents& ev) {
+  const std::size_t n = time_s.size();
+  const BaselineStats b = baseline_stats(driver, baseline_end);
   double excursion = 0.0;
-  for (double v : driver) excursion = std::max(excursion, std::abs(v - base));
-  if (excursion == 0.0 || excursion <= options.onset_sigma * sigma)
+  for (double v : driver) excursion = std::max(excursion, std::abs(v - b.mean));
+  if (excursion == 0.0 || excursion <= options.onset_sigma * b.sigma)
     throw Error("no movement: the " + ev.onset_source + " channel never leaves its baseline noise band");
-  const double detect = std::max(options.onset_fraction * excursion, options.onset_sigma * sigma);
-  const double band = std::max(options.onset_sigma * sigma, 1e-12 * excursion);
+  const double detect = std::max(options.onset_fraction * excursion, options.onset_sigma * b.sigma);
+  const double band = std::max(options.onset_sigma * b.sigma, 1e-12 * excursion);
   std::size_t cross = n;
   for (std::size_t i = baseline_end; i < n; ++i)
-    if (std::abs(driver[i] - base) >= detect) {
+    if (std::abs(driver[i] - b.mean) >= detect) {
       cross = i;
       break;
     }
   if (cross == n) throw Error("no movement onset after the baseline period", {.key = "baseline_s"});
   std::size_t onset = cross;
-  while (onset > 0 && std::abs(driver[onset - 1] - base) > band) --onset;
+  while (onset > 0 && std::abs(driver[onset - 1] - b.mean) > band) --onset;
   if (onset > 0) --onset;  // the last sample still inside the band
   ev.onset_index = onset;
   ev.onset_s = time_s[onset];
+}
 
-  double f_base = 0.0, f_sigma = 0.0;
-  baseline_stats(tangential_N, f_base, f_sigma);
-  ev.baseline_tangential_N = f_base;
-  std::vector<double> rise(n);
-  for (std::size_t i = 0; i < n; ++i) rise[i] = tangential_N[i] - f_base;
-  const auto plateau = detect_plateau(time_s, rise, {}, options.plateau, onset);
-  if (!plateau)
-    throw Error("no tangential-force plateau found after the onset (window " +
-                    std::to_string(options.plateau.window_s) + " s, tolerance " +
-                    std::to_string(options.plateau.max_relative_change) + ", minimum duration " +
-                    std::to_string(options.plateau.min_duration_s) + " s)",
-                {.key = "plateau"});
-  ev.tangential_plateau = *plateau;
-  ev.tangential_plateau.mean += f_base;
-  const double level = plateau->mean;  // relative to the baseline
+// t90 and full slip from the rise above the baseline and its plateau (level relative to the baseline).
+void find_fraction_and_slip(const std::vector<double>& time_s, const std::vector<double>& rise,
+                            const Plateau& plateau, const EventOptions& options, TrialEvents& ev) {
+  const std::size_t n = time_s.size(), onset = ev.onset_index;
+  const double level = plateau.mean;
   const double sign = level >= 0.0 ? 1.0 : -1.0;
-  std::vector<double> signed_rise(n);
-  for (std::size_t i = 0; i < n; ++i) signed_rise[i] = sign * rise[i];
   const double target = options.plateau_fraction * std::abs(level);
   bool found = false;
-  for (std::size_t i = std::max<std::size_t>(onset, 1); i < n; ++i) {
-    if (signed_rise[i] >= target) {
-      if (signed_rise[i - 1] < target && i > onset) {
-        const double w = (target - signed_rise[i - 1]) / (signed_rise[i] - signed_rise[i - 1]);
-        ev.fraction_s = time_s[i - 1] + w * (time_s[i] - time_s[i - 1]);
-      } else {
-        ev.fraction_s = time_s[i];
-      }
-      ev.fraction_index = i;
-      found = true;
-      break;
-    }
+  for (std::size_t i = std::max<std::size_t>(onset, 1); i < n && !found; ++i) {
+    const double now = sign * rise[i], before = sign * rise[i - 1];
+    if (now < target) continue;
+    ev.fraction_s = before < target && i > onset
+                        ? time_s[i - 1] + (target - before) / (now - before) * (time_s[i] - time_s[i - 1])
+                        : time_s[i];
+    ev.fraction_index = i;
+    found = true;
   }
   if (!found) throw Error("tangential force never reaches the requested fraction of its plateau");
-  const double slip_tol = std::max(options.slip_band * std::abs(level), 3.0 * plateau->stddev);
-  ev.full_slip_index = plateau->start_index;
-  for (std::size_t i = ev.fraction_index; i <= plateau->end_index; ++i)
+  const double slip_tol = std::max(options.slip_band * std::abs(level), 3.0 * plateau.stddev);
+  ev.full_slip_index = std::max(plateau.start_index, ev.fraction_index);
+  for (std::size_t i = ev.fraction_index; i <= plateau.end_index && i < n; ++i)
     if (std::abs(rise[i] - level) <= slip_tol) {
       ev.full_slip_index = i;
       break;
     }
   ev.full_slip_s = time_s[ev.full_slip_index];
+}
+
+// Shared by both entry points: onset, then the rise above the baseline handed to `plateau_of`.
+template <typename PlateauOf>
+TrialEvents detect_events_with(const std::vector<double>& time_s, const std::vector<double>& tangential_N,
+                               const std::vector<double>* position_m, const EventOptions& options,
+                               PlateauOf plateau_of) {
+  const std::size_t baseline_end = event_baseline_end(time_s, tangential_N, position_m, options);
+  TrialEvents ev;
+  ev.onset_source = position_m ? "position" : "tangential";
+  find_onset(time_s, position_m ? *position_m : tangential_N, baseline_end, options, ev);
+  ev.baseline_tangential_N = baseline_stats(tangential_N, baseline_end).mean;
+  std::vector<double> rise(time_s.size());
+  for (std::size_t i = 0; i < rise.size(); ++i) rise[i] = tangential_N[i] - ev.baseline_tangential_N;
+  const Plateau plateau = plateau_of(rise, ev.onset_index);
+  ev.tangential_plateau = plateau;
+  ev.tangential_plateau.mean += ev.baseline_tangential_N;
+  find_fraction_and_slip(time_s, rise, plateau, options, ev);
   if (position_m)
     ev.external_work_J = external_work_J(time_s, tangential_N, *position_m, ev.onset_s, ev.fraction_s);
   return ev;
+}
+
+}  // namespace
+
+TrialEvents detect_events(const std::vector<double>& time_s, const std::vector<double>& tangential_N,
+                          const std::vector<double>* position_m, const EventOptions& options) {
+  return detect_events_with(
+      time_s, tangential_N, position_m, options, [&](const std::vector<double>& rise, std::size_t onset) {
+        const auto plateau = detect_plateau(time_s, rise, {}, options.plateau, onset);
+        if (!plateau)
+          throw Error("no tangential-force plateau found after the onset (window " +
+                          std::to_string(options.plateau.window_s) + " s, tolerance " +
+                          std::to_string(options.plateau.max_relative_change) + ", minimum duration " +
+                          std::to_string(options.plateau.min_duration_s) + " s)",
+                      {.key = "plateau"});
+        return *plateau;
+      });
+}
+
+TrialEvents detect_events_on_plateau(const std::vector<double>& time_s,
+                                     const std::vector<double>& tangential_N,
+                                     const std::vector<double>* position_m, const Plateau& plateau,
+                                     const EventOptions& options) {
+  return detect_events_with(time_s, tangential_N, position_m, options,
+                            [&](const std::vector<double>& rise, std::size_t) {
+                              if (plateau.end_index >= rise.size() || plateau.start_index > plateau.end_index)
+                                throw Error("internal: the given plateau lies outside the samples");
+                              Plateau relative = plateau;
+                              relative.mean = plateau.mean - (tangential_N[0] - rise[0]);
+                              return relative;
+                            });
 }
 
 double student_t_quantile(double p, double dof) {

@@ -76,6 +76,14 @@ struct TrialEvents {
 TrialEvents detect_events(const std::vector<double>& time_s, const std::vector<double>& tangential_N,
                           const std::vector<double>* position_m, const EventOptions& options);
 
+// The same events with the plateau given instead of searched (e.g. the start of a slide found by
+// detect_phases): `plateau` in the tangential force's own units and sample indices; full slip is searched
+// from t90 up to plateau.end_index.
+TrialEvents detect_events_on_plateau(const std::vector<double>& time_s,
+                                     const std::vector<double>& tangential_N,
+                                     const std::vector<double>* position_m, const Plateau& plateau,
+                                     const EventOptions& options);
+
 // ∫ F dx between t0 and t1 (trapezoid on the samples, the end points linearly interpolated). Sign as
 // given: F and x measured along the same axis.
 double external_work_J(const std::vector<double>& time_s, const std::vector<double>& force_N,

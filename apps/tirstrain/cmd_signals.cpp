@@ -21,6 +21,7 @@
 #include "signals/spatial.hpp"
 #include "signals/spectral.hpp"
 #include "tirstrain/commands.hpp"
+#include "tirstrain/signals_verbs.hpp"
 
 namespace tirstrain::cli {
 namespace {
@@ -442,91 +443,6 @@ void add_impedance(CLI::App& signals) {
   });
 }
 
-void add_friction(CLI::App& signals) {
-  struct Opts {
-    Common c;
-    std::string tangential, normal, position, summary;
-    double min_normal_N = 0.05;
-    ts::EventOptions events;
-  };
-  auto o = std::make_shared<Opts>();
-  CLI::App* sub = add_verb(
-      signals, "friction",
-      "Friction coefficient mu(t), dynamic mu on the full-slip plateau, events and U_ext",
-      "Friction coefficient mu(t) = F_t/W, dynamic mu on the detected full-slip plateau, and loading "
-      "events.\n"
-      "Output CSV: t_s,mu (rows with W < --min-normal-N are left out and counted in the summary).\n"
-      "--summary JSON: mu_dynamic, mu_plateau_start_s/end_s/stddev, onset_s, t90_s (tangential force at "
-      "--fraction of its plateau), full_slip_s, plateau_tangential_N, external_work_J (= integral of F_t dx "
-      "from onset to t90; needs --position, in m), rows_below_min_normal.\n"
-      "Plateau: the flat stretch (linear trend over --plateau-window-s changing the value by at most "
-      "--plateau-tolerance of its mean) of at least --plateau-min-s with the largest |mean|. Onset: the "
-      "position (else the tangential force) leaves its baseline (first --baseline-s) by 5 % of its "
-      "excursion; "
-      "the onset is the last sample before that inside the baseline noise band (5 sigma).");
-  add_common(sub, o->c, "output CSV: t_s,mu");
-  sub->add_option("--tangential", o->tangential, "tangential force channel, N")->required();
-  sub->add_option("--normal", o->normal, "normal force channel, N")->required();
-  sub->add_option("--position", o->position, "plate position channel, m (onset and U_ext)");
-  sub->add_option("--summary", o->summary, "summary JSON (mu_dynamic, events, U_ext)");
-  sub->add_option("--min-normal-N", o->min_normal_N, "mu is undefined below this normal force, N")
-      ->capture_default_str();
-  sub->add_option("--plateau-window-s", o->events.plateau.window_s, "plateau slope window, s")
-      ->capture_default_str();
-  sub->add_option("--plateau-tolerance", o->events.plateau.max_relative_change,
-                  "allowed relative change over the window")
-      ->capture_default_str();
-  sub->add_option("--plateau-min-s", o->events.plateau.min_duration_s, "shortest plateau, s")
-      ->capture_default_str();
-  sub->add_option("--baseline-s", o->events.baseline_s, "quiet start used as the baseline, s")
-      ->capture_default_str();
-  sub->add_option("--fraction", o->events.plateau_fraction, "the 't90' fraction of the plateau")
-      ->capture_default_str();
-  sub->callback([o] {
-    std::vector<std::string> required{o->tangential, o->normal};
-    if (!o->position.empty()) required.push_back(o->position);
-    const auto table = load(o->c, o->c.input, required);
-    const auto& ft = table.column(o->tangential);
-    const auto& w = table.column(o->normal);
-    const auto mu =
-        in_context(o->c.input, o->normal, [&] { return ts::friction_coefficient(ft, w, o->min_normal_N); });
-    const auto plateau = ts::detect_plateau(table.time_s, mu.mu, mu.valid, o->events.plateau);
-    if (!plateau)
-      throw Error("no full-slip plateau of mu found (window " + std::to_string(o->events.plateau.window_s) +
-                      " s, tolerance " + std::to_string(o->events.plateau.max_relative_change) +
-                      ", minimum " + std::to_string(o->events.plateau.min_duration_s) +
-                      " s); adjust --plateau-window-s, --plateau-tolerance or --plateau-min-s",
-                  {.file = o->c.input, .column = o->tangential});
-    CsvWriter out(o->c.out, {o->c.time_column, "mu"});
-    for (std::size_t i = 0; i < mu.mu.size(); ++i)
-      if (mu.valid[i]) out.row({table.time_s[i], mu.mu[i]});
-    if (!o->summary.empty()) {
-      const auto ev = in_context(o->c.input, o->tangential, [&] {
-        return ts::detect_events(table.time_s, ft, o->position.empty() ? nullptr : &table.column(o->position),
-                                 o->events);
-      });
-      json j = {{"mu_dynamic", plateau->mean},
-                {"mu_plateau_start_s", plateau->start_s},
-                {"mu_plateau_end_s", plateau->end_s},
-                {"mu_plateau_stddev", plateau->stddev},
-                {"onset_s", ev.onset_s},
-                {"onset_index", ev.onset_index},
-                {"onset_source", ev.onset_source},
-                {"t90_s", ev.fraction_s},
-                {"t90_index", ev.fraction_index},
-                {"fraction", o->events.plateau_fraction},
-                {"full_slip_s", ev.full_slip_s},
-                {"full_slip_index", ev.full_slip_index},
-                {"plateau_tangential_N", ev.tangential_plateau.mean},
-                {"rows_below_min_normal", mu.invalid_count},
-                {"sample_rate_Hz", table.sample_rate_Hz}};
-      if (ev.external_work_J) j["external_work_J"] = *ev.external_work_J;
-      write_json(o->summary, j);
-    }
-    out.commit();
-  });
-}
-
 void add_power_law(CLI::App& signals) {
   struct Opts {
     std::string input, out, normal = "normal_N", mu = "mu";
@@ -872,14 +788,15 @@ void add_align(CLI::App& signals) {
 void add_signals_command(CLI::App& app) {
   CLI::App* signals = app.add_subcommand("signals",
                                          "Force, accelerometer and position channels: filter, spectra, "
-                                         "friction, impedance, recurrence analysis");
+                                         "phases, friction, impedance, recurrence analysis");
   signals->require_subcommand(1);
   add_filter(*signals);
   add_psd(*signals);
   add_tf(*signals);
   add_rqa(*signals);
   add_impedance(*signals);
-  add_friction(*signals);
+  add_signals_friction_verb(*signals);
+  add_signals_phases_verb(*signals);
   add_power_law(*signals);
   add_spatial(*signals);
   add_pad_deformation(*signals);

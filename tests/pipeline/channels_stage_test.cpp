@@ -27,6 +27,7 @@
 #include "pipeline/channels_stage.hpp"
 #include "samples/trial.hpp"
 #include "signals/channels.hpp"
+#include "tests/signals/synthetic_recording.hpp"
 #include "tests/support/scratch.hpp"
 
 namespace tirstrain::pipeline {
@@ -373,6 +374,64 @@ TEST(ChannelsStage, TriggerAlignmentAndFramesOutsideTheRecord) {
   // history's plus the trigger's half-sample bias in the offset (0.5 ms).
   EXPECT_NEAR(work_J / expected_history().external_J, 1.0, 1e-3);
   EXPECT_NEAR(scalar(h5, "/events/t90_s"), expected_history().t90_s + 0.0005, 1e-4);
+}
+
+// A real recording's channel file (offsets, drift, approach, press, two strokes, release; the DAQ's normal
+// channel negative-going) under a trial's frames: the stage tares and segments it as `signals friction`
+// does, with the scene's `invert` setting the normal force's sign.
+TEST(ChannelsStage, RealRecordingIsTaredAndSegmented) {
+  const samples::Trial trial = make_trial(0.0, 0.0, 0.0);
+  const fs::path dir = scratch("phases");
+  signals::testing::SynthRecording c;
+  c.strokes = 2;
+  c.normal_sign = -1;
+  const auto rec = signals::testing::synthesise(c);
+  {
+    CsvWriter out((dir / "channels.csv").string(), {"t_s", "normal_N", "tangential_N", "plate_m"});
+    for (std::size_t i = 0; i < rec.t_s.size(); ++i)
+      out.row({rec.t_s[i], rec.normal_N[i], rec.tangential_N[i], rec.position_m[i]});
+    out.commit();
+  }
+  const std::string columns =
+      "columns: {normal_force: normal_N, tangential_force: tangential_N, plate_position: plate_m}";
+  const auto has = [](const nlohmann::json& warnings, const std::string& text) {
+    return std::any_of(warnings.begin(), warnings.end(), [&](const auto& w) {
+      return w.template get<std::string>().find(text) != std::string::npos;
+    });
+  };
+  // As recorded: W goes negative on contact, so μ is undefined; the stage says why instead of a number.
+  const StageRun raw =
+      run_stage(channels_scene(dir, "{file: channels.csv, " + columns + "}"), trial, dir, 0.0);
+  const auto& raw_warnings = raw.summary.at("channels").at("warnings");
+  EXPECT_TRUE(has(raw_warnings, "friction not measured")) << raw_warnings.dump();
+  EXPECT_TRUE(has(raw_warnings, "normal_force_negative")) << raw_warnings.dump();
+  EXPECT_FALSE(raw.summary.at("channels").contains("mu_dynamic"));
+
+  const StageRun run = run_stage(
+      channels_scene(dir, "{file: channels.csv, " + columns + ", invert: [normal_force]}"), trial, dir, 0.0);
+  const auto& ch = run.summary.at("channels");
+  EXPECT_TRUE(ch.at("warnings").empty()) << ch.at("warnings").dump();
+  const auto& phases = ch.at("phases");
+  EXPECT_NEAR(phases.at("contact_start_s").get<double>(), c.contact_s, 0.02);
+  EXPECT_NEAR(phases.at("loaded_s").get<double>(), c.loaded_s, 0.02);
+  EXPECT_NEAR(phases.at("release_s").get<double>(), c.release_s, 0.02);
+  EXPECT_EQ(phases.at("tare").at("model"), "linear");
+  ASSERT_EQ(phases.at("strokes").size(), 2u);
+  for (std::size_t k = 0; k < 2; ++k) {
+    EXPECT_NEAR(phases.at("strokes")[k].at("mu_mean").get<double>() / rec.strokes[k].mu_mean, 1.0, 0.02);
+    EXPECT_EQ(phases.at("strokes")[k].at("direction").get<int>(), rec.strokes[k].direction);
+  }
+  EXPECT_NEAR(ch.at("mu_dynamic").get<double>() / rec.strokes[0].mu_mean, 1.0, 0.02);
+  EXPECT_NEAR(ch.at("mu_plateau_start_s").get<double>(), rec.strokes[0].slide_start_s, 0.02);
+  EXPECT_NEAR(ch.at("mu_plateau_end_s").get<double>(), rec.strokes[0].slide_end_s, 0.02);
+  // Events of the first stroke: the plate starts at its loading, after the press.
+  const auto& events = ch.at("events");
+  EXPECT_NEAR(events.at("onset_s").get<double>(), c.first_stroke_s, 1e-3);
+  EXPECT_GT(events.at("t90_s").get<double>(), events.at("onset_s").get<double>());
+  EXPECT_LE(events.at("full_slip_s").get<double>(), rec.strokes[0].slide_end_s);
+  // μ at the frames (0–1 s, the approach: W below the minimum) is absent, not a ratio of offsets.
+  H5Reader h5(run.h5_path);
+  for (const auto v : h5.read_integers("/friction/valid")) EXPECT_EQ(v, 0);
 }
 
 TEST(ChannelsStage, BadChannelFilesAndScenesAreLocated) {

@@ -160,7 +160,10 @@ TEST(SignalsCli, FrictionAndPowerLaw) {
   ASSERT_EQ(r.code, 0) << r.output;
   std::ifstream f(summary);
   const auto j = nlohmann::json::parse(f);
-  EXPECT_NEAR(j["mu_dynamic"].get<double>(), 0.8, 1e-9);
+  // μ over the whole slide, from where the rise's slope falls to 20 % of its steepest (96 % of the slip
+  // distance, F_t within 0.8 % of μW there): the tail of the rise lowers the mean by about 2e-5.
+  EXPECT_NEAR(j["mu_dynamic"].get<double>(), 0.8, 1e-4);
+  EXPECT_LT(j["mu_dynamic"].get<double>(), 0.8);
   EXPECT_NEAR(j["onset_s"].get<double>(), 0.5, 1e-3);
   EXPECT_NEAR(j["t90_s"].get<double>(), 0.5 + (1 - std::pow(0.1, 2.0 / 3.0)) * 0.2, 1e-3);
   EXPECT_TRUE(j.contains("external_work_J"));

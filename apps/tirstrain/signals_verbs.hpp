@@ -1,0 +1,11 @@
+#pragma once
+// `tirstrain signals` verbs defined outside cmd_signals.cpp (support_signals_*.cpp), registered by it.
+#include <CLI/CLI.hpp>
+
+namespace tirstrain::cli {
+
+// `signals phases` and `signals friction`: tare, phases and strokes of a real recording; μ and events.
+void add_signals_phases_verb(CLI::App& signals);
+void add_signals_friction_verb(CLI::App& signals);
+
+}  // namespace tirstrain::cli
