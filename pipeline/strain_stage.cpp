@@ -441,8 +441,9 @@ class StrainStage final : public Stage {
                 cv::FONT_HERSHEY_SIMPLEX, font, white, 1, cv::LINE_AA);
   }
 
-  // Maps on the standard ellipse of the reference frame: /maps/strain_total [N,G,G,3],
-  // /maps/principal [N,G,G,2] (e1, e2), /maps/energy_density_J_m3 [N,G,G].
+  // Maps on the standard ellipse of the reference frame: /maps/strain_total [N,G,G,3], its predicted SD
+  // /maps/strain_total_sd [N,G,G,3] (where the measurement is weak), /maps/principal [N,G,G,2] (e1, e2),
+  // /maps/energy_density_J_m3 [N,G,G].
   void write_maps(H5Writer& out) const {
     const std::size_t n = frames_.size();
     const auto g = static_cast<std::size_t>(settings_.map_cells);
@@ -450,6 +451,7 @@ class StrainStage final : public Stage {
     grid.cells = settings_.map_cells;
     grid.to_normalised = reference_normalization_.forward_matrix();
     std::vector<double> total(n * g * g * 3, kNaN), principal(n * g * g * 2, kNaN), density(n * g * g, kNaN);
+    std::vector<double> total_sd(n * g * g * 3, kNaN);
     std::vector<Triangle> triangles;
     std::vector<std::uint8_t> usable;
     for (std::size_t i = 0; i < n && reference_has_ellipse_; ++i) {
@@ -470,6 +472,7 @@ class StrainStage final : public Stage {
         total[base * 3] = v[kExx];
         total[base * 3 + 1] = v[kEyy];
         total[base * 3 + 2] = v[kExy];
+        for (std::size_t c = 0; c < 3; ++c) total_sd[base * 3 + c] = v[kSdXx + static_cast<int>(c)];
         const Principal2 p = principal_strains({v[kExx], v[kEyy], v[kExy]});
         principal[base * 2] = p.e1;
         principal[base * 2 + 1] = p.e2;
@@ -477,6 +480,7 @@ class StrainStage final : public Stage {
       }
     }
     out.write("/maps/strain_total", std::span<const double>(total), {n, g, g, 3});
+    out.write("/maps/strain_total_sd", std::span<const double>(total_sd), {n, g, g, 3});
     out.write("/maps/principal", std::span<const double>(principal), {n, g, g, 2});
     out.write("/maps/energy_density_J_m3", std::span<const double>(density), {n, g, g});
     out.attribute("/maps", "grid",

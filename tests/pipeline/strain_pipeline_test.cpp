@@ -386,6 +386,20 @@ TEST(StrainPipeline, CoverageAndAccuracyByRingOfTheContact) {
   EXPECT_GT(row("strain_z_ring_0-0.5").samples, 1000);
   const H5Reader h5((fs::path(report.result_dir) / "result.h5").string());
   EXPECT_EQ(h5.shape("/strain/total_sd"), h5.shape("/strain/total"));
+  EXPECT_EQ(h5.shape("/maps/strain_total_sd"), h5.shape("/maps/strain_total"));
+  // Where the map has a value it has its predicted SD, of the interior's scale, but in the reference frame
+  // (its strain is zero by definition, with no match to predict from).
+  const std::vector<double> map = h5.read_doubles("/maps/strain_total");
+  const std::vector<double> map_sd = h5.read_doubles("/maps/strain_total_sd");
+  const std::size_t per_frame = map.size() / 6;
+  long with_value = 0, with_sd = 0;
+  for (std::size_t c = per_frame; c < map.size(); ++c) {
+    if (!std::isfinite(map[c])) continue;
+    ++with_value;
+    if (std::isfinite(map_sd[c]) && map_sd[c] > 0.0 && map_sd[c] < 0.05) ++with_sd;
+  }
+  EXPECT_GT(with_value, 1000);
+  EXPECT_GT(with_sd, 0.9 * with_value);
   EXPECT_EQ(h5.shape("/strain/source"), h5.shape("/strain/rotation_rad"));
   EXPECT_EQ(h5.shape("/tracks/subset_inside_fraction"), h5.shape("/tracks/status"));
 }
