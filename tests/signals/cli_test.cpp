@@ -12,6 +12,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "tests/signals/cli_run.hpp"
+
 #include "core/csv.hpp"
 #include "signals/channels.hpp"
 #include "signals/filter.hpp"
@@ -20,29 +22,14 @@ namespace ts = tirstrain::signals;
 
 namespace {
 
-// One folder per test: CTest runs the tests of this file in parallel processes, and a shared trial.csv was
-// rewritten by one test while another read it.
 std::string dir() {
-  const std::string d = std::string(TIRSTRAIN_TEST_TMP) + "/signals_cli/" +
-                        ::testing::UnitTest::GetInstance()->current_test_info()->name();
-  std::filesystem::create_directories(d);
-  return d;
+  return tirstrain::testing::test_dir("signals_cli");
 }
 
-struct Run {
-  int code = 0;
-  std::string output;
-};
+using Run = tirstrain::testing::CliRun;
 
 Run run(const std::string& args) {
-  const std::string cmd = std::string(TIRSTRAIN_CLI) + " " + args + " 2>&1";
-  Run r;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  char buf[512];
-  while (pipe && fgets(buf, sizeof buf, pipe)) r.output += buf;
-  const int status = pipe ? pclose(pipe) : -1;
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+  return tirstrain::testing::run_cli(args);
 }
 
 // 4 s at 1 kHz: force = 10 Hz + 200 Hz sines, accel = force through a 3-tap FIR.

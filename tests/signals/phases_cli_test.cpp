@@ -11,6 +11,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "tests/signals/cli_run.hpp"
+
 #include "core/csv.hpp"
 #include "signals/phases_plot.hpp"
 #include "tests/signals/synthetic_recording.hpp"
@@ -20,26 +22,13 @@ namespace ts = tirstrain::signals;
 namespace {
 
 std::string dir() {
-  const std::string d = std::string(TIRSTRAIN_TEST_TMP) + "/signals_phases_cli/" +
-                        ::testing::UnitTest::GetInstance()->current_test_info()->name();
-  std::filesystem::create_directories(d);
-  return d;
+  return tirstrain::testing::test_dir("signals_phases_cli");
 }
 
-struct Run {
-  int code = 0;
-  std::string output;
-};
+using Run = tirstrain::testing::CliRun;
 
 Run run(const std::string& args) {
-  const std::string cmd = std::string(TIRSTRAIN_CLI) + " " + args + " 2>&1";
-  Run r;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  char buf[512];
-  while (pipe && fgets(buf, sizeof buf, pipe)) r.output += buf;
-  const int status = pipe ? pclose(pipe) : -1;
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+  return tirstrain::testing::run_cli(args);
 }
 
 std::string write_recording(const ts::testing::SynthOutput& rec) {
