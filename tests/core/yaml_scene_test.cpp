@@ -119,5 +119,21 @@ TEST(YamlSection, RequiredAndIntegerChecks) {
   }
 }
 
+TEST(Scene, KeyGivenTwiceIsRefusedWithBothLines) {
+  // yaml-cpp would keep both and a lookup would find the first: the second calibration would be ignored.
+  const std::string top = write_scene("twice.yaml",
+                                      "calibration:\n  px_per_mm: 52\ntissue:\n  E_Pa: 1.0e6\n"
+                                      "calibration:\n  px_per_mm: 40\n");
+  const std::string message = error_of(top);
+  EXPECT_NE(message.find("twice.yaml"), std::string::npos) << message;
+  EXPECT_NE(message.find("row 5"), std::string::npos) << message;
+  EXPECT_NE(message.find("'calibration'"), std::string::npos) << message;
+  EXPECT_NE(message.find("given twice (first at line 1)"), std::string::npos) << message;
+  const std::string nested =
+      error_of(write_scene("twice_nested.yaml", "tissue:\n  E_Pa: 1.0e6\n  nu: 0.4\n  E_Pa: 2.0e6\n"));
+  EXPECT_NE(nested.find("'tissue.E_Pa'"), std::string::npos) << nested;
+  EXPECT_NE(nested.find("row 4"), std::string::npos) << nested;
+}
+
 }  // namespace
 }  // namespace tirstrain
