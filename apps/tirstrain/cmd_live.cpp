@@ -113,10 +113,14 @@ void add_live_command(CLI::App& app) {
     options.record.overwrite = args->overwrite;
     options.max_frames = args->frames;
     options.max_seconds = args->seconds;
-    if (analysis)
+    if (analysis) {
       options.overlay = [analysis](const capture::Frame& frame, cv::Mat& canvas) {
         analysis->run(frame, canvas);
       };
+      options.on_analysis_error = [](const std::string& message) {
+        std::fprintf(stderr, "live: analysis stopped: %s; capture and recording go on\n", message.c_str());
+      };
+    }
     install_interrupt_handler();
     options.stop = &interrupt_flag();
     if (!args->quiet)
@@ -154,6 +158,9 @@ void add_live_command(CLI::App& app) {
       std::cerr << "live: analysis stages: " << analysis->describe() << " (" << analysis->analysed()
                 << " frames analysed)\n";
     if (!report.error.empty()) throw Error("live view stopped: " + report.error);
+    if (!report.analysis_error.empty())
+      throw Error("the analysis stopped: " + report.analysis_error +
+                  (report.recorded ? " (the recording in " + args->record + " is complete)" : std::string()));
   });
 }
 
