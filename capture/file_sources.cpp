@@ -140,6 +140,16 @@ std::string size_text(const cv::Size& size) {
   return std::to_string(size.width) + "x" + std::to_string(size.height);
 }
 
+// The decoded image, or an empty one when the file cannot be decoded: OpenCV's decoders throw on some
+// malformed headers (a TIFF 0 pixels wide) where others return nothing, and either is a corrupt frame.
+cv::Mat read_image(const std::string& path) {
+  try {
+    return cv::imread(path, cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception&) {
+    return {};
+  }
+}
+
 class ImageSequenceSource final : public FrameSource {
  public:
   ImageSequenceSource(std::vector<SequenceFile> files, std::string description,
@@ -169,7 +179,7 @@ class ImageSequenceSource final : public FrameSource {
       frame.frames_lost_before = file.number - files_[i - 1].number - 1;
       frame.status = FrameStatus::kGapBefore;
     }
-    const cv::Mat decoded = cv::imread(file.path, cv::IMREAD_UNCHANGED);
+    const cv::Mat decoded = read_image(file.path);
     if (decoded.empty()) {
       frame.status = FrameStatus::kCorrupt;
       return frame;

@@ -188,7 +188,10 @@ ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOption
         if (const auto nul = matlab_class.find('\0'); nul != std::string::npos) matlab_class.resize(nul);
       }
       const H5T_class_t type_class = ds.getTypeClass();
-      const bool numeric = type_class == H5T_INTEGER || type_class == H5T_FLOAT;
+      // A damaged header can claim elements gigabytes wide, which HDF5 would allocate for the conversion.
+      const std::size_t element_bytes = ds.getDataType().getSize();
+      const bool numeric =
+          (type_class == H5T_INTEGER || type_class == H5T_FLOAT) && element_bytes >= 1 && element_bytes <= 16;
       std::string why_not;
       if (matlab_class == "char")
         why_not = "is a MATLAB char array (text stored as uint16), not a numeric channel";

@@ -127,6 +127,23 @@ TEST(ImageFolder, CorruptMiddleFrameIsMarkedNotFatal) {
   EXPECT_EQ(frames[3].status, FrameStatus::kOk);
 }
 
+// Found by fuzz_image_sequence (tests/fuzz/corpus): a TIFF header 0 pixels wide made OpenCV throw out of
+// imread instead of returning nothing; it is a corrupt frame like any other undecodable file.
+TEST(ImageFolder, TiffZeroPixelsWideIsACorruptFrame) {
+  const fs::path dir = scratch("tiff_width_0");
+  fs::copy_file(
+      fs::path(TIRSTRAIN_SOURCE_DIR) / "tests/fuzz/corpus/fuzz_image_sequence/regression-tiff-width-0.tif",
+      dir / "000000.tif");
+  cv::imwrite((dir / "000001.tif").string(), frame_image(1));
+  auto source = open_source(dir.string());
+  const auto frames = read_all(*source);
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[0].status, FrameStatus::kCorrupt);
+  EXPECT_TRUE(frames[0].image.empty());
+  EXPECT_EQ(frames[1].status, FrameStatus::kOk);
+  EXPECT_EQ(frames[1].image.cols, 64);
+}
+
 TEST(ImageFolder, DifferentFrameSizeNamesFileAndFrame) {
   const fs::path dir = scratch("sizes");
   cv::imwrite((dir / "f0.png").string(), frame_image(0));

@@ -192,6 +192,18 @@ TEST(ChannelsHdf5, MismatchedLengthsNanAndBadTimeAreNamed) {
   EXPECT_NE(std::string(e.what()).find("missing.h5"), std::string::npos);
 }
 
+// Found by fuzz_channel_hdf5 (tests/fuzz/corpus): a header claiming 4 GB wide floats made HDF5 allocate
+// 4 GB for the conversion; the dataset is refused as not numeric instead.
+TEST(ChannelsHdf5, DamagedElementSizeIsRefusedNotAllocated) {
+  const std::string path =
+      std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/regression-element-4GB.h5";
+  ts::ChannelReadOptions options;
+  options.required = {"normal_N"};
+  const auto e = expect_error([&] { ts::read_channels(path, options); });
+  EXPECT_EQ(e.context().column, "normal_N");
+  EXPECT_NE(e.message().find("not a numeric dataset"), std::string::npos) << e.what();
+}
+
 TEST(Resample, LinearAtFrameTimesAndNoExtrapolation) {
   const std::vector<double> t{0.0, 0.001, 0.002, 0.003};
   const std::vector<double> v{1.0, 3.0, 5.0, 7.0};  // 1 + 2000 t
