@@ -13,6 +13,7 @@
 #include <signal.h>
 #include <sys/mount.h>
 #include <sys/resource.h>
+#include <sys/statvfs.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -226,6 +227,45 @@ TEST(Faults, DiskFullAtSeveralSizesKeepsTheEarlierResult) {
   EXPECT_TRUE(mentions(model.output, "File too large")) << model.output;
   EXPECT_FALSE(fs::exists(dir / "model" / "model.h5"));
   EXPECT_FALSE(fs::exists(dir / "model" / "model.h5.partial"));
+}
+
+// Leaves about `free_bytes` free on the filesystem holding `dir` by writing a filler file.
+void fill_leaving(const fs::path& dir, std::size_t free_bytes) {
+  struct statvfs stat {};
+  ASSERT_EQ(statvfs(dir.c_str(), &stat), 0);
+  const std::size_t available = static_cast<std::size_t>(stat.f_bavail) * stat.f_frsize;
+  ASSERT_GT(available, free_bytes);
+  std::ofstream filler(dir / "filler", std::ios::binary | std::ios::trunc);
+  const std::string block(available - free_bytes, '\0');
+  filler.write(block.data(), static_cast<std::streamsize>(block.size()));
+}
+
+// A real full disk (ENOSPC), on a 4 MB tmpfs: needs the right to mount (root in a privileged container);
+// skipped otherwise, the file-size limit above covering the same code paths.
+TEST(Faults, FullTmpfsIsNamedAndKeepsTheEarlierResult) {
+  const fs::path dir = testing::scratch_dir("faults", "tmpfs");
+  const fs::path disk = dir / "disk";
+  fs::create_directories(disk);
+  if (geteuid() != 0 || mount("tirstrain-test", disk.c_str(), "tmpfs", 0, "size=4m") != 0)
+    GTEST_SKIP() << "cannot mount a tmpfs here (not root, or no CAP_SYS_ADMIN)";
+  struct Unmount {
+    const fs::path& at;
+    ~Unmount() { umount2(at.c_str(), MNT_DETACH); }
+  } unmount{disk};
+  const fs::path out = disk / "out";
+  const CliRun complete = run_cli(process_args(out));
+  ASSERT_EQ(complete.exit_code, 0) << complete.output;
+  const auto earlier = snapshot(out);
+  for (const std::size_t free_bytes : {std::size_t{0}, std::size_t{16} << 10, std::size_t{300} << 10}) {
+    fill_leaving(disk, free_bytes);
+    const CliRun run = run_cli(process_args(out));
+    EXPECT_EQ(run.exit_code, 1) << free_bytes << " bytes free: " << run.output;
+    EXPECT_TRUE(mentions(run.output, "No space left on device"))
+        << free_bytes << " bytes free: " << run.output;
+    EXPECT_EQ(snapshot(out), earlier) << free_bytes << " bytes free";
+    EXPECT_FALSE(fs::exists(disk / "out.partial")) << free_bytes << " bytes free";
+    fs::remove(disk / "filler");
+  }
 }
 
 TEST(Faults, ReadOnlyOutputFolderIsNamedAndLeftAlone) {
