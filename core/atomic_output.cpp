@@ -89,7 +89,7 @@ void StagingDirectory::commit() {
       throw Error("output path exists and is not a directory", {.file = final_path_});
     if (exchange_paths(staging_path_, final_path_)) {
       committed_ = true;
-      fs::remove_all(staging_path_, ec);  // now the earlier output
+      fs::remove_all(staging_path_, ec);  // holds the earlier output after the exchange
       return;
     }
     fs::remove_all(final_path_, ec);

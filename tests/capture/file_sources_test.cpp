@@ -127,7 +127,7 @@ TEST(ImageFolder, CorruptMiddleFrameIsMarkedNotFatal) {
   EXPECT_EQ(frames[3].status, FrameStatus::kOk);
 }
 
-// Found by fuzz_image_sequence (tests/fuzz/corpus): a TIFF header 0 pixels wide made OpenCV throw out of
+// Found by fuzz_image_sequence (tests/fuzz/corpus): a TIFF header 0 pixels wide makes OpenCV throw out of
 // imread instead of returning nothing; it is a corrupt frame like any other undecodable file.
 TEST(ImageFolder, TiffZeroPixelsWideIsACorruptFrame) {
   const fs::path dir = scratch("tiff_width_0");

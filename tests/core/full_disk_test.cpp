@@ -1,7 +1,7 @@
 // The writers on a full disk. The disk is made "full" with the file-size limit (RLIMIT_FSIZE, SIGXFSZ
 // ignored, so a write past it fails with EFBIG), which an unprivileged test can set in a child process; a
-// real full filesystem (ENOSPC) takes the same path through write(2). The HDF5 writer used to crash
-// (SIGSEGV in DataSet::~DataSet after a failed H5Dclose) on this path.
+// real full filesystem (ENOSPC) takes the same path through write(2). HDF5 writing straight to disk crashes
+// on this path (SIGSEGV in DataSet::~DataSet after a failed H5Dclose).
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/resource.h>

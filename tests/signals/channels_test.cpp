@@ -192,8 +192,8 @@ TEST(ChannelsHdf5, MismatchedLengthsNanAndBadTimeAreNamed) {
   EXPECT_NE(std::string(e.what()).find("missing.h5"), std::string::npos);
 }
 
-// Found by fuzz_channel_hdf5 (tests/fuzz/corpus): a header claiming 4 GB wide floats made HDF5 allocate
-// 4 GB for the conversion; the dataset is refused as not numeric instead.
+// Found by fuzz_channel_hdf5 (tests/fuzz/corpus): a header claiming 4 GB wide floats makes HDF5
+// allocate 4 GB for the conversion; the dataset is refused as not numeric.
 TEST(ChannelsHdf5, DamagedElementSizeIsRefusedNotAllocated) {
   const std::string path =
       std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/regression-element-4GB.h5";
