@@ -9,6 +9,7 @@
 #include <chrono>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <sstream>
 
 #include "capture/frame_source.hpp"
@@ -254,6 +255,25 @@ void summarize_scene_sources(nlohmann::json& summary, const Scene& scene,
   summary["reference_pattern"] = band.to_json();
 }
 
+// Everything is written into a staging folder beside --out and swapped in when complete: an earlier result
+// stays whole until then, and an interrupted run leaves only "<out>.partial".
+std::unique_ptr<StagingDirectory> stage_output(const ProcessOptions& options,
+                                               const std::optional<std::string>& scene_path) {
+  std::vector<std::string> inputs = input_locations(options.input);
+  if (scene_path) inputs.push_back(*scene_path);
+  check_output_folder(options.out_dir, inputs);
+  return std::make_unique<StagingDirectory>(options.out_dir);
+}
+
+// A source can change how it times frames partway (a video whose timestamps stop increasing).
+template <typename Warn>
+void update_time_source(const capture::FrameSource& source, std::string& time_source, const Warn& warn) {
+  const auto settings = source.settings();
+  if (!settings.count("time_source") || settings.at("time_source") == time_source) return;
+  time_source = settings.at("time_source");
+  warn("time: " + time_source);
+}
+
 }  // namespace
 
 ProcessReport run_process(const ProcessOptions& options) {
@@ -287,12 +307,8 @@ ProcessReport run_process(const ProcessOptions& options) {
     warn("no timestamps for " + options.input + ": " + time_source);
   }
 
-  // Everything is written into a staging folder beside --out and swapped in when complete: an earlier
-  // result stays whole until then, and an interrupted run leaves only "<out>.partial".
-  std::vector<std::string> inputs = input_locations(options.input);
-  if (scene_path) inputs.push_back(*scene_path);
-  check_output_folder(options.out_dir, inputs);
-  StagingDirectory staging(options.out_dir);
+  const std::unique_ptr<StagingDirectory> staging_folder = stage_output(options, scene_path);
+  StagingDirectory& staging = *staging_folder;
   const fs::path out(staging.path());
   const fs::path final_out(staging.final_path());
 
@@ -375,11 +391,7 @@ ProcessReport run_process(const ProcessOptions& options) {
     }
   }
   progress.finish();
-  // A source can change how it times frames partway (a video whose timestamps stop increasing).
-  if (const auto end = source->settings(); end.count("time_source") && end.at("time_source") != time_source) {
-    time_source = end.at("time_source");
-    warn("time: " + time_source);
-  }
+  update_time_source(*source, time_source, warn);
   if (!trial) throw Error("no frame of the input could be decoded", {.file = options.input});
   finish_stages(scene, *trial, {index, device_id, lost_before, t_s, frame_status, usable}, plan.stages,
                 options);
