@@ -4,6 +4,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -98,7 +99,9 @@ void run_analysis(const LiveOptions& options, const Frame& frame, cv::Mat& canva
   try {
     options.overlay(frame, canvas);
   } catch (const std::exception& e) {
-    report.analysis_error = format_error(e.what(), {.frame = frame.index});
+    std::string message = e.what();
+    while (!message.empty() && std::isspace(static_cast<unsigned char>(message.back()))) message.pop_back();
+    report.analysis_error = format_error(message, {.frame = frame.index});
     if (options.on_analysis_error) options.on_analysis_error(report.analysis_error);
   }
 }

@@ -11,6 +11,7 @@
 #include "capture/live.hpp"
 #include "core/error.hpp"
 #include "core/scene.hpp"
+#include "pipeline/process_defaults.hpp"
 #include "pipeline/stage.hpp"
 #include "tirstrain/camera_options.hpp"
 #include "tirstrain/commands.hpp"
@@ -35,6 +36,7 @@ class LiveAnalysis {
                      frame.status != capture::FrameStatus::kIncomplete;
     if (!started_) {
       if (!context.usable) return;
+      pipeline::check_pattern_band(scene_, frame.image.size());
       info_ = pipeline::TrialInfo{frame.image.size(), frame.image.depth(), -1, &scene_, false};
       for (auto& stage : plan_.stages) stage->start(info_);
       started_ = true;

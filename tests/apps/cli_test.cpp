@@ -58,10 +58,13 @@ TEST(Cli, MistypedOptionGetsASuggestionAndUsageExitCode) {
 TEST(Cli, NegativeValuesAreRefusedByName) {
   const auto overlap = run_cli("signals psd in.csv --out o.csv --column c --segment 64 --overlap -10");
   EXPECT_EQ(overlap.exit_code, 2) << overlap.output;
-  EXPECT_NE(overlap.output.find("--overlap"), std::string::npos) << overlap.output;
+  EXPECT_NE(overlap.output.find("--overlap: must be a whole number of samples, 0 or more; got -10"),
+            std::string::npos)
+      << overlap.output;
   const auto cutoff = run_cli("signals filter in.csv --out o.csv --column c --lowpass-Hz -5");
   EXPECT_EQ(cutoff.exit_code, 2) << cutoff.output;
-  EXPECT_NE(cutoff.output.find("--lowpass-Hz"), std::string::npos) << cutoff.output;
+  EXPECT_NE(cutoff.output.find("--lowpass-Hz: must be a frequency above 0 Hz; got -5"), std::string::npos)
+      << cutoff.output;
   EXPECT_EQ(cutoff.output.find("give exactly one of"), std::string::npos) << cutoff.output;
 }
 

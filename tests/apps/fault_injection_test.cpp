@@ -427,6 +427,10 @@ TEST(Faults, LiveAnalysisErrorLeavesTheRecordingWhole) {
                               "--record", rec.string(), "--no-window", "--quiet"});
   EXPECT_EQ(run.exit_code, 1) << run.output;
   EXPECT_TRUE(mentions(run.output, "analysis stopped")) << run.output;
+  EXPECT_TRUE(mentions(run.output,
+                       "'reference_pattern.roi_px': the pattern band [5000, 5000, 100, 20] lies "
+                       "outside the 320 x 256 px image"))
+      << run.output;
   EXPECT_TRUE(mentions(run.output, "is complete")) << run.output;
   EXPECT_TRUE(fs::exists(rec / "recording.json")) << run.output;
   expect_consistent_recording(rec, -1.0);
@@ -434,6 +438,14 @@ TEST(Faults, LiveAnalysisErrorLeavesTheRecordingWhole) {
   int lines = 0;
   for (std::string line; std::getline(csv, line);) ++lines;
   EXPECT_EQ(lines, 1 + 12);  // header and every frame of the source
+
+  // process says the same of the same scene, instead of an OpenCV assertion.
+  const CliRun process =
+      run_cli({"process", small_trial().string(), "--scene", (dir / "outside.yaml").string(), "--out",
+               (dir / "out").string(), "--quiet"});
+  EXPECT_EQ(process.exit_code, 1) << process.output;
+  EXPECT_TRUE(mentions(process.output, "lies outside the 320 x 256 px image")) << process.output;
+  EXPECT_FALSE(fs::exists(dir / "out" / "result.h5"));
 }
 
 }  // namespace
