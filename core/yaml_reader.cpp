@@ -125,7 +125,11 @@ YAML::Node YamlSection::raw(const std::string& key) {
 void YamlSection::finish() const {
   if (!node_.IsDefined() || !node_.IsMap()) return;
   for (const auto& item : node_) {
-    const std::string key = item.first.as<std::string>();
+    if (!item.first.IsScalar())
+      throw Error(
+          "a key must be plain text, not a list or mapping",
+          {.file = file_, .row = item.first.Mark().line + 1, .key = prefix_.empty() ? "(top)" : prefix_});
+    const std::string key = item.first.Scalar();
     if (!read_.count(key)) {
       std::string known;
       for (const auto& k : read_) known += (known.empty() ? "" : ", ") + k;
@@ -146,8 +150,11 @@ void check_unique_keys(const YAML::Node& node, const std::string& path, const st
   if (!node.IsMap()) return;
   std::map<std::string, int> first_line;
   for (const auto& item : node) {
-    const std::string key = item.first.IsScalar() ? item.first.Scalar() : std::string("(complex key)");
     const int line = item.first.Mark().line + 1;
+    if (!item.first.IsScalar())
+      throw Error("a key must be plain text, not a list or mapping",
+                  {.file = path, .row = line, .key = prefix.empty() ? "(top)" : prefix});
+    const std::string key = item.first.Scalar();
     const std::string full = prefix.empty() ? key : prefix + "." + key;
     if (const auto found = first_line.find(key); found != first_line.end())
       throw Error("key given twice (first at line " + std::to_string(found->second) + ")",

@@ -156,6 +156,23 @@ ChannelTable read_channels_csv(const std::string& path, const ChannelReadOptions
   return table;
 }
 
+namespace {
+
+// Deflate shrinks data at most about 1032:1, so a dataset claiming more samples than its stored bytes could
+// hold, even compressed, has a damaged header; reading it would allocate what the header claims.
+std::string implausible_length(const H5::DataSet& ds, std::size_t length, std::size_t element_bytes) {
+  constexpr double kMaxCompression = 1100.0;
+  constexpr double kSlackBytes = 1 << 20;
+  const double stored_bytes = static_cast<double>(ds.getStorageSize());
+  if (static_cast<double>(length) * static_cast<double>(element_bytes) <=
+      kMaxCompression * stored_bytes + kSlackBytes)
+    return "";
+  return "claims " + std::to_string(length) + " samples but stores " +
+         std::to_string(static_cast<long long>(stored_bytes)) + " bytes (a damaged file?)";
+}
+
+}  // namespace
+
 ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOptions& options) {
   H5::Exception::dontPrint();
   ChannelTable table;
@@ -217,6 +234,7 @@ ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOption
         why_not = "has shape " + shape + "; a channel must be a vector (one non-singleton dimension)";
       }
       if (why_not.empty() && length == 0) why_not = "is empty";
+      if (why_not.empty()) why_not = implausible_length(ds, length, element_bytes);
       if (!why_not.empty()) {
         if (requested || !options.expected.empty()) throw Error(why_not, {.file = path, .column = name});
         continue;

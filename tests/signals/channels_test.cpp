@@ -204,6 +204,17 @@ TEST(ChannelsHdf5, DamagedElementSizeIsRefusedNotAllocated) {
   EXPECT_NE(e.message().find("not a numeric dataset"), std::string::npos) << e.what();
 }
 
+// Found by fuzz_channel_hdf5: a header claiming 8.8e12 samples in a 2 kB file would have them allocated.
+TEST(ChannelsHdf5, LengthBeyondTheStoredBytesIsRefusedNotAllocated) {
+  const std::string path =
+      std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/regression-length-2e43.h5";
+  ts::ChannelReadOptions options;
+  options.required = {"normal_N"};
+  const auto e = expect_error([&] { ts::read_channels(path, options); });
+  EXPECT_EQ(e.context().column, "normal_N");
+  EXPECT_NE(e.message().find("claims 8796093022214 samples but stores"), std::string::npos) << e.what();
+}
+
 TEST(Resample, LinearAtFrameTimesAndNoExtrapolation) {
   const std::vector<double> t{0.0, 0.001, 0.002, 0.003};
   const std::vector<double> v{1.0, 3.0, 5.0, 7.0};  // 1 + 2000 t
