@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 
 #include <H5Cpp.h>
@@ -158,17 +159,20 @@ ChannelTable read_channels_csv(const std::string& path, const ChannelReadOptions
 
 namespace {
 
-// Deflate shrinks data at most about 1032:1, so a dataset claiming more samples than its stored bytes could
-// hold, even compressed, has a damaged header; reading it would allocate what the header claims.
-std::string implausible_length(const H5::DataSet& ds, std::size_t length, std::size_t element_bytes) {
+// Deflate shrinks data at most about 1032:1, so a dataset claiming more samples than its stored bytes (no
+// more than the file's own size) could hold, even compressed, has a damaged header; reading it would
+// allocate what the header claims.
+std::string implausible_length(const H5::DataSet& ds, std::size_t length, std::size_t element_bytes,
+                               std::uintmax_t file_bytes) {
   constexpr double kMaxCompression = 1100.0;
   constexpr double kSlackBytes = 1 << 20;
-  const double stored_bytes = static_cast<double>(ds.getStorageSize());
+  const double stored_bytes =
+      std::min(static_cast<double>(ds.getStorageSize()), static_cast<double>(file_bytes));
   if (static_cast<double>(length) * static_cast<double>(element_bytes) <=
       kMaxCompression * stored_bytes + kSlackBytes)
     return "";
-  return "claims " + std::to_string(length) + " samples but stores " +
-         std::to_string(static_cast<long long>(stored_bytes)) + " bytes (a damaged file?)";
+  return "claims " + std::to_string(length) + " samples but the file holds " +
+         std::to_string(static_cast<long long>(stored_bytes)) + " bytes of them (a damaged file?)";
 }
 
 }  // namespace
@@ -181,6 +185,8 @@ ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOption
   table.first_data_row = -1;
   try {
     H5::H5File file(path, H5F_ACC_RDONLY);
+    std::error_code size_error;
+    const std::uintmax_t file_bytes = std::filesystem::file_size(path, size_error);
     H5::Group group = file.openGroup(options.hdf5_group);
     std::vector<std::string> wanted = options.required;
     wanted.push_back(options.time_column);
@@ -234,7 +240,7 @@ ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOption
         why_not = "has shape " + shape + "; a channel must be a vector (one non-singleton dimension)";
       }
       if (why_not.empty() && length == 0) why_not = "is empty";
-      if (why_not.empty()) why_not = implausible_length(ds, length, element_bytes);
+      if (why_not.empty()) why_not = implausible_length(ds, length, element_bytes, file_bytes);
       if (!why_not.empty()) {
         if (requested || !options.expected.empty()) throw Error(why_not, {.file = path, .column = name});
         continue;

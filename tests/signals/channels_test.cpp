@@ -206,13 +206,17 @@ TEST(ChannelsHdf5, DamagedElementSizeIsRefusedNotAllocated) {
 
 // Found by fuzz_channel_hdf5: a header claiming 8.8e12 samples in a 2 kB file would have them allocated.
 TEST(ChannelsHdf5, LengthBeyondTheStoredBytesIsRefusedNotAllocated) {
-  const std::string path =
-      std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/regression-length-2e43.h5";
-  ts::ChannelReadOptions options;
-  options.required = {"normal_N"};
-  const auto e = expect_error([&] { ts::read_channels(path, options); });
-  EXPECT_EQ(e.context().column, "normal_N");
-  EXPECT_NE(e.message().find("claims 8796093022214 samples but stores"), std::string::npos) << e.what();
+  // Two damaged headers: one whose layout stores little, one whose layout claims the length's bytes too.
+  for (const char* name : {"regression-length-2e43.h5", "regression-length-2e43-layout.h5"}) {
+    const std::string path =
+        std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/" + name;
+    ts::ChannelReadOptions options;
+    options.required = {"normal_N"};
+    const auto e = expect_error([&] { ts::read_channels(path, options); });
+    EXPECT_EQ(e.context().column, "normal_N");
+    EXPECT_NE(e.message().find("claims 8796093022214 samples but the file holds"), std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(Resample, LinearAtFrameTimesAndNoExtrapolation) {
