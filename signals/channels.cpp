@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
@@ -175,6 +176,30 @@ std::string implausible_length(const H5::DataSet& ds, std::size_t length, std::s
          std::to_string(static_cast<long long>(stored_bytes)) + " bytes of them (a damaged file?)";
 }
 
+// HDF5 1.10 reads a version 0/1 superblock's driver information block before checking it, allocating the
+// size it claims (gigabytes, in a damaged file). Channel files (MATLAB v7.3, h5py, HDF5's default driver)
+// never have one, so a file naming one is refused before HDF5 opens it.
+void check_superblock(const std::string& path) {
+  constexpr unsigned char kSignature[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
+  std::ifstream in(path, std::ios::binary);
+  unsigned char head[64] = {};
+  in.read(reinterpret_cast<char*>(head), sizeof head);
+  if (in.gcount() < 24 || std::memcmp(head, kSignature, 8) != 0) return;  // HDF5 judges the rest
+  const int version = head[8];
+  const int offset_bytes = head[13];
+  if (version > 1 || offset_bytes != 8) return;
+  // Version 0: base, free-space, end-of-file and driver-information addresses follow at byte 24
+  // (version 1 has 4 more bytes before them); "undefined" is all ones.
+  const std::size_t at = (version == 0 ? 24 : 28) + 3 * 8;
+  if (at + 8 > static_cast<std::size_t>(in.gcount())) return;
+  for (std::size_t k = 0; k < 8; ++k)
+    if (head[at + k] != 0xff)
+      throw Error(
+          "names a driver information block (a multi-file HDF5 driver, or a damaged superblock); "
+          "channel files use HDF5's default driver",
+          {.file = path});
+}
+
 }  // namespace
 
 ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOptions& options) {
@@ -183,6 +208,7 @@ ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOption
   table.path = path;
   table.time_column = options.time_column;
   table.first_data_row = -1;
+  check_superblock(path);
   try {
     H5::H5File file(path, H5F_ACC_RDONLY);
     std::error_code size_error;

@@ -219,6 +219,21 @@ TEST(ChannelsHdf5, LengthBeyondTheStoredBytesIsRefusedNotAllocated) {
   }
 }
 
+// Found by fuzz_channel_hdf5: a superblock naming a driver information block at byte 255 of a 2 kB file
+// makes HDF5 1.10 allocate 2 GB (and take seconds) before it finds the damage.
+TEST(ChannelsHdf5, DriverInformationBlockIsRefusedBeforeHdf5OpensTheFile) {
+  const std::string path = std::string(TIRSTRAIN_SOURCE_DIR) +
+                           "/tests/fuzz/corpus/fuzz_channel_hdf5/regression-driver-info-block.h5";
+  const auto e = expect_error([&] { ts::read_channels(path); });
+  EXPECT_NE(std::string(e.what()).find("regression-driver-info-block.h5"), std::string::npos) << e.what();
+  EXPECT_NE(e.message().find("driver information block"), std::string::npos) << e.what();
+  // The seed it was mutated from (h5import's output) opens as before.
+  const auto seed = ts::read_channels(std::string(TIRSTRAIN_SOURCE_DIR) +
+                                      "/tests/fuzz/corpus/fuzz_channel_hdf5/channels.h5");
+  EXPECT_EQ(seed.samples(), 6u);
+  EXPECT_NEAR(seed.sample_rate_Hz, 1000.0, 1e-3);
+}
+
 TEST(Resample, LinearAtFrameTimesAndNoExtrapolation) {
   const std::vector<double> t{0.0, 0.001, 0.002, 0.003};
   const std::vector<double> v{1.0, 3.0, 5.0, 7.0};  // 1 + 2000 t
