@@ -1,5 +1,6 @@
 // tirstrain: fingertip skin strain from TIR contact images. Subcommands live in cmd_<name>.cpp.
 #include <algorithm>
+#include <csignal>
 #include <cstring>
 #include <exception>
 #include <iostream>
@@ -79,6 +80,9 @@ void report_unexpected(const CLI::App& app, const CLI::ExtrasError& error) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // A write past the file-size limit (RLIMIT_FSIZE) fails with EFBIG and is reported like a full disk,
+  // instead of the signal ending the process wherever it is.
+  std::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{"tirstrain " + std::string(tirstrain::kVersion) +
                " - fingertip skin deformation from total-internal-reflection contact images.\n"
                "Physical quantities are SI (m, N, Pa, J, s) unless a name says otherwise (_px, _mm, _deg)."};
