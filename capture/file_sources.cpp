@@ -140,6 +140,16 @@ std::string size_text(const cv::Size& size) {
   return std::to_string(size.width) + "x" + std::to_string(size.height);
 }
 
+// The decoded image, or an empty one when the file cannot be decoded: OpenCV's decoders throw on some
+// malformed headers (a TIFF 0 pixels wide) where others return nothing, and either is a corrupt frame.
+cv::Mat read_image(const std::string& path) {
+  try {
+    return cv::imread(path, cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception&) {
+    return {};
+  }
+}
+
 class ImageSequenceSource final : public FrameSource {
  public:
   ImageSequenceSource(std::vector<SequenceFile> files, std::string description,
@@ -169,7 +179,7 @@ class ImageSequenceSource final : public FrameSource {
       frame.frames_lost_before = file.number - files_[i - 1].number - 1;
       frame.status = FrameStatus::kGapBefore;
     }
-    const cv::Mat decoded = cv::imread(file.path, cv::IMREAD_UNCHANGED);
+    const cv::Mat decoded = read_image(file.path);
     if (decoded.empty()) {
       frame.status = FrameStatus::kCorrupt;
       return frame;
@@ -298,8 +308,9 @@ class VideoFileSource final : public FrameSource {
   std::int64_t frame_count() const override { return count_ > 0 ? count_ : -1; }
 
   std::string describe() const override {
-    return "video file " + path_ + " (" + std::to_string(count_) +
-           " frames by its header; time: container timestamps)";
+    return "video file " + path_ + " (" + std::to_string(count_) + " frames by its header; time: " +
+           std::string(fallback_from_ ? "container timestamps, then frame rate" : "container timestamps") +
+           ")";
   }
 
   std::map<std::string, std::string> settings() const override {
@@ -307,7 +318,7 @@ class VideoFileSource final : public FrameSource {
             {"file", path_},
             {"frames_in_header", std::to_string(count_)},
             {"nominal_fps", format_double(fps_)},
-            {"time_source", "container presentation timestamps (CAP_PROP_POS_MSEC)"},
+            {"time_source", time_source()},
             {"time_measured", "true"}};
   }
 
@@ -318,16 +329,36 @@ class VideoFileSource final : public FrameSource {
     Frame frame;
     frame.index = index_++;
     frame.device_frame_id = frame.index;
-    frame.device_time_s = capture_.get(cv::CAP_PROP_POS_MSEC) * 1e-3;
+    frame.device_time_s = frame_time_s(frame.index, capture_.get(cv::CAP_PROP_POS_MSEC) * 1e-3);
     frame.host_time_s = host_now_s();
     frame.origin = path_;
     frame.image = to_grey(decoded, path_, frame.index);
-    if (frame.index > 0 && !(frame.device_time_s > last_time_s_))
-      throw Error("timestamps go backwards: t_s = " + format_double(frame.device_time_s) + " after " +
-                      format_double(last_time_s_),
-                  {.file = path_, .frame = frame.index});
     last_time_s_ = frame.device_time_s;
     return frame;
+  }
+
+  // The container's presentation time while it increases. FFmpeg reports 0 for the frames drained from
+  // the decoder at the end of a stream with B-frames, so from the first time that does not increase on,
+  // time runs on at the nominal frame rate from the last good timestamp (and settings() says so).
+  double frame_time_s(std::int64_t index, double container_s) {
+    if (index == 0 || (!fallback_from_ && container_s > last_time_s_)) return container_s;
+    if (!(fps_ > 0.0))
+      throw Error("timestamps do not increase (t_s = " + format_double(container_s) + " after " +
+                      format_double(last_time_s_) + ") and the video gives no frame rate to count by",
+                  {.file = path_, .frame = index});
+    if (!fallback_from_) {
+      fallback_from_ = index;
+      fallback_cause_ = "t_s = " + format_double(container_s) + " after " + format_double(last_time_s_);
+    }
+    return last_time_s_ + 1.0 / fps_;
+  }
+
+  std::string time_source() const {
+    const std::string pts = "container presentation timestamps (CAP_PROP_POS_MSEC)";
+    if (!fallback_from_) return pts;
+    return pts + " to frame " + std::to_string(*fallback_from_ - 1) + ", then frame index / nominal " +
+           format_double(fps_) + " fps (the container's timestamps stopped increasing: " + fallback_cause_ +
+           ")";
   }
 
   std::string path_;
@@ -336,6 +367,8 @@ class VideoFileSource final : public FrameSource {
   double fps_ = 0.0;
   std::int64_t index_ = 0;
   double last_time_s_ = 0.0;
+  std::optional<std::int64_t> fallback_from_;  // first frame timed by the frame rate
+  std::string fallback_cause_;
   std::optional<Frame> pending_;
 };
 

@@ -4,6 +4,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -67,11 +68,43 @@ class Mailbox {
   bool done_ = false;
 };
 
+// Stops and joins the capture thread however the display loop ends (an exception included), so the
+// recording ends cleanly and no thread is left running at exit (std::terminate).
+class CaptureThreadGuard {
+ public:
+  CaptureThreadGuard(std::thread& thread, std::atomic<bool>& stop) : thread_(thread), stop_(stop) {}
+  ~CaptureThreadGuard() { join(); }
+  CaptureThreadGuard(const CaptureThreadGuard&) = delete;
+  CaptureThreadGuard& operator=(const CaptureThreadGuard&) = delete;
+  void join() {
+    if (!thread_.joinable()) return;
+    stop_.store(true);
+    thread_.join();
+  }
+
+ private:
+  std::thread& thread_;
+  std::atomic<bool>& stop_;
+};
+
 struct Counters {
   std::atomic<std::int64_t> received{0};
   std::atomic<std::int64_t> incomplete{0};
   std::atomic<std::int64_t> lost{0};
 };
+
+// The analysis hook on one frame. Its first error stops the analysis for the rest of the run (its stages'
+// state is then unknown) but never the capture or the recording.
+void run_analysis(const LiveOptions& options, const Frame& frame, cv::Mat& canvas, LiveReport& report) {
+  try {
+    options.overlay(frame, canvas);
+  } catch (const std::exception& e) {
+    std::string message = e.what();
+    while (!message.empty() && std::isspace(static_cast<unsigned char>(message.back()))) message.pop_back();
+    report.analysis_error = format_error(message, {.frame = frame.index});
+    if (options.on_analysis_error) options.on_analysis_error(report.analysis_error);
+  }
+}
 
 }  // namespace
 
@@ -182,6 +215,7 @@ LiveReport run_live(FrameSource& source, const LiveOptions& options) {
     }
     mailbox.finish();
   });
+  CaptureThreadGuard capture_guard(capture, stop_capture);
 
   const double start_s = steady_now_s();
   double interval_start_s = start_s;
@@ -204,7 +238,7 @@ LiveReport run_live(FrameSource& source, const LiveOptions& options) {
     if (!frame && mailbox.done()) break;
     if (frame) {
       cv::Mat canvas = display_canvas(frame->image);
-      if (options.overlay) options.overlay(*frame, canvas);
+      if (options.overlay && report.analysis_error.empty()) run_analysis(options, *frame, canvas, report);
       fill_counts();
       if (options.window) {
         const std::string text = cv::format(
@@ -250,7 +284,8 @@ LiveReport run_live(FrameSource& source, const LiveOptions& options) {
       if (options.on_status) options.on_status(status);
     }
   }
-  capture.join();
+  // The capture thread ends by itself (limit, end of stream, stop); a stop asked for is already set.
+  if (capture.joinable()) capture.join();
   if (options.window) cv::destroyWindow(window);
   fill_counts();
   if (report.recorded)

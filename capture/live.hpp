@@ -58,6 +58,8 @@ struct LiveOptions {
   // BGR at full size; draw contact hull, ellipse, tracks, strain heat map onto it as those stages exist.
   // Without a window it still runs (headless analysis), on a canvas nobody sees.
   std::function<void(const Frame& frame, cv::Mat& canvas)> overlay;
+  // Once, with the message, when the overlay hook throws: the analysis stops, capture and recording go on.
+  std::function<void(const std::string&)> on_analysis_error;
   // Once per second with the current counts (prints status lines in the CLI).
   std::function<void(const LiveStatus&)> on_status;
 };
@@ -74,7 +76,8 @@ struct LiveReport {
   LatencySummary device_to_ready;
   RecordReport record;  // when recording
   bool recorded = false;
-  std::string error;  // source error (camera lost) or recording error
+  std::string error;           // source error (camera lost) or recording error
+  std::string analysis_error;  // why the analysis stopped (the overlay hook threw); empty when it did not
 };
 
 LiveReport run_live(FrameSource& source, const LiveOptions& options);

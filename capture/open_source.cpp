@@ -1,5 +1,8 @@
 // URI dispatch for every frame source. File sources live in file_sources.cpp; camera backends add their
 // scheme here when they are built.
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
 #include <string>
 
 #include "capture/aravis_source.hpp"
@@ -37,6 +40,14 @@ std::unique_ptr<FrameSource> open_source(const std::string& uri) {
     if (scheme == "aravis") return open_aravis_source(rest, {});
     if (scheme == "v4l2") return open_v4l2_source(rest, {});
     if (scheme == "libcamera") return open_libcamera_source(rest, {});
+    std::error_code ec;
+    const bool word = std::all_of(scheme.begin(), scheme.end(), [](char c) { return std::isalnum(c) != 0; });
+    if (word && !std::filesystem::exists(uri, ec) && uri.find_first_of("%*?[") == std::string::npos)
+      throw Error(
+          "unknown source scheme '" + scheme +
+              ":'; sources are aravis:ID (or aravis:IP, aravis:Fake), v4l2:/dev/videoN, libcamera:ID, "
+              "file:PATH or a plain path (a folder of frames, an image pattern or a video file)",
+          {.key = "URI"});
   }
   return open_file_source(uri);
 }

@@ -16,6 +16,12 @@ if(TIRSTRAIN_SANITIZE)
                                                    -fno-sanitize-recover=undefined)
   target_link_options(tirstrain_flags INTERFACE -fsanitize=address,undefined)
 endif()
+if(TIRSTRAIN_FUZZ)
+  # Every library instrumented for coverage-guided fuzzing and checked by AddressSanitizer; the targets in
+  # tests/fuzz link libFuzzer's main.
+  target_compile_options(tirstrain_flags INTERFACE -fsanitize=fuzzer-no-link,address -fno-omit-frame-pointer)
+  target_link_options(tirstrain_flags INTERFACE -fsanitize=address)
+endif()
 
 # Declares a library for one top-level folder: sources given, public headers at <folder>/*.hpp,
 # included as "folder/header.hpp" from the repository root.

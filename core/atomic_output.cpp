@@ -1,5 +1,16 @@
 #include "core/atomic_output.hpp"
 
+#include <fcntl.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/statvfs.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <linux/fs.h>
+#include <cerrno>
+#include <csignal>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
@@ -8,6 +19,31 @@
 namespace fs = std::filesystem;
 
 namespace tirstrain {
+namespace {
+
+constexpr std::size_t kWriteBufferBytes = 1u << 16;
+
+// A write past RLIMIT_FSIZE must come back as EFBIG (an error with a message), not kill the process.
+void ignore_file_size_signal() {
+  static const bool ignored = [] {
+    std::signal(SIGXFSZ, SIG_IGN);
+    return true;
+  }();
+  (void)ignored;
+}
+
+// Atomic exchange of two existing paths; false when the filesystem cannot (EINVAL, ENOSYS).
+bool exchange_paths(const std::string& a, const std::string& b) {
+#ifdef SYS_renameat2
+  if (::syscall(SYS_renameat2, AT_FDCWD, a.c_str(), AT_FDCWD, b.c_str(), RENAME_EXCHANGE) == 0) return true;
+  if (errno != EINVAL && errno != ENOSYS)
+    throw Error(std::string("cannot swap the finished output into place: ") + std::strerror(errno),
+                {.file = b});
+#endif
+  return false;
+}
+
+}  // namespace
 
 void ensure_output_dir(const std::string& dir, const std::string& what) {
   std::error_code ec;
@@ -16,10 +52,11 @@ void ensure_output_dir(const std::string& dir, const std::string& what) {
   fs::create_directories(dir, ec);
   if (ec) throw Error("cannot create output directory: " + ec.message(), {.file = dir, .key = what});
   const fs::path probe = fs::path(dir) / ".tirstrain-write-probe";
-  {
-    std::ofstream out(probe);
-    if (!out) throw Error("output directory is not writable", {.file = dir, .key = what});
-  }
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0)
+    throw Error(std::string("output directory is not writable: ") + std::strerror(errno),
+                {.file = dir, .key = what});
+  ::close(fd);
   fs::remove(probe, ec);
 }
 
@@ -28,11 +65,14 @@ StagingDirectory::StagingDirectory(const std::string& final_path)
   while (final_path_.size() > 1 && final_path_.back() == '/') final_path_.pop_back();
   staging_path_ = final_path_ + ".partial";
   std::error_code ec;
+  if (fs::exists(final_path_, ec) && !fs::is_directory(final_path_, ec))
+    throw Error("output path exists and is not a directory", {.file = final_path_});
   fs::remove_all(staging_path_, ec);
   const fs::path parent = fs::path(final_path_).parent_path();
   if (!parent.empty()) fs::create_directories(parent, ec);
-  fs::create_directories(staging_path_, ec);
+  if (!ec) fs::create_directory(staging_path_, ec);
   if (ec) throw Error("cannot create output directory: " + ec.message(), {.file = staging_path_});
+  ensure_output_dir(staging_path_, "--out");
 }
 
 StagingDirectory::~StagingDirectory() {
@@ -47,6 +87,11 @@ void StagingDirectory::commit() {
   if (fs::exists(final_path_, ec)) {
     if (!fs::is_directory(final_path_, ec))
       throw Error("output path exists and is not a directory", {.file = final_path_});
+    if (exchange_paths(staging_path_, final_path_)) {
+      committed_ = true;
+      fs::remove_all(staging_path_, ec);  // holds the earlier output after the exchange
+      return;
+    }
     fs::remove_all(final_path_, ec);
     if (ec) throw Error("cannot replace existing output directory: " + ec.message(), {.file = final_path_});
   }
@@ -55,18 +100,103 @@ void StagingDirectory::commit() {
   committed_ = true;
 }
 
-void write_text_file(const std::string& path, const std::string& text) {
-  const std::string partial = path + ".partial";
-  {
-    std::ofstream out(partial, std::ios::trunc);
-    if (!out) throw Error("cannot open file for writing", {.file = partial});
-    out << text;
-    out.flush();
-    if (!out) throw Error("write failed (disk full?)", {.file = partial});
+AtomicFile::AtomicFile(const std::string& path) : path_(path), partial_path_(path + ".partial") {
+  ignore_file_size_signal();
+  fd_ = ::open(partial_path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd_ < 0)
+    throw Error(std::string("cannot open file for writing: ") + std::strerror(errno),
+                {.file = partial_path_});
+}
+
+AtomicFile::~AtomicFile() {
+  if (fd_ >= 0) ::close(fd_);
+  if (!committed_) ::unlink(partial_path_.c_str());
+}
+
+void AtomicFile::append(std::string_view bytes) {
+  if (bytes.size() >= kWriteBufferBytes) {  // large blocks go straight out, not through a copy
+    flush_buffer();
+    write_all(bytes);
+    return;
   }
+  buffer_.append(bytes);
+  if (buffer_.size() >= kWriteBufferBytes) flush_buffer();
+}
+
+void AtomicFile::flush_buffer() {
+  write_all(buffer_);
+  buffer_.clear();
+}
+
+void AtomicFile::write_all(std::string_view bytes) {
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd_, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw Error(std::string("cannot write: ") + std::strerror(errno), {.file = partial_path_});
+    done += static_cast<std::size_t>(n);
+  }
+}
+
+void AtomicFile::commit() {
+  flush_buffer();
+  if (::fsync(fd_) != 0)
+    throw Error(std::string("cannot write: ") + std::strerror(errno), {.file = partial_path_});
+  const int fd = fd_;
+  fd_ = -1;
+  if (::close(fd) != 0)
+    throw Error(std::string("cannot write: ") + std::strerror(errno), {.file = partial_path_});
+  if (::rename(partial_path_.c_str(), path_.c_str()) != 0)
+    throw Error(std::string("cannot rename finished file into place: ") + std::strerror(errno),
+                {.file = path_});
+  committed_ = true;
+}
+
+void check_writable(const std::string& dir) {
+  ignore_file_size_signal();
+  const std::string probe = (fs::path(dir) / ".tirstrain-write-probe").string();
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw Error(std::string("cannot write: ") + std::strerror(errno), {.file = dir});
+  const std::string block(kWriteBufferBytes, '\0');
+  const bool written =
+      ::write(fd, block.data(), block.size()) == static_cast<ssize_t>(block.size()) && ::fsync(fd) == 0;
+  const int cause = errno;
+  ::close(fd);
+  ::unlink(probe.c_str());
+  if (!written) throw Error(std::string("cannot write: ") + std::strerror(cause), {.file = dir});
+}
+
+void check_complete_write(const std::string& path) {
+  constexpr unsigned long long kMinFreeBytes = 1ull << 20;
+  struct statvfs fs_stat {};
+  if (::statvfs(path.c_str(), &fs_stat) == 0) {
+    const unsigned long long free_bytes =
+        static_cast<unsigned long long>(geteuid() == 0 ? fs_stat.f_bfree : fs_stat.f_bavail) *
+        fs_stat.f_frsize;
+    if (free_bytes < kMinFreeBytes)
+      throw Error(std::string("cannot write: ") + std::strerror(ENOSPC), {.file = path});
+  }
+  struct rlimit limit {};
+  struct stat file_stat {};
+  if (::getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY &&
+      ::stat(path.c_str(), &file_stat) == 0 && static_cast<rlim_t>(file_stat.st_size) >= limit.rlim_cur)
+    throw Error(std::string("cannot write: ") + std::strerror(EFBIG), {.file = path});
+}
+
+bool path_is_within(const std::string& inner, const std::string& outer) {
   std::error_code ec;
-  fs::rename(partial, path, ec);
-  if (ec) throw Error("cannot rename finished file into place: " + ec.message(), {.file = path});
+  const fs::path a = fs::weakly_canonical(inner, ec);
+  if (ec) return false;
+  const fs::path b = fs::weakly_canonical(outer, ec);
+  if (ec) return false;
+  const fs::path relative = a.lexically_relative(b);
+  return !relative.empty() && *relative.begin() != "..";
+}
+
+void write_text_file(const std::string& path, const std::string& text) {
+  AtomicFile file(path);
+  file.append(text);
+  file.commit();
 }
 
 }  // namespace tirstrain

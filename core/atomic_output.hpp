@@ -1,7 +1,9 @@
 #pragma once
 // Outputs appear complete or not at all: files are written under a temporary name and renamed when done
-// (CsvWriter, H5Writer do this themselves); whole directories are staged under a sibling name.
+// (CsvWriter, H5Writer do this themselves); whole directories are staged under a sibling name and swapped
+// in. Write errors name their cause from errno ("No space left on device", "File too large").
 #include <string>
+#include <string_view>
 
 namespace tirstrain {
 
@@ -9,8 +11,10 @@ namespace tirstrain {
 // option or key the path came from, for the message.
 void ensure_output_dir(const std::string& dir, const std::string& what);
 
-// A directory built at "<final>.partial" and renamed to <final> by commit(), replacing an existing one.
-// Destroyed uncommitted (error, exception), it removes the staging directory.
+// A directory built at "<final>.partial" and swapped in for <final> by commit(): an existing <final> is
+// exchanged atomically (renameat2 RENAME_EXCHANGE) and only then removed, so at every instant <final> is
+// either the earlier complete output or the new complete one. Destroyed uncommitted (error, exception), it
+// removes the staging directory.
 class StagingDirectory {
  public:
   explicit StagingDirectory(const std::string& final_path);
@@ -27,6 +31,43 @@ class StagingDirectory {
   std::string staging_path_;
   bool committed_ = false;
 };
+
+// A file written to "<path>.partial" through a checked write(2) loop, made durable (fsync) and renamed to
+// <path> by commit(); destroyed uncommitted, it removes the partial file. Errors name the file and errno's
+// cause.
+class AtomicFile {
+ public:
+  explicit AtomicFile(const std::string& path);
+  ~AtomicFile();
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+
+  void append(std::string_view bytes);
+  void commit();
+  const std::string& partial_path() const { return partial_path_; }
+
+ private:
+  void flush_buffer();
+  void write_all(std::string_view bytes);
+
+  std::string path_;
+  std::string partial_path_;
+  std::string buffer_;  // bytes not yet handed to write(2)
+  int fd_ = -1;
+  bool committed_ = false;
+};
+
+// Throws Error naming errno's cause when a file cannot be created in `dir` and written (64 KiB, made
+// durable): tells a full disk or read-only folder apart from other failures of a library writer.
+void check_writable(const std::string& dir);
+
+// For a file written by a library that does not report write errors (FFmpeg through OpenCV): throws Error
+// when the file may be cut short, because its filesystem has less than 1 MiB left or the file reached the
+// process's file-size limit (RLIMIT_FSIZE).
+void check_complete_write(const std::string& path);
+
+// True when `inner` is `outer` or lies inside it, with links and ".." resolved.
+bool path_is_within(const std::string& inner, const std::string& outer);
 
 // Writes text to path via a temporary name.
 void write_text_file(const std::string& path, const std::string& text);

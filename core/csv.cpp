@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 
 #include "core/error.hpp"
 
@@ -103,41 +104,36 @@ std::string format_double(double value) {
 }
 
 CsvWriter::CsvWriter(const std::string& path, const std::vector<std::string>& names)
-    : path_(path), partial_path_(path + ".partial"), width_(names.size()) {
-  out_.open(partial_path_, std::ios::trunc);
-  if (!out_) throw Error("cannot open file for writing", {.file = partial_path_});
-  for (std::size_t j = 0; j < names.size(); ++j) out_ << (j ? "," : "") << names[j];
-  out_ << '\n';
-}
-
-CsvWriter::~CsvWriter() {
-  if (!committed_) {
-    out_.close();
-    std::error_code ec;
-    std::filesystem::remove(partial_path_, ec);
-  }
+    : path_(path), width_(names.size()), out_(path) {
+  for (std::size_t j = 0; j < names.size(); ++j) line_ += (j ? "," : "") + names[j];
+  line_ += '\n';
+  out_.append(line_);
 }
 
 void CsvWriter::row(const std::vector<double>& values) {
   if (values.size() != width_) throw Error("internal: CSV row width mismatch", {.file = path_});
-  for (std::size_t j = 0; j < values.size(); ++j) out_ << (j ? "," : "") << format_double(values[j]);
-  out_ << '\n';
+  line_.clear();
+  for (std::size_t j = 0; j < values.size(); ++j) {
+    if (j) line_ += ',';
+    line_ += format_double(values[j]);
+  }
+  line_ += '\n';
+  out_.append(line_);
 }
 
 void CsvWriter::row_text(const std::vector<std::string>& cells) {
   if (cells.size() != width_) throw Error("internal: CSV row width mismatch", {.file = path_});
-  for (std::size_t j = 0; j < cells.size(); ++j) out_ << (j ? "," : "") << cells[j];
-  out_ << '\n';
+  line_.clear();
+  for (std::size_t j = 0; j < cells.size(); ++j) {
+    if (j) line_ += ',';
+    line_ += cells[j];
+  }
+  line_ += '\n';
+  out_.append(line_);
 }
 
 void CsvWriter::commit() {
-  out_.flush();
-  if (!out_) throw Error("write failed (disk full?)", {.file = partial_path_});
-  out_.close();
-  std::error_code ec;
-  std::filesystem::rename(partial_path_, path_, ec);
-  if (ec) throw Error("cannot rename finished file into place: " + ec.message(), {.file = path_});
-  committed_ = true;
+  out_.commit();
 }
 
 }  // namespace tirstrain

@@ -3,9 +3,10 @@
 // Reading reports the exact file, row and column of anything wrong; writing goes to a temporary name and is
 // renamed on commit().
 #include <cstddef>
-#include <fstream>
 #include <string>
 #include <vector>
+
+#include "core/atomic_output.hpp"
 
 namespace tirstrain {
 
@@ -30,7 +31,6 @@ CsvTable read_numeric_csv(const std::string& path);
 class CsvWriter {
  public:
   CsvWriter(const std::string& path, const std::vector<std::string>& names);
-  ~CsvWriter();
   CsvWriter(const CsvWriter&) = delete;
   CsvWriter& operator=(const CsvWriter&) = delete;
 
@@ -41,10 +41,9 @@ class CsvWriter {
 
  private:
   std::string path_;
-  std::string partial_path_;
   std::size_t width_;
-  std::ofstream out_;
-  bool committed_ = false;
+  AtomicFile out_;
+  std::string line_;  // the row being formatted
 };
 
 // Shortest text that reads back to the same double ("%.17g" trimmed).

@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <numeric>
 
+#include "core/atomic_output.hpp"
 #include "core/error.hpp"
 
 namespace tirstrain {
@@ -23,6 +24,9 @@ std::vector<hsize_t> chunk_shape(const H5Shape& shape, std::size_t element_size)
   return chunk;
 }
 
+// The in-memory file grows in steps of this many bytes.
+constexpr std::size_t kCoreIncrementBytes = 4u << 20;
+
 struct SilenceHdf5 {
   SilenceHdf5() { H5::Exception::dontPrint(); }
 };
@@ -31,8 +35,15 @@ struct SilenceHdf5 {
 
 H5Writer::H5Writer(const std::string& path) : path_(path), partial_path_(path + ".partial") {
   SilenceHdf5 silence;
+  // The output file exists (as "<path>.partial") from the start, so a folder that cannot take it fails now.
+  out_ = std::make_unique<AtomicFile>(path_);
   try {
-    file_ = H5::H5File(partial_path_, H5F_ACC_TRUNC);
+    // Built in memory and written out by commit() with checked writes: a full disk is then an ordinary
+    // write error naming its cause, never an HDF5 library left half-closed after a failed flush (whose
+    // destructors crash).
+    H5::FileAccPropList access;
+    access.setCore(kCoreIncrementBytes, false);
+    file_ = H5::H5File(partial_path_, H5F_ACC_TRUNC, H5::FileCreatPropList::DEFAULT, access);
   } catch (const H5::Exception& e) {
     throw Error("cannot create HDF5 file: " + e.getDetailMsg(), {.file = partial_path_});
   }
@@ -44,8 +55,6 @@ H5Writer::~H5Writer() {
       file_.close();
     } catch (...) {
     }
-    std::error_code ec;
-    std::filesystem::remove(partial_path_, ec);
   }
 }
 
@@ -144,15 +153,20 @@ void H5Writer::attribute(const std::string& object_name, const std::string& name
 }
 
 void H5Writer::commit() {
+  std::string image;
   try {
     file_.flush(H5F_SCOPE_GLOBAL);
+    const ssize_t size = H5Fget_file_image(file_.getId(), nullptr, 0);
+    if (size < 0) throw H5::FileIException("H5Fget_file_image", "cannot size the file image");
+    image.resize(static_cast<std::size_t>(size));
+    if (H5Fget_file_image(file_.getId(), image.data(), image.size()) != size)
+      throw H5::FileIException("H5Fget_file_image", "cannot copy the file image");
     file_.close();
   } catch (const H5::Exception& e) {
     throw Error("cannot finish HDF5 file: " + e.getDetailMsg(), {.file = partial_path_});
   }
-  std::error_code ec;
-  std::filesystem::rename(partial_path_, path_, ec);
-  if (ec) throw Error("cannot rename finished file into place: " + ec.message(), {.file = path_});
+  out_->append(image);
+  out_->commit();
   committed_ = true;
 }
 

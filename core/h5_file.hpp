@@ -1,9 +1,11 @@
 #pragma once
 // Thin HDF5 reading/writing for tirstrain's result and truth files: N-d numeric datasets addressed by path
 // ("/contact/area_mm2"), intermediate groups created on demand, chunked + deflate-compressed when large,
-// text and number attributes. Writing goes to "<path>.partial" and is renamed on commit(), so an
-// interrupted run never leaves a file that looks complete.
+// text and number attributes. A file being written is built in memory and written to "<path>.partial",
+// renamed on commit(), so an interrupted run never leaves a file that looks complete and a full disk is a
+// plain error.
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -11,6 +13,8 @@
 #include <H5Cpp.h>
 
 namespace tirstrain {
+
+class AtomicFile;
 
 using H5Shape = std::vector<std::size_t>;
 
@@ -43,6 +47,7 @@ class H5Writer {
 
   std::string path_;
   std::string partial_path_;
+  std::unique_ptr<AtomicFile> out_;  // the file on disk, written at commit()
   H5::H5File file_;
   bool committed_ = false;
 };

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "core/atomic_output.hpp"
 #include "core/error.hpp"
 #include "core/yaml_reader.hpp"
 
@@ -109,19 +110,10 @@ YAML::Node scene_to_yaml(const Scene& scene) {
 }
 
 void save_scene(const Scene& scene, const std::string& path) {
-  const std::string partial = path + ".partial";
-  {
-    std::ofstream out(partial, std::ios::trunc);
-    if (!out) throw Error("cannot open file for writing", {.file = partial});
-    YAML::Emitter emitter;
-    emitter.SetDoublePrecision(17);
-    emitter << scene_to_yaml(scene);
-    out << "# tirstrain scene file\n" << emitter.c_str() << '\n';
-    if (!out) throw Error("write failed", {.file = partial});
-  }
-  std::error_code ec;
-  std::filesystem::rename(partial, path, ec);
-  if (ec) throw Error("cannot rename finished file into place: " + ec.message(), {.file = path});
+  YAML::Emitter emitter;
+  emitter.SetDoublePrecision(17);
+  emitter << scene_to_yaml(scene);
+  write_text_file(path, "# tirstrain scene file\n" + std::string(emitter.c_str()) + "\n");
 }
 
 }  // namespace tirstrain

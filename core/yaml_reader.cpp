@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <map>
 
 #include "core/csv.hpp"
 #include "core/error.hpp"
@@ -124,7 +125,11 @@ YAML::Node YamlSection::raw(const std::string& key) {
 void YamlSection::finish() const {
   if (!node_.IsDefined() || !node_.IsMap()) return;
   for (const auto& item : node_) {
-    const std::string key = item.first.as<std::string>();
+    if (!item.first.IsScalar())
+      throw Error(
+          "a key must be plain text, not a list or mapping",
+          {.file = file_, .row = item.first.Mark().line + 1, .key = prefix_.empty() ? "(top)" : prefix_});
+    const std::string key = item.first.Scalar();
     if (!read_.count(key)) {
       std::string known;
       for (const auto& k : read_) known += (known.empty() ? "" : ", ") + k;
@@ -133,11 +138,41 @@ void YamlSection::finish() const {
   }
 }
 
+namespace {
+
+// yaml-cpp keeps both entries of a key written twice and lookups find the first, so a second block (say
+// another `calibration:`) would be silently ignored: refused here, with both lines.
+void check_unique_keys(const YAML::Node& node, const std::string& path, const std::string& prefix) {
+  if (node.IsSequence()) {
+    for (const auto& item : node) check_unique_keys(item, path, prefix);
+    return;
+  }
+  if (!node.IsMap()) return;
+  std::map<std::string, int> first_line;
+  for (const auto& item : node) {
+    const int line = item.first.Mark().line + 1;
+    if (!item.first.IsScalar())
+      throw Error("a key must be plain text, not a list or mapping",
+                  {.file = path, .row = line, .key = prefix.empty() ? "(top)" : prefix});
+    const std::string key = item.first.Scalar();
+    const std::string full = prefix.empty() ? key : prefix + "." + key;
+    if (const auto found = first_line.find(key); found != first_line.end())
+      throw Error("key given twice (first at line " + std::to_string(found->second) + ")",
+                  {.file = path, .row = line, .key = full});
+    first_line.emplace(key, line);
+    check_unique_keys(item.second, path, full);
+  }
+}
+
+}  // namespace
+
 YAML::Node load_yaml_file(const std::string& path) {
   if (!std::filesystem::is_regular_file(path))
     throw Error("file not found or not a regular file", {.file = path});
   try {
-    return YAML::LoadFile(path);
+    YAML::Node root = YAML::LoadFile(path);
+    check_unique_keys(root, path, "");
+    return root;
   } catch (const YAML::Exception& e) {
     ErrorContext context{.file = path};
     if (e.mark.line >= 0) context.row = e.mark.line + 1;

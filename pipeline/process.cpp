@@ -9,6 +9,7 @@
 #include <chrono>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <sstream>
 
 #include "capture/frame_source.hpp"
@@ -19,6 +20,7 @@
 #include "core/progress.hpp"
 #include "core/scene.hpp"
 #include "core/version.hpp"
+#include "pipeline/output_folder.hpp"
 #include "pipeline/prefetch.hpp"
 #include "pipeline/process_defaults.hpp"
 #include "pipeline/stage.hpp"
@@ -28,9 +30,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Overlay for people: an MP4 through FFmpeg, or a PNG sequence. The MP4 is written to a ".partial.mp4"
-// name (FFmpeg picks the container from the extension) and the PNGs to a staging folder; both are renamed
-// only when the run completes.
+// Overlay for people: an MP4 through FFmpeg, or a PNG sequence, written into the run's staging folder.
+// FFmpeg does not report a failed write, so a full disk is checked for when the video is closed.
 class OverlayWriter {
  public:
   OverlayWriter(OverlayMode mode, const std::string& out_dir, std::FILE* log, bool quiet)
@@ -38,8 +39,6 @@ class OverlayWriter {
 
   ~OverlayWriter() {
     if (video_.isOpened()) video_.release();
-    std::error_code ec;
-    if (!committed_ && !video_partial_.empty()) fs::remove(video_partial_, ec);
   }
 
   void write(const cv::Mat& bgr) {
@@ -47,30 +46,27 @@ class OverlayWriter {
     if (mode_ == OverlayMode::kMp4) {
       video_.write(bgr);
     } else if (mode_ == OverlayMode::kPng) {
-      if (!staging_) staging_ = std::make_unique<StagingDirectory>((fs::path(out_dir_) / "overlay").string());
+      const fs::path folder = fs::path(out_dir_) / "overlay";
+      if (count_ == 0 || !fs::is_directory(folder)) fs::create_directories(folder);
       char name[32];
       std::snprintf(name, sizeof name, "%06lld.png", static_cast<long long>(count_));
-      if (!cv::imwrite((fs::path(staging_->path()) / name).string(), bgr, {cv::IMWRITE_PNG_COMPRESSION, 1}))
-        throw Error("cannot write overlay image", {.file = (fs::path(staging_->path()) / name).string()});
+      const std::string path = (folder / name).string();
+      if (!cv::imwrite(path, bgr, {cv::IMWRITE_PNG_COMPRESSION, 1})) {
+        check_writable(out_dir_);  // names the cause when it is the disk
+        throw Error("cannot write overlay image", {.file = path});
+      }
     }
     ++count_;
   }
 
-  // Returns the final path, or "" when nothing was written.
-  std::string commit() {
+  // Closes the overlay; returns its name in the output folder, or "" when nothing was written.
+  std::string finish() {
     if (mode_ == OverlayMode::kMp4 && video_.isOpened()) {
       video_.release();
-      const std::string final_path = (fs::path(out_dir_) / "overlay.mp4").string();
-      std::error_code ec;
-      fs::rename(video_partial_, final_path, ec);
-      if (ec) throw Error("cannot rename overlay into place: " + ec.message(), {.file = final_path});
-      committed_ = true;
-      return final_path;
+      check_complete_write(video_path_);
+      return "overlay.mp4";
     }
-    if (mode_ == OverlayMode::kPng && staging_) {
-      staging_->commit();
-      return staging_->final_path();
-    }
+    if (mode_ == OverlayMode::kPng && count_ > 0) return "overlay";
     return "";
   }
 
@@ -78,18 +74,20 @@ class OverlayWriter {
 
  private:
   void open_video(cv::Size size) {
-    video_partial_ = (fs::path(out_dir_) / "overlay.partial.mp4").string();
+    video_path_ = (fs::path(out_dir_) / "overlay.mp4").string();
     // H.264 ('avc1') is the most widely playable but often missing from Debian's FFmpeg encoders list for
     // OpenCV; MPEG-4 Part 2 ('mp4v') is always there.
     for (const char* code : {"avc1", "mp4v"}) {
-      video_.open(video_partial_, cv::CAP_FFMPEG, cv::VideoWriter::fourcc(code[0], code[1], code[2], code[3]),
+      video_.open(video_path_, cv::CAP_FFMPEG, cv::VideoWriter::fourcc(code[0], code[1], code[2], code[3]),
                   25.0, size, true);
       if (video_.isOpened()) return;
     }
+    // A folder that cannot take a file is the cause, not a missing encoder.
+    check_writable(out_dir_);
     if (!quiet_)
       std::fprintf(
           log_, "tirstrain: warning: no MP4 encoder available; writing the overlay as PNG images instead\n");
-    video_partial_.clear();
+    video_path_.clear();
     mode_ = OverlayMode::kPng;
   }
 
@@ -98,10 +96,8 @@ class OverlayWriter {
   std::FILE* log_;
   bool quiet_;
   cv::VideoWriter video_;
-  std::string video_partial_;
-  std::unique_ptr<StagingDirectory> staging_;
+  std::string video_path_;
   std::int64_t count_ = 0;
-  bool committed_ = false;
 };
 
 cv::Mat to_display(const cv::Mat& grey, cv::Size size) {
@@ -142,11 +138,6 @@ void draw_band(cv::Mat& bgr, const PatternBandChoice& band) {
       band.edge == "bottom" ? r.y - static_cast<int>(6 * scale) : bgr.rows - static_cast<int>(8 * scale);
   cv::putText(bgr, text, cv::Point(static_cast<int>(8 * scale) + (band.edge == "left" ? r.width : 0), text_y),
               cv::FONT_HERSHEY_SIMPLEX, 0.45 * scale, cv::Scalar(255, 120, 0), thick, cv::LINE_AA);
-}
-
-void remove_stale(const fs::path& path) {
-  std::error_code ec;
-  fs::remove(path, ec);
 }
 
 // A trial folder carries its own scene (`tirstrain synth` writes DIR/scene.yaml next to DIR/frames/):
@@ -264,6 +255,25 @@ void summarize_scene_sources(nlohmann::json& summary, const Scene& scene,
   summary["reference_pattern"] = band.to_json();
 }
 
+// Everything is written into a staging folder beside --out and swapped in when complete: an earlier result
+// stays whole until then, and an interrupted run leaves only "<out>.partial".
+std::unique_ptr<StagingDirectory> stage_output(const ProcessOptions& options,
+                                               const std::optional<std::string>& scene_path) {
+  std::vector<std::string> inputs = input_locations(options.input);
+  if (scene_path) inputs.push_back(*scene_path);
+  check_output_folder(options.out_dir, inputs);
+  return std::make_unique<StagingDirectory>(options.out_dir);
+}
+
+// A source can change how it times frames partway (a video whose timestamps stop increasing).
+template <typename Warn>
+void update_time_source(const capture::FrameSource& source, std::string& time_source, const Warn& warn) {
+  const auto settings = source.settings();
+  if (!settings.count("time_source") || settings.at("time_source") == time_source) return;
+  time_source = settings.at("time_source");
+  warn("time: " + time_source);
+}
+
 }  // namespace
 
 ProcessReport run_process(const ProcessOptions& options) {
@@ -290,21 +300,19 @@ ProcessReport run_process(const ProcessOptions& options) {
   std::unique_ptr<capture::FrameSource> source = capture::open_source(options.input);
   const auto settings = source->settings();
   const bool time_measured = settings.count("time_measured") == 0 || settings.at("time_measured") == "true";
-  const std::string time_source =
-      settings.count("time_source") ? settings.at("time_source") : "source timestamps";
+  std::string time_source = settings.count("time_source") ? settings.at("time_source") : "source timestamps";
   if (!time_measured) {
     if (options.strict)
       throw Error("the input has no timestamps (no frames.csv) (--strict)", {.file = options.input});
     warn("no timestamps for " + options.input + ": " + time_source);
   }
 
-  ensure_output_dir(options.out_dir, "--out");
-  const fs::path out(options.out_dir);
-  // A result.h5 left from an earlier run would look like this run's result if this one is interrupted.
-  for (const char* name : {"result.h5", "frames.csv", "summary.json", "overlay.mp4"})
-    remove_stale(out / name);
+  const std::unique_ptr<StagingDirectory> staging_folder = stage_output(options, scene_path);
+  StagingDirectory& staging = *staging_folder;
+  const fs::path out(staging.path());
+  const fs::path final_out(staging.final_path());
 
-  OverlayWriter overlay(options.overlay, options.out_dir, options.log, options.quiet);
+  OverlayWriter overlay(options.overlay, staging.path(), options.log, options.quiet);
   Progress progress("process", source->frame_count() > 0 ? static_cast<long>(source->frame_count()) : 1L,
                     options.quiet, options.log);
 
@@ -383,13 +391,15 @@ ProcessReport run_process(const ProcessOptions& options) {
     }
   }
   progress.finish();
+  update_time_source(*source, time_source, warn);
   if (!trial) throw Error("no frame of the input could be decoded", {.file = options.input});
   finish_stages(scene, *trial, {index, device_id, lost_before, t_s, frame_status, usable}, plan.stages,
                 options);
 
   const std::size_t n = t_s.size();
   // Outputs in order of increasing importance; result.h5 last, so its presence means a complete run.
-  if (const std::string path = overlay.commit(); !path.empty()) report.outputs.push_back(path);
+  if (const std::string name = overlay.finish(); !name.empty())
+    report.outputs.push_back((final_out / name).string());
 
   {
     std::vector<std::string> header = {"index", "t_s", "frame_status"};
@@ -403,7 +413,7 @@ ProcessReport run_process(const ProcessOptions& options) {
       csv.row_text(cells);
     }
     csv.commit();
-    report.outputs.push_back((out / "frames.csv").string());
+    report.outputs.push_back((final_out / "frames.csv").string());
   }
 
   nlohmann::json summary;
@@ -439,7 +449,7 @@ ProcessReport run_process(const ProcessOptions& options) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   summary["outputs"] = {"result.h5", "frames.csv", "summary.json"};
   write_text_file((out / "summary.json").string(), summary.dump(2) + "\n");
-  report.outputs.push_back((out / "summary.json").string());
+  report.outputs.push_back((final_out / "summary.json").string());
 
   {
     H5Writer h5((out / "result.h5").string());
@@ -471,8 +481,9 @@ ProcessReport run_process(const ProcessOptions& options) {
     }
     h5.attribute("/", "stages", stages_text);
     h5.commit();
-    report.outputs.push_back((out / "result.h5").string());
+    report.outputs.push_back((final_out / "result.h5").string());
   }
+  staging.commit();
   return report;
 }
 

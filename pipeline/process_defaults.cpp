@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "contact/pattern_band.hpp"
+#include "core/error.hpp"
 #include "pipeline/channels_stage.hpp"
 
 namespace tirstrain::pipeline {
@@ -147,7 +148,19 @@ std::string PatternBandChoice::describe() const {
   return text;
 }
 
+void check_pattern_band(const Scene& scene, cv::Size image_size) {
+  if (!scene.reference_pattern_roi) return;
+  const RoiPx& r = *scene.reference_pattern_roi;
+  const cv::Rect inside = cv::Rect(r.x, r.y, r.width, r.height) & cv::Rect({0, 0}, image_size);
+  if (!inside.empty()) return;
+  throw Error("the pattern band [" + std::to_string(r.x) + ", " + std::to_string(r.y) + ", " +
+                  std::to_string(r.width) + ", " + std::to_string(r.height) + "] lies outside the " +
+                  std::to_string(image_size.width) + " x " + std::to_string(image_size.height) + " px image",
+              {.file = scene.file, .key = "reference_pattern.roi_px"});
+}
+
 PatternBandChoice resolve_pattern_band(Scene& scene, const cv::Mat& first_frame) {
+  check_pattern_band(scene, first_frame.size());
   PatternBandChoice choice;
   if (scene.reference_pattern_roi) {
     choice.source = "scene";

@@ -174,7 +174,10 @@ void write_trial(const Trial& trial, const std::string& out_dir, bool quiet) {
   for (int k = 0; k < trial.frames(); ++k) {
     const cv::Mat image = trial.apply_sensor(trial.render_clean(k), k);
     const std::string file = (root / "frames" / frame_name(k)).string();
-    if (!cv::imwrite(file, image)) throw Error("cannot write image", {.file = file, .frame = k});
+    if (!cv::imwrite(file, image)) {
+      check_writable(root.string());  // names the cause when it is the disk
+      throw Error("cannot write image", {.file = file, .frame = k});
+    }
     frames_csv.row_text(
         {std::to_string(k), format_double(trial.frame_times_s()[static_cast<std::size_t>(k)])});
     grid.push_back(trial.grid_truth(k));
@@ -192,6 +195,11 @@ void write_trial(const Trial& trial, const std::string& out_dir, bool quiet) {
 
 SynthSummary synthesize(const SynthOptions& options) {
   if (options.out_dir.empty()) throw Error("an output directory is required", {.key = "--out"});
+  // The output folder is replaced as a whole when complete, so it must not hold the scene it is made from.
+  if (path_is_within(options.scene_path, options.out_dir))
+    throw Error("the output folder holds the scene file " + options.scene_path +
+                    "; it is replaced as a whole when the trial is complete, so give a folder of its own",
+                {.file = options.out_dir, .key = "--out"});
   // Everything that can be wrong with the scene is found here, before the output directory exists.
   SynthConfig config = load_synth_config(options.scene_path);
   if (options.seed) config.seed = *options.seed;

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 
 #include <H5Cpp.h>
@@ -156,14 +158,61 @@ ChannelTable read_channels_csv(const std::string& path, const ChannelReadOptions
   return table;
 }
 
+namespace {
+
+// Deflate shrinks data at most about 1032:1, so a dataset claiming more samples than its stored bytes (no
+// more than the file's own size) could hold, even compressed, has a damaged header; reading it would
+// allocate what the header claims.
+std::string implausible_length(const H5::DataSet& ds, std::size_t length, std::size_t element_bytes,
+                               std::uintmax_t file_bytes) {
+  constexpr double kMaxCompression = 1100.0;
+  constexpr double kSlackBytes = 1 << 20;
+  const double stored_bytes =
+      std::min(static_cast<double>(ds.getStorageSize()), static_cast<double>(file_bytes));
+  if (static_cast<double>(length) * static_cast<double>(element_bytes) <=
+      kMaxCompression * stored_bytes + kSlackBytes)
+    return "";
+  return "claims " + std::to_string(length) + " samples but the file holds " +
+         std::to_string(static_cast<long long>(stored_bytes)) + " bytes of them (a damaged file?)";
+}
+
+// HDF5 1.10 reads a version 0/1 superblock's driver information block before checking it, allocating the
+// size it claims (gigabytes, in a damaged file). Channel files (MATLAB v7.3, h5py, HDF5's default driver)
+// never have one, so a file naming one is refused before HDF5 opens it.
+void check_superblock(const std::string& path) {
+  constexpr unsigned char kSignature[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
+  std::ifstream in(path, std::ios::binary);
+  unsigned char head[64] = {};
+  in.read(reinterpret_cast<char*>(head), sizeof head);
+  if (in.gcount() < 24 || std::memcmp(head, kSignature, 8) != 0) return;  // HDF5 judges the rest
+  const int version = head[8];
+  const int offset_bytes = head[13];
+  if (version > 1 || offset_bytes != 8) return;
+  // Version 0: base, free-space, end-of-file and driver-information addresses follow at byte 24
+  // (version 1 has 4 more bytes before them); "undefined" is all ones.
+  const std::size_t at = (version == 0 ? 24 : 28) + 3 * 8;
+  if (at + 8 > static_cast<std::size_t>(in.gcount())) return;
+  for (std::size_t k = 0; k < 8; ++k)
+    if (head[at + k] != 0xff)
+      throw Error(
+          "names a driver information block (a multi-file HDF5 driver, or a damaged superblock); "
+          "channel files use HDF5's default driver",
+          {.file = path});
+}
+
+}  // namespace
+
 ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOptions& options) {
   H5::Exception::dontPrint();
   ChannelTable table;
   table.path = path;
   table.time_column = options.time_column;
   table.first_data_row = -1;
+  check_superblock(path);
   try {
     H5::H5File file(path, H5F_ACC_RDONLY);
+    std::error_code size_error;
+    const std::uintmax_t file_bytes = std::filesystem::file_size(path, size_error);
     H5::Group group = file.openGroup(options.hdf5_group);
     std::vector<std::string> wanted = options.required;
     wanted.push_back(options.time_column);
@@ -188,7 +237,10 @@ ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOption
         if (const auto nul = matlab_class.find('\0'); nul != std::string::npos) matlab_class.resize(nul);
       }
       const H5T_class_t type_class = ds.getTypeClass();
-      const bool numeric = type_class == H5T_INTEGER || type_class == H5T_FLOAT;
+      // A damaged header can claim elements gigabytes wide, which HDF5 would allocate for the conversion.
+      const std::size_t element_bytes = ds.getDataType().getSize();
+      const bool numeric =
+          (type_class == H5T_INTEGER || type_class == H5T_FLOAT) && element_bytes >= 1 && element_bytes <= 16;
       std::string why_not;
       if (matlab_class == "char")
         why_not = "is a MATLAB char array (text stored as uint16), not a numeric channel";
@@ -214,6 +266,7 @@ ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOption
         why_not = "has shape " + shape + "; a channel must be a vector (one non-singleton dimension)";
       }
       if (why_not.empty() && length == 0) why_not = "is empty";
+      if (why_not.empty()) why_not = implausible_length(ds, length, element_bytes, file_bytes);
       if (!why_not.empty()) {
         if (requested || !options.expected.empty()) throw Error(why_not, {.file = path, .column = name});
         continue;

@@ -221,9 +221,8 @@ std::vector<double> odd_extend(const std::vector<double>& x, std::size_t padlen)
 void check_length(std::size_t n, std::size_t padlen) {
   if (n <= padlen)
     throw Error("signal has " + std::to_string(n) +
-                    " samples; zero-phase filtering needs more than padlen = " + std::to_string(padlen) +
-                    " (3 x (filter order + 1)) samples",
-                {.key = "x"});
+                " samples; zero-phase filtering needs more than padlen = " + std::to_string(padlen) +
+                " (3 x (filter order + 1)) samples");
 }
 
 template <typename Filter, typename Run, typename Zi>

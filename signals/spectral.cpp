@@ -144,7 +144,7 @@ TransferEstimate transfer_estimate(const std::vector<double>& x, const std::vect
   if (x.size() != y.size())
     throw Error("input and output have different lengths (" + std::to_string(x.size()) + " and " +
                     std::to_string(y.size()) + " samples)",
-                {.key = "y"});
+                {});
   const Segmentation s = plan(x.size(), sample_rate_Hz, options);
   SegmentTransformer tx(s.segment, options.detrend), ty(s.segment, options.detrend);
   TransferEstimate out;

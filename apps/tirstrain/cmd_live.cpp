@@ -11,6 +11,7 @@
 #include "capture/live.hpp"
 #include "core/error.hpp"
 #include "core/scene.hpp"
+#include "pipeline/process_defaults.hpp"
 #include "pipeline/stage.hpp"
 #include "tirstrain/camera_options.hpp"
 #include "tirstrain/commands.hpp"
@@ -35,6 +36,7 @@ class LiveAnalysis {
                      frame.status != capture::FrameStatus::kIncomplete;
     if (!started_) {
       if (!context.usable) return;
+      pipeline::check_pattern_band(scene_, frame.image.size());
       info_ = pipeline::TrialInfo{frame.image.size(), frame.image.depth(), -1, &scene_, false};
       for (auto& stage : plan_.stages) stage->start(info_);
       started_ = true;
@@ -113,10 +115,14 @@ void add_live_command(CLI::App& app) {
     options.record.overwrite = args->overwrite;
     options.max_frames = args->frames;
     options.max_seconds = args->seconds;
-    if (analysis)
+    if (analysis) {
       options.overlay = [analysis](const capture::Frame& frame, cv::Mat& canvas) {
         analysis->run(frame, canvas);
       };
+      options.on_analysis_error = [](const std::string& message) {
+        std::fprintf(stderr, "live: analysis stopped: %s; capture and recording go on\n", message.c_str());
+      };
+    }
     install_interrupt_handler();
     options.stop = &interrupt_flag();
     if (!args->quiet)
@@ -154,6 +160,9 @@ void add_live_command(CLI::App& app) {
       std::cerr << "live: analysis stages: " << analysis->describe() << " (" << analysis->analysed()
                 << " frames analysed)\n";
     if (!report.error.empty()) throw Error("live view stopped: " + report.error);
+    if (!report.analysis_error.empty())
+      throw Error("the analysis stopped: " + report.analysis_error +
+                  (report.recorded ? " (the recording in " + args->record + " is complete)" : std::string()));
   });
 }
 

@@ -30,13 +30,16 @@ void add_process_command(CLI::App& app) {
       "tirstrain synth writes), else 52 px/mm, E = 1 MPa, nu = 0.4, depth 2 mm (each default is said on\n"
       "the console and in summary.json), and ridge period, polarity, contact and the glass's printed\n"
       "pattern band (along any image edge, or none) found from the images.\n"
-      "Writes DIR/result.h5, DIR/frames.csv, DIR/summary.json and DIR/overlay.mp4 (see docs/formats.md).");
+      "Writes DIR/result.h5, DIR/frames.csv, DIR/summary.json and DIR/overlay.mp4 (see docs/formats.md),\n"
+      "built in DIR.partial and swapped in for DIR only when complete: an earlier result stays whole until\n"
+      "then. DIR must not be, or hold, INPUT or the scene, nor hold files process does not write.");
   sub->add_option("INPUT", args->input, "Frames folder, image pattern or video file")->required();
   sub->add_option("--scene", args->scene, "Scene file (YAML) for calibration and what to compute");
   sub->add_flag(
       "--no-scene", args->no_scene,
       "Use the defaults even when INPUT holds a scene.yaml (what a recording without a scene gets)");
-  sub->add_option("--out", args->out, "Output folder (created if needed)")->required();
+  sub->add_option("--out", args->out, "Output folder (created if needed; replaced as a whole when complete)")
+      ->required();
   sub->add_option(
          "--compute", args->compute,
          "Stages to run in addition to the scene's compute list (or the default one): contact, tracking, "

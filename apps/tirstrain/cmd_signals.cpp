@@ -22,6 +22,7 @@
 #include "signals/spectral.hpp"
 #include "tirstrain/commands.hpp"
 #include "tirstrain/signals_verbs.hpp"
+#include "tirstrain/value_checks.hpp"
 
 namespace tirstrain::cli {
 namespace {
@@ -137,8 +138,9 @@ void add_filter(CLI::App& signals) {
   add_common(sub, o->c, "output CSV: t_s,NAME_filtered");
   sub->add_option("--column", o->column, "channel to filter")->required();
   sub->add_option("--order", o->order, "Butterworth order N")->capture_default_str();
-  sub->add_option("--lowpass-Hz", o->lowpass_Hz, "low-pass -3 dB frequency, Hz (e.g. the paper's 80)");
-  sub->add_option("--highpass-Hz", o->highpass_Hz, "high-pass -3 dB frequency, Hz");
+  sub->add_option("--lowpass-Hz", o->lowpass_Hz, "low-pass -3 dB frequency, Hz (e.g. the paper's 80)")
+      ->check(kPositiveHz);
+  sub->add_option("--highpass-Hz", o->highpass_Hz, "high-pass -3 dB frequency, Hz")->check(kPositiveHz);
   sub->add_option("--bandpass-Hz", o->bandpass_Hz, "band-pass edges F1,F2 in Hz (e.g. 15,500)")
       ->delimiter(',');
   sub->callback([o] {
@@ -198,7 +200,8 @@ void add_psd(CLI::App& signals) {
   add_common(sub, o->c, "output CSV: freq_Hz,psd");
   sub->add_option("--column", o->column, "channel")->required();
   sub->add_option("--segment", o->segment, "segment length nperseg, samples (= nfft)")->required();
-  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)");
+  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)")
+      ->check(kSamplesAtLeastZero);
   sub->add_option(
       "--peaks-out", o->peaks_out,
       "also write spectral peaks (scipy.signal.find_peaks semantics) as CSV: freq_Hz,psd,prominence");
@@ -240,7 +243,8 @@ void add_tf(CLI::App& signals) {
   sub->add_option("--input", o->input_column, "input channel A (e.g. force)")->required();
   sub->add_option("--output", o->output_column, "output channel B (e.g. acceleration)")->required();
   sub->add_option("--segment", o->segment, "segment length nperseg, samples")->required();
-  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)");
+  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)")
+      ->check(kSamplesAtLeastZero);
   sub->callback([o] {
     const auto table = load(o->c, o->c.input, {o->input_column, o->output_column});
     const auto t = in_context(o->c.input, o->input_column, [&] {
@@ -380,7 +384,8 @@ void add_impedance(CLI::App& signals) {
   sub->add_option("--force", o->force, "force channel, N")->required();
   sub->add_option("--accel", o->accel, "acceleration channel, m/s^2")->required();
   sub->add_option("--segment", o->segment, "segment length nperseg, samples")->required();
-  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)");
+  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)")
+      ->check(kSamplesAtLeastZero);
   sub->add_option("--unloaded", o->unloaded, "recording of the plate without the finger");
   sub->add_option("--band-Hz", o->band_Hz, "fit band LOW,HIGH in Hz (default: all bins)")->delimiter(',');
   sub->add_option("--min-coherence", o->min_coherence, "bins below are not fitted")->capture_default_str();
@@ -501,7 +506,8 @@ void add_spatial(CLI::App& signals) {
   sub->add_option("--force", o->force, "force channel, N")->required();
   sub->add_option("--position", o->position, "plate position channel, m")->required();
   sub->add_option("--segment", o->segment, "segment length, spatial samples")->required();
-  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)");
+  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)")
+      ->check(kSamplesAtLeastZero);
   sub->add_option("--dx-m", o->dx_m, "spatial step, m (default: median |dx| of the stroke)");
   sub->add_option("--from-s", o->from_s, "start of the stroke, s (default: record start)");
   sub->add_option("--to-s", o->to_s, "end of the stroke, s (default: record end)");
@@ -562,7 +568,8 @@ void add_pad_deformation(CLI::App& signals) {
   sub->add_option("--k-N-m", o->k_N_m, "G2 stiffness, N/m");
   sub->add_option("--segment", o->segment, "segment length nperseg, samples (same for both files)")
       ->required();
-  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)");
+  sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)")
+      ->check(kSamplesAtLeastZero);
   sub->add_option("--min-coherence", o->min_coherence, "calibration bins below are invalid")
       ->capture_default_str();
   sub->add_option("--bands-Hz", o->bands_Hz, "band edges F0,F1,...,Fn in Hz")->delimiter(',');

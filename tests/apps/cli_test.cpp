@@ -1,5 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
+
 #include "cli_support.hpp"
 #include "core/version.hpp"
 
@@ -32,6 +35,58 @@ TEST(Cli, UnknownCommandIsExplained) {
 TEST(Cli, NoCommandIsAnError) {
   const auto r = run_cli("");
   EXPECT_NE(r.exit_code, 0);
+}
+
+TEST(Cli, HelpDocumentsTheExitCodes) {
+  const auto r = run_cli("--help");
+  EXPECT_EQ(r.exit_code, 0);
+  for (const char* part :
+       {"Exit codes: 0 success; 1 the run failed", "2 the command line is", "128+N killed"})
+    EXPECT_NE(r.output.find(part), std::string::npos) << part << "\n" << r.output;
+}
+
+TEST(Cli, MistypedOptionGetsASuggestionAndUsageExitCode) {
+  const auto r = run_cli("process in --ovrlay png --out x");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--ovrlay: did you mean --overlay?"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("tirstrain process --help"), std::string::npos) << r.output;
+  const auto far = run_cli("process in --zzzzzzzz --out x");
+  EXPECT_EQ(far.exit_code, 2) << far.output;
+  EXPECT_EQ(far.output.find("did you mean"), std::string::npos) << far.output;
+}
+
+TEST(Cli, NegativeValuesAreRefusedByName) {
+  const auto overlap = run_cli("signals psd in.csv --out o.csv --column c --segment 64 --overlap -10");
+  EXPECT_EQ(overlap.exit_code, 2) << overlap.output;
+  EXPECT_NE(overlap.output.find("--overlap: must be a whole number of samples, 0 or more; got -10"),
+            std::string::npos)
+      << overlap.output;
+  const auto cutoff = run_cli("signals filter in.csv --out o.csv --column c --lowpass-Hz -5");
+  EXPECT_EQ(cutoff.exit_code, 2) << cutoff.output;
+  EXPECT_NE(cutoff.output.find("--lowpass-Hz: must be a frequency above 0 Hz; got -5"), std::string::npos)
+      << cutoff.output;
+  EXPECT_EQ(cutoff.output.find("give exactly one of"), std::string::npos) << cutoff.output;
+}
+
+TEST(Cli, TooShortChannelNamesTheColumnNotAMadeUpOption) {
+  const std::string dir = testing::fresh_dir("cli_short_channel");
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir + "/short.csv") << "t_s,normal_N\n0,1\n0.001,2\n0.002,3\n0.003,2\n0.004,1\n";
+  const auto r = run_cli("signals filter " + dir + "/short.csv --out " + dir +
+                         "/o.csv --column normal_N --lowpass-Hz 10");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("column 'normal_N'"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("signal has 5 samples"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("'--x'"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/o.csv.partial"));
+}
+
+TEST(Cli, UnknownSourceSchemeListsTheSchemes) {
+  const std::string dir = testing::fresh_dir("cli_scheme");
+  const auto r = run_cli("record aravsi:Fake --out " + dir + "/rec --frames 1");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("unknown source scheme 'aravsi:'"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("v4l2:/dev/videoN"), std::string::npos) << r.output;
 }
 
 }  // namespace

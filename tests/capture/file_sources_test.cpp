@@ -5,6 +5,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 
@@ -126,6 +127,23 @@ TEST(ImageFolder, CorruptMiddleFrameIsMarkedNotFatal) {
   EXPECT_EQ(frames[3].status, FrameStatus::kOk);
 }
 
+// Found by fuzz_image_sequence (tests/fuzz/corpus): a TIFF header 0 pixels wide makes OpenCV throw out of
+// imread instead of returning nothing; it is a corrupt frame like any other undecodable file.
+TEST(ImageFolder, TiffZeroPixelsWideIsACorruptFrame) {
+  const fs::path dir = scratch("tiff_width_0");
+  fs::copy_file(
+      fs::path(TIRSTRAIN_SOURCE_DIR) / "tests/fuzz/corpus/fuzz_image_sequence/regression-tiff-width-0.tif",
+      dir / "000000.tif");
+  cv::imwrite((dir / "000001.tif").string(), frame_image(1));
+  auto source = open_source(dir.string());
+  const auto frames = read_all(*source);
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[0].status, FrameStatus::kCorrupt);
+  EXPECT_TRUE(frames[0].image.empty());
+  EXPECT_EQ(frames[1].status, FrameStatus::kOk);
+  EXPECT_EQ(frames[1].image.cols, 64);
+}
+
 TEST(ImageFolder, DifferentFrameSizeNamesFileAndFrame) {
   const fs::path dir = scratch("sizes");
   cv::imwrite((dir / "f0.png").string(), frame_image(0));
@@ -163,6 +181,11 @@ TEST(OpenSource, MissingInputAndCameraSchemes) {
             std::string::npos);
   const fs::path empty = scratch("empty");
   EXPECT_NE(error_of([&] { open_source(empty.string()); }).find("no image files"), std::string::npos);
+  // A mistyped scheme is named, with the schemes that exist.
+  const std::string scheme = error_of([] { open_source("aravsi:Fake"); });
+  EXPECT_NE(scheme.find("unknown source scheme 'aravsi:'"), std::string::npos) << scheme;
+  for (const char* known : {"aravis:", "v4l2:", "libcamera:", "file:"})
+    EXPECT_NE(scheme.find(known), std::string::npos) << scheme;
 }
 
 TEST(VideoFile, ReadsFramesWithContainerTimestamps) {
@@ -181,6 +204,26 @@ TEST(VideoFile, ReadsFramesWithContainerTimestamps) {
     EXPECT_EQ(frames[i].image.type(), CV_8UC1);
   }
   EXPECT_NEAR(frames[5].image.at<std::uint8_t>(20, 20), 105, 4);
+}
+
+// H.264 with B-frames as ffmpeg writes it by default: OpenCV's position reads 0 for the frames drained
+// from the decoder at the end, so time goes on from the frame rate there, and the source says so.
+TEST(VideoFile, BFramesH264KeepsTimeIncreasing) {
+  if (std::system("ffmpeg -version > /dev/null 2>&1") != 0) GTEST_SKIP() << "ffmpeg is not installed";
+  const fs::path dir = scratch("bframes");
+  const std::string path = (dir / "bframes.mp4").string();
+  const std::string make =
+      "ffmpeg -hide_banner -loglevel error -y -f lavfi -i testsrc=size=160x120:rate=20 "
+      "-t 1 -c:v libx264 -bf 2 -pix_fmt yuv420p " +
+      path;
+  ASSERT_EQ(std::system(make.c_str()), 0) << make;
+  auto source = open_source(path);
+  const auto frames = read_all(*source);
+  ASSERT_EQ(frames.size(), 20u);
+  for (std::size_t i = 0; i < frames.size(); ++i)
+    EXPECT_NEAR(frames[i].device_time_s, static_cast<double>(i) / 20.0, 1e-6) << "frame " << i;
+  const std::string time_source = source->settings().at("time_source");
+  EXPECT_NE(time_source.find("then frame index / nominal 20 fps"), std::string::npos) << time_source;
 }
 
 TEST(VideoFile, UndecodableVideoIsAnError) {

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <functional>
 
 #include "core/error.hpp"
 #include "core/scene.hpp"
@@ -13,6 +14,15 @@ std::string write_scene(const std::string& name, const std::string& text) {
   const std::string path = std::string(TIRSTRAIN_TEST_TMP) + "/" + name;
   std::ofstream(path) << text;
   return path;
+}
+
+std::string testing_error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
 }
 
 std::string error_of(const std::string& path) {
@@ -117,6 +127,33 @@ TEST(YamlSection, RequiredAndIntegerChecks) {
   } catch (const Error& e) {
     EXPECT_EQ(std::string(e.what()), "f.yaml: 'sec.missing': required key is missing");
   }
+}
+
+// Found by fuzz_scene_yaml (tests/fuzz/corpus): a mapping used as a key makes yaml-cpp throw its bad
+// conversion, a message without file or line, unless the key is checked first.
+TEST(Scene, KeyThatIsNotTextIsRefusedWithItsLine) {
+  const std::string message = error_of(write_scene("map_key.yaml", "calibration:\n  {px_per_mm}: 52\n"));
+  EXPECT_NE(message.find("map_key.yaml: row 2: 'calibration': a key must be plain text"), std::string::npos)
+      << message;
+  YamlSection section(YAML::Load("{[a, b]: 1}"), "inline.yaml");
+  const std::string finish = testing_error_of([&] { section.finish(); });
+  EXPECT_NE(finish.find("a key must be plain text"), std::string::npos) << finish;
+}
+
+TEST(Scene, KeyGivenTwiceIsRefusedWithBothLines) {
+  // yaml-cpp would keep both and a lookup would find the first: the second calibration would be ignored.
+  const std::string top = write_scene("twice.yaml",
+                                      "calibration:\n  px_per_mm: 52\ntissue:\n  E_Pa: 1.0e6\n"
+                                      "calibration:\n  px_per_mm: 40\n");
+  const std::string message = error_of(top);
+  EXPECT_NE(message.find("twice.yaml"), std::string::npos) << message;
+  EXPECT_NE(message.find("row 5"), std::string::npos) << message;
+  EXPECT_NE(message.find("'calibration'"), std::string::npos) << message;
+  EXPECT_NE(message.find("given twice (first at line 1)"), std::string::npos) << message;
+  const std::string nested =
+      error_of(write_scene("twice_nested.yaml", "tissue:\n  E_Pa: 1.0e6\n  nu: 0.4\n  E_Pa: 2.0e6\n"));
+  EXPECT_NE(nested.find("'tissue.E_Pa'"), std::string::npos) << nested;
+  EXPECT_NE(nested.find("row 4"), std::string::npos) << nested;
 }
 
 }  // namespace

@@ -192,6 +192,48 @@ TEST(ChannelsHdf5, MismatchedLengthsNanAndBadTimeAreNamed) {
   EXPECT_NE(std::string(e.what()).find("missing.h5"), std::string::npos);
 }
 
+// Found by fuzz_channel_hdf5 (tests/fuzz/corpus): a header claiming 4 GB wide floats makes HDF5
+// allocate 4 GB for the conversion; the dataset is refused as not numeric.
+TEST(ChannelsHdf5, DamagedElementSizeIsRefusedNotAllocated) {
+  const std::string path =
+      std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/regression-element-4GB.h5";
+  ts::ChannelReadOptions options;
+  options.required = {"normal_N"};
+  const auto e = expect_error([&] { ts::read_channels(path, options); });
+  EXPECT_EQ(e.context().column, "normal_N");
+  EXPECT_NE(e.message().find("not a numeric dataset"), std::string::npos) << e.what();
+}
+
+// Found by fuzz_channel_hdf5: a header claiming 8.8e12 samples in a 2 kB file would have them allocated.
+TEST(ChannelsHdf5, LengthBeyondTheStoredBytesIsRefusedNotAllocated) {
+  // Two damaged headers: one whose layout stores little, one whose layout claims the length's bytes too.
+  for (const char* name : {"regression-length-2e43.h5", "regression-length-2e43-layout.h5"}) {
+    const std::string path =
+        std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/" + name;
+    ts::ChannelReadOptions options;
+    options.required = {"normal_N"};
+    const auto e = expect_error([&] { ts::read_channels(path, options); });
+    EXPECT_EQ(e.context().column, "normal_N");
+    EXPECT_NE(e.message().find("claims 8796093022214 samples but the file holds"), std::string::npos)
+        << e.what();
+  }
+}
+
+// Found by fuzz_channel_hdf5: a superblock naming a driver information block at byte 255 of a 2 kB file
+// makes HDF5 1.10 allocate 2 GB (and take seconds) before it finds the damage.
+TEST(ChannelsHdf5, DriverInformationBlockIsRefusedBeforeHdf5OpensTheFile) {
+  const std::string path = std::string(TIRSTRAIN_SOURCE_DIR) +
+                           "/tests/fuzz/corpus/fuzz_channel_hdf5/regression-driver-info-block.h5";
+  const auto e = expect_error([&] { ts::read_channels(path); });
+  EXPECT_NE(std::string(e.what()).find("regression-driver-info-block.h5"), std::string::npos) << e.what();
+  EXPECT_NE(e.message().find("driver information block"), std::string::npos) << e.what();
+  // The seed it was mutated from (h5import's output) opens as before.
+  const auto seed = ts::read_channels(std::string(TIRSTRAIN_SOURCE_DIR) +
+                                      "/tests/fuzz/corpus/fuzz_channel_hdf5/channels.h5");
+  EXPECT_EQ(seed.samples(), 6u);
+  EXPECT_NEAR(seed.sample_rate_Hz, 1000.0, 1e-3);
+}
+
 TEST(Resample, LinearAtFrameTimesAndNoExtrapolation) {
   const std::vector<double> t{0.0, 0.001, 0.002, 0.003};
   const std::vector<double> v{1.0, 3.0, 5.0, 7.0};  // 1 + 2000 t

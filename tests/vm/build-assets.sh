@@ -54,7 +54,7 @@ fi
 
 # initramfs: busybox, the modules needed to mount the host over virtio-9p, and the init script.
 init_src="$here/init.sh"
-stamp="$(sha256sum "$init_src" "$here/vm.env" | sha256sum | cut -c1-16)"
+stamp="$(sha256sum "$init_src" "$here/host-paths.sh" "$here/vm.env" | sha256sum | cut -c1-16)"
 if [ ! -f "$cache/initramfs.cpio.gz" ] || [ "$(cat "$cache/initramfs.stamp" 2>/dev/null)" != "$stamp" ]; then
   root="$cache/initramfs-root"
   rm -rf "$root" && mkdir -p "$root"/{bin,dev,proc,sys,host,modules,tmp}
@@ -65,6 +65,7 @@ if [ ! -f "$cache/initramfs.cpio.gz" ] || [ "$(cat "$cache/initramfs.stamp" 2>/d
   while read -r ko; do cp "$ko" "$root/modules/"; done <"$root/modules/order"
   sed -i 's|.*/||' "$root/modules/order"
   cp "$init_src" "$root/init" && chmod +x "$root/init"
+  cp "$here/host-paths.sh" "$root/host-paths.sh"
   (cd "$root" && find . | cpio -o -H newc --quiet | gzip -1) >"$cache/initramfs.cpio.gz.tmp"
   mv "$cache/initramfs.cpio.gz.tmp" "$cache/initramfs.cpio.gz"
   echo "$stamp" >"$cache/initramfs.stamp"

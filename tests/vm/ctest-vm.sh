@@ -29,6 +29,7 @@ fi
 cat >"$share/vm-test.env" <<ENV
 TEST_BINARY=$test_binary
 CACHE=$cache/$TIRSTRAIN_VM_KERNEL_ABI
+HOST_PATHS=$(dirname "$test_binary"):$(dirname "$cli"):$cache:$(cd "$here/../.." && pwd)
 ENV
 
 "$here/run-vm.sh" "$cache" "$share" "$here/guest-run.sh" "${TIRSTRAIN_VM_TIMEOUT_S:-600}"

@@ -16,8 +16,12 @@ timeout_s=${4:-600}
 "$here/build-assets.sh" "$cache_root"
 cache=$cache_root/$abi
 mkdir -p "$share"
-case "$share$guest_script" in *" "*)
-  echo "run-vm.sh: paths with spaces cannot go on the kernel command line: $share $guest_script" >&2
+# Host folders the guest run reads (ctest-vm.sh lists them in the share's vm-test.env; init.sh binds back
+# those that lie under the guest's own /tmp, /run or /dev/shm).
+host_paths=$(sed -n 's/^HOST_PATHS=//p' "$share/vm-test.env" 2>/dev/null || true)
+host_paths="$host_paths:$(dirname "$guest_script")"
+case "$share$guest_script$host_paths" in *" "*)
+  echo "run-vm.sh: paths with spaces cannot go on the kernel command line: $share $guest_script $host_paths" >&2
   exit 2 ;;
 esac
 
@@ -26,7 +30,7 @@ status=0
 timeout --kill-after=10 "$timeout_s" qemu-system-x86_64 -accel tcg -machine q35 -cpu max -smp "${TIRSTRAIN_VM_CPUS:-2}" \
   -m "${TIRSTRAIN_VM_MEM_MB:-1536}" -nographic -no-reboot -nic none \
   -kernel "/boot/vmlinuz-$abi" -initrd "$cache/initramfs.cpio.gz" \
-  -append "console=ttyS0 quiet loglevel=4 panic=-1 TIRSTRAIN_SHARE=$share TIRSTRAIN_RUN=$guest_script" \
+  -append "console=ttyS0 quiet loglevel=4 panic=-1 TIRSTRAIN_SHARE=$share TIRSTRAIN_RUN=$guest_script TIRSTRAIN_HOST_PATHS=$host_paths" \
   -virtfs local,path=/,mount_tag=hostroot,readonly=on,security_model=none,multidevs=remap \
   -virtfs "local,path=$share,mount_tag=share,security_model=none" \
   </dev/null >"$share/console.log" 2>&1 || status=$?

@@ -1,0 +1,16 @@
+// libFuzzer target: channels in an HDF5 or MATLAB v7.3 file (signals/channels.hpp read_channels).
+#include <cstddef>
+#include <cstdint>
+
+#include "core/error.hpp"
+#include "signals/channels.hpp"
+#include "tests/fuzz/fuzz_support.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::string path = tirstrain::fuzz::write_bytes("channels.mat", data, size);
+  try {
+    tirstrain::signals::read_channels(path);
+  } catch (const tirstrain::Error&) {
+  }
+  return 0;
+}
