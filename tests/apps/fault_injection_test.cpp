@@ -17,6 +17,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include <chrono>
@@ -394,6 +395,8 @@ TEST(Faults, RecordKilledAnywhereKeepsAConsistentFolder) {
   const CliRun complete = run_cli({"record", small_trial().string(), "--out", (dir / "complete").string()});
   ASSERT_EQ(complete.exit_code, 0) << complete.output;
   ASSERT_TRUE(fs::exists(dir / "complete" / "recording.json"));
+  const nlohmann::json complete_report =
+      nlohmann::json::parse(read_bytes(dir / "complete" / "recording.json"));
   int killed = 0, index = 0;
   for (const double t : kill_points(complete.seconds, kKills)) {
     const fs::path rec = dir / ("rec" + std::to_string(index++));
@@ -403,9 +406,15 @@ TEST(Faults, RecordKilledAnywhereKeepsAConsistentFolder) {
     if (!run.killed) {
       EXPECT_EQ(run.exit_code, 0) << run.output;
     }
-    // Killed, the recording never says it finished: recording.json is written last.
-    if (run.killed) {
-      EXPECT_FALSE(fs::exists(rec / "recording.json")) << "killed at " << t << " s";
+    // Killed, the recording says it finished only if it did: recording.json is written last, whole (its
+    // final name comes with its last byte), so a kill that lands after it, while the process exits, leaves a
+    // complete recording.
+    if (run.killed && fs::exists(rec / "recording.json")) {
+      const nlohmann::json report = nlohmann::json::parse(read_bytes(rec / "recording.json"), nullptr, false);
+      ASSERT_FALSE(report.is_discarded()) << "killed at " << t << " s: a recording.json cut short";
+      EXPECT_EQ(report.value("stop_reason", ""), "end of stream") << "killed at " << t << " s";
+      EXPECT_EQ(report.value("frames_saved", -1), complete_report.value("frames_saved", -2))
+          << "killed at " << t << " s";
     }
     expect_consistent_recording(rec, t);
   }
