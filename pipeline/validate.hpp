@@ -12,6 +12,8 @@
 //   point:    the exact Green–Lagrange strain at the triangle's reference centroid (what a user compares);
 //   triangle: the strain of the same triangle with its vertices moved by the exact field (the linear
 //             triangle's own discretisation error removed, so what is left is the tracking error).
+// Beside the interior, coverage and accuracy by ring of the true contact out to its edge, where slip begins
+// (pipeline/validate_rings.hpp).
 #include <cstdio>
 #include <optional>
 #include <string>
