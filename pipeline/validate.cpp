@@ -117,6 +117,80 @@ ContactErrors contact_errors(const ContactTruth& truth, std::int64_t status, std
   return e;
 }
 
+// The side-by-side maps (measured | truth | measured − truth) on the normalised grid at the map frame
+// (default: the frame of largest true energy); returns the files written.
+std::vector<std::string> write_side_by_side_maps(const ValidateOptions& options, const H5Reader& h5,
+                                                 const std::string& result_path, const samples::Trial& trial,
+                                                 const std::string& mode, const fs::path& out, std::size_t n,
+                                                 std::size_t u_argmax) {
+  std::vector<std::string> outputs;
+  if (!(options.write_maps && h5.has("/maps/strain_total") &&
+        h5.attribute_number("/maps", "reference_has_ellipse") > 0))
+    return outputs;
+  H5Shape shape;
+  const std::size_t frame =
+      options.map_frame >= 0 ? std::min(static_cast<std::size_t>(options.map_frame), n - 1) : u_argmax;
+  const std::vector<double> maps = h5.read_doubles("/maps/strain_total", &shape);
+  const std::size_t g = shape[1];
+  const cv::Matx23d to_reference =
+      invert_similarity(parse_matrix(h5.attribute_text("/maps", "to_normalised"), result_path));
+  const samples::FrameField field = trial.field(static_cast<int>(frame));
+  cv::Mat measured[3], truth[3];
+  for (int c = 0; c < 3; ++c) {
+    measured[c] = cv::Mat(static_cast<int>(g), static_cast<int>(g), CV_64F, cv::Scalar(kNaN));
+    truth[c] = measured[c].clone();
+  }
+  for (std::size_t r = 0; r < g; ++r)
+    for (std::size_t col = 0; col < g; ++col) {
+      const double qx = -1.0 + 2.0 * static_cast<double>(col) / static_cast<double>(g - 1);
+      const double qy = -1.0 + 2.0 * static_cast<double>(r) / static_cast<double>(g - 1);
+      const Vec2 X{to_reference(0, 0) * qx + to_reference(0, 1) * qy + to_reference(0, 2),
+                   to_reference(1, 0) * qx + to_reference(1, 1) * qy + to_reference(1, 2)};
+      const std::size_t base = ((frame * g + r) * g + col) * 3;
+      const bool inside = trial.contact_signed_distance_px(X) < 0.0;
+      const Strain2 e = inside ? green_lagrange(field.evaluate(X).gradient) : Strain2{kNaN, kNaN, kNaN};
+      const double truth_values[3] = {e.xx, e.yy, e.xy};
+      for (int c = 0; c < 3; ++c) {
+        measured[c].at<double>(static_cast<int>(r), static_cast<int>(col)) =
+            maps[base + static_cast<std::size_t>(c)];
+        truth[c].at<double>(static_cast<int>(r), static_cast<int>(col)) = truth_values[c];
+      }
+    }
+  const char* names[3] = {"E_xx", "E_yy", "E_xy"};
+  for (int c = 0; c < 3; ++c) {
+    double range = 0.0;
+    for (auto it = truth[c].begin<double>(); it != truth[c].end<double>(); ++it)
+      if (std::isfinite(*it)) range = std::max(range, std::abs(*it));
+    range = std::max(range, 1e-6);
+    cv::Mat difference = measured[c] - truth[c];  // NaN where either is NaN
+    HeatmapOptions o;
+    o.x_min = o.y_min = -1.0;
+    o.x_max = o.y_max = 1.0;
+    o.axis_unit = "normalised";
+    o.min = -range;
+    o.max = range;
+    char title[128];
+    std::snprintf(title, sizeof title, "%s measured (%s), frame %zu", names[c], mode.c_str(), frame);
+    o.title = title;
+    const cv::Mat left = render_heatmap(measured[c], o);
+    std::snprintf(title, sizeof title, "%s truth (exact field)", names[c]);
+    o.title = title;
+    const cv::Mat middle = render_heatmap(truth[c], o);
+    o.title = "measured - truth";
+    o.min = -0.25 * range;
+    o.max = 0.25 * range;
+    const cv::Mat right = render_heatmap(difference, o);
+    cv::Mat row;
+    cv::hconcat(std::vector<cv::Mat>{left, middle, right}, row);
+    const std::string path = (out / (std::string("maps_") + names[c] + ".png")).string();
+    const std::string partial = path + ".partial.png";
+    if (!cv::imwrite(partial, row)) throw Error("cannot write map image", {.file = path});
+    fs::rename(partial, path);
+    outputs.push_back(path);
+  }
+  return outputs;
+}
+
 }  // namespace
 
 const ErrorStats* ValidationReport::find(const std::string& quantity, const std::string& reference,
@@ -598,69 +672,8 @@ ValidationReport run_validate(const ValidateOptions& options) {
     report.outputs.push_back((out / "validation_frames.csv").string());
   }
 
-  if (options.write_maps && h5.has("/maps/strain_total") &&
-      h5.attribute_number("/maps", "reference_has_ellipse") > 0) {
-    const std::size_t frame =
-        options.map_frame >= 0 ? std::min(static_cast<std::size_t>(options.map_frame), n - 1) : u_argmax;
-    const std::vector<double> maps = h5.read_doubles("/maps/strain_total", &shape);
-    const std::size_t g = shape[1];
-    const cv::Matx23d to_reference =
-        invert_similarity(parse_matrix(h5.attribute_text("/maps", "to_normalised"), result_path));
-    const samples::FrameField field = trial.field(static_cast<int>(frame));
-    cv::Mat measured[3], truth[3];
-    for (int c = 0; c < 3; ++c) {
-      measured[c] = cv::Mat(static_cast<int>(g), static_cast<int>(g), CV_64F, cv::Scalar(kNaN));
-      truth[c] = measured[c].clone();
-    }
-    for (std::size_t r = 0; r < g; ++r)
-      for (std::size_t col = 0; col < g; ++col) {
-        const double qx = -1.0 + 2.0 * static_cast<double>(col) / static_cast<double>(g - 1);
-        const double qy = -1.0 + 2.0 * static_cast<double>(r) / static_cast<double>(g - 1);
-        const Vec2 X{to_reference(0, 0) * qx + to_reference(0, 1) * qy + to_reference(0, 2),
-                     to_reference(1, 0) * qx + to_reference(1, 1) * qy + to_reference(1, 2)};
-        const std::size_t base = ((frame * g + r) * g + col) * 3;
-        const bool inside = trial.contact_signed_distance_px(X) < 0.0;
-        const Strain2 e = inside ? green_lagrange(field.evaluate(X).gradient) : Strain2{kNaN, kNaN, kNaN};
-        const double truth_values[3] = {e.xx, e.yy, e.xy};
-        for (int c = 0; c < 3; ++c) {
-          measured[c].at<double>(static_cast<int>(r), static_cast<int>(col)) =
-              maps[base + static_cast<std::size_t>(c)];
-          truth[c].at<double>(static_cast<int>(r), static_cast<int>(col)) = truth_values[c];
-        }
-      }
-    const char* names[3] = {"E_xx", "E_yy", "E_xy"};
-    for (int c = 0; c < 3; ++c) {
-      double range = 0.0;
-      for (auto it = truth[c].begin<double>(); it != truth[c].end<double>(); ++it)
-        if (std::isfinite(*it)) range = std::max(range, std::abs(*it));
-      range = std::max(range, 1e-6);
-      cv::Mat difference = measured[c] - truth[c];  // NaN where either is NaN
-      HeatmapOptions o;
-      o.x_min = o.y_min = -1.0;
-      o.x_max = o.y_max = 1.0;
-      o.axis_unit = "normalised";
-      o.min = -range;
-      o.max = range;
-      char title[128];
-      std::snprintf(title, sizeof title, "%s measured (%s), frame %zu", names[c], mode.c_str(), frame);
-      o.title = title;
-      const cv::Mat left = render_heatmap(measured[c], o);
-      std::snprintf(title, sizeof title, "%s truth (exact field)", names[c]);
-      o.title = title;
-      const cv::Mat middle = render_heatmap(truth[c], o);
-      o.title = "measured - truth";
-      o.min = -0.25 * range;
-      o.max = 0.25 * range;
-      const cv::Mat right = render_heatmap(difference, o);
-      cv::Mat row;
-      cv::hconcat(std::vector<cv::Mat>{left, middle, right}, row);
-      const std::string path = (out / (std::string("maps_") + names[c] + ".png")).string();
-      const std::string partial = path + ".partial.png";
-      if (!cv::imwrite(partial, row)) throw Error("cannot write map image", {.file = path});
-      fs::rename(partial, path);
-      report.outputs.push_back(path);
-    }
-  }
+  for (std::string& path : write_side_by_side_maps(options, h5, result_path, trial, mode, out, n, u_argmax))
+    report.outputs.push_back(std::move(path));
   return report;
 }
 
