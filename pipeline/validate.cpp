@@ -117,6 +117,34 @@ ContactErrors contact_errors(const ContactTruth& truth, std::int64_t status, std
   return e;
 }
 
+// Per live track at one frame: where the displacement errors are (for finding a tracking bias).
+void write_tracks_csv(const fs::path& path, const samples::Trial& trial, std::size_t frame,
+                      const std::vector<double>& reference, const std::vector<double>& position) {
+  const samples::FrameField field = trial.field(static_cast<int>(frame));
+  const std::size_t k = reference.size() / 2;
+  CsvWriter csv(path.string(), {"frame", "track", "X_px", "Y_px", "border_distance_px", "u_px", "v_px",
+                                "u_truth_px", "v_truth_px"});
+  for (std::size_t j = 0; j < k; ++j) {
+    const Vec2 x{position[2 * (frame * k + j)], position[2 * (frame * k + j) + 1]};
+    if (!std::isfinite(x.x)) continue;
+    const Vec2 X{reference[2 * j], reference[2 * j + 1]};
+    const Vec2 u = field.displacement_px(X);
+    csv.row_text({std::to_string(frame), std::to_string(j), format_double(X.x), format_double(X.y),
+                  format_double(-trial.contact_signed_distance_px(X)), format_double(x.x - X.x),
+                  format_double(x.y - X.y), format_double(u.x), format_double(u.y)});
+  }
+  csv.commit();
+}
+
+void write_rows_csv(const fs::path& path, const std::vector<ErrorStats>& rows) {
+  CsvWriter csv(path.string(),
+                {"quantity", "reference", "mode", "unit", "rms", "max_abs", "mean", "samples"});
+  for (const ErrorStats& s : rows)
+    csv.row_text({s.quantity, s.reference, s.mode, s.unit, format_double(s.rms), format_double(s.max_abs),
+                  format_double(s.mean), std::to_string(s.samples)});
+  csv.commit();
+}
+
 // The side-by-side maps (measured | truth | measured − truth) on the normalised grid at the map frame
 // (default: the frame of largest true energy); returns the files written.
 std::vector<std::string> write_side_by_side_maps(const ValidateOptions& options, const H5Reader& h5,
@@ -577,24 +605,10 @@ ValidationReport run_validate(const ValidateOptions& options) {
     if (c > 0.0 && c < a_mm && std::isfinite(c_fit[i])) c_of_a_error.add(100.0 * (c_fit[i] - c) / a_mm);
   }
 
-  // Per track at the map frame: where the displacement errors are (for finding a tracking bias).
   {
     const std::size_t frame =
         options.map_frame >= 0 ? std::min(static_cast<std::size_t>(options.map_frame), n - 1) : u_argmax;
-    const samples::FrameField field = trial.field(static_cast<int>(frame));
-    CsvWriter csv(
-        (out / "validation_tracks.csv").string(),
-        {"frame", "track", "X_px", "Y_px", "border_distance_px", "u_px", "v_px", "u_truth_px", "v_truth_px"});
-    for (std::size_t j = 0; j < k; ++j) {
-      const Vec2 x = vec(position, frame * k + j);
-      if (!std::isfinite(x.x)) continue;
-      const Vec2 X = vec(reference, j);
-      const Vec2 u = field.displacement_px(X);
-      csv.row_text({std::to_string(frame), std::to_string(j), format_double(X.x), format_double(X.y),
-                    format_double(-trial.contact_signed_distance_px(X)), format_double(x.x - X.x),
-                    format_double(x.y - X.y), format_double(u.x), format_double(u.y)});
-    }
-    csv.commit();
+    write_tracks_csv(out / "validation_tracks.csv", trial, frame, reference, position);
     report.outputs.push_back((out / "validation_tracks.csv").string());
   }
 
@@ -643,15 +657,8 @@ ValidationReport run_validate(const ValidateOptions& options) {
   rings.write_csv((out / "validation_rings.csv").string());
   report.outputs.push_back((out / "validation_rings.csv").string());
 
-  {
-    CsvWriter csv((out / "validation.csv").string(),
-                  {"quantity", "reference", "mode", "unit", "rms", "max_abs", "mean", "samples"});
-    for (const ErrorStats& s : report.rows)
-      csv.row_text({s.quantity, s.reference, s.mode, s.unit, format_double(s.rms), format_double(s.max_abs),
-                    format_double(s.mean), std::to_string(s.samples)});
-    csv.commit();
-    report.outputs.push_back((out / "validation.csv").string());
-  }
+  write_rows_csv(out / "validation.csv", report.rows);
+  report.outputs.push_back((out / "validation.csv").string());
   {
     CsvWriter csv(
         (out / "validation_frames.csv").string(),
