@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
 """How much would adaptive smoothing of each track in time lower the displacement error?
 
-A measured study (BENCHMARKS.md, flow/ "Session 12"); `process` now smooths noisy trials itself
-(flow/temporal_smoothing.hpp, session 13), with two changes found since: the sample itself is the
-shortest window, and σ is the smaller of the 2nd- and 3rd-difference estimates. Each frame-0 track's
+An offline study of what `process` does itself on noisy trials (flow/temporal_smoothing.hpp, docs/flow.md
+"After the trial"), which differs in two points: there the sample itself is the shortest window, and σ is
+the smaller of the 2nd- and 3rd-difference estimates. Each frame-0 track's
 position series is smoothed by local polynomial fits whose window is chosen per frame by the intersection
 of confidence intervals (left-sided, right-sided and centred windows of 1..32 frames, fused by inverse
 variance; the noise level from the series' own second differences). Scored against the exact field.
