@@ -60,7 +60,7 @@ inline double shear_modulus_Pa(double young_Pa, double poisson) {
 }
 
 // Plane-strain (St Venant–Kirchhoff) energy density W = (λ/2)(E_xx + E_yy)² + G(E_xx² + E_yy² + 2E_xy²),
-// J/m³. Algebraically identical to DESIGN.md's form in E and ν.
+// J/m³. Algebraically identical to docs/design.md's form in E and ν.
 inline double plane_strain_energy_density_J_m3(const Strain2& e, double young_Pa, double poisson) {
   const double lambda = lame_lambda_Pa(young_Pa, poisson);
   const double g = shear_modulus_Pa(young_Pa, poisson);

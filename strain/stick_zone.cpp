@@ -13,7 +13,7 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kPi = std::numbers::pi;
 
-// φ(ρ) and d(ρ) of the building block U[q0, a] (MODEL_NOTES.md), ρ = r / a.
+// φ(ρ) and d(ρ) of the building block U[q0, a] (docs/model.md), ρ = r / a.
 void phi_d(double rho, double& phi, double& d) {
   if (rho <= 1.0) {
     phi = 0.5 * kPi * (2.0 - rho * rho);

@@ -10,7 +10,7 @@
 //
 // t is the stuck core's displacement (free, so a biased or missing plate estimate does not matter), b_x and
 // b_y are the Cattaneo–Mindlin slip fields (u − δ) for tangential traction along x and y in units of
-// μp0·a/(4G) (closed forms of MODEL_NOTES.md; zero for |p| ≤ k), and k = c/a. For each k the four linear
+// μp0·a/(4G) (closed forms of docs/model.md; zero for |p| ≤ k), and k = c/a. For each k the four linear
 // parameters come from least squares; k is the minimiser of the residual over [0, 1] (grid, then golden
 // section). Any loading direction is a linear combination of b_x and b_y (the traction's radial profile is
 // the same), so the direction needs no separate fit. An elliptical contact is mapped onto the disk by

@@ -74,7 +74,7 @@ TEST(PrincipalStrains, IsotropicAndPureShearCases) {
 }
 
 TEST(EnergyDensity, EqualsDesignDocumentForm) {
-  // DESIGN.md: u = E(1-ν)/(2(1+ν)(1-2ν))(Exx²+Eyy²) + Eν/((1+ν)(1-2ν)) Exx Eyy + E/(1+ν) Exy².
+  // docs/design.md: u = E(1-ν)/(2(1+ν)(1-2ν))(Exx²+Eyy²) + Eν/((1+ν)(1-2ν)) Exx Eyy + E/(1+ν) Exy².
   const double young = 1.0e6, nu = 0.4;
   const Strain2 e{0.03, -0.02, 0.015};
   const double design = young * (1 - nu) / (2 * (1 + nu) * (1 - 2 * nu)) * (e.xx * e.xx + e.yy * e.yy) +

@@ -1,4 +1,4 @@
-// Closed-form checks of the Hertz + Cattaneo–Mindlin model: the list at the end of MODEL_NOTES.md, the
+// Closed-form checks of the Hertz + Cattaneo–Mindlin model: the list at the end of docs/model.md, the
 // numerically delicate spots it names, and the refusal of inputs outside the model.
 #include "model/cattaneo_mindlin.hpp"
 
@@ -346,7 +346,7 @@ TEST(CattaneoMindlin, HertzRadialTerm) {
       const double r = std::hypot(x, y);  // what the model sees: rho = 1 may land on either side of a
       const double t = (r / a) * (r / a);
       const FieldSample s = m.evaluate(x, y);
-      // u_r from MODEL_NOTES, with 1 − (1 − t)^(3/2) through expm1/log1p so the reference keeps its digits
+      // u_r from docs/model.md, with 1 − (1 − t)^(3/2) through expm1/log1p so the reference keeps its digits
       // near the centre (the model uses the (1 + s + s²)/(1 + s) form instead).
       const double ur = r < a
                             ? (1.0 - 2.0 * nu) * p0 * a * a / (6.0 * g * r) * std::expm1(1.5 * std::log1p(-t))
@@ -453,7 +453,7 @@ TEST(CattaneoMindlinKernels, OuterShapeSeriesMatchesDirectForms) {
     EXPECT_NEAR(s.dd, static_cast<double>(dd), tol * std::abs(static_cast<double>(dd))) << rho;
     EXPECT_NEAR(s.d_over_rho, static_cast<double>(d / r), tol * std::abs(static_cast<double>(d / r))) << rho;
   }
-  // MODEL_NOTES' two-term far-field forms.
+  // docs/model.md's two-term far-field forms.
   for (double rho : {1e4, 1e6, 1e12}) {
     const detail::OuterShape s = detail::outer_shape(rho);
     EXPECT_NEAR(s.phi, 4.0 / (3.0 * rho) + 2.0 / (15.0 * std::pow(rho, 3)), 1e-15 * s.phi);
@@ -486,7 +486,7 @@ TEST(CattaneoMindlin, FarFieldIsPointForce) {
   }
 }
 
-// The places MODEL_NOTES calls delicate: every output finite.
+// The places docs/model.md calls delicate: every output finite.
 TEST(CattaneoMindlin, HardCasesStayFinite) {
   const double limit = base_params().friction * base_params().normal_N;
   for (double q : {0.0, 1e-12 * limit, 0.5 * limit, limit * (1.0 - 1e-15), limit}) {

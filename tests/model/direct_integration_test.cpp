@@ -1,7 +1,7 @@
 // Independent check of the closed forms: surface displacements by direct numerical integration of the
 // Cerruti (tangential point force) and Boussinesq (normal point force) kernels over the Cattaneo–Mindlin
 // traction and the Hertz pressure. Shares no code with model/ beyond the public results it checks; the
-// contact size and tractions are recomputed here from MODEL_NOTES.md.
+// contact size and tractions are recomputed here from docs/model.md.
 //
 // Kernels, for a point force at x' and a surface point x, d = x − x', s = |d|:
 //   Cerruti (tangential force F):  u = 1/(2πG s)·[(1 − ν) F + ν (F·d) d / s²]
