@@ -1,0 +1,162 @@
+// The neighbour check: a spatial hash of the live tracks, and a track whose match disagrees with its
+// neighbours' affine prediction is matched again from that prediction.
+#include <Eigen/Dense>
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <numbers>
+#include <numeric>
+#include <string>
+
+#include "core/error.hpp"
+#include "core/median.hpp"
+#include "flow/detail/tracker_impl.hpp"
+#include "flow/mask_erosion.hpp"
+#include "flow/shi_tomasi.hpp"
+
+namespace tirstrain::flow {
+
+using namespace tracker_detail;
+
+void FeatureTracker::Impl::build_hash(bool matched_only) {
+  hash_cell = std::max(4.0, settings.neighbour_radius_px);
+  hash_cols = static_cast<int>(size.width / hash_cell) + 1;
+  hash_rows = static_cast<int>(size.height / hash_cell) + 1;
+  const std::size_t cells = static_cast<std::size_t>(hash_cols) * static_cast<std::size_t>(hash_rows);
+  hash_start.assign(cells + 1, 0);
+  hash_items.clear();
+  const auto cell_of = [&](Vec2 p) {
+    const int cx = std::clamp(static_cast<int>(p.x / hash_cell), 0, hash_cols - 1);
+    const int cy = std::clamp(static_cast<int>(p.y / hash_cell), 0, hash_rows - 1);
+    return static_cast<std::size_t>(cy) * static_cast<std::size_t>(hash_cols) + static_cast<std::size_t>(cx);
+  };
+  const auto usable = [&](int i) {
+    const TrackState& st = states[static_cast<std::size_t>(i)];
+    return is_alive(tracks[static_cast<std::size_t>(i)].status) &&
+           (!matched_only || (st.matched && !st.suspect));
+  };
+  for (int i : alive)
+    if (usable(i)) ++hash_start[cell_of(states[static_cast<std::size_t>(i)].candidate) + 1];
+  for (std::size_t c = 0; c < cells; ++c) hash_start[c + 1] += hash_start[c];
+  hash_items.resize(static_cast<std::size_t>(hash_start[cells]));
+  hash_fill.assign(hash_start.begin(), hash_start.end() - 1);
+  for (int i : alive)
+    if (usable(i))
+      hash_items[static_cast<std::size_t>(
+          hash_fill[cell_of(states[static_cast<std::size_t>(i)].candidate)]++)] = i;
+}
+
+void FeatureTracker::Impl::gather_neighbours(Vec2 p, double radius, int self) {
+  neighbours.clear();
+  const int cx0 = std::max(0, static_cast<int>((p.x - radius) / hash_cell));
+  const int cx1 = std::min(hash_cols - 1, static_cast<int>((p.x + radius) / hash_cell));
+  const int cy0 = std::max(0, static_cast<int>((p.y - radius) / hash_cell));
+  const int cy1 = std::min(hash_rows - 1, static_cast<int>((p.y + radius) / hash_cell));
+  const double r2 = radius * radius;
+  for (int cy = cy0; cy <= cy1; ++cy)
+    for (int cx = cx0; cx <= cx1; ++cx) {
+      const std::size_t c =
+          static_cast<std::size_t>(cy) * static_cast<std::size_t>(hash_cols) + static_cast<std::size_t>(cx);
+      for (int k = hash_start[c]; k < hash_start[c + 1]; ++k) {
+        const int j = hash_items[static_cast<std::size_t>(k)];
+        if (j == self) continue;
+        const Vec2 q = states[static_cast<std::size_t>(j)].candidate;
+        const double dx = q.x - p.x, dy = q.y - p.y;
+        if (dx * dx + dy * dy <= r2) neighbours.push_back(j);
+      }
+    }
+}
+
+// Where the neighbours put track `index`: each carries its own position over to the track's reference
+// position by the mean of its and (if trusted) the track's deformation gradient — the trapezoid rule,
+// exact for a quadratic field. The median over neighbours ignores a minority of wrong ones.
+bool FeatureTracker::Impl::predict_from_neighbours(int index, Vec2& predicted, Mat2d& deformation) {
+  const TrackState& st = states[static_cast<std::size_t>(index)];
+  const Vec2 X = tracks[static_cast<std::size_t>(index)].reference_px;
+  gather_neighbours(st.candidate, settings.neighbour_radius_px, index);
+  if (static_cast<int>(neighbours.size()) < settings.min_neighbours) return false;
+  scratch_x.clear();
+  scratch_y.clear();
+  Mat2d sum = Mat2d::Zero();
+  const bool own = st.matched && !st.suspect;
+  for (int j : neighbours) {
+    const TrackState& nb = states[static_cast<std::size_t>(j)];
+    const Vec2 Xj = tracks[static_cast<std::size_t>(j)].reference_px;
+    const Mat2d f = own ? Mat2d(0.5 * (nb.deformation + st.deformation)) : nb.deformation;
+    const Eigen::Vector2d d = f * Eigen::Vector2d(X.x - Xj.x, X.y - Xj.y);
+    scratch_x.push_back(nb.candidate.x + d.x());
+    scratch_y.push_back(nb.candidate.y + d.y());
+    sum += nb.deformation;
+  }
+  predicted = {tirstrain::median_in_place(scratch_x), tirstrain::median_in_place(scratch_y)};
+  deformation = sum / static_cast<double>(neighbours.size());
+  return true;
+}
+
+void FeatureTracker::Impl::check_neighbours() {
+  build_hash(true);
+  retry.clear();
+  for (int i : alive) {
+    TrackState& st = states[static_cast<std::size_t>(i)];
+    // Placed by its neighbours' corrections: nothing of its own to check yet.
+    if (!skip_match.empty() && skip_match[static_cast<std::size_t>(i)]) continue;
+    Vec2 predicted;
+    Mat2d deformation;
+    if (!predict_from_neighbours(i, predicted, deformation)) {
+      if (st.suspect)
+        retire(i, st.match.valid_fraction < settings.match.min_valid_fraction ? TrackStatus::kLeftContact
+                                                                              : TrackStatus::kPoorMatch);
+      else
+        tracks[static_cast<std::size_t>(i)].status = TrackStatus::kUnchecked;
+      continue;
+    }
+    const double deviation = std::hypot(st.candidate.x - predicted.x, st.candidate.y - predicted.y);
+    if (!st.suspect && deviation <= settings.neighbour_tolerance_px) continue;
+    if (st.match.valid_fraction < settings.match.min_valid_fraction) {
+      retire(i, TrackStatus::kLeftContact);
+      continue;
+    }
+    // Re-match from the neighbours' prediction, with their deformation as the subset's first-order terms.
+    Warp w;
+    const Mat2d a = deformation * st.birth.inverse() - Mat2d::Identity();
+    w.p[2] = a(0, 0);
+    w.p[3] = a(0, 1);
+    w.p[4] = a(1, 0);
+    w.p[5] = a(1, 1);
+    if (settings.shape == ShapeFunction::kTranslation) w.p[2] = w.p[3] = w.p[4] = w.p[5] = 0.0;
+    st.warp = w;
+    st.guess = predicted;
+    retry.push_back(i);
+  }
+  cv::parallel_for_(cv::Range(0, static_cast<int>(retry.size())), [&](const cv::Range& range) {
+    for (int k = range.start; k < range.end; ++k) {
+      const int i = retry[static_cast<std::size_t>(k)];
+      TrackState& st = states[static_cast<std::size_t>(i)];
+      const Warp w = st.warp;
+      match_track(i, st.guess, &w);
+    }
+  });
+  for (int i : retry) {
+    TrackState& st = states[static_cast<std::size_t>(i)];
+    const double deviation = std::hypot(st.candidate.x - st.guess.x, st.candidate.y - st.guess.y);
+    if (st.matched && deviation <= settings.neighbour_tolerance_px) {
+      st.suspect = false;
+      tracks[static_cast<std::size_t>(i)].status = TrackStatus::kRecovered;
+      ++stats.recovered;
+    } else {
+      retire(i, st.matched ? TrackStatus::kInconsistent
+                           : (st.match.valid_fraction < settings.match.min_valid_fraction
+                                  ? TrackStatus::kLeftContact
+                                  : TrackStatus::kPoorMatch));
+    }
+  }
+}
+
+}  // namespace tirstrain::flow
