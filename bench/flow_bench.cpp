@@ -343,8 +343,8 @@ int main(int argc, char** argv) {
     variant("auto rounds=" + std::to_string(r),
             [r](TrackerSettings& s) { s.fixed_shape_resampled_rounds = r; });
   variant("auto no-fixed-shape", [](TrackerSettings& s) { s.fixed_shape_pass = false; });
-  // The automatic preset before session 10: second-order main match on every pixel, fixed-shape rounds
-  // subset by subset.
+  // The automatic preset with the rounds subset by subset and a second-order main match on every pixel,
+  // for their cost and accuracy against the resampled rounds.
   variant("auto subset-by-subset", [](TrackerSettings& s) {
     s.fixed_shape_resampled = false;
     s.shape = ShapeFunction::kQuadratic;

@@ -8,7 +8,7 @@
 // free) carries nodes across texture-poor pixels.
 //
 // Experimental: flow_bench's --mesh rows measure it against the subset tracker; the tracker does not use it.
-// Measured (BENCHMARKS.md, flow/ session 9): on the 640×512 goal trial it is neither faster nor close to
+// On the 640×512 goal trial it is neither faster nor close to
 // the subset tracker's accuracy (0.29 px against 0.037 px RMS over 30 frames): with one ridge system a 9–12
 // px element barely pins the motion along the ridges, and that error grows with the displacement.
 //

@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include "core/error.hpp"
+#include "core/median.hpp"
 #include "flow/bicubic.hpp"
 #include "flow/phase_correlation.hpp"
 
@@ -18,13 +19,6 @@ namespace {
 // Zero-count margin kept around the mosaic's data: the bicubic sampler needs 2 px beyond a sample, and
 // the band's footprint moves by up to a few pixels between the guess and the match.
 constexpr int kPad = 16;
-
-double median_of(std::vector<double>& v) {
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  if (v.size() % 2 == 1) return *mid;
-  return 0.5 * (*mid + *std::max_element(v.begin(), mid));
-}
 
 }  // namespace
 
@@ -231,7 +225,7 @@ Vec2 PlateTracker::lk_increment(Vec2 initial) {
     scratch_y_.push_back(lk_to_[i].y - lk_from_[i].y);
   }
   if (scratch_x_.empty()) return initial;
-  return {median_of(scratch_x_), median_of(scratch_y_)};
+  return {tirstrain::median_in_place(scratch_x_), tirstrain::median_in_place(scratch_y_)};
 }
 
 // Every subset of this frame's band into the mosaic, from `guess`. Band point c is image point c + roi's
@@ -256,7 +250,7 @@ bool PlateTracker::match_mosaic(Vec2 guess) {
   }
   if (scratch_x_.empty()) return false;
   std::vector<double> xs = scratch_x_, ys = scratch_y_;
-  const double mx = median_of(xs), my = median_of(ys);
+  const double mx = tirstrain::median_in_place(xs), my = tirstrain::median_in_place(ys);
   // Mean of the subsets that agree with the median: robust to a wrong subset, and as precise as a mean.
   double sx = 0, sy = 0;
   used_ = 0;

