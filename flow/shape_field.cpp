@@ -22,7 +22,131 @@ inline Vec2 evaluate(const Coef& c, double a, double b) {
           c(0, 1) + c(1, 1) * a + c(2, 1) * b + c(3, 1) * a * a + c(4, 1) * a * b + c(5, 1) * b * b};
 }
 
+bool finite(Vec2 p) {
+  return std::isfinite(p.x) && std::isfinite(p.y);
+}
+bool same_position(Vec2 p, Vec2 q) {
+  return p.x == q.x && p.y == q.y;
+}
+bool before(Vec2 p, Vec2 q) {
+  return p.y != q.y ? p.y < q.y : p.x < q.x;
+}
+
+// The samples' indices in order of position (then of index, for equal positions).
+std::vector<int> sorted_by_position(const std::vector<Vec2>& points) {
+  std::vector<int> order(points.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int i, int j) {
+    const Vec2 p = points[static_cast<std::size_t>(i)], q = points[static_cast<std::size_t>(j)];
+    return before(p, q) || (!before(q, p) && i < j);
+  });
+  return order;
+}
+
+std::int64_t node_key(double x, double y) {
+  return (static_cast<std::int64_t>(std::llround(4.0 * y)) << 32) ^
+         (static_cast<std::int64_t>(std::llround(4.0 * x)) & 0xffffffffLL);
+}
+
 }  // namespace
+
+// Samples in buckets one fit radius wide: a node's samples lie in its bucket and the eight around it. The
+// buckets sit on multiples of the radius and take their samples in order of position, so a node meets its
+// samples in the same order whatever the region and the samples' order in the list (equal sample lists
+// give the same sums to the last bit).
+struct ShapeField::SampleBuckets {
+  double radius = 1.0;
+  int x0 = 0, y0 = 0, cols = 0, rows = 0;
+  std::vector<int> start, items;  // bucket b holds items[start[b] .. start[b + 1])
+
+  SampleBuckets(cv::Rect region, double fit_radius) : radius(fit_radius) {
+    x0 = static_cast<int>(std::floor((region.x - radius) / radius));
+    y0 = static_cast<int>(std::floor((region.y - radius) / radius));
+    cols = static_cast<int>(std::floor((region.x + region.width + 2.0 * radius) / radius)) - x0 + 1;
+    rows = static_cast<int>(std::floor((region.y + region.height + 2.0 * radius) / radius)) - y0 + 1;
+  }
+  bool bucket_of(double x, double y, int& bx, int& by) const {
+    bx = static_cast<int>(std::floor(x / radius)) - x0;
+    by = static_cast<int>(std::floor(y / radius)) - y0;
+    return bx >= 0 && by >= 0 && bx < cols && by < rows;
+  }
+  void fill(const std::vector<Vec2>& anchor_px, const std::vector<int>& order) {
+    start.assign(static_cast<std::size_t>(cols * rows) + 1, 0);
+    items.resize(anchor_px.size());
+    std::vector<int> bucket(anchor_px.size(), -1);
+    for (std::size_t s = 0; s < anchor_px.size(); ++s) {
+      int bx, by;
+      const Vec2 p = anchor_px[s];
+      if (!finite(p) || !bucket_of(p.x, p.y, bx, by)) continue;
+      bucket[s] = by * cols + bx;
+      ++start[static_cast<std::size_t>(bucket[s]) + 1];
+    }
+    for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
+    std::vector<int> next(start.begin(), start.end() - 1);
+    for (int s : order) {
+      const int b = bucket[static_cast<std::size_t>(s)];
+      if (b >= 0) items[static_cast<std::size_t>(next[static_cast<std::size_t>(b)]++)] = s;
+    }
+  }
+  // The samples within the fit radius of node (nx, ny), in bucket order, and the quadrants they occupy.
+  int gather(const std::vector<Vec2>& anchor_px, double nx, double ny, std::vector<int>& members) const {
+    int bx, by;
+    bucket_of(nx, ny, bx, by);
+    members.clear();
+    int quadrants = 0;
+    for (int y = std::max(0, by - 1); y <= std::min(rows - 1, by + 1); ++y)
+      for (int x = std::max(0, bx - 1); x <= std::min(cols - 1, bx + 1); ++x) {
+        const std::size_t b = static_cast<std::size_t>(y * cols + x);
+        for (int k = start[b]; k < start[b + 1]; ++k) {
+          const int s = items[static_cast<std::size_t>(k)];
+          const double dx = anchor_px[static_cast<std::size_t>(s)].x - nx;
+          const double dy = anchor_px[static_cast<std::size_t>(s)].y - ny;
+          if (dx * dx + dy * dy > radius * radius) continue;
+          members.push_back(s);
+          quadrants |= 1 << ((dx >= 0.0 ? 1 : 0) + (dy >= 0.0 ? 2 : 0));
+        }
+      }
+    return quadrants;
+  }
+};
+
+// The previous list's samples found in the new one (renumber[old] = new, −1 where gone) and the positions
+// that came or went. `all_changed` when no one-to-one renumbering exists (a position twice).
+struct ShapeField::Renumbering {
+  std::vector<int> renumber;
+  std::vector<Vec2> changed;
+  bool all_changed = false;
+};
+
+ShapeField::Renumbering ShapeField::renumber_samples(const std::vector<Vec2>& previous,
+                                                     const std::vector<Vec2>& anchor_px,
+                                                     const std::vector<int>& order, bool all_changed) {
+  Renumbering r;
+  r.renumber.assign(previous.size(), -1);
+  r.all_changed = all_changed;
+  for (std::size_t k = 1; k < order.size() && !r.all_changed; ++k)
+    r.all_changed = same_position(anchor_px[static_cast<std::size_t>(order[k - 1])],
+                                  anchor_px[static_cast<std::size_t>(order[k])]);
+  if (r.all_changed) return r;
+  const std::vector<int> old_order = sorted_by_position(previous);
+  std::size_t i = 0, j = 0;
+  while (i < old_order.size() || j < order.size()) {
+    const int o = i < old_order.size() ? old_order[i] : -1, n = j < order.size() ? order[j] : -1;
+    const Vec2 p = o >= 0 ? previous[static_cast<std::size_t>(o)] : Vec2{};
+    const Vec2 q = n >= 0 ? anchor_px[static_cast<std::size_t>(n)] : Vec2{};
+    if (o >= 0 && n >= 0 && same_position(p, q)) {
+      r.renumber[static_cast<std::size_t>(o)] = n;
+      ++i, ++j;
+    } else if (n < 0 || (o >= 0 && before(p, q))) {
+      if (finite(p)) r.changed.push_back(p);
+      ++i;
+    } else {
+      if (finite(q)) r.changed.push_back(q);
+      ++j;
+    }
+  }
+  return r;
+}
 
 void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, double spacing_px,
                          double sigma_px) {
@@ -32,94 +156,49 @@ void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, do
   sigma_ = sigma_px;
   const std::vector<Vec2> previous = std::move(anchors_);
   anchors_ = anchor_px;
-  const double radius = 2.0 * sigma_px;
-  scale_ = radius;
+  scale_ = 2.0 * sigma_px;  // the fit radius
   cols_ = static_cast<int>(std::ceil(region.width / spacing_)) + 1;
   rows_ = static_cast<int>(std::ceil(region.height / spacing_)) + 1;
-  const std::size_t node_count = static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_);
-  node_operator_.assign(node_count, nullptr);
+  node_operator_.assign(static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_), nullptr);
   reused_ = 0;
   ++generation_;
   if (anchor_px.empty() || region.area() <= 0 || !(sigma_px > 0.0)) {
     operators_.clear();
     return;
   }
-  // Samples in buckets one fit radius wide: a node's samples lie in its bucket and the eight around it. The
-  // buckets sit on multiples of the radius and take their samples in order of position, so a node meets its
-  // samples in the same order whatever the region and the samples' order in the list (equal sample lists
-  // give the same sums to the last bit).
-  const int bx0 = static_cast<int>(std::floor((region.x - radius) / radius));
-  const int by0 = static_cast<int>(std::floor((region.y - radius) / radius));
-  const int bcols = static_cast<int>(std::floor((region.x + region.width + 2.0 * radius) / radius)) - bx0 + 1;
-  const int brows =
-      static_cast<int>(std::floor((region.y + region.height + 2.0 * radius) / radius)) - by0 + 1;
-  const auto bucket_of = [&](double x, double y, int& bx, int& by) {
-    bx = static_cast<int>(std::floor(x / radius)) - bx0;
-    by = static_cast<int>(std::floor(y / radius)) - by0;
-    return bx >= 0 && by >= 0 && bx < bcols && by < brows;
-  };
-  const auto before = [](Vec2 p, Vec2 q) { return p.y != q.y ? p.y < q.y : p.x < q.x; };
-  const auto sorted = [&](const std::vector<Vec2>& points) {
-    std::vector<int> order(points.size());
-    std::iota(order.begin(), order.end(), 0);
-    std::sort(order.begin(), order.end(), [&](int i, int j) {
-      const Vec2 p = points[static_cast<std::size_t>(i)], q = points[static_cast<std::size_t>(j)];
-      return before(p, q) || (!before(q, p) && i < j);
-    });
-    return order;
-  };
-  const std::vector<int> order = sorted(anchor_px);
+  SampleBuckets buckets(region, scale_);
+  const std::vector<int> order = sorted_by_position(anchor_px);
+  const Renumbering renumbering = renumber_samples(previous, anchor_px, order, operators_.empty());
+  std::vector<std::uint8_t> gather = nodes_near(renumbering);
+  assign_operators(buckets, gather);
+  if (std::find(gather.begin(), gather.end(), std::uint8_t{1}) != gather.end())
+    buckets.fill(anchor_px, order);
+  build_operators(buckets, gather, renumbering.renumber, previous);
+}
 
-  // The previous list's samples in this one (the same position), and the positions that came or went: only
-  // the nodes within a fit radius of those gather their samples again.
-  std::vector<int> renumber(previous.size(), -1);
-  std::vector<Vec2> changed;
-  bool all_changed = operators_.empty();
-  const auto finite = [](Vec2 p) { return std::isfinite(p.x) && std::isfinite(p.y); };
-  const auto same = [](Vec2 p, Vec2 q) { return p.x == q.x && p.y == q.y; };
-  for (std::size_t k = 1; k < order.size() && !all_changed;
-       ++k)  // a position twice: no one-to-one renumbering
-    all_changed = same(anchor_px[static_cast<std::size_t>(order[k - 1])],
-                       anchor_px[static_cast<std::size_t>(order[k])]);
-  if (!all_changed) {
-    const std::vector<int> old_order = sorted(previous);
-    std::size_t i = 0, j = 0;
-    while (i < old_order.size() || j < order.size()) {
-      const int o = i < old_order.size() ? old_order[i] : -1, n = j < order.size() ? order[j] : -1;
-      const Vec2 p = o >= 0 ? previous[static_cast<std::size_t>(o)] : Vec2{};
-      const Vec2 q = n >= 0 ? anchor_px[static_cast<std::size_t>(n)] : Vec2{};
-      if (o >= 0 && n >= 0 && same(p, q)) {
-        renumber[static_cast<std::size_t>(o)] = n;
-        ++i, ++j;
-      } else if (n < 0 || (o >= 0 && before(p, q))) {
-        if (finite(p)) changed.push_back(p);
-        ++i;
-      } else {
-        if (finite(q)) changed.push_back(q);
-        ++j;
-      }
-    }
-  }
-  std::vector<std::uint8_t> gather(node_count, all_changed ? 1 : 0);
-  for (const Vec2 p : changed) {
-    const int c0 = std::max(0, static_cast<int>(std::floor((p.x - radius - region.x) / spacing_)));
-    const int c1 = std::min(cols_ - 1, static_cast<int>(std::ceil((p.x + radius - region.x) / spacing_)));
-    const int r0 = std::max(0, static_cast<int>(std::floor((p.y - radius - region.y) / spacing_)));
-    const int r1 = std::min(rows_ - 1, static_cast<int>(std::ceil((p.y + radius - region.y) / spacing_)));
+// Only the nodes within a fit radius of a position that came or went gather their samples again (every
+// node when no renumbering exists).
+std::vector<std::uint8_t> ShapeField::nodes_near(const Renumbering& renumbering) const {
+  std::vector<std::uint8_t> gather(node_operator_.size(), renumbering.all_changed ? 1 : 0);
+  for (const Vec2 p : renumbering.changed) {
+    const int c0 = std::max(0, static_cast<int>(std::floor((p.x - scale_ - region_.x) / spacing_)));
+    const int c1 = std::min(cols_ - 1, static_cast<int>(std::ceil((p.x + scale_ - region_.x) / spacing_)));
+    const int r0 = std::max(0, static_cast<int>(std::floor((p.y - scale_ - region_.y) / spacing_)));
+    const int r1 = std::min(rows_ - 1, static_cast<int>(std::ceil((p.y + scale_ - region_.y) / spacing_)));
     for (int r = r0; r <= r1; ++r)
       std::fill(gather.begin() + r * cols_ + c0, gather.begin() + r * cols_ + c1 + 1, std::uint8_t{1});
   }
-  const auto node_key = [](double x, double y) {
-    return (static_cast<std::int64_t>(std::llround(4.0 * y)) << 32) ^
-           (static_cast<std::int64_t>(std::llround(4.0 * x)) & 0xffffffffLL);
-  };
-  // Every node in reach of the buckets gets its operator here, before the parallel part: each thread then
-  // writes only its own nodes' entries.
+  return gather;
+}
+
+// Every node in reach of the buckets gets its operator (kept by node position, new ones gather), before the
+// parallel part: each thread then writes only its own nodes' entries. Operators no node uses are dropped.
+void ShapeField::assign_operators(const SampleBuckets& buckets, std::vector<std::uint8_t>& gather) {
   for (int r = 0; r < rows_; ++r)
     for (int c = 0; c < cols_; ++c) {
-      const double nx = region.x + c * spacing_, ny = region.y + r * spacing_;
+      const double nx = region_.x + c * spacing_, ny = region_.y + r * spacing_;
       int bx, by;
-      if (!bucket_of(nx, ny, bx, by)) continue;
+      if (!buckets.bucket_of(nx, ny, bx, by)) continue;
       const std::size_t node = static_cast<std::size_t>(r * cols_ + c);
       const auto [it, added] = operators_.try_emplace(node_key(nx, ny));
       if (added) gather[node] = 1;
@@ -128,32 +207,16 @@ void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, do
     }
   for (auto it = operators_.begin(); it != operators_.end();)
     it = it->second.generation == generation_ ? std::next(it) : operators_.erase(it);
+}
 
-  std::vector<int> start, items;
-  if (std::find(gather.begin(), gather.end(), std::uint8_t{1}) != gather.end()) {
-    start.assign(static_cast<std::size_t>(bcols * brows) + 1, 0);
-    items.resize(anchor_px.size());
-    std::vector<int> bucket(anchor_px.size(), -1);
-    for (std::size_t s = 0; s < anchor_px.size(); ++s) {
-      int bx, by;
-      const Vec2 p = anchor_px[s];
-      if (!finite(p) || !bucket_of(p.x, p.y, bx, by)) continue;
-      bucket[s] = by * bcols + bx;
-      ++start[static_cast<std::size_t>(bucket[s]) + 1];
-    }
-    for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
-    std::vector<int> fill(start.begin(), start.end() - 1);
-    for (int s : order) {
-      const int b = bucket[static_cast<std::size_t>(s)];
-      if (b >= 0) items[static_cast<std::size_t>(fill[static_cast<std::size_t>(b)]++)] = s;
-    }
-  }
-
+// Each node's operator: kept (its samples renumbered) where its samples are the same as before, built
+// again from its gathered samples otherwise.
+void ShapeField::build_operators(const SampleBuckets& buckets, const std::vector<std::uint8_t>& gather,
+                                 const std::vector<int>& renumber, const std::vector<Vec2>& previous) {
   std::vector<int> row_reused(static_cast<std::size_t>(rows_), 0);
   cv::parallel_for_(cv::Range(0, rows_), [&](const cv::Range& range) {
-    Eigen::Matrix<double, 6, 6> normal;
-    std::vector<Vector6> basis;
     std::vector<int> members;
+    std::vector<Vector6> basis;
     for (int r = range.start; r < range.end; ++r) {
       for (int c = 0; c < cols_; ++c) {
         const std::size_t node = static_cast<std::size_t>(r * cols_ + c);
@@ -171,87 +234,80 @@ void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, do
             continue;
           }
         }
-        const double nx = region.x + c * spacing_, ny = region.y + r * spacing_;
-        int bx, by;
-        bucket_of(nx, ny, bx, by);
-        members.clear();
-        int quadrants = 0;
-        for (int y = std::max(0, by - 1); y <= std::min(brows - 1, by + 1); ++y)
-          for (int x = std::max(0, bx - 1); x <= std::min(bcols - 1, bx + 1); ++x) {
-            const std::size_t b = static_cast<std::size_t>(y * bcols + x);
-            for (int k = start[b]; k < start[b + 1]; ++k) {
-              const int s = items[static_cast<std::size_t>(k)];
-              const double dx = anchor_px[static_cast<std::size_t>(s)].x - nx;
-              const double dy = anchor_px[static_cast<std::size_t>(s)].y - ny;
-              if (dx * dx + dy * dy > radius * radius) continue;
-              members.push_back(s);
-              quadrants |= 1 << ((dx >= 0.0 ? 1 : 0) + (dy >= 0.0 ? 2 : 0));
-            }
-          }
-        const int count = static_cast<int>(members.size());
+        const double nx = region_.x + c * spacing_, ny = region_.y + r * spacing_;
+        const int quadrants = buckets.gather(anchors_, nx, ny, members);
         // Samples at the same positions as the operator's (its indices still those of the previous list).
         const bool same_samples =
             op->samples.size() == members.size() &&
             std::equal(members.begin(), members.end(), op->samples.begin(), [&](int m, int s) {
               return s >= 0 && static_cast<std::size_t>(s) < previous.size() &&
-                     same(anchor_px[static_cast<std::size_t>(m)], previous[static_cast<std::size_t>(s)]);
+                     same_position(anchors_[static_cast<std::size_t>(m)],
+                                   previous[static_cast<std::size_t>(s)]);
             });
         op->samples = members;
         if (same_samples && !op->rows.empty()) {
           ++row_reused[static_cast<std::size_t>(r)];
           continue;
         }
-        op->rows.clear();
-        if (count < 6) continue;
-        basis.resize(static_cast<std::size_t>(count));
-        // The upper triangle of N = Σ w_k b_k b_kᵀ by hand: Eigen's rank update of a fixed 6×6 took 4 times
-        // the instructions.
-        double upper[21] = {};
-        for (int k = 0; k < count; ++k) {
-          const Vec2 p = anchor_px[static_cast<std::size_t>(members[static_cast<std::size_t>(k)])];
-          const double dx = p.x - nx, dy = p.y - ny;
-          const double w = std::exp(-0.5 * (dx * dx + dy * dy) / (sigma_px * sigma_px));
-          const double a = dx / scale_, bb = dy / scale_;
-          const double v[6] = {1.0, a, bb, a * a, a * bb, bb * bb};
-          for (int i = 0, e = 0; i < 6; ++i) {
-            const double wv = w * v[i];
-            for (int j = i; j < 6; ++j, ++e) upper[e] += wv * v[j];
-          }
-          Vector6& wb = basis[static_cast<std::size_t>(k)];
-          for (int i = 0; i < 6; ++i) wb[i] = w * v[i];
-        }
-        for (int i = 0, e = 0; i < 6; ++i)
-          for (int j = i; j < 6; ++j, ++e) normal(i, j) = normal(j, i) = upper[e];
-        const int sides =
-            (quadrants & 1) + ((quadrants >> 1) & 1) + ((quadrants >> 2) & 1) + ((quadrants >> 3) & 1);
-        // The operator rows: coef = N⁻¹ Σ w_k b_k u_k, so a_k = N⁻¹ (w_k b_k).
-        Eigen::Matrix<double, 6, 6> inverse = Eigen::Matrix<double, 6, 6>::Zero();
-        bool solved = false;
-        if (count >= 10 && sides >= 2) {
-          const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> f(normal);
-          if (f.info() == Eigen::Success && f.isPositive() && f.rcond() >= 1e-8) {
-            inverse = f.solve(Eigen::Matrix<double, 6, 6>::Identity());
-            solved = true;
-          }
-        }
-        if (!solved) {  // affine; e.g. samples along one line, where the quadratic is ill-posed
-          const Eigen::LDLT<Eigen::Matrix3d> f(normal.topLeftCorner<3, 3>());
-          if (f.info() == Eigen::Success && f.isPositive() && f.rcond() >= 1e-8) {
-            inverse.topLeftCorner<3, 3>() = f.solve(Eigen::Matrix3d::Identity());
-            solved = true;
-          }
-        }
-        if (!solved || !inverse.allFinite()) continue;
-        op->rows.resize(static_cast<std::size_t>(count));
-        for (int k = 0; k < count; ++k) {
-          const Vector6 a = inverse * basis[static_cast<std::size_t>(k)];
-          for (int i = 0; i < 6; ++i)
-            op->rows[static_cast<std::size_t>(k)][static_cast<std::size_t>(i)] = a[i];
-        }
+        build_operator(nx, ny, quadrants, *op, basis);
       }
     }
   });
   for (int n : row_reused) reused_ += n;
+}
+
+// The least-squares operator of one node from its samples (op.samples): coef = N⁻¹ Σ w_k b_k u_k, so its
+// rows are a_k = N⁻¹ (w_k b_k); quadratic where at least 10 samples lie on two sides or more, affine
+// otherwise or where the quadratic is ill-posed; no rows where neither holds.
+void ShapeField::build_operator(double nx, double ny, int quadrants, NodeOperator& op,
+                                std::vector<Eigen::Matrix<double, 6, 1>>& basis) const {
+  op.rows.clear();
+  const int count = static_cast<int>(op.samples.size());
+  if (count < 6) return;
+  basis.resize(static_cast<std::size_t>(count));
+  // The upper triangle of N = Σ w_k b_k b_kᵀ by hand: Eigen's rank update of a fixed 6×6 takes 4 times the
+  // instructions.
+  double upper[21] = {};
+  for (int k = 0; k < count; ++k) {
+    const Vec2 p = anchors_[static_cast<std::size_t>(op.samples[static_cast<std::size_t>(k)])];
+    const double dx = p.x - nx, dy = p.y - ny;
+    const double w = std::exp(-0.5 * (dx * dx + dy * dy) / (sigma_ * sigma_));
+    const double a = dx / scale_, bb = dy / scale_;
+    const double v[6] = {1.0, a, bb, a * a, a * bb, bb * bb};
+    for (int i = 0, e = 0; i < 6; ++i) {
+      const double wv = w * v[i];
+      for (int j = i; j < 6; ++j, ++e) upper[e] += wv * v[j];
+    }
+    Vector6& wb = basis[static_cast<std::size_t>(k)];
+    for (int i = 0; i < 6; ++i) wb[i] = w * v[i];
+  }
+  Eigen::Matrix<double, 6, 6> normal;
+  for (int i = 0, e = 0; i < 6; ++i)
+    for (int j = i; j < 6; ++j, ++e) normal(i, j) = normal(j, i) = upper[e];
+  const int sides =
+      (quadrants & 1) + ((quadrants >> 1) & 1) + ((quadrants >> 2) & 1) + ((quadrants >> 3) & 1);
+  Eigen::Matrix<double, 6, 6> inverse = Eigen::Matrix<double, 6, 6>::Zero();
+  bool solved = false;
+  if (count >= 10 && sides >= 2) {
+    const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> f(normal);
+    if (f.info() == Eigen::Success && f.isPositive() && f.rcond() >= 1e-8) {
+      inverse = f.solve(Eigen::Matrix<double, 6, 6>::Identity());
+      solved = true;
+    }
+  }
+  if (!solved) {  // affine; e.g. samples along one line, where the quadratic is ill-posed
+    const Eigen::LDLT<Eigen::Matrix3d> f(normal.topLeftCorner<3, 3>());
+    if (f.info() == Eigen::Success && f.isPositive() && f.rcond() >= 1e-8) {
+      inverse.topLeftCorner<3, 3>() = f.solve(Eigen::Matrix3d::Identity());
+      solved = true;
+    }
+  }
+  if (!solved || !inverse.allFinite()) return;
+  op.rows.resize(static_cast<std::size_t>(count));
+  for (int k = 0; k < count; ++k) {
+    const Vector6 a = inverse * basis[static_cast<std::size_t>(k)];
+    for (int i = 0; i < 6; ++i) op.rows[static_cast<std::size_t>(k)][static_cast<std::size_t>(i)] = a[i];
+  }
 }
 
 void ShapeField::fit(const std::vector<Vec2>& anchor_px, const std::vector<Vec2>& displacement_px,

@@ -75,6 +75,18 @@ class ShapeField {
   std::uint64_t generation_ = 0;
   std::vector<NodeOperator*> node_operator_;  // per node of the grid; null: fewer than 6 samples
   std::vector<Node> nodes_;
+
+  // prepare()'s steps (shape_field.cpp).
+  struct SampleBuckets;
+  struct Renumbering;
+  static Renumbering renumber_samples(const std::vector<Vec2>& previous, const std::vector<Vec2>& anchor_px,
+                                      const std::vector<int>& order, bool all_changed);
+  std::vector<std::uint8_t> nodes_near(const Renumbering& renumbering) const;
+  void assign_operators(const SampleBuckets& buckets, std::vector<std::uint8_t>& gather);
+  void build_operators(const SampleBuckets& buckets, const std::vector<std::uint8_t>& gather,
+                       const std::vector<int>& renumber, const std::vector<Vec2>& previous);
+  void build_operator(double nx, double ny, int quadrants, NodeOperator& op,
+                      std::vector<Eigen::Matrix<double, 6, 1>>& basis) const;
 };
 
 // `out` (CV_32F) and `valid` (CV_8U), the size of `current`: at every anchor pixel X of `region` where
