@@ -331,163 +331,36 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
   // The parameters solved for: all of the shape function's, or the translation alone.
   const int n = options.translation_only ? 2 : n_shape;
   const double total = static_cast<double>(points_.size());
-  const double r = radius_px_;
   const detail::Sampler image(current, current_mask);
-  // A translation subset under a pure translation (the plate's, into its mosaic) samples every pixel at
-  // the same fraction of a pixel: TranslatedSampler filters separably instead.
-  const auto is_pure_translation = [&] {
-    if (shape_ != ShapeFunction::kTranslation || n != 2) return false;
-    for (int i = 2; i < 12; ++i)
-      if (warp.p[static_cast<std::size_t>(i)] != 0.0) return false;
-    return true;
-  };
-  double j[12];
-  Matrix h_out;
-  Vector sj_out, sjf_out, sjg;
+  IterationSums sums;
   for (int iter = 1; iter <= options.max_iterations; ++iter) {
     result.iterations = iter;
-    const bool pure_translation = is_pure_translation();
-    h_out.setZero();
-    sj_out.setZero();
-    sjf_out.setZero();
-    sjg.setZero();
-    double sf_out = 0, sff_out = 0, sg = 0, sgg = 0, sfg = 0;
-    long outside = 0;
-    // One pass over the subset for N parameters. The sums live in locals (registers), not in Eigen
-    // vectors: the compiler must otherwise store and reload them for every pixel.
-    const auto accumulate = [&]<int N>() {
-      const auto& q = warp.p;
-      double a[N] = {};
-      double a_g = 0, a_gg = 0, a_fg = 0;
-      const auto take_outside = [&](const Pixel& p) {
-        jacobian(p.dx, p.dy, p.gx, p.gy, j);
-        const Eigen::Map<const Vector12> jv(j);
-        ++outside;
-        // Fixed-size blocks: as runtime-sized Eigen blocks these took 13 % of a tracking run's
-        // instructions.
-        h_out.template topLeftCorner<N, N>().noalias() +=
-            jv.template head<N>() * jv.template head<N>().transpose();
-        sj_out.template head<N>() += jv.template head<N>();
-        sjf_out.template head<N>() += jv.template head<N>() * p.f;
-        sf_out += p.f;
-        sff_out += static_cast<double>(p.f) * p.f;
-      };
-      const auto take_visible = [&](const Pixel& p, double dx, double dy, float g) {
-        const double ggx = static_cast<double>(p.gx) * g, ggy = static_cast<double>(p.gy) * g;
-        a[0] += ggx;
-        a[1] += ggy;
-        if constexpr (N > 2) {
-          a[2] += ggx * dx;
-          a[3] += ggx * dy;
-          a[4] += ggy * dx;
-          a[5] += ggy * dy;
-        }
-        if constexpr (N > 6) {
-          const double hxx = 0.5 * dx * dx, hxy = dx * dy, hyy = 0.5 * dy * dy;
-          a[6] += ggx * hxx;
-          a[7] += ggx * hxy;
-          a[8] += ggx * hyy;
-          a[9] += ggy * hxx;
-          a[10] += ggy * hxy;
-          a[11] += ggy * hyy;
-        }
-        a_g += g;
-        a_gg += static_cast<double>(g) * g;
-        a_fg += static_cast<double>(p.f) * g;
-      };
-      const auto finish = [&] {
-        for (int k = 0; k < N; ++k) sjg[k] = a[k];
-        sg = a_g;
-        sgg = a_gg;
-        sfg = a_fg;
-      };
-      if constexpr (N == 2) {
-        // The plate's subsets: the same shift for every pixel (TranslatedSampler).
-        if (pure_translation) {
-          detail::TranslatedSampler shifted(current, current_mask, centre_.x + q[0], centre_.y + q[1],
-                                            first_.x, radius_px_);
-          if (shifted.ok()) {
-            for (const Pixel& p : points_) {
-              float g = 0.0f;
-              if (!shifted.sample(static_cast<int>(p.dx), static_cast<int>(p.dy), g)) {
-                take_outside(p);
-                continue;
-              }
-              take_visible(p, p.dx, p.dy, g);
-            }
-            return finish();
-          }
-        }
-      }
-      for (const Pixel& p : points_) {
-        const double dx = p.dx, dy = p.dy;
-        const double x = centre_.x + dx + q[0] + q[2] * dx + q[3] * dy +
-                         (0.5 * q[6] * dx * dx + q[7] * dx * dy + 0.5 * q[8] * dy * dy);
-        const double y = centre_.y + dy + q[1] + q[4] * dx + q[5] * dy +
-                         (0.5 * q[9] * dx * dx + q[10] * dx * dy + 0.5 * q[11] * dy * dy);
-        float g = 0.0f;
-        if (!image.sample(x, y, g)) {
-          take_outside(p);
-          continue;
-        }
-        take_visible(p, dx, dy, g);
-      }
-      finish();
-    };
-    with_parameter_count(n, accumulate);
-    const double count = total - static_cast<double>(outside);
+    const bool pure_translation = n == 2 && is_pure_translation(warp);
+    sums.reset();
+    with_parameter_count(
+        n, [&]<int N>() { accumulate<N>(image, current, current_mask, warp, pure_translation, sums); });
+    const double count = total - static_cast<double>(sums.outside);
     result.valid_fraction = count / total;
     if (result.valid_fraction < options.min_valid_fraction || count < 2.0 * n) return result;
     Normalisation norm;
-    if (!normalise(count, sum_ff_, sf_out, sff_out, sg, sgg, sfg, norm)) {
+    if (!normalise(count, sum_ff_, sums.sf_out, sums.sff_out, sums.sg, sums.sgg, sums.sfg, norm)) {
       result.degenerate = true;
       return result;
     }
     result.zncc = norm.zncc;  // at the current parameters
-    const Vector sj = sum_j_ - sj_out;
-    const Vector sjf = sum_jf_ - sjf_out;
-    const Vector b = (sjf - norm.f_mean * sj) - norm.scale * (sjg - norm.g_mean * sj);
+    const Vector sj = sum_j_ - sums.sj_out;
+    const Vector sjf = sum_jf_ - sums.sjf_out;
+    const Vector b = (sjf - norm.f_mean * sj) - norm.scale * (sums.sjg - norm.g_mean * sj);
     Vector dp = Vector::Zero();
-    if (options.translation_only) {
-      Eigen::Vector2d step;
-      if (!translation_step_of(hessian_.topLeftCorner(2, 2) - h_out.topLeftCorner(2, 2), b.head(2), step)) {
-        result.degenerate = true;
-        return result;
-      }
-      dp.head(2) = step;
-    } else if (outside == 0) {
-      dp.head(n).noalias() = -hessian_inverse_.topLeftCorner(n, n) * b.head(n);
-    } else {
-      const auto solve = [&]<int N>() {
-        const Eigen::Matrix<double, N, N> hv =
-            hessian_.template topLeftCorner<N, N>() - h_out.template topLeftCorner<N, N>();
-        if (!(hv.diagonal().minCoeff() > 0.0)) return false;
-        dp.template head<N>() = -truncated_inverse<N>(hv, kEigenFloor) * b.template head<N>();
-        return true;
-      };
-      const bool solved = with_parameter_count(n, solve);
-      if (!solved) {
-        result.degenerate = true;
-        return result;
-      }
-    }
-    if (!dp.allFinite()) {
+    if (!gauss_newton_step(sums, b, n, options.translation_only, dp) || !dp.allFinite()) {
       result.degenerate = true;
       return result;
     }
     if (options.translation_only)
       compose_translation(warp, dp[0], dp[1]);
     else
-      compose_inverse(warp, dp, shape_, r);
-    // Size of the step: the largest change of the displacement at the subset's corners.
-    Warp step;
-    for (int i = 0; i < n; ++i) step.p[static_cast<std::size_t>(i)] = dp[i];
-    double largest = 0.0;
-    for (double cy : {-r, r})
-      for (double cx : {-r, r}) {
-        const Vec2 d = step.displacement_px(cx, cy);
-        largest = std::max(largest, std::hypot(d.x, d.y));
-      }
+      compose_inverse(warp, dp, shape_, radius_px_);
+    const double largest = largest_corner_step(dp, n);
     const double ssd_change = dp.head(n).dot(hessian_.topLeftCorner(n, n) * dp.head(n)) / sum_ff_;
     // The SSD criterion is for the many-parameter solve creeping along the ridges; a translation-only solve
     // is well posed and cheap, so it iterates until the step itself is small.
@@ -497,9 +370,150 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
       return result;
     }
     // A step of several ridge periods means the iteration is running away, not converging.
-    if (largest > 4.0 * r + 20.0) return result;
+    if (largest > 4.0 * radius_px_ + 20.0) return result;
   }
   return result;
+}
+
+void Subset::IterationSums::reset() {
+  h_out.setZero();
+  sj_out.setZero();
+  sjf_out.setZero();
+  sjg.setZero();
+  sf_out = sff_out = sg = sgg = sfg = 0.0;
+  outside = 0;
+}
+
+// A translation subset under a pure translation (the plate's, into its mosaic) samples every pixel at the
+// same fraction of a pixel: TranslatedSampler filters separably instead.
+bool Subset::is_pure_translation(const Warp& warp) const {
+  if (shape_ != ShapeFunction::kTranslation) return false;
+  for (int i = 2; i < 12; ++i)
+    if (warp.p[static_cast<std::size_t>(i)] != 0.0) return false;
+  return true;
+}
+
+// One pass over the subset for N parameters at `warp`. The sums live in locals (registers), not in Eigen
+// vectors: the compiler must otherwise store and reload them for every pixel.
+template <int N>
+void Subset::accumulate(const detail::Sampler& image, const cv::Mat& current, const cv::Mat& current_mask,
+                        const Warp& warp, bool pure_translation, IterationSums& sums) const {
+  const auto& q = warp.p;
+  double j[12];
+  double a[N] = {};
+  double a_g = 0, a_gg = 0, a_fg = 0;
+  const auto take_outside = [&](const Pixel& p) {
+    jacobian(p.dx, p.dy, p.gx, p.gy, j);
+    const Eigen::Map<const Vector12> jv(j);
+    ++sums.outside;
+    // Fixed-size blocks: as runtime-sized Eigen blocks these cost 13 % of a tracking run's instructions.
+    sums.h_out.template topLeftCorner<N, N>().noalias() +=
+        jv.template head<N>() * jv.template head<N>().transpose();
+    sums.sj_out.template head<N>() += jv.template head<N>();
+    sums.sjf_out.template head<N>() += jv.template head<N>() * p.f;
+    sums.sf_out += p.f;
+    sums.sff_out += static_cast<double>(p.f) * p.f;
+  };
+  const auto take_visible = [&](const Pixel& p, double dx, double dy, float g) {
+    const double ggx = static_cast<double>(p.gx) * g, ggy = static_cast<double>(p.gy) * g;
+    a[0] += ggx;
+    a[1] += ggy;
+    if constexpr (N > 2) {
+      a[2] += ggx * dx;
+      a[3] += ggx * dy;
+      a[4] += ggy * dx;
+      a[5] += ggy * dy;
+    }
+    if constexpr (N > 6) {
+      const double hxx = 0.5 * dx * dx, hxy = dx * dy, hyy = 0.5 * dy * dy;
+      a[6] += ggx * hxx;
+      a[7] += ggx * hxy;
+      a[8] += ggx * hyy;
+      a[9] += ggy * hxx;
+      a[10] += ggy * hxy;
+      a[11] += ggy * hyy;
+    }
+    a_g += g;
+    a_gg += static_cast<double>(g) * g;
+    a_fg += static_cast<double>(p.f) * g;
+  };
+  const auto finish = [&] {
+    for (int k = 0; k < N; ++k) sums.sjg[k] = a[k];
+    sums.sg = a_g;
+    sums.sgg = a_gg;
+    sums.sfg = a_fg;
+  };
+  if constexpr (N == 2) {
+    // The plate's subsets: the same shift for every pixel (TranslatedSampler).
+    if (pure_translation) {
+      detail::TranslatedSampler shifted(current, current_mask, centre_.x + q[0], centre_.y + q[1], first_.x,
+                                        radius_px_);
+      if (shifted.ok()) {
+        for (const Pixel& p : points_) {
+          float g = 0.0f;
+          if (!shifted.sample(static_cast<int>(p.dx), static_cast<int>(p.dy), g)) {
+            take_outside(p);
+            continue;
+          }
+          take_visible(p, p.dx, p.dy, g);
+        }
+        return finish();
+      }
+    }
+  }
+  for (const Pixel& p : points_) {
+    const double dx = p.dx, dy = p.dy;
+    const double x = centre_.x + dx + q[0] + q[2] * dx + q[3] * dy +
+                     (0.5 * q[6] * dx * dx + q[7] * dx * dy + 0.5 * q[8] * dy * dy);
+    const double y = centre_.y + dy + q[1] + q[4] * dx + q[5] * dy +
+                     (0.5 * q[9] * dx * dx + q[10] * dx * dy + 0.5 * q[11] * dy * dy);
+    float g = 0.0f;
+    if (!image.sample(x, y, g)) {
+      take_outside(p);
+      continue;
+    }
+    take_visible(p, dx, dy, g);
+  }
+  finish();
+}
+
+// The Gauss–Newton step dp from the gradient b: the translation alone; the whole subset's precomputed
+// inverse when no pixel is masked out; otherwise the Hessian of the visible pixels, truncated where it is
+// nearly singular. False where the Hessian is degenerate.
+bool Subset::gauss_newton_step(const IterationSums& sums, const Vector& b, int n, bool translation_only,
+                               Vector& dp) const {
+  if (translation_only) {
+    Eigen::Vector2d step;
+    if (!translation_step_of(hessian_.topLeftCorner(2, 2) - sums.h_out.topLeftCorner(2, 2), b.head(2), step))
+      return false;
+    dp.head(2) = step;
+    return true;
+  }
+  if (sums.outside == 0) {
+    dp.head(n).noalias() = -hessian_inverse_.topLeftCorner(n, n) * b.head(n);
+    return true;
+  }
+  return with_parameter_count(n, [&]<int N>() {
+    const Eigen::Matrix<double, N, N> hv =
+        hessian_.template topLeftCorner<N, N>() - sums.h_out.template topLeftCorner<N, N>();
+    if (!(hv.diagonal().minCoeff() > 0.0)) return false;
+    dp.template head<N>() = -truncated_inverse<N>(hv, kEigenFloor) * b.template head<N>();
+    return true;
+  });
+}
+
+// Size of a step: the largest change of the displacement at the subset's corners.
+double Subset::largest_corner_step(const Vector& dp, int n) const {
+  const double r = radius_px_;
+  Warp step;
+  for (int i = 0; i < n; ++i) step.p[static_cast<std::size_t>(i)] = dp[i];
+  double largest = 0.0;
+  for (double cy : {-r, r})
+    for (double cx : {-r, r}) {
+      const Vec2 d = step.displacement_px(cx, cy);
+      largest = std::max(largest, std::hypot(d.x, d.y));
+    }
+  return largest;
 }
 
 MatchResult Subset::translation_step(const AnchorImage& anchor, const cv::Mat& resampled,

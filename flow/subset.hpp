@@ -19,6 +19,10 @@
 
 namespace tirstrain::flow {
 
+namespace detail {
+class Sampler;
+}
+
 enum class ShapeFunction : std::uint8_t {
   kTranslation = 2,  // u, v
   kAffine = 6,       // + first derivatives
@@ -209,6 +213,21 @@ class Subset {
     long outside = 0;
   };
   MatchResult solve_translation(const StepSums& sums, double min_valid_fraction, Vec2& step_px) const;
+  // An IC-GN iteration's sums (match()): over the visible pixels (g terms) and the masked-out ones (_out).
+  struct IterationSums {
+    Matrix h_out;
+    Vector sj_out, sjf_out, sjg;
+    double sf_out = 0, sff_out = 0, sg = 0, sgg = 0, sfg = 0;
+    long outside = 0;
+    void reset();
+  };
+  bool is_pure_translation(const Warp& warp) const;
+  template <int N>
+  void accumulate(const detail::Sampler& image, const cv::Mat& current, const cv::Mat& current_mask,
+                  const Warp& warp, bool pure_translation, IterationSums& sums) const;
+  bool gauss_newton_step(const IterationSums& sums, const Vector& b, int n, bool translation_only,
+                         Vector& dp) const;
+  double largest_corner_step(const Vector& dp, int n) const;
 
   std::vector<Pixel> points_;
   std::size_t count_ = 0;  // the pixels build() took (points_ may have been released)
