@@ -140,8 +140,9 @@ Solved solve_field(const Samples& s, const Normaliser& n, double nu, std::vector
   so.logging_type = ceres::SILENT;
   so.max_num_iterations = options.max_iterations;
   so.num_threads = options.threads;
-  so.function_tolerance = 1e-10;
-  so.parameter_tolerance = 1e-10;
+  // c/a and Q/μP are wanted to ~1e-3: tighter tolerances only add iterations.
+  so.function_tolerance = 1e-7;
+  so.parameter_tolerance = 1e-7;
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   out.cost = summary.final_cost;
@@ -233,7 +234,7 @@ Bounds geometry_bounds(const Start& g, int params) {
   return b;
 }
 
-// The three loaded fields, partial slip from two stick ratios (the cost is not convex in k).
+// The three loaded fields; partial slip starts from what stick and full slip found.
 struct Fits {
   Solved stick, partial, slip;
 };
@@ -248,15 +249,12 @@ Fits solve_loaded_fields(const Samples& s, const Normaliser& n, const Start& g, 
   // Full slip's centre displacement s a π (2 − ν) / 8 against the stick's shift: s = 2A.
   f.slip = solve_field<FieldModel::full_slip, kSlipParams>(s, n, nu, {st[0], st[1], st[2], st[3], 2.0 * amp},
                                                            geometry_bounds(g, kSlipParams), options);
-  bool first = true;
-  for (const double k : {0.35, 0.8}) {
-    // Same shift inside the stick zone: s (1 − k²) = 2A.
-    Solved p = solve_field<FieldModel::partial_slip, kPartialParams>(
-        s, n, nu, {st[0], st[1], st[2], st[3], k, 2.0 * amp / (1.0 - k * k)},
-        geometry_bounds(g, kPartialParams), options);
-    if (first || p.cost < f.partial.cost) f.partial = std::move(p);
-    first = false;
-  }
+  // One start for c/a: near a where the stick field fits better than the full-slip one, else low.
+  const double k = f.stick.cost < f.slip.cost ? 0.8 : 0.4;
+  // Same shift inside the stick zone: s (1 − k²) = 2A.
+  f.partial = solve_field<FieldModel::partial_slip, kPartialParams>(
+      s, n, nu, {st[0], st[1], st[2], st[3], k, 2.0 * amp / (1.0 - k * k)}, geometry_bounds(g, kPartialParams),
+      options);
   return f;
 }
 
