@@ -1,6 +1,6 @@
 // Accuracy and speed of `tirstrain fit` on a synthesised Cattaneo–Mindlin trial processed by `tirstrain
 // process`: the fitted c, Q and direction against the generator's truth, and frames fitted per second.
-//   fit_bench TRIAL_DIR RESULT_DIR [--threads N]
+//   fit_bench TRIAL_DIR RESULT_DIR [--threads N] [--frames]
 // TRIAL_DIR holds truth.h5 (tirstrain synth); RESULT_DIR result.h5 (tirstrain process with tracking).
 #include <algorithm>
 #include <chrono>
@@ -77,6 +77,20 @@ Errors compare(const std::vector<FrameFit>& fits, const Truth& t) {
   return e;
 }
 
+// One line per frame: the truth next to the fit, in units of a and μP.
+void print_frames(const std::vector<FrameFit>& fits, const Truth& t) {
+  const double a_mm = t.a_m * 1e3;
+  for (std::size_t i = 0; i < fits.size() && i < t.q_N.size(); ++i) {
+    const FrameFit& f = fits[i];
+    const double limit = t.mu * t.p_N[i];
+    std::printf(
+        "%3zu %-12s Q/muP %.3f fit %.3f  c/a %.3f fit %.3f  a %.3f  muP_fit/muP %.3f  dir %.2f  rms %.3f\n",
+        i, fitted(f) ? tirstrain::fit::field_model_name(f.model) : tirstrain::fit::fit_status_name(f.status),
+        t.q_N[i] / limit, f.tangential_N.value / limit, t.c_m[i] * 1e3 / a_mm, f.c_mm.value / a_mm,
+        f.a_mm.value / a_mm, f.limit_N.value / limit, f.direction_deg.value, f.residual_rms_px);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -86,7 +100,12 @@ int main(int argc, char** argv) {
   }
   try {
     tirstrain::fit::RunOptions options;
-    if (argc >= 5 && std::string(argv[3]) == "--threads") options.frame_threads = std::stoi(argv[4]);
+    bool verbose = false;
+    for (int i = 3; i < argc; ++i) {
+      const std::string arg = argv[i];
+      if (arg == "--threads" && i + 1 < argc) options.frame_threads = std::stoi(argv[++i]);
+      if (arg == "--frames") verbose = true;
+    }
     const Truth truth = read_truth(argv[1]);
     const tirstrain::fit::ResultForFit result = tirstrain::fit::read_result_for_fit(argv[2]);
     const auto start = std::chrono::steady_clock::now();
@@ -110,6 +129,7 @@ int main(int argc, char** argv) {
         e.loaded, e.loaded_unfitted, e.loaded ? std::sqrt(e.c_sum2 / e.loaded) : NAN,
         e.loaded ? std::sqrt(e.q_sum2 / e.loaded) : NAN, e.dir_max);
     std::printf("rest frames %d max |Q_fit|/muP %.4f\n", e.rest, e.rest_max);
+    if (verbose) print_frames(fits, truth);
   } catch (const std::exception& ex) {
     std::fprintf(stderr, "fit_bench: %s\n", ex.what());
     return 1;

@@ -73,11 +73,31 @@ struct TrackResidual {
   }
 };
 
+// The segmented contact as a measurement of the centre and of a: w (p − p_seg) / (σ_rel a_seg) for each, with
+// w the tracking noise it is weighed against. Without it a is poorly determined while c is near a (only a
+// thin slip annulus, at the border where tracks are fewest and noisiest, sees it), and Q = μP (1 − (c/a)³),
+// μP ∝ a² inherit that; and in full stick the field inside the contact is a uniform shift that says nothing
+// of the centre.
+struct ContactPrior {
+  double cx_px, cy_px, a_seg_px;
+  double weight;  // w / (σ_rel a_seg), px per px
+
+  template <typename T>
+  bool operator()(const T* p, T* r) const {
+    r[0] = weight * (p[0] - cx_px);
+    r[1] = weight * (p[1] - cy_px);
+    r[2] = weight * (p[3] - a_seg_px);
+    return true;
+  }
+};
+
 // The tracks a frame's fit uses, in the normalised frame.
 struct Samples {
-  std::vector<std::size_t> index;  // into the frame's track arrays
-  std::vector<Vec2> q;             // M X
-  std::vector<Vec2> u;             // measured displacement
+  std::vector<std::size_t> index;   // into the frame's track arrays
+  std::vector<Vec2> q;              // M X
+  std::vector<Vec2> u;              // measured displacement
+  double cx_px = 0.0, cy_px = 0.0;  // the segmented ellipse's centre
+  double a_seg_px = 0.0;            // and its equivalent radius √(a₁a₂)
 };
 
 bool inside_ellipse(const ContactEllipse& e, const Vec2& p, double margin) {
@@ -90,6 +110,9 @@ bool inside_ellipse(const ContactEllipse& e, const Vec2& p, double margin) {
 
 Samples select_samples(const FrameObservations& obs, const Normaliser& n, double margin) {
   Samples s;
+  s.cx_px = obs.contact.cx_px;
+  s.cy_px = obs.contact.cy_px;
+  s.a_seg_px = std::sqrt(obs.contact.semi_major_px * obs.contact.semi_minor_px);
   for (std::size_t i = 0; i < obs.reference_px.size(); ++i) {
     const Vec2& X = obs.reference_px[i];
     const Vec2& u = obs.displacement_px[i];
@@ -115,11 +138,17 @@ struct Bounds {
 
 template <FieldModel F, int P>
 void add_residuals(ceres::Problem& problem, const Samples& s, const Normaliser& n, double nu, double* p,
-                   double loss_scale_px) {
+                   const FitOptions& options) {
+  if (options.radius_prior_sd > 0.0) {
+    const double weight = options.prior_noise_px / (options.radius_prior_sd * s.a_seg_px);
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<ContactPrior, 3, P>(
+                                 new ContactPrior{s.cx_px, s.cy_px, s.a_seg_px, weight}),
+                             nullptr, p);
+  }
   for (std::size_t i = 0; i < s.q.size(); ++i) {
     auto* cost = new ceres::AutoDiffCostFunction<TrackResidual<F>, 2, P>(
         new TrackResidual<F>{s.q[i].x, s.q[i].y, s.u[i].x, s.u[i].y, n, nu});
-    problem.AddResidualBlock(cost, new ceres::HuberLoss(loss_scale_px), p);
+    problem.AddResidualBlock(cost, new ceres::HuberLoss(options.loss_scale_px), p);
   }
 }
 
@@ -130,7 +159,7 @@ Solved solve_field(const Samples& s, const Normaliser& n, double nu, std::vector
   Solved out;
   out.p = std::move(start);
   double* p = out.p.data();
-  add_residuals<F, P>(problem, s, n, nu, p, options.loss_scale_px);
+  add_residuals<F, P>(problem, s, n, nu, p, options);
   for (int j = 0; j < P; ++j) {
     if (std::isfinite(bounds.lower[j])) problem.SetParameterLowerBound(p, j, bounds.lower[j]);
     if (std::isfinite(bounds.upper[j])) problem.SetParameterUpperBound(p, j, bounds.upper[j]);
@@ -157,7 +186,7 @@ void compute_covariance(Solved& fit, const Samples& s, const Normaliser& n, doub
                         const FitOptions& options) {
   ceres::Problem problem;
   std::vector<double> p = fit.p;
-  add_residuals<F, P>(problem, s, n, nu, p.data(), options.loss_scale_px);
+  add_residuals<F, P>(problem, s, n, nu, p.data(), options);
   ceres::CRSMatrix j;
   ceres::Problem::EvaluateOptions eo;
   eo.num_threads = options.threads;
@@ -249,12 +278,18 @@ Fits solve_loaded_fields(const Samples& s, const Normaliser& n, const Start& g, 
   // Full slip's centre displacement s a π (2 − ν) / 8 against the stick's shift: s = 2A.
   f.slip = solve_field<FieldModel::full_slip, kSlipParams>(s, n, nu, {st[0], st[1], st[2], st[3], 2.0 * amp},
                                                            geometry_bounds(g, kSlipParams), options);
-  // One start for c/a: near a where the stick field fits better than the full-slip one, else low.
-  const double k = f.stick.cost < f.slip.cost ? 0.8 : 0.4;
-  // Same shift inside the stick zone: s (1 − k²) = 2A.
-  f.partial = solve_field<FieldModel::partial_slip, kPartialParams>(
-      s, n, nu, {st[0], st[1], st[2], st[3], k, 2.0 * amp / (1.0 - k * k)}, geometry_bounds(g, kPartialParams),
-      options);
+  // Starts for c/a: near a (two, the cost is not convex in c/a there) where the stick field fits better than
+  // the full-slip one, else low.
+  const std::vector<double> starts =
+      f.stick.cost < f.slip.cost ? std::vector<double>{0.9, 0.6} : std::vector<double>{0.4};
+  for (std::size_t i = 0; i < starts.size(); ++i) {
+    const double k = starts[i];
+    // Same shift inside the stick zone: s (1 − k²) = 2A.
+    Solved p = solve_field<FieldModel::partial_slip, kPartialParams>(
+        s, n, nu, {st[0], st[1], st[2], st[3], k, 2.0 * amp / (1.0 - k * k)},
+        geometry_bounds(g, kPartialParams), options);
+    if (i == 0 || p.cost < f.partial.cost) f.partial = std::move(p);
+  }
   return f;
 }
 

@@ -18,6 +18,9 @@ struct FitOptions {
   int min_tracks = 20;           // fewer usable tracks: status too_few_tracks, no fit (default 20)
   double loss_scale_px = 0.3;    // Huber loss scale, px: residuals beyond it count linearly (default 0.3)
   double contact_margin = 1.05;  // tracks used: reference within this many ellipse radii (default 1.05)
+  double radius_prior_sd =
+      0.01;  // SD of the segmented centre and radius over a, a prior on them; 0: none (0.01)
+  double prior_noise_px = 0.05;  // tracking noise that prior is weighed against, px (default 0.05)
   int max_iterations = 30;       // Ceres iterations per field (default 30)
   int threads = 1;               // Ceres threads per solve (default 1)
 };

@@ -169,7 +169,8 @@ TEST(CmFit, SmallLoadStickRadiusNearA) {
   sc.noise_px = 0.2;
   const Synthetic t = synthesise(sc);
   const FrameFit f = fit_frame(t.obs, FitOptions{});
-  ASSERT_EQ(f.status, FitStatus::ok);
+  ASSERT_EQ(f.status, FitStatus::ok) << field_model_name(f.model) << " c/a " << f.c_mm.value / t.a_mm
+                                     << " Q/muP " << f.tangential_N.value / t.limit_N;
   EXPECT_TRUE(f.model == FieldModel::full_stick || f.model == FieldModel::partial_slip);
   EXPECT_NEAR(f.tangential_N.value / t.limit_N, 0.03, 0.01);
   EXPECT_GT(f.c_mm.value / t.a_mm, 0.9);
