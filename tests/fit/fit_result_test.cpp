@@ -6,6 +6,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
@@ -59,6 +60,9 @@ Written write_result(const std::string& dir) {
   h5.write("/contact/ellipse", ellipse, {3, 5});
   h5.write("/tracks/reference_px", ref, {k, 2});
   h5.write("/tracks/position_px", pos, {3, k, 2});
+  // A force channel that starts after frame 0.
+  h5.write("/channels/at_frames/tangential_force_N", std::vector<double>{0.0, 0.01, 0.98}, {3});
+  h5.write("/channels/at_frames/in_span", std::vector<std::uint8_t>{0, 1, 1}, {3});
   Scene scene;
   scene.px_per_mm = kPxPerMm;
   YAML::Emitter yaml;
@@ -97,6 +101,9 @@ TEST(FitResult, WritesCsvAndH5) {
   const std::vector<double> q = h5.read_doubles("/fit/tangential_N");
   EXPECT_NEAR(q[2], truth.q_N, 0.02 * truth.limit_N);
   EXPECT_NEAR(h5.read_doubles("/fit/direction_deg")[2], 45.0, 0.5);
+  const std::vector<double> channel = h5.read_doubles("/fit/tangential_channel_N");
+  EXPECT_TRUE(std::isnan(channel[0]));  // outside the channel's span
+  EXPECT_EQ(channel[2], 0.98);
   H5Shape shape;
   h5.read_doubles("/fit/residual_px", &shape);
   EXPECT_EQ(shape, (H5Shape{3, r.tracks(), 2}));
