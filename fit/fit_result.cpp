@@ -14,6 +14,7 @@
 #include "core/error.hpp"
 #include "core/h5_file.hpp"
 #include "core/scene.hpp"
+#include "fit/fit_plots.hpp"
 
 namespace tirstrain::fit {
 namespace {
@@ -222,7 +223,9 @@ void check_out_dir(const std::string& out_dir, const ResultForFit& r) {
   if (!fs::is_directory(out_dir)) throw Error("--out " + out_dir + " is not a folder", {.key = "--out"});
   for (const auto& entry : fs::directory_iterator(out_dir)) {
     const std::string name = entry.path().filename().string();
-    if (name != "fit.csv" && name != "fit.h5")
+    const bool ours =
+        name == "fit.csv" || name == "fit.h5" || name == "c_q_vs_time.png" || name.rfind("residual_", 0) == 0;
+    if (!ours)
       throw Error("--out " + out_dir + " holds " + name +
                       ", which replacing the folder would delete; choose an empty folder or an earlier fit's",
                   {.key = "--out"});
@@ -290,6 +293,7 @@ void write_fit_outputs(const std::string& out_dir, const ResultForFit& result,
   StagingDirectory staging(out_dir);
   write_csv((fs::path(staging.path()) / "fit.csv").string(), result, fits);
   write_h5((fs::path(staging.path()) / "fit.h5").string(), result, fits, options);
+  write_fit_plots(staging.path(), result, fits);
   staging.commit();
 }
 
