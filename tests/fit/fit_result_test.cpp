@@ -108,6 +108,10 @@ TEST(FitResult, WritesCsvAndH5) {
   h5.read_doubles("/fit/residual_px", &shape);
   EXPECT_EQ(shape, (H5Shape{3, r.tracks(), 2}));
   EXPECT_FALSE(fs::exists(base + "/fit.partial"));
+  // Onset and t90 are frame 2; no full-slip frame, so no picture of one.
+  EXPECT_GT(fs::file_size(base + "/fit/residual_onset.png"), 1000u);
+  EXPECT_GT(fs::file_size(base + "/fit/c_q_vs_time.png"), 1000u);
+  EXPECT_FALSE(fs::exists(base + "/fit/residual_full_slip.png"));
 }
 
 TEST(FitResult, RefusesAnOutputHoldingTheResult) {
