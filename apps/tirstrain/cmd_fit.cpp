@@ -1,0 +1,72 @@
+// `tirstrain fit RESULT_DIR --out DIR`: the Hertz + Cattaneo–Mindlin field fitted to a result's tracks, frame
+// by frame, with model selection and uncertainties (fit/fit_result.hpp). Only flags are parsed here.
+#include <array>
+#include <chrono>
+#include <iostream>
+#include <memory>
+#include <string>
+
+#include "fit/fit_result.hpp"
+#include "tirstrain/commands.hpp"
+
+namespace tirstrain::cli {
+
+void add_fit_command(CLI::App& app) {
+  struct Options {
+    std::string result;
+    std::string out;
+    fit::RunOptions run;
+    bool quiet = false;
+  };
+  auto options = std::make_shared<Options>();
+  CLI::App* sub = app.add_subcommand(
+      "fit",
+      "Fit the Hertz + Cattaneo-Mindlin field to a result's tracks, frame by frame (c, Q, direction, SDs)");
+  sub->footer(
+      "Each frame's tracked displacements inside the contact are fitted (Ceres, Huber loss) with four "
+      "fields:\n"
+      "rest (no tangential load), full stick, partial slip and full slip (c = 0); the lowest BIC is chosen.\n"
+      "Reports the contact centre, load direction, a, c, Q = tangential_N and mu*P = limit_N (from the\n"
+      "scene's tissue E, nu) with SDs, AIC/BIC of every field and the residuals per track. Needs a result\n"
+      "processed with the tracking stage. Writes DIR/fit.csv and DIR/fit.h5 (docs/formats.md, \"Model "
+      "fit\");\n"
+      "DIR appears only when complete and an earlier fit there is replaced.\n"
+      "Example:\n"
+      "  tirstrain synth --scene samples/scenes/default.yaml --out trial\n"
+      "  tirstrain process trial --out trial_result --compute tracking\n"
+      "  tirstrain fit trial_result --out trial_fit");
+  sub->add_option("RESULT_DIR", options->result, "A tirstrain process output folder (or its result.h5)")
+      ->required();
+  sub->add_option("--out", options->out, "Output folder DIR")->required();
+  sub->add_option("--loss-scale-px", options->run.fit.loss_scale_px,
+                  "Huber loss scale, px: residuals beyond it count linearly (default 0.3)")
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--min-tracks", options->run.fit.min_tracks,
+                  "Frames with fewer usable tracks are not fitted (status too_few_tracks; default 20)")
+      ->check(CLI::Range(7, 1000000));
+  sub->add_option("--threads", options->run.frame_threads, "Frames fitted in parallel (default 2)")
+      ->check(CLI::Range(1, 256));
+  sub->add_flag("--quiet,-q", options->quiet, "No summary output");
+  sub->callback([options] {
+    const auto start = std::chrono::steady_clock::now();
+    const fit::ResultForFit result = fit::read_result_for_fit(options->result);
+    const std::vector<fit::FrameFit> fits = fit::fit_result(result, options->run);
+    const double fit_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    fit::write_fit_outputs(options->out, result, fits, options->run.fit);
+    if (options->quiet) return;
+    std::array<int, fit::kFieldModels> by_model{};
+    int unfitted = 0;
+    for (const fit::FrameFit& f : fits) {
+      if (f.status == fit::FitStatus::no_contact || f.status == fit::FitStatus::too_few_tracks)
+        ++unfitted;
+      else
+        ++by_model[static_cast<int>(f.model)];
+    }
+    std::cout << "fitted " << fits.size() - unfitted << " of " << fits.size() << " frames in " << fit_s
+              << " s: rest " << by_model[0] << ", full stick " << by_model[1] << ", partial slip "
+              << by_model[2] << ", full slip " << by_model[3] << "; not fitted " << unfitted << "\nwrote "
+              << options->out << "/fit.csv and fit.h5\n";
+  });
+}
+
+}  // namespace tirstrain::cli
