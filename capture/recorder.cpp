@@ -175,22 +175,10 @@ class Recording {
                   {.key = "--png-level"});
     if (options.writer_threads < 1 || options.writer_threads > 64)
       throw Error("writer threads must be 1..64", {.key = "--writers"});
-    root_ = fs::path(options.out_dir);
+    choose_folder(options);
     frames_dir_ = root_ / "frames";
     csv_path_ = (root_ / "frames.csv").string();
-    const bool existing =
-        fs::exists(frames_dir_) || fs::exists(csv_path_) || fs::exists(root_ / "recording.json");
-    if (existing && !options.overwrite)
-      throw Error(
-          "already holds a recording (frames/, frames.csv); choose another folder or pass --overwrite",
-          {.file = options.out_dir, .key = "--out"});
-    ensure_output_dir(options.out_dir, "--out");
     std::error_code ec;
-    if (existing) {
-      fs::remove_all(frames_dir_, ec);
-      fs::remove(csv_path_, ec);
-      fs::remove(root_ / "recording.json", ec);
-    }
     fs::create_directories(frames_dir_, ec);
     if (ec)
       throw Error("cannot create folder: " + ec.message(), {.file = frames_dir_.string(), .key = "--out"});
@@ -280,10 +268,51 @@ class Recording {
     report_.elapsed_s = steady_now_s() - start_s_;
     report_.counts.elapsed_s = report_.elapsed_s;
     write_summary();
+    if (staged_) swap_in();
     return report_;
   }
 
  private:
+  // A new folder is recorded in place. An earlier recording (--overwrite) stays whole until the new one
+  // ends: the new one is recorded beside it in "<DIR>.partial" and swapped in then, so a crash or a kill at
+  // any instant loses neither (captured frames are never deleted, not even those of an unfinished run).
+  void choose_folder(const RecordOptions& options) {
+    std::string dir = fs::path(options.out_dir).lexically_normal().string();
+    while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
+    final_dir_ = dir;
+    const fs::path final_root(dir);
+    const bool existing = fs::exists(final_root / "frames") || fs::exists(final_root / "frames.csv") ||
+                          fs::exists(final_root / "recording.json");
+    if (existing && !options.overwrite)
+      throw Error(
+          "already holds a recording (frames/, frames.csv); choose another folder or pass --overwrite",
+          {.file = options.out_dir, .key = "--out"});
+    staged_ = existing;
+    root_ = staged_ ? fs::path(dir + ".partial") : final_root;
+    if (staged_ && fs::exists(root_))
+      throw Error(
+          "holds the unfinished recording of an earlier run; move it away or delete it, then record again "
+          "(the recording in " +
+              dir + " is untouched)",
+          {.file = root_.string(), .key = "--out"});
+    ensure_output_dir(root_.string(), "--out");
+  }
+
+  // The finished recording replaces the earlier one. After a write error both are kept and the error
+  // says where.
+  void swap_in() {
+    if (!report_.error.empty()) {
+      report_.error +=
+          " (the new recording is kept in " + root_.string() + ", the earlier one in " + final_dir_ + ")";
+      return;
+    }
+    try {
+      swap_in_directory(root_.string(), final_dir_);
+    } catch (const Error& e) {
+      report_.error = std::string(e.what()) + " (the new recording is kept in " + root_.string() + ")";
+    }
+  }
+
   RecordProgress snapshot() {
     std::lock_guard lock(mutex_);
     RecordProgress progress = report_.counts;
@@ -560,7 +589,9 @@ class Recording {
 
   const RecordOptions& options_;
   FrameSource& source_;
-  fs::path root_;
+  fs::path root_;          // where this run records: the output folder, or its staging folder
+  std::string final_dir_;  // the output folder
+  bool staged_ = false;    // recording beside an earlier recording, swapped in at the end
   fs::path frames_dir_;
   std::string csv_path_;
   int csv_fd_ = -1;

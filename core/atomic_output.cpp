@@ -83,21 +83,24 @@ StagingDirectory::~StagingDirectory() {
 }
 
 void StagingDirectory::commit() {
+  swap_in_directory(staging_path_, final_path_);
+  committed_ = true;
+}
+
+void swap_in_directory(const std::string& staging, const std::string& final_path) {
   std::error_code ec;
-  if (fs::exists(final_path_, ec)) {
-    if (!fs::is_directory(final_path_, ec))
-      throw Error("output path exists and is not a directory", {.file = final_path_});
-    if (exchange_paths(staging_path_, final_path_)) {
-      committed_ = true;
-      fs::remove_all(staging_path_, ec);  // holds the earlier output after the exchange
+  if (fs::exists(final_path, ec)) {
+    if (!fs::is_directory(final_path, ec))
+      throw Error("output path exists and is not a directory", {.file = final_path});
+    if (exchange_paths(staging, final_path)) {
+      fs::remove_all(staging, ec);  // holds the earlier output after the exchange
       return;
     }
-    fs::remove_all(final_path_, ec);
-    if (ec) throw Error("cannot replace existing output directory: " + ec.message(), {.file = final_path_});
+    fs::remove_all(final_path, ec);
+    if (ec) throw Error("cannot replace existing output directory: " + ec.message(), {.file = final_path});
   }
-  fs::rename(staging_path_, final_path_, ec);
-  if (ec) throw Error("cannot move finished output into place: " + ec.message(), {.file = final_path_});
-  committed_ = true;
+  fs::rename(staging, final_path, ec);
+  if (ec) throw Error("cannot move finished output into place: " + ec.message(), {.file = final_path});
 }
 
 AtomicFile::AtomicFile(const std::string& path) : path_(path), partial_path_(path + ".partial") {

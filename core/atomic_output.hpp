@@ -32,6 +32,12 @@ class StagingDirectory {
   bool committed_ = false;
 };
 
+// Puts the complete directory `staging` in place of `final_path`: an existing <final_path> is exchanged
+// atomically (renameat2 RENAME_EXCHANGE) and only then removed, so at every instant <final_path> is either
+// the earlier complete output or the new one (where the filesystem cannot exchange, the earlier one is
+// removed first). Errors name the path and the cause.
+void swap_in_directory(const std::string& staging, const std::string& final_path);
+
 // A file written to "<path>.partial" through a checked write(2) loop, made durable (fsync) and renamed to
 // <path> by commit(); destroyed uncommitted, it removes the partial file. Errors name the file and errno's
 // cause.
