@@ -390,17 +390,17 @@ double bracket_predicted_cos(const Eigen::ArrayXf& inside_cos, const RidgeLabelO
 // taken midway, or just beyond the inside labels (bracket_reach_px) where the sector has no outside labels.
 // Where the gap between the two is wide (a valley along the border, where the border could lie anywhere in
 // it), the sector counts less: weight 1 / (1 + (gap / bracket_gap_px)^2). A sector whose outside labels lie
-// within its inside labels contradicts itself (the wave's phase has drifted) and is left out. The gap's weight
-// matters: with the border put just beyond the inside labels everywhere, a wide valley along an arc of a
-// sliding contact moves the centre by over a pixel.
+// within its inside labels contradicts itself (the wave's phase has drifted) and is left out. The gap's
+// weight matters: with the border put just beyond the inside labels everywhere, a wide valley along an arc of
+// a sliding contact moves the centre by over a pixel.
 //
 // The positions are fitted twice, by weighted least squares with a prior of bracket_prior_px on all but the
 // offset: t_k = offset + shift . u_k gives the centre's shift; t_k = offset + shift . u_k + cos2 cos 2 phi_k
 // + sin2 sin 2 phi_k the shape (elongation and its direction). That offset is not the size: the labels'
 // thresholds sit on the foot of the blurred edge, so where a ridge ends at the border the inside labels reach
 // ~1 px and the outside ones ~3.5 px beyond it (both renderers), and the midway border lies ~2 px out (the
-// axes would come out 1-2 % long). The size comes from the sectors where ridges end at the border (gap at most
-// bracket_size_gap_px): there the inside labels' bracket_size_quantile marks the border; the median over
+// axes would come out 1-2 % long). The size comes from the sectors where ridges end at the border (gap at
+// most bracket_size_gap_px): there the inside labels' bracket_size_quantile marks the border; the median over
 // those sectors of its distance from the fitted shape is the border's mean radial change, when at least
 // bracket_size_min_sectors of them exist (what the size and shape give: BENCHMARKS.md, contact/).
 struct BracketFit {
