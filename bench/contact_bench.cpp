@@ -4,8 +4,7 @@
 // argument is the pixel noise (per mille of full scale): at 80 the texture SNR falls below
 // SegmenterOptions::border_average_snr and the edge search runs on the frame averaged along the border. The
 // fourth is the preset (contact::SegmentationPreset): 0 accurate (the defaults), 1 fast, 2 balanced (the
-// border band off), for their cost in the same run. (Before session 28 the defaults were balanced, 1 was
-// fast, 2 had the ridge labels off and 3 the border band on.)
+// border band off), for their cost in the same run.
 // Run: contact_bench --benchmark_counters_tabular=true
 #include <benchmark/benchmark.h>
 

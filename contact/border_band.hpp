@@ -19,7 +19,7 @@
 // the border, but the contrast of the last ridge inside, against the common level, says how far in it lies; a
 // ridge that ends at the border pins it.
 //
-// Measured on synthetic trials with exact truth (BENCHMARKS.md, contact/, session 26): alone, the centre is
+// On synthetic trials with exact truth (BENCHMARKS.md, contact/): alone, the centre is
 // no better than the labels' on average; the mean of the two is (their errors are partly independent), and on
 // frames too noisy for labels it replaces the level edge's centre. The profile's form is the synthetic
 // generator's (a quintic rise), with its floor and length fitted; where the contrast fades little towards
@@ -43,9 +43,8 @@ struct BorderBandSample {
 };
 
 struct BorderBandOptions {
-  // Levenberg-Marquardt iterations per fit. With the analytic Jacobian 3 give the centres 5 do (13
-  // fingerprints 0.794 / 1.661 px RMS / worst against 0.798 / 1.660; 2 and 1 the same within 0.02 px: the
-  // start is near) at ~20 % less time for the whole segmentation (BENCHMARKS.md, contact/, session 27).
+  // Levenberg-Marquardt iterations per fit. With the analytic Jacobian 3 give the centres 5 do (within
+  // 0.01 px over 13 fingerprints: the start is near) at ~20 % less time for the whole segmentation.
   int iterations = 3;
   int wave_rounds = 2;  // refinements of the sectors' wave vectors, each followed by a refit
   double initial_edge_px = 1.0;

@@ -7,8 +7,8 @@
 #include <cmath>
 #include <vector>
 
-#include "contact/segmenter.hpp"
 #include "core/error.hpp"
+#include "core/full_scale.hpp"
 
 namespace tirstrain::contact {
 namespace {

@@ -23,8 +23,8 @@ std::string to_string(ImageEdge edge);
 
 struct PatternBandOptions {
   // Gaussian smoothing before the gradients (px): pixel noise's lambda_min falls as sigma^-4 while that of
-  // dots a few pixels wide falls far less (at 2 px against 1 px, the synthetic heavy-noise trial's band went
-  // from 8 to 34 times its noise, the default trial's from 200 to 940).
+  // dots a few pixels wide falls far less (at 2 px the synthetic heavy-noise trial's band stands 34 times
+  // above its noise, at 1 px 8 times).
   double presmooth_sigma_px = 2.0;
   // Integration scale of the structure tensor (px): a few dots' spacing would blur the inner boundary; this
   // spans about one dot spacing of the patterns seen (0.2 mm at 52 px/mm is 11 px).

@@ -374,12 +374,11 @@ std::optional<Params> fit_logistic(Params p, const std::vector<Label>& labels, d
 
 // The brackets' outside labels lie where the wave predicts a phase that this sector's ridges show inside the
 // contact: a cosine above the lowest (5th percentile) of `inside_cos`, the wave's cosine at the inside labels
-// more than a quarter period inside, plus phase_margin_cos; at most predicted_cos. With the fixed crest side
-// (cosine above 0.3), where ridges show down into their valleys (to a cosine of -0.7 on the bench renderer) a
-// border cutting a flank left a gap of most of a period to the next predicted crest, and the midway border
-// landed far out. With the phase measured (and the gap's weights, fit_brackets), the synthetic
-// trials' centre went 0.529 -> 0.477 px RMS, and 60 random scenes of the bench renderer 0.337 -> 0.205 px
-// (ContactSegmenter.CentreOverRandomScenes; BENCHMARKS.md, contact/, session 23).
+// more than a quarter period inside, plus phase_margin_cos; at most predicted_cos. A fixed crest side (cosine
+// above 0.3) would not do: where ridges show down into their valleys (to a cosine of -0.7 on the bench
+// renderer) a border cutting a flank would leave a gap of most of a period to the next predicted crest, and
+// the midway border would land far out (ContactSegmenter.CentreOverRandomScenes holds the centre over random
+// scenes; BENCHMARKS.md, contact/).
 double bracket_predicted_cos(const Eigen::ArrayXf& inside_cos, const RidgeLabelOptions& options) {
   if (inside_cos.size() < 10) return options.predicted_cos;
   std::vector<float> values(inside_cos.begin(), inside_cos.end());
@@ -391,21 +390,19 @@ double bracket_predicted_cos(const Eigen::ArrayXf& inside_cos, const RidgeLabelO
 // taken midway, or just beyond the inside labels (bracket_reach_px) where the sector has no outside labels.
 // Where the gap between the two is wide (a valley along the border, where the border could lie anywhere in
 // it), the sector counts less: weight 1 / (1 + (gap / bracket_gap_px)^2). A sector whose outside labels lie
-// within its inside labels contradicts itself (the wave's phase has drifted) and is left out. Where the gap
-// was ignored and the border put just beyond the inside labels, a wide valley along an arc of a sliding
-// contact moved the centre by up to 1.4 px (BENCHMARKS.md, contact/, session 23).
+// within its inside labels contradicts itself (the wave's phase has drifted) and is left out. The gap's
+// weight matters: with the border put just beyond the inside labels everywhere, a wide valley along an arc of
+// a sliding contact moves the centre by over a pixel.
 //
 // The positions are fitted twice, by weighted least squares with a prior of bracket_prior_px on all but the
 // offset: t_k = offset + shift . u_k gives the centre's shift; t_k = offset + shift . u_k + cos2 cos 2 phi_k
 // + sin2 sin 2 phi_k the shape (elongation and its direction). That offset is not the size: the labels'
 // thresholds sit on the foot of the blurred edge, so where a ridge ends at the border the inside labels reach
 // ~1 px and the outside ones ~3.5 px beyond it (both renderers), and the midway border lies ~2 px out (the
-// axes came out 1.0-2.1 % long). The size comes from the sectors where ridges end at the border (gap at most
-// bracket_size_gap_px): there the inside labels' bracket_size_quantile marks the border; the median over
+// axes would come out 1-2 % long). The size comes from the sectors where ridges end at the border (gap at
+// most bracket_size_gap_px): there the inside labels' bracket_size_quantile marks the border; the median over
 // those sectors of its distance from the fitted shape is the border's mean radial change, when at least
-// bracket_size_min_sectors of them exist. Over the default scene with nine fingerprints the worst IoU went
-// 0.951-0.976 -> 0.972-0.980 and the worst semi-axis 1.75-3.25 -> 0.85-1.86 % (BENCHMARKS.md, contact/,
-// session 24).
+// bracket_size_min_sectors of them exist (what the size and shape give: BENCHMARKS.md, contact/).
 struct BracketFit {
   cv::Point2d shift;
   double cos2_px = 0.0, sin2_px = 0.0;
@@ -477,53 +474,145 @@ Ellipse reshaped(const Ellipse& e, double size_px, double cos2_px, double sin2_p
   return fit_ellipse_direct(border).value_or(e);
 }
 
-}  // namespace
+// The band visited around the initial ellipse: its ROI of the frame and the lattice of about kAnnulusSamples
+// points on it (every `step` px from 3 px in the ROI; 3 px for the smoothing).
+struct Annulus {
+  cv::Rect roi;
+  cv::Mat roi_pixels;  // CV_8U, CV_16U or CV_32F
+  int step = 1;
+  double illumination_at_centre = 1.0;
+  double q_inner = 0.0, q_inner_squared = 0.0, q_outer_squared = 0.0;  // the band's normalised radii
+  cv::Point2d centre;                                                  // the ellipse's centre in the ROI
+};
 
-std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
-    const cv::Mat& frame, double full_scale, const Ellipse& initial, double period_px, int polarity,
-    const RidgeLabelOptions& options, const std::function<double(double x_px, double y_px)>& illumination) {
-  if (polarity == 0 || !(period_px > 0.0) || options.sectors < 4 || initial.semi_minor_px < 2.0)
-    return std::nullopt;
+// Nothing when the band leaves the frame, the frame is not grey, or the illumination is not positive at the
+// centre.
+std::optional<Annulus> annulus_around(const cv::Mat& frame, const Ellipse& initial, double p,
+                                      const std::function<double(double, double)>& illumination) {
+  Annulus annulus;
   // The outer band reaches 1.6 periods beyond the ellipse; 4 more pixels for the smoothing and gradients.
-  const double reach = initial.semi_major_px + 1.6 * period_px + 4.0;
-  const cv::Rect roi(static_cast<int>(std::floor(initial.cx_px - reach)),
-                     static_cast<int>(std::floor(initial.cy_px - reach)), static_cast<int>(2.0 * reach) + 2,
-                     static_cast<int>(2.0 * reach) + 2);
+  const double reach = initial.semi_major_px + 1.6 * p + 4.0;
+  annulus.roi = cv::Rect(static_cast<int>(std::floor(initial.cx_px - reach)),
+                         static_cast<int>(std::floor(initial.cy_px - reach)),
+                         static_cast<int>(2.0 * reach) + 2, static_cast<int>(2.0 * reach) + 2);
+  const cv::Rect& roi = annulus.roi;
   if ((roi & cv::Rect(0, 0, frame.cols, frame.rows)) != roi) return std::nullopt;
   if (frame.channels() != 1) return std::nullopt;
-  cv::Mat roi_pixels = frame(roi);
-  if (roi_pixels.depth() != CV_8U && roi_pixels.depth() != CV_16U && roi_pixels.depth() != CV_32F)
-    frame(roi).convertTo(roi_pixels, CV_32F);
-
-  std::vector<Sector> sectors(static_cast<std::size_t>(options.sectors));
-  const double p = period_px;
-  const double cos_a = std::cos(initial.angle_rad), sin_a = std::sin(initial.angle_rad);
+  annulus.roi_pixels = frame(roi);
+  if (annulus.roi_pixels.depth() != CV_8U && annulus.roi_pixels.depth() != CV_16U &&
+      annulus.roi_pixels.depth() != CV_32F)
+    frame(roi).convertTo(annulus.roi_pixels, CV_32F);
   // A large contact's annulus holds far more pixels than its statistics, waves and five-parameter fit need:
   // visit a lattice of about kAnnulusSamples of them.
   const double perimeter_px = kTwoPi * std::sqrt(0.5 * (initial.semi_major_px * initial.semi_major_px +
                                                         initial.semi_minor_px * initial.semi_minor_px));
-  const int step =
+  annulus.step =
       std::max(1, static_cast<int>(std::lround(std::sqrt(perimeter_px * 3.1 * p / kAnnulusSamples))));
-  const double illumination_at_centre = illumination ? illumination(initial.cx_px, initial.cy_px) : 1.0;
-  if (illumination && !(illumination_at_centre > 0.0)) return std::nullopt;
-  const double q_inner = std::max(0.0, 1.0 - 1.5 * p / initial.semi_minor_px);
-  const double q_inner_squared = q_inner * q_inner;
-  const double q_outer_squared = std::pow(1.0 + 1.6 * p / initial.semi_minor_px, 2);
-  // The lattice's points are at 3 + step k in the ROI (3 px for the smoothing). Per row only the lattice
-  // columns where q lies between the band's limits (plus a column either side) are visited, and the frame is
-  // smoothed only there: on the lattice's rows, over the band widened by a lattice step and a pixel (the
-  // gradients' neighbours).
-  const cv::Point2d centre(initial.cx_px - roi.x, initial.cy_px - roi.y);
-  const EllipseBand lattice_band(initial, q_inner, std::sqrt(q_outer_squared));
+  annulus.illumination_at_centre = illumination ? illumination(initial.cx_px, initial.cy_px) : 1.0;
+  if (illumination && !(annulus.illumination_at_centre > 0.0)) return std::nullopt;
+  annulus.q_inner = std::max(0.0, 1.0 - 1.5 * p / initial.semi_minor_px);
+  annulus.q_inner_squared = annulus.q_inner * annulus.q_inner;
+  annulus.q_outer_squared = std::pow(1.0 + 1.6 * p / initial.semi_minor_px, 2);
+  annulus.centre = cv::Point2d(initial.cx_px - roi.x, initial.cy_px - roi.y);
+  return annulus;
+}
+
+// What sorting one run of lattice columns into sectors reads.
+struct RunSorter {
+  const Annulus* annulus = nullptr;
+  const Ellipse* initial = nullptr;
+  double p = 0.0;
+  double sectors_per_rad = 0.0;
+  bool border_band = false;
+  double band_inner_t = 0.0;
+  const std::function<double(double, double)>* illumination = nullptr;
+};
+
+// Per run of lattice columns: dx, q^2, t and 1 / illumination, a vector register at a time.
+struct RunArrays {
+  Eigen::ArrayXf dx, q_squared, t;
+  Eigen::ArrayXd flat;
+};
+
+// The lattice columns run_first, run_first + step, ..., run_last of ROI row y (smoothed: `row`), each put in
+// its sector's lists by its distance t from the initial ellipse.
+void sort_run(const RunSorter& sorter, int y, int run_first, int run_last, const float* row,
+              RunArrays& arrays, std::vector<Sector>& sectors) {
+  const Annulus& annulus = *sorter.annulus;
+  const Ellipse& initial = *sorter.initial;
+  const cv::Rect& roi = annulus.roi;
+  const int step = annulus.step;
+  const double p = sorter.p;
+  const double dy = y + roi.y - initial.cy_px;
+  const double cos_a = std::cos(initial.angle_rad), sin_a = std::sin(initial.angle_rad);
+  const Eigen::Index count = (run_last - run_first) / step + 1;
+  auto dx = arrays.dx.head(count);
+  auto q_squared = arrays.q_squared.head(count);
+  auto t = arrays.t.head(count);
+  auto flat = arrays.flat.head(count);
+  const double dx_first = run_first + roi.x - initial.cx_px;
+  const float along_x = static_cast<float>(cos_a), along_y = static_cast<float>(sin_a * dy);
+  const float across_x = static_cast<float>(-sin_a), across_y = static_cast<float>(cos_a * dy);
+  const float inverse_a = static_cast<float>(1.0 / initial.semi_major_px);
+  const float inverse_b = static_cast<float>(1.0 / initial.semi_minor_px);
+  const float dy_squared = static_cast<float>(dy * dy);
+  dx = Eigen::ArrayXf::LinSpaced(count, static_cast<float>(dx_first),
+                                 static_cast<float>(dx_first + step * (count - 1.0)));
+  // Along the ray from the centre the ellipse's radius is r / q (q: normalised radius), so t = r (1 - 1/q).
+  // In float, four at a time: t to 1e-4 px.
+  q_squared =
+      ((along_x * dx + along_y) * inverse_a).square() + ((across_x * dx + across_y) * inverse_b).square();
+  t = (dx * dx + dy_squared).sqrt() * (1.0f - q_squared.max(1e-18f).rsqrt());
+  flat_field_along_run(*sorter.illumination, run_first + roi.x, y + roi.y, step, flat);
+  for (Eigen::Index j = 0; j < count; ++j) {
+    if (q_squared(j) < annulus.q_inner_squared || q_squared(j) > annulus.q_outer_squared ||
+        q_squared(j) < 1e-18)
+      continue;
+    if (t(j) < -1.5 * p || t(j) > 1.6 * p) continue;
+    const int x = run_first + static_cast<int>(j) * step;
+    const double fx = x + roi.x, fy = y + roi.y;
+    const double phi = direction_rad(dx(j), dy);
+    // A multiplication and a signed conversion: a division and an unsigned one per sample cost a tenth of
+    // this loop's time.
+    const auto index = std::min<std::size_t>(
+        sectors.size() - 1, static_cast<std::size_t>(static_cast<int>(phi * sorter.sectors_per_rad)));
+    Sector& s = sectors[index];
+    const float value = static_cast<float>(row[x] * annulus.illumination_at_centre * flat(j));
+    const Sample sample{static_cast<float>(fx), static_cast<float>(fy), value};
+    const double tj = t(j);
+    if (tj >= 0.9 * p) s.outer.push_back(value);
+    if (tj <= -0.25 * p) s.window.push_back(sample);
+    if (tj >= -0.5 * p && tj <= 0.0) s.near.push_back(value);
+    if (sorter.border_band && tj >= sorter.band_inner_t && tj <= 0.75 * p) s.border_band.push_back(sample);
+    if (std::abs(tj) <= 0.75 * p) {
+      s.band.push_back(sample);
+      s.band_t.push_back(static_cast<float>(tj));
+    }
+  }
+}
+
+// The frame smoothed on the lattice's rows and every lattice point of the band sorted into its sector. Per
+// row only the lattice columns where q lies between the band's limits (plus a column either side) are
+// visited, and the frame is smoothed only there: over the band widened by a lattice step and a pixel (the
+// gradients' neighbours).
+std::vector<Sector> collect_sectors(const Annulus& annulus, const Ellipse& initial, double p,
+                                    double full_scale, const RidgeLabelOptions& options,
+                                    const std::function<double(double, double)>& illumination,
+                                    LatticeRows& smooth) {
+  const cv::Rect& roi = annulus.roi;
+  const int step = annulus.step;
+  const cv::Point2d centre = annulus.centre;
+  const EllipseBand lattice_band(initial, annulus.q_inner, std::sqrt(annulus.q_outer_squared));
   const double margin_q = (step + 1.0) / initial.semi_minor_px;
-  const EllipseBand smoothed_band(initial, std::max(0.0, q_inner - margin_q),
-                                  std::sqrt(q_outer_squared) + margin_q);
-  LatticeRows smooth{cv::Mat((roi.height - 7) / step + 1, roi.width, CV_32F), 3, step};
-  smooth_band(roi_pixels, full_scale, smoothed_band, centre, smooth);
+  const EllipseBand smoothed_band(initial, std::max(0.0, annulus.q_inner - margin_q),
+                                  std::sqrt(annulus.q_outer_squared) + margin_q);
+  smooth = LatticeRows{cv::Mat((roi.height - 7) / step + 1, roi.width, CV_32F), 3, step};
+  smooth_band(annulus.roi_pixels, full_scale, smoothed_band, centre, smooth);
   const auto lattice_column = [&](double dx_px, bool up) {
     const double x = (dx_px + centre.x - 3.0) / step;
     return 3 + step * static_cast<int>(up ? std::ceil(x) : std::floor(x));
   };
+  std::vector<Sector> sectors(static_cast<std::size_t>(options.sectors));
   for (auto& sector : sectors) {
     const std::size_t expected = static_cast<std::size_t>(kAnnulusSamples / options.sectors);
     sector.outer.reserve(expected / 2);
@@ -532,17 +621,17 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
     sector.band.reserve(expected / 2);
     sector.band_t.reserve(expected / 2);
   }
-  // A multiplication and a signed conversion: per sample, a division and an unsigned one were a tenth of
-  // this loop's time.
-  const double sectors_per_rad = options.sectors / kTwoPi;
-  const bool border_band = options.border_band != BorderBandUse::off;
-  const double band_inner_t = -options.border_band_inner_periods * p;
-  // Per run of lattice columns: dx, q^2, t and 1 / illumination.
+  const RunSorter sorter{&annulus,
+                         &initial,
+                         p,
+                         options.sectors / kTwoPi,
+                         options.border_band != BorderBandUse::off,
+                         -options.border_band_inner_periods * p,
+                         &illumination};
   const Eigen::Index max_run = roi.width / step + 2;
-  Eigen::ArrayXf run_dx(max_run), run_q_squared(max_run), run_t(max_run);
-  Eigen::ArrayXd run_flat(max_run);
+  RunArrays arrays{Eigen::ArrayXf(max_run), Eigen::ArrayXf(max_run), Eigen::ArrayXf(max_run),
+                   Eigen::ArrayXd(max_run)};
   for (int y = 3; y < roi.height - 3; y += step) {
-    const float* row = smooth.row(y);
     const EllipseBand::Row span = lattice_band.at(y - centre.y);
     if (!span.crosses) continue;
     const int x_first = std::max(3, lattice_column(span.first, false) - step);
@@ -552,84 +641,106 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
       hole_first = lattice_column(span.hole_first, true) + step;
       hole_last = lattice_column(span.hole_last, false) - step;
     }
-    const double dy = y + roi.y - initial.cy_px;
-    // The lattice columns either side of the hole, each a run evaluated a vector register at a time.
-    for (const auto& [run_first, run_last] : runs_beside_hole(x_first, x_last, hole_first, hole_last, step)) {
-      if (run_first > run_last) continue;
-      const Eigen::Index count = (run_last - run_first) / step + 1;
-      auto dx = run_dx.head(count);
-      auto q_squared = run_q_squared.head(count);
-      auto t = run_t.head(count);
-      auto flat = run_flat.head(count);
-      const double dx_first = run_first + roi.x - initial.cx_px;
-      const float along_x = static_cast<float>(cos_a), along_y = static_cast<float>(sin_a * dy);
-      const float across_x = static_cast<float>(-sin_a), across_y = static_cast<float>(cos_a * dy);
-      const float inverse_a = static_cast<float>(1.0 / initial.semi_major_px);
-      const float inverse_b = static_cast<float>(1.0 / initial.semi_minor_px);
-      const float dy_squared = static_cast<float>(dy * dy);
-      dx = Eigen::ArrayXf::LinSpaced(count, static_cast<float>(dx_first),
-                                     static_cast<float>(dx_first + step * (count - 1.0)));
-      // Along the ray from the centre the ellipse's radius is r / q (q: normalised radius), so t = r (1 -
-      // 1/q). In float, four at a time: t to 1e-4 px.
-      q_squared =
-          ((along_x * dx + along_y) * inverse_a).square() + ((across_x * dx + across_y) * inverse_b).square();
-      t = (dx * dx + dy_squared).sqrt() * (1.0f - q_squared.max(1e-18f).rsqrt());
-      flat_field_along_run(illumination, run_first + roi.x, y + roi.y, step, flat);
-      for (Eigen::Index j = 0; j < count; ++j) {
-        if (q_squared(j) < q_inner_squared || q_squared(j) > q_outer_squared || q_squared(j) < 1e-18)
-          continue;
-        if (t(j) < -1.5 * p || t(j) > 1.6 * p) continue;
-        const int x = run_first + static_cast<int>(j) * step;
-        const double fx = x + roi.x, fy = y + roi.y;
-        const double phi = direction_rad(dx(j), dy);
-        const auto index = std::min<std::size_t>(
-            sectors.size() - 1, static_cast<std::size_t>(static_cast<int>(phi * sectors_per_rad)));
-        Sector& s = sectors[index];
-        const float value = static_cast<float>(row[x] * illumination_at_centre * flat(j));
-        const Sample sample{static_cast<float>(fx), static_cast<float>(fy), value};
-        const double tj = t(j);
-        if (tj >= 0.9 * p) s.outer.push_back(value);
-        if (tj <= -0.25 * p) s.window.push_back(sample);
-        if (tj >= -0.5 * p && tj <= 0.0) s.near.push_back(value);
-        if (border_band && tj >= band_inner_t && tj <= 0.75 * p) s.border_band.push_back(sample);
-        if (std::abs(tj) <= 0.75 * p) {
-          s.band.push_back(sample);
-          s.band_t.push_back(static_cast<float>(tj));
-        }
-      }
-    }
+    // The lattice columns either side of the hole.
+    for (const auto& [run_first, run_last] : runs_beside_hole(x_first, x_last, hole_first, hole_last, step))
+      if (run_first <= run_last) sort_run(sorter, y, run_first, run_last, smooth.row(y), arrays, sectors);
   }
+  return sectors;
+}
 
-  RidgeLabelFit fit;
-  const bool logistic = options.method == RidgeLabelMethod::logistic;
+// Every sector's labels, as the chosen method takes them, and the border band's samples.
+struct SectorLabels {
   std::vector<Label> labels;  // the logistic fit's
   // Each sector's labels' distances t from the initial ellipse, for the brackets.
-  std::vector<std::vector<float>> inside_t(sectors.size()), outside_t(sectors.size());
-  const double sign = polarity < 0 ? -1.0 : 1.0;
-  std::vector<std::uint32_t> candidates, deep_inside;  // a sector's band samples whose wave cosine is read
+  std::vector<std::vector<float>> inside_t, outside_t;
   std::vector<BorderBandSample> band_samples;
-  std::vector<cv::Vec2d> band_waves(sectors.size(), cv::Vec2d(0.0, 0.0));
+  std::vector<cv::Vec2d> band_waves;
+  std::vector<std::uint32_t> candidates, deep_inside;  // a sector's band samples whose wave cosine is read
+};
+
+// The sector's border band samples (every stride-th) against its background, and its wave vector.
+void collect_band_samples(std::size_t k, const Sector& s, const Wave& wave, double background, double sign,
+                          const RidgeLabelOptions& options, SectorLabels& out) {
+  const std::size_t stride = static_cast<std::size_t>(std::max(1, options.border_band == BorderBandUse::alone
+                                                                      ? options.border_band_alone_stride
+                                                                      : options.border_band_stride));
+  for (std::size_t i = 0; i < s.border_band.size(); i += stride) {
+    const Sample& b = s.border_band[i];
+    out.band_samples.push_back({static_cast<int>(k), b.x, b.y,
+                                static_cast<float>(sign * (b.value - background)),
+                                static_cast<float>(b.x - wave.x0), static_cast<float>(b.y - wave.y0)});
+  }
+  out.band_waves[k] = cv::Vec2d(wave.kx, wave.ky);
+}
+
+// What labelling one sector's band reads: its background level, the noise sigma and the crest level at the
+// border.
+struct SectorLevels {
+  double background = 0.0, sigma = 0.0, border_crest = 0.0;
+};
+
+// The sector's band labelled: inside where the ridge signal exceeds in_sigmas; outside where it is below
+// out_sigmas, at most a quarter period inside, and the wave predicts a ridge that would show there. The
+// wave's cosine is read only at the outside candidates and, for the brackets, at the inside labels deeper
+// than a quarter period: it is evaluated there alone, and the labels are then taken in band order.
+void label_band(std::size_t k, const Sector& s, const Wave& wave, const SectorLevels& levels, double sign,
+                double p, const RidgeLabelOptions& options, RidgeLabelFit& fit, SectorLabels& out) {
+  const bool logistic = options.method == RidgeLabelMethod::logistic;
+  const double background = levels.background, sigma = levels.sigma;
+  out.candidates.clear();
+  out.deep_inside.clear();
+  for (std::size_t i = 0; i < s.band.size(); ++i) {
+    const double signal = sign * (s.band[i].value - background);
+    const bool deep = s.band_t[i] < -0.25 * p;
+    if (signal > options.in_sigmas * sigma) {
+      if (deep && !logistic) out.deep_inside.push_back(static_cast<std::uint32_t>(i));
+    } else if (!deep && signal < options.out_sigmas * sigma) {
+      out.candidates.push_back(static_cast<std::uint32_t>(i));
+    }
+  }
+  const double predicted_cos =
+      logistic ? options.predicted_cos : bracket_predicted_cos(wave.cos_at(s.band, out.deep_inside), options);
+  const Eigen::ArrayXf candidate_cos = wave.cos_at(s.band, out.candidates);
+  std::size_t next_candidate = 0;
+  for (std::size_t i = 0; i < s.band.size(); ++i) {
+    const Sample& b = s.band[i];
+    if (next_candidate < out.candidates.size() && out.candidates[next_candidate] == i) {
+      const double c = candidate_cos(static_cast<Eigen::Index>(next_candidate++));
+      if (c > predicted_cos && levels.border_crest * 0.5 * (1.0 + c) > options.visible_sigmas * sigma) {
+        if (logistic) out.labels.push_back({b.x, b.y, -1.0});
+        out.outside_t[k].push_back(s.band_t[i]);
+        ++fit.outside_labels;
+      }
+    } else if (sign * (b.value - background) > options.in_sigmas * sigma) {
+      if (logistic) out.labels.push_back({b.x, b.y, 1.0});
+      out.inside_t[k].push_back(s.band_t[i]);
+      ++fit.inside_labels;
+    }
+  }
+}
+
+// Each sector with enough pixels and a ridge wave that explains its window: its border band samples (when
+// asked) and its labels (unless the band fit is used alone), counted in `fit`.
+SectorLabels label_sectors(std::vector<Sector>& sectors, const LatticeRows& smooth, cv::Point roi_origin,
+                           double p, int polarity, const RidgeLabelOptions& options, RidgeLabelFit& fit) {
+  SectorLabels out;
+  out.inside_t.resize(sectors.size());
+  out.outside_t.resize(sectors.size());
+  out.band_waves.assign(sectors.size(), cv::Vec2d(0.0, 0.0));
+  const double sign = polarity < 0 ? -1.0 : 1.0;
   for (std::size_t k = 0; k < sectors.size(); ++k) {
     Sector& s = sectors[k];
     if (s.outer.size() < 20 || s.window.size() < 30 || s.near.empty()) continue;
-    const double background = quantile(s.outer, 0.5);
+    SectorLevels levels;
+    levels.background = quantile(s.outer, 0.5);
     std::vector<float> deviation(s.outer.size());
     for (std::size_t i = 0; i < s.outer.size(); ++i)
-      deviation[i] = static_cast<float>(std::abs(s.outer[i] - background));
-    double sigma = std::max(1.4826 * quantile(deviation, 0.5), 1e-6);
-    const Wave wave = fit_wave(s.window, smooth, roi.tl(), background, sign, p);
+      deviation[i] = static_cast<float>(std::abs(s.outer[i] - levels.background));
+    levels.sigma = std::max(1.4826 * quantile(deviation, 0.5), 1e-6);
+    const Wave wave = fit_wave(s.window, smooth, roi_origin, levels.background, sign, p);
     if (wave.explained < options.min_fit_fraction) continue;
-    if (border_band) {
-      const std::size_t stride = static_cast<std::size_t>(
-          std::max(1, options.border_band == BorderBandUse::alone ? options.border_band_alone_stride
-                                                                  : options.border_band_stride));
-      for (std::size_t i = 0; i < s.border_band.size(); i += stride) {
-        const Sample& b = s.border_band[i];
-        band_samples.push_back({static_cast<int>(k), b.x, b.y,
-                                static_cast<float>(sign * (b.value - background)),
-                                static_cast<float>(b.x - wave.x0), static_cast<float>(b.y - wave.y0)});
-      }
-      band_waves[k] = cv::Vec2d(wave.kx, wave.ky);
+    if (options.border_band != BorderBandUse::off) {
+      collect_band_samples(k, s, wave, levels.background, sign, options, out);
       if (options.border_band == BorderBandUse::alone) {
         ++fit.sectors_used;
         continue;  // no labels
@@ -637,84 +748,61 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
     }
     std::vector<float> near_signal(s.near.size());
     for (std::size_t i = 0; i < s.near.size(); ++i)
-      near_signal[i] = static_cast<float>(sign * (s.near[i] - background));
-    const double border_crest = quantile(near_signal, 0.95);
-    // A noise-free frame's spread is its quantisation: the thresholds would then sit on any residual slope
-    // of the background.
-    sigma = std::max(sigma, options.min_sigma_crest_fraction * border_crest);
+      near_signal[i] = static_cast<float>(sign * (s.near[i] - levels.background));
+    levels.border_crest = quantile(near_signal, 0.95);
+    // A noise-free frame's spread is its quantisation: the thresholds would then sit on any residual slope of
+    // the background.
+    levels.sigma = std::max(levels.sigma, options.min_sigma_crest_fraction * levels.border_crest);
     ++fit.sectors_used;
-    // The wave's cosine is read only at the outside candidates (neither inside labels, nor more than a
-    // quarter period inside, nor above out_sigmas) and, for the brackets, at the inside labels deeper than
-    // that: it is evaluated there alone, and the labels are then taken in band order (the logistic fit keeps
-    // every n-th).
-    candidates.clear();
-    deep_inside.clear();
-    for (std::size_t i = 0; i < s.band.size(); ++i) {
-      const double signal = sign * (s.band[i].value - background);
-      const bool deep = s.band_t[i] < -0.25 * p;
-      if (signal > options.in_sigmas * sigma) {
-        if (deep && !logistic) deep_inside.push_back(static_cast<std::uint32_t>(i));
-      } else if (!deep && signal < options.out_sigmas * sigma) {
-        candidates.push_back(static_cast<std::uint32_t>(i));
-      }
-    }
-    const double predicted_cos =
-        logistic ? options.predicted_cos : bracket_predicted_cos(wave.cos_at(s.band, deep_inside), options);
-    const Eigen::ArrayXf candidate_cos = wave.cos_at(s.band, candidates);
-    std::size_t next_candidate = 0;
-    for (std::size_t i = 0; i < s.band.size(); ++i) {
-      const Sample& b = s.band[i];
-      if (next_candidate < candidates.size() && candidates[next_candidate] == i) {
-        const double c = candidate_cos(static_cast<Eigen::Index>(next_candidate++));
-        if (c > predicted_cos && border_crest * 0.5 * (1.0 + c) > options.visible_sigmas * sigma) {
-          if (logistic) labels.push_back({b.x, b.y, -1.0});
-          outside_t[k].push_back(s.band_t[i]);
-          ++fit.outside_labels;
-        }
-      } else if (sign * (b.value - background) > options.in_sigmas * sigma) {
-        if (logistic) labels.push_back({b.x, b.y, 1.0});
-        inside_t[k].push_back(s.band_t[i]);
-        ++fit.inside_labels;
-      }
-    }
+    label_band(k, s, wave, levels, sign, p, options, fit, out);
   }
-  if (options.border_band == BorderBandUse::alone) {
-    if (fit.sectors_used < options.min_sectors) return std::nullopt;
+  return out;
+}
+
+// The band fit alone: `initial` moved to its centre.
+std::optional<RidgeLabelFit> fit_band_alone(RidgeLabelFit fit, SectorLabels& labels, const Ellipse& initial,
+                                            double period_px, const RidgeLabelOptions& options) {
+  if (fit.sectors_used < options.min_sectors) return std::nullopt;
+  const std::optional<BorderBandFit> band =
+      fit_border_band(std::move(labels.band_samples), std::move(labels.band_waves), initial, period_px);
+  if (!band) return std::nullopt;
+  fit.ellipse = initial;
+  fit.ellipse.cx_px = band->ellipse.cx_px;
+  fit.ellipse.cy_px = band->ellipse.cy_px;
+  fit.border_band_used = true;
+  return fit;
+}
+
+// The brackets' centre, size and shape; with the border band, the centre the mean of the two.
+std::optional<RidgeLabelFit> fit_with_brackets(RidgeLabelFit fit, SectorLabels& labels,
+                                               const Ellipse& initial, double period_px,
+                                               const RidgeLabelOptions& options) {
+  const std::optional<BracketFit> brackets = fit_brackets(labels.inside_t, labels.outside_t, options);
+  if (!brackets) return std::nullopt;
+  Ellipse moved = initial;
+  moved.cx_px += brackets->shift.x;
+  moved.cy_px += brackets->shift.y;
+  fit.shape_size_px = brackets->size_px.value_or(0.0);
+  fit.shape_cos2_px = brackets->cos2_px;
+  fit.shape_sin2_px = brackets->sin2_px;
+  fit.ellipse = reshaped(moved, fit.shape_size_px, brackets->cos2_px, brackets->sin2_px);
+  if (options.border_band == BorderBandUse::with_labels) {
+    // The mean of the two centres: each errs by where the fingerprint lies along the border, partly
+    // independently, so the mean errs less than either (BENCHMARKS.md, contact/).
     const std::optional<BorderBandFit> band =
-        fit_border_band(std::move(band_samples), std::move(band_waves), initial, period_px);
-    if (!band) return std::nullopt;
-    fit.ellipse = initial;
-    fit.ellipse.cx_px = band->ellipse.cx_px;
-    fit.ellipse.cy_px = band->ellipse.cy_px;
-    fit.border_band_used = true;
-    return fit;
-  }
-  if (fit.sectors_used < options.min_sectors || fit.inside_labels == 0 || fit.outside_labels == 0)
-    return std::nullopt;
-  if (options.method == RidgeLabelMethod::brackets) {
-    const std::optional<BracketFit> brackets = fit_brackets(inside_t, outside_t, options);
-    if (!brackets) return std::nullopt;
-    Ellipse moved = initial;
-    moved.cx_px += brackets->shift.x;
-    moved.cy_px += brackets->shift.y;
-    fit.shape_size_px = brackets->size_px.value_or(0.0);
-    fit.shape_cos2_px = brackets->cos2_px;
-    fit.shape_sin2_px = brackets->sin2_px;
-    fit.ellipse = reshaped(moved, fit.shape_size_px, brackets->cos2_px, brackets->sin2_px);
-    if (options.border_band == BorderBandUse::with_labels) {
-      // The mean of the two centres: over 13 fingerprints each alone was at 0.85 px (brackets) and 1.1 px
-      // (band) RMS, their errors partly independent: the mean at 0.80 px, worst frame 2.6 / 2.0 -> 1.7 px
-      // (BENCHMARKS.md, contact/, session 26).
-      const std::optional<BorderBandFit> band =
-          fit_border_band(std::move(band_samples), std::move(band_waves), fit.ellipse, period_px);
-      if (band) {
-        fit.ellipse.cx_px = 0.5 * (fit.ellipse.cx_px + band->ellipse.cx_px);
-        fit.ellipse.cy_px = 0.5 * (fit.ellipse.cy_px + band->ellipse.cy_px);
-        fit.border_band_used = true;
-      }
+        fit_border_band(std::move(labels.band_samples), std::move(labels.band_waves), fit.ellipse, period_px);
+    if (band) {
+      fit.ellipse.cx_px = 0.5 * (fit.ellipse.cx_px + band->ellipse.cx_px);
+      fit.ellipse.cy_px = 0.5 * (fit.ellipse.cy_px + band->ellipse.cy_px);
+      fit.border_band_used = true;
     }
-    return fit;
   }
+  return fit;
+}
+
+// The logistic fit of the ellipse's five parameters to at most kMaxLabels of the labels (every n-th).
+std::optional<RidgeLabelFit> fit_with_logistic(RidgeLabelFit fit, std::vector<Label>& labels,
+                                               const Ellipse& initial, const RidgeLabelOptions& options) {
   if (labels.size() > kMaxLabels) {
     const std::size_t stride = (labels.size() + kMaxLabels - 1) / kMaxLabels;
     std::vector<Label> kept;
@@ -740,6 +828,31 @@ std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
   e.angle_rad = std::remainder(e.angle_rad, std::numbers::pi);
   if (e.angle_rad <= -0.5 * std::numbers::pi) e.angle_rad += std::numbers::pi;
   return fit;
+}
+
+}  // namespace
+
+// The recipe: the band around the initial ellipse, its lattice sorted into sectors, each sector's ridge wave
+// and labels, then the fit the options ask for.
+std::optional<RidgeLabelFit> fit_ellipse_to_ridge_labels(
+    const cv::Mat& frame, double full_scale, const Ellipse& initial, double period_px, int polarity,
+    const RidgeLabelOptions& options, const std::function<double(double x_px, double y_px)>& illumination) {
+  if (polarity == 0 || !(period_px > 0.0) || options.sectors < 4 || initial.semi_minor_px < 2.0)
+    return std::nullopt;
+  const std::optional<Annulus> annulus = annulus_around(frame, initial, period_px, illumination);
+  if (!annulus) return std::nullopt;
+  LatticeRows smooth;
+  std::vector<Sector> sectors =
+      collect_sectors(*annulus, initial, period_px, full_scale, options, illumination, smooth);
+  RidgeLabelFit fit;
+  SectorLabels labels = label_sectors(sectors, smooth, annulus->roi.tl(), period_px, polarity, options, fit);
+  if (options.border_band == BorderBandUse::alone)
+    return fit_band_alone(fit, labels, initial, period_px, options);
+  if (fit.sectors_used < options.min_sectors || fit.inside_labels == 0 || fit.outside_labels == 0)
+    return std::nullopt;
+  if (options.method == RidgeLabelMethod::brackets)
+    return fit_with_brackets(fit, labels, initial, period_px, options);
+  return fit_with_logistic(fit, labels.labels, initial, options);
 }
 
 }  // namespace tirstrain::contact

@@ -76,10 +76,9 @@ struct RidgeLabelOptions {
   BorderBandUse border_band = BorderBandUse::off;
   // The band fit's pixels: those of the lattice from border_band_inner_periods inside the initial ellipse to
   // 0.75 period outside, every border_band_stride-th of them (border_band_alone_stride-th when alone: noisy
-  // frames need more). BENCHMARKS.md, contact/, session 26: with the labels every 6th gives the centres all
-  // of them do (13 fingerprints: 0.79 / 1.58 px RMS / worst against 0.78 / 1.63) at a quarter of the cost;
-  // alone, on the noisy scenes, the worst frame is 0.91 px with all, 0.93 with every 3rd, 1.13 with every
-  // 6th.
+  // frames need more). With the labels every 6th gives the centres all of them do (within 0.05 px over 13
+  // fingerprints) at a quarter of the cost; alone, on the noisy scenes, every 3rd is as good as all and every
+  // 6th costs ~0.2 px on the worst frame.
   double border_band_inner_periods = 1.5;
   int border_band_stride = 6;
   int border_band_alone_stride = 3;

@@ -11,23 +11,24 @@
 // The outline is then placed where the contact ends rather than where the texture is half as strong. The
 // frame is first flat-fielded: divided by a quadratic surface fitted to the background around the contact
 // (vignetting, the light's tilt; only when that background surrounds the contact), because grey closing
-// flattens a background that rises outward beside the contact and the edge level is then reached too early
-// (30 % vignetting moved a low-contrast contact's axes by 5 %). When the ridge texture's SNR is low (below
-// border_average_snr), the flat-fielded frame is also averaged along the border over 0.7 ridge period:
-// ridges near the border run along it, so the profile across the border is kept and the faint outermost
-// crest rises out of the noise. With ridges made bright, grey closing then opening over one period merges
-// ridges and valleys into a plateau whose outer edge is the outermost crest; along the ray from the centre
-// through each of 200 outline samples the edge is where that level falls to crest_edge_level of the way from
-// the local background to the outermost crest's own height. Relative to the crest, not to the contact's
-// plateau: ridge contrast fades towards the border (skin only nearly touches there), so the last crest is
-// fainter than the plateau and a plateau-relative level cuts it several pixels inside the edge (the contact's
-// axes came out ~3 % short and a contact two ridge periods across lost a tenth of its radius). Levels stay
-// clear of the pixel noise measured beyond the edge. A valley lying along the border is invisible (it
-// reflects like the background), so there the edge can only be placed statistically: crest_edge_level below
-// one half puts it part-way into that valley, and one-sided dips are found against an outer-envelope ellipse
-// and bridged by it. Single-ray outward spikes (noise) are clipped to their neighbours' median. Convex hull,
-// 50 points equally spaced along its perimeter, area, then the direct ellipse fit and the ridge orientation
-// field.
+// flattens a background that rises outward beside the contact and the edge level is then reached too early.
+// When the ridge texture's SNR is low (below border_average_snr), the flat-fielded frame is also averaged
+// along the border over 0.7 ridge period: ridges near the border run along it, so the profile across the
+// border is kept and the faint outermost crest rises out of the noise. With ridges made bright, grey closing
+// then opening over one period merges ridges and valleys into a plateau whose outer edge is the outermost
+// crest; along the ray from the centre through each of 200 outline samples the edge is where that level falls
+// to crest_edge_level of the way from the local background to the outermost crest's own height. Relative to
+// the crest, not to the contact's plateau: ridge contrast fades towards the border (skin only nearly touches
+// there), so the last crest is fainter than the plateau and a plateau-relative level cuts it several pixels
+// inside the edge. Levels stay clear of the pixel noise measured beyond the edge. A valley lying along the
+// border is invisible (it reflects like the background), so there the edge can only be placed statistically:
+// crest_edge_level below one half puts it part-way into that valley, and one-sided dips are found against an
+// outer-envelope ellipse and bridged by it. Single-ray outward spikes (noise) are clipped to their
+// neighbours' median. Convex hull, 50 points equally spaced along its perimeter, area, then the direct
+// ellipse fit and the ridge orientation field. The code follows these steps in
+// ContactSegmenter::segment_region (contact/segmenter.cpp); each step lives in its own file: working_image,
+// texture_regions, flat_field and level_edge, outline_repair, label_refinement (with ridge_labels and
+// border_band).
 //
 // Working resolution (the design choice that sets the speed): everything runs on the frame averaged over
 // f x f blocks with f = floor(ridge period / 5.5 px), i.e. about 5.5-8 working pixels per ridge period
@@ -55,6 +56,10 @@
 #include <vector>
 
 #include "contact/ellipse.hpp"
+#include "contact/level_edge.hpp"
+#include "contact/segmenter_options.hpp"
+#include "contact/texture_regions.hpp"
+#include "contact/working_image.hpp"
 
 namespace tirstrain::contact {
 
@@ -74,116 +79,6 @@ enum ContactFlag : std::uint32_t {
 
 // "ok", or the set flags joined by '|', e.g. "touches_edge|low_contrast".
 std::string contact_status_text(std::uint32_t status);
-
-struct SegmenterOptions {
-  double px_per_mm = 52.0;
-  // Fixed ridge period; without it the period is measured from the spectrum of the first frames that show
-  // a clear ridge ring (and default_period_mm is used until then).
-  std::optional<double> ridge_period_px;
-  double default_period_mm = 0.45;
-  double min_period_mm = 0.25;
-  double max_period_mm = 1.2;
-  double min_period_confidence = 6.0;
-  int polarity = 0;    // -1: ridges in contact darker than the background, +1 brighter, 0: measure
-  int downsample = 0;  // working-resolution factor f; 0 = automatic (see above), 1 = full resolution
-  int hull_points = 50;
-  int block_px = 32;  // orientation blocks, full-resolution pixels
-  bool orientation = true;
-  std::optional<cv::Rect> exclude_px;  // never contact (e.g. the reference pattern band on the glass)
-  double min_area_mm2 = 0.5;           // smaller textured regions are noise, not contact
-  double min_energy_ratio = 3.0;       // texture energy inside / outside needed to call it contact
-  double min_energy = 0.003;           // and in absolute terms (fraction of full scale)
-  // Regions joined to the largest one: at least merge_fraction of its area and no further from it than
-  // merge_gap_periods ridge periods. One fingertip makes one contact; what splits it (a dry or wet patch, a
-  // faint stretch of border) leaves gaps of a ridge period or so, while another textured thing in view (a
-  // patterned band on the glass, an object at the image's edge) lies apart and is not contact.
-  double merge_fraction = 0.1;
-  double merge_gap_periods = 2.0;
-  double saturated_fraction = 0.02;
-  // Flat field: the level edge is searched on the frame divided by a quadratic surface fitted to the
-  // background around the contact (vignetting, the light's tilt). Without it, grey closing flattens a
-  // background that rises outward next to the contact, which puts the edge too far in wherever the ridge
-  // contrast is small against that slope (1.4 % on the low-contrast scene's minor axis; BENCHMARKS.md).
-  bool flat_field = true;
-  // Below this texture SNR (band-pass envelope inside the contact over the background's pixel noise, the
-  // noise scaled to the automatic working resolution of 5.5 pixels per ridge period), the ridges-bright image
-  // is averaged along the border over border_average_periods ridge periods before the edge search: ridges
-  // near the border run along it, so its profile across the border is kept while the noise that pulls the
-  // faint outermost crest under the noise margins drops.
-  double border_average_snr = 20.0;
-  double border_average_periods = 0.7;
-  // The outline is where the merged ridge level falls to crest_edge_level of the way from the background to
-  // the outermost crest (ridge contrast fades towards the border where skin only nearly touches, so that
-  // crest is fainter than the contact's plateau). Below one half, because where a valley runs along the
-  // border the edge lies somewhere in that valley, beyond the crest's flank. Rays that cannot see that crest
-  // clearly (window leaving the view, crest lost in noise) use edge_level of the way to the plateau.
-  double crest_edge_level = 0.18;
-  double edge_level = 0.14;
-  // Outline dips deeper than this (in ridge periods) inside the outer-envelope ellipse are valleys along
-  // the border and are bridged by the ellipse (see bridge_valleys in segmenter.cpp).
-  double valley_gap_periods = 0.1;
-  // A single ray's edge further out than the median of its neighbours by more than this (in ridge periods)
-  // is a noise spike and is clipped back (see clip_spikes in segmenter.cpp).
-  double spike_periods = 0.1;
-  // With automatic resolution, a contact whose equivalent radius is below this many ridge periods is
-  // segmented again at half the working factor (about 11 working pixels per period).
-  double small_contact_periods = 3.0;
-  // The centre from where ridges show near the border (contact/ridge_labels.hpp): the outline is moved so
-  // that the ellipse's centre is the one the ridge labels give. The level edge works from the crests, so
-  // where a ridge valley runs along the border it stops at the last crest, and the centre follows where the
-  // fingerprint happens to lie (over 19 synthetic trials, every frame, centre RMS up to 1.7-2.0 px on the
-  // tiny contact and on sliding ones; 0.97 px RMS of the scenes' RMS). Contacts whose equivalent radius
-  // sqrt(a b) is under ridge_label_below_periods ridge periods get the logistic ellipse fit to the labels
-  // (the tiny contact: 1.70 -> 0.37 px; the brackets there: 0.77); larger ones, when ridge_label_centre,
-  // the per-sector brackets (there the logistic fit drifts outward along valley arcs: direction_proximal
-  // 0.90 px against the brackets' 0.54). Together: 0.97 -> 0.48 px (BENCHMARKS.md, contact/, sessions 21
-  // and 23). The brackets also give the outline's size (from the sectors where ridges end at the border) and
-  // its shape (the border's cos 2 phi and sin 2 phi terms): worst semi-axis error of the large contacts over
-  // the 19 trials 2.87 -> 1.83 %, their worst IoU 0.965 -> 0.978; the default scene with nine fingerprints
-  // (seeds), worst IoU 0.951-0.976 -> 0.972-0.980 (BENCHMARKS.md, contact/, session 24).
-  // Never applied when the contact touches the frame's edge, the frame is saturated or was averaged along
-  // the border (the labels would be clipped or noise-limited), or the shift would exceed half a ridge
-  // period. Costs about 0.9 ms a frame on a large contact (session 22), 3 ms on a small one.
-  double ridge_label_below_periods = 5.0;
-  bool ridge_label_centre = true;
-  // Small contacts (the logistic fit): the ellipse's elongation and its direction are this weight of the
-  // fit's, the rest the level edge's; the size stays the level edge's (the fit's axes run ~2.5 px long). Each
-  // errs by where the fingerprint's valleys lie along the border, partly independently: on the tiny contact
-  // with four fingerprints the axes' RMS error went 1.31 -> 1.19 % and the shipped trial's worst frame 2.08
-  // -> 1.70 % (BENCHMARKS.md, contact/, session 27). 0: the level edge's shape.
-  double ridge_label_shape_weight = 0.5;
-  // The border band's intensity fit (contact/border_band.hpp) for large contacts, with ridge_label_centre:
-  // the centre becomes the mean of the brackets' and the fit's, and on frames averaged along the border (too
-  // noisy for labels) the fit's alone. Over 13 fingerprints (the default scene's seeds and two more scenes)
-  // the worst frame's centre error went 2.60 -> 1.66 px, on the two noisy scenes' other seeds 6.4 -> 2.3 px,
-  // with a stronger contrast fade than the generator's 5.0 -> 2.7 px, and no shipped trial has a frame above
-  // 1 px (1.11 -> 0.93); where the ridges' contrast fades little towards the border it costs (1.80 -> 1.91
-  // px; BENCHMARKS.md, contact/, sessions 26 and 28). On by default since session 28: the issue's accuracy
-  // targets hold on every shipped trial only with it. It costs ~2.2 ms a frame, ~4 ms on frames averaged
-  // along the border; SegmentationPreset::balanced turns it off.
-  bool border_band_centre = true;
-  double low_contrast = 0.02;  // texture energy (≈ 0.6 x ridge amplitude) below this: low contrast
-  // Region tracking: after a frame with a contact, the next frames are segmented only around it (its
-  // bounding box grown by the larger of region_margin_periods ridge periods and region_margin_fraction of
-  // its size, when that is at most 60 % of the frame); a whole frame again every full_frame_every frames
-  // (a new region elsewhere is seen then), and at once when the contact is lost or reaches the region's side.
-  bool track_region = true;
-  int full_frame_every = 10;
-  double region_margin_periods = 4.0;
-  double region_margin_fraction = 0.15;
-};
-
-// Three settings of the switches above by what they cost and give (BENCHMARKS.md, contact/, "Where contact/
-// stands"; 1280x1024, the 19 shipped synthetic trials, worst frame):
-//   accurate (the defaults): ~4.2 ms a frame, centre 0.93 px, semi-axes 2.0 %, IoU 0.956;
-//   balanced: the border band off: ~2.0 ms, centre 1.11 px, semi-axes 2.0 %;
-//   fast: the flat field, the border averaging, the ridge labels and the band off: ~1.1 ms, centre 2.5 px,
-//         semi-axes 3.5 % (the default scene's IoU 0.975).
-enum class SegmentationPreset { fast, balanced, accurate };
-
-// `options` with the preset's switches (flat_field, border_average_snr, ridge_label_centre,
-// ridge_label_below_periods, ridge_label_shape_weight, border_band_centre) set; everything else kept.
-SegmenterOptions with_preset(SegmenterOptions options, SegmentationPreset preset);
 
 struct ContactResult {
   std::uint32_t status = kNoContact;
@@ -231,12 +126,16 @@ class ContactSegmenter {
   const SegmenterOptions& options() const { return options_; }
 
  private:
+  // Images and buffers reused from frame to frame (no allocation per frame once sizes settle).
   struct Buffers {
-    cv::Mat work, bright, measure, blur_small, blur_large, band, energy, level, scratch, mask, labels, stats,
-        centroids, hull_mask, scratch_u8;
-    std::vector<float> row_sum;
-    std::vector<std::uint16_t> sum_u16;
-    std::vector<std::uint32_t> sum_u32;
+    cv::Mat work;     // the working image of the region being segmented
+    cv::Mat measure;  // the working image the ridge period is measured on
+    cv::Mat hull_mask, mask_scratch;
+    WorkingImageBuffers working;
+    TextureImages texture;
+    TextureRegions regions;
+    LevelImages level;
+    std::vector<float> ray;
   };
 
   double period_for_frame(const cv::Mat& image, double full_scale);
@@ -244,12 +143,13 @@ class ContactSegmenter {
   // results in frame coordinates. Sets *left_region when the outline reaches a side of the region that is not
   // a side of the frame.
   ContactResult segment_region(const cv::Mat& image, cv::Rect region, bool* left_region);
+  // A contact only a few ridge periods across, segmented again at twice the resolution on `box_px` (the
+  // whole frame if its outline reaches that box's side); `multiple_blobs` is added to a contact found.
+  ContactResult segment_small_contact(const cv::Mat& image, const cv::Rect& box_px,
+                                      std::uint32_t multiple_blobs);
   void update_region(const ContactResult& result, const cv::Rect& frame);
-  // Working image of `image` at `factor`; returns the number of pixels at full scale (0 for float images).
-  std::size_t to_working(const cv::Mat& image, int factor, double full_scale, cv::Mat& out);
 
   SegmenterOptions options_;
-  std::vector<float> ray_;
   std::optional<double> period_px_;
   bool period_measured_ = false;
   int factor_ = 1;
@@ -259,9 +159,5 @@ class ContactSegmenter {
   int frames_since_full_ = 0;
   Buffers buf_;
 };
-
-// Full scale of an image's values: 255 for 8-bit; for 16-bit the smallest of 2^10-1, 2^12-1, 2^14-1,
-// 2^16-1 not below the frame's maximum (cameras store 10-14 bit data in 16-bit files); 1 for float.
-double full_scale_of(const cv::Mat& image);
 
 }  // namespace tirstrain::contact

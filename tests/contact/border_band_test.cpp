@@ -134,7 +134,7 @@ TEST(BorderBand, ProfileGradientMatchesCentralDifferences) {
 // The window's wave vectors are a few percent off where the skin is stretched or the ridges curve: 4 % in
 // period and 3 degrees in direction here. The refinement brings them back (measured: centre 0.0003 px with
 // it, 0.014 px without; on the synthetic trials, where ridges curve, the refinement's gain is larger:
-// BENCHMARKS.md, contact/, session 26).
+// BENCHMARKS.md, contact/).
 TEST(BorderBand, RefinesWaveVectorsGivenOff) {
   const Band band = draw_band(kTruth, 0.0, 2);
   std::vector<cv::Vec2d> off;

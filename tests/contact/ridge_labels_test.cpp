@@ -64,8 +64,7 @@ TEST(RidgeLabels, CentreComesBackFromAnOffsetStart) {
               << " sectors\n";
     // Straight ridges cross the border on two sides and end against it there: measured 0.05 px. Ridges
     // concentric about a core near the contact's centre run along the whole border, which leaves the centre
-    // loosely held: measured 1.46 px (1.19 px before the band-only smoothing of session 22, which moved a few
-    // labels), under half the start's 3.6 px.
+    // loosely held: measured 1.46 px, under half the start's 3.6 px.
     EXPECT_LT(centre_px, whorl ? 1.8 : 0.3);
     // The soft edge's tail counts as inside: the axes come out a little long, never short.
     EXPECT_GT(fit->ellipse.semi_major_px, truth.semi_major_px - 1.0);
@@ -122,7 +121,7 @@ TEST(RidgeLabels, BracketsBringTheCentreBack) {
 // minor 2 % short) and turned 3 degrees comes back to the truth's shape: the axis ratio from 1.041 to within
 // 1 % and the angle to within 1 degree, for both ridge patterns (measured: see the printed values). The level
 // edge's shape errors on the synthetic trials are of this kind (a valley along the top and bottom arcs, a
-// ridge end at the sides: 2.9 % on affine_stretch_50; BENCHMARKS.md, contact/, session 24).
+// ridge end at the sides; BENCHMARKS.md, contact/).
 TEST(RidgeLabels, BracketsCorrectTheShape) {
   for (const bool whorl : {false, true}) {
     const BracketRun run = run_brackets(whorl, [](const Ellipse& truth) {

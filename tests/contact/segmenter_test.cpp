@@ -210,8 +210,8 @@ TEST(ContactSegmenter, TwoBlobsAreFlaggedAndJoined) {
 // ridge_label_centre false and ridge_label_below_periods 0. Within 1 px on this renderer's small contacts
 // and its default-sized ones (measured: small, straight ridges 0.30 px against the level edge's 0.19, whorl
 // 0.55 against 0.95; default size, whorl 0.55 against 0.45, straight 0.14 against 0.34). On this one whorl
-// the brackets' midway borders (session 23) do worse than the level edge (0.31 before); over random scenes
-// of this renderer they do better (CentreOverRandomScenes).
+// the brackets' midway borders do worse than the level edge; over random scenes of this renderer they do
+// better (CentreOverRandomScenes).
 TEST(ContactSegmenter, RidgeLabelCentreOnSmallAndLargeContacts) {
   SegmenterOptions level_edge_only;
   level_edge_only.ridge_label_below_periods = 0.0;
@@ -240,8 +240,8 @@ TEST(ContactSegmenter, RidgeLabelCentreOnSmallAndLargeContacts) {
     // Small contacts (the logistic fit): the outline is moved and its elongation blended with the fit's
     // (SegmenterOptions::ridge_label_shape_weight), its mean semi-axis kept, so the area moves by the square
     // of the elongation's change only (measured: 0.16 % and 0.17 %). Large ones (the brackets): also resized
-    // and reshaped, and the area comes nearer the truth's (measured: whorl 2.6 -> 0.4 %, straight 2.4 -> 0.3
-    // %).
+    // and reshaped, and the area comes nearer the truth's (measured: whorl 0.4 %, straight 0.3 %, against
+    // the level edge's 2.6 % and 2.4 %).
     const double truth_mm2 = std::numbers::pi * truth.semi_major_px * truth.semi_minor_px / (52.0 * 52.0);
     std::cout << "    area " << labelled.result.area_mm2 / truth_mm2 << " of the truth's, level edge "
               << level_edge.result.area_mm2 / truth_mm2 << "\n";
@@ -263,8 +263,9 @@ TEST(ContactSegmenter, RidgeLabelCentreOnSmallAndLargeContacts) {
 // The centre over 60 random scenes of this renderer: contact size, shape, orientation and place; whorl or
 // straight ridges, the whorl's core anywhere near the middle; period 20-26 px; noise 0.5-2 % of full scale,
 // below the border averaging's threshold, so that every scene gets the brackets. Measured RMS 0.205 px, worst
-// 0.60 px; with each sector's border just beyond its inside labels and no weights (session 22) 0.337 / 1.00
-// px. Asserted at 0.27 and 0.8 px so that the two are told apart.
+// 0.60 px; with each sector's border just beyond its inside labels and no gap weights (contact/
+// ridge_labels.cpp, fit_brackets) 0.337 / 1.00 px. Asserted at 0.27 and 0.8 px so that the two are told
+// apart.
 TEST(ContactSegmenter, CentreOverRandomScenes) {
   cv::RNG rng(23);
   constexpr int kScenes = 60;

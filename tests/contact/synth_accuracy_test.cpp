@@ -205,10 +205,10 @@ void check_scene(const std::string& name, const Tolerance& tolerance,
 // axes <= 2 % of the truth's ellipse, asserted at those tolerances on these two frames at rest with the
 // segmenter's defaults: the centre from the ridge labels (brackets and the border band's fit on the large
 // contacts, the logistic fit on the tiny one), the border band's fit alone on the frames averaged along the
-// border. Measured centre errors (session 28): default 0.49 / 0.28 px, sweat 0.11 / 0.18, low contrast 0.29 /
-// 0.43, heavy noise 0.40 / 0.59, tiny 0.33 / 0.11 (session 22, without the band: 0.14 / 0.28, 0.11 / 0.27,
-// 0.38 / 0.39, 0.27 / 0.41, 0.33 / 0.11). Over whole trials, while the skin slides under the contact, some
-// sliding frames exceed 1 px (`tirstrain validate` reports every frame; BENCHMARKS.md, contact/, session 21).
+// border. Measured centre errors: default 0.49 / 0.28 px, sweat 0.11 / 0.18, low contrast 0.29 / 0.43, heavy
+// noise 0.40 / 0.59, tiny 0.33 / 0.11. Over whole trials, while the skin slides under the contact, some
+// sliding frames of other fingerprints exceed 1 px (`tirstrain validate` reports every frame; BENCHMARKS.md,
+// contact/).
 TEST(SynthAccuracy, DefaultScene) {
   check_scene("default", {0.97, 1.0, 0.02, false, true});
 }
@@ -237,12 +237,11 @@ TEST(SynthAccuracy, LevelEdgeCentreAlone) {
 }
 
 // While the skin slides: the whole affine_stretch_50 trial (60 frames; the skin under the contact stretched
-// by up to 50 % along x), the trial whose sliding frames were the worst for the centre. Each sector of the
-// brackets places the border midway between its inside and outside ridge labels, and counts less where they
-// are far apart (contact/ridge_labels.cpp). With the border just beyond the inside labels (session 22) this
-// trial measured 0.66 px RMS over its frames and 1.39 px at its worst; now 0.51 / 0.98 px. Asserted at 0.6
-// and 1.1 px so that either rule is told apart. Some sliding frames of other trials still exceed the issue's
-// 1 px (BENCHMARKS.md, contact/, session 23).
+// by up to 50 % along x), the shipped trial whose sliding frames are the hardest for the centre. Each sector
+// of the brackets places the border midway between its inside and outside ridge labels, and counts less
+// where they are far apart (contact/ridge_labels.cpp): measured 0.51 px RMS over the frames, 0.98 px at the
+// worst; with the border just beyond the inside labels instead, 0.66 / 1.39 px. Asserted at 0.6 and 1.1 px
+// so that the two rules are told apart (BENCHMARKS.md, contact/).
 TEST(SynthAccuracy, SlidingTrialCentre) {
   fs::path dir;
   render(
@@ -267,11 +266,10 @@ TEST(SynthAccuracy, SlidingTrialCentre) {
 // it, and the level edge's outline is off by a few px: too large where ridges end (the edge sits on the
 // step's foot), too small where valleys run along it, in a pattern of two lobes. The brackets' size (from
 // the sectors where ridges end) and shape terms take that out, and their centre is nearer too. Measured over
-// the 60 frames, worst semi-axis error: level edge alone 3.31 %, session 23's centre-only rule 3.25 %, with
-// the shape terms but the level edge's size 2.75 %, now 1.08 %; worst IoU 0.951 (level edge) and 0.972 now;
-// centre RMS 1.41 px (level edge) and 0.67 px. Asserted at 1.5 %, 0.97 and 0.9 px, which the level edge alone
-// fails on all three and the earlier rules on the axes (BENCHMARKS.md, contact/, session 24: nine seeds,
-// every frame).
+// the 60 frames, worst semi-axis error: 1.08 % (level edge alone 3.31 %, the brackets' centre alone 3.25 %,
+// with the shape terms but the level edge's size 2.75 %); worst IoU 0.972 (level edge 0.951); centre RMS
+// 0.67 px (level edge 1.41 px). Asserted at 1.5 %, 0.97 and 0.9 px, which the level edge alone fails on all
+// three and the partial rules on the axes (BENCHMARKS.md, contact/).
 TEST(SynthAccuracy, ShapeAndCentreOnOtherFingerprints) {
   FrameErrors errors[2];  // the segmenter's defaults, the level edge alone
   for (const int seed : {2, 4, 6}) {
@@ -311,11 +309,11 @@ TEST(SynthAccuracy, ShapeAndCentreOnOtherFingerprints) {
 }
 
 // The border band's intensity fit (`segmentation: {border_band_centre: true}`, contact/border_band.hpp; on
-// by default since session 28) on two of the four shipped trials where the balanced preset's centre (the
+// by default) on two of the four shipped trials where the balanced preset's centre (the
 // band off) has a frame above 1 px, one for each way the fit is used: the elliptical contact (the centre the
 // mean of the brackets' and the band fit's) and the heavy-noise one (too noisy for labels: the band fit's
-// alone). Over all 60 frames (session 26): elliptical_contact default 0.78 px RMS, worst 1.10 (frame 1); with
-// the band 0.23 / 0.52; hard_heavy_noise default 0.67 / 1.09 (frame 11), with the band 0.67 / 0.93 (frame
+// alone). Over all 60 frames: elliptical_contact without the band 0.78 px RMS, worst 1.10 (frame 1); with
+// the band 0.23 / 0.52; hard_heavy_noise without it 0.67 / 1.09 (frame 11), with the band 0.67 / 0.93 (frame
 // 23). The trials are rendered whole, as shipped, and their first 30 frames segmented (every worst frame lies
 // there). Asserted: with the band every frame within the 1 px; without it some frame above (the
 // comparison shows if either changes).
@@ -353,7 +351,7 @@ TEST(SynthAccuracy, BorderBandCentre) {
 }
 
 // The tiny contact's shape (SegmenterOptions::ridge_label_shape_weight): the elongation and direction half
-// the level edge's, half the logistic fit's. The shipped trial, all 60 frames (session 27): the level edge's
+// the level edge's, half the logistic fit's. The shipped trial, all 60 frames: the level edge's
 // shape alone, worst semi-axis error 2.08 % (frame 43; the minor axis 1.2 % short on average), RMS over
 // frames and both axes 0.96 %; the blend 1.70 % and 0.55 %. Asserted: every frame within the 2 % and
 // IoU >= 0.93 with the blend, some frame above 2 % without it, and the RMS below 0.7 %.
@@ -386,7 +384,7 @@ TEST(SynthAccuracy, TinyContactShapeFromLabelsAndLevelEdge) {
 // The same tiny contact (same truth mask) with the fingerprint's core at the contact's centre and well
 // outside it: the ridge phase along the border decides the outline where a valley lies along it, so the
 // centre is good when ridges cross the border and several pixels off when they run around it (BENCHMARKS.md,
-// contact/, session 19: measured 3.66 / 3.54 px and 0.39 / 0.37 px, IoU 0.88 and 0.96). Known limit, asserted
+// contact/; measured 3.66 / 3.54 px and 0.39 / 0.37 px, IoU 0.88 and 0.96). Known limit, asserted
 // at the measured values so that a change either way shows.
 //
 // With the centre from the ridge labels (the default on a contact this small), the placement with the core
@@ -479,8 +477,8 @@ TEST(SynthAccuracy, BorderAveragingOnATinyContact) {
 // (grey closing flattens the background that rises outward beside the contact, so the edge level is
 // reached too early). On the balanced preset: the border band's fit (on by default) moves its centre by up to
 // 0.4 px between any two renders that differ a little, not steadily with the light (band fit alone, flat
-// light to 30 % vignetting in steps of 5 %: x 319.41, 319.57, 319.17, 319.43, 319.31, 319.29, 319.06 px;
-// session 28); that is its scatter, not a dependence on the light. With it, both centres are asserted against
+// light to 30 % vignetting in steps of 5 %: x 319.41, 319.57, 319.17, 319.43, 319.31, 319.29, 319.06 px);
+// that is its scatter, not a dependence on the light. With it, both centres are asserted against
 // the truth's instead.
 TEST(SynthAccuracy, OutlineDoesNotDependOnVignetting) {
   const auto edit = [](double vignetting) {
