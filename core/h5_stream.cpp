@@ -100,13 +100,31 @@ void H5Stream::close_sets() {
 }
 
 H5Stream::~H5Stream() {
+  discard();
+}
+
+// An uncommitted file is thrown away (its staging folder goes with it): its writes go to /dev/null from
+// here on, so closing it cannot fail on a full disk. A close that fails leaves HDF5 with a half-closed file
+// that crashes the library's own clean-up at exit, after the error was reported.
+void H5Stream::discard() const {
   if (file_ < 0) return;
-  close_sets();
+  void* handle = nullptr;
+  if (H5Fget_vfd_handle(file_, H5P_DEFAULT, &handle) >= 0 && handle != nullptr) {
+    const int sink = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
+    if (sink >= 0) {
+      ::dup2(sink, *static_cast<int*>(handle));
+      ::close(sink);
+    }
+  }
+  for (auto& [name, set] : sets_) H5Dclose(set);
+  sets_.clear();
   H5Fclose(file_);
+  file_ = -1;
 }
 
 void H5Stream::fail(const std::string& what, const std::string& name) const {
   const int cause = errno;
+  discard();
   if (is_storage_errno(cause))
     throw Error(std::string("cannot write: ") + std::strerror(cause),
                 {.file = partial_path_, .column = name});
@@ -351,10 +369,15 @@ void H5Stream::mark_flushed(std::size_t frames_written) {
 
 void H5Stream::commit() {
   attribute("/", "complete", 1.0);
-  close_sets();
+  // Everything written and checked while the file is open, so a failure is reported, never lost in a close.
+  if (H5Fflush(file_, H5F_SCOPE_GLOBAL) < 0) fail("cannot finish HDF5 file", "");
+  while (!sets_.empty()) {
+    const auto node = sets_.extract(sets_.begin());
+    if (H5Dclose(node.mapped()) < 0) fail("cannot finish dataset", node.key());
+  }
   const hid_t file = file_;
   file_ = -1;
-  if (H5Fclose(file) < 0) fail("cannot finish HDF5 file", "");
+  if (H5Fclose(file) < 0) throw Error("cannot finish HDF5 file", {.file = partial_path_});
   const int fd = ::open(partial_path_.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0 || ::fsync(fd) != 0) {
     const int cause = errno;

@@ -86,11 +86,12 @@ class H5Stream {
                               std::int64_t memory_type, std::int64_t file_type);
   void ensure_parent_groups(const std::string& name);
   void close_sets();
+  void discard() const;
   [[noreturn]] void fail(const std::string& what, const std::string& name) const;
 
   std::string path_;
   std::string partial_path_;
-  std::int64_t file_ = -1;  // hid_t
+  mutable std::int64_t file_ = -1;  // hid_t; -1 once closed or discarded
   // Per-frame datasets kept open, so their chunk caches fill a chunk before it is compressed and written.
   mutable std::map<std::string, std::int64_t> sets_;
   bool committed_ = false;

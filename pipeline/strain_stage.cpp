@@ -62,11 +62,12 @@ struct StrainFrame {
 
   // Once written to result.h5 and drawn, only the scalars are kept (frames.csv, summary.json, dU/dt).
   void drop_arrays() {
-    active = {};
-    status = {};
-    stuck = {};
-    sources = {};
-    values = {};
+    // Swapped with empty vectors: assigning {} would keep their capacity.
+    std::vector<std::int32_t>().swap(active);
+    std::vector<std::uint8_t>().swap(status);
+    std::vector<std::int8_t>().swap(stuck);
+    std::vector<std::uint8_t>().swap(sources);
+    std::vector<double>().swap(values);
   }
 };
 

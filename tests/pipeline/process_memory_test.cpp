@@ -1,7 +1,7 @@
 // `tirstrain process` on a long trial needs no more memory than on a short one: per-frame results go to
 // result.h5 as frames are done (pipeline/stage.hpp). Measured as the child process's peak resident set
 // (wait4's rusage), on small frames with large strain maps so that keeping every frame's results would
-// show: 128x128 map cells cost 1.18 MB per frame, 118 MB over the 100 extra frames of the long trial.
+// show: 160x160 map cells cost 1.84 MB per frame, 110 MB over the 60 extra frames of the long trial.
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -25,7 +25,7 @@ namespace fs = std::filesystem;
 std::string scene_yaml(int frames) {
   return "calibration: {px_per_mm: 20, ridge_period_mm: 0.45, ridge_polarity: dark}\n"
          "compute: [contact, tracking, strain]\n"
-         "strain: {map_cells: 128}\n"
+         "strain: {map_cells: 160}\n"
          "synthesis:\n"
          "  seed: 5\n"
          "  image: {width_px: 160, height_px: 128, bit_depth: 8}\n"
@@ -81,18 +81,18 @@ ChildRun synth_and_process(const std::string& name, int frames) {
       {"process", (dir / "trial").string(), "--out", (dir / "out").string(), "--overlay", "none", "--quiet"});
   EXPECT_EQ(process.exit_code, 0) << name;
   const H5Reader h5((dir / "out" / "result.h5").string());
-  EXPECT_EQ(h5.shape("/maps/strain_total"), (H5Shape{static_cast<std::size_t>(frames), 128, 128, 3})) << name;
+  EXPECT_EQ(h5.shape("/maps/strain_total"), (H5Shape{static_cast<std::size_t>(frames), 160, 160, 3})) << name;
   EXPECT_EQ(h5.attribute_number("/", "complete"), 1.0) << name;
   return process;
 }
 
 TEST(ProcessMemory, LongTrialNeedsNoMoreMemoryThanAShortOne) {
-  const ChildRun short_run = synth_and_process("short", 20);
-  const ChildRun long_run = synth_and_process("long", 120);
-  std::printf("peak RSS: 20 frames %.1f MB, 120 frames %.1f MB\n", short_run.peak_rss_MB,
+  const ChildRun short_run = synth_and_process("short", 12);
+  const ChildRun long_run = synth_and_process("long", 72);
+  std::printf("peak RSS: 12 frames %.1f MB, 72 frames %.1f MB\n", short_run.peak_rss_MB,
               long_run.peak_rss_MB);
   ASSERT_GT(short_run.peak_rss_MB, 0.0);
-  // Keeping every frame would add 118 MB (the maps alone); the bound leaves room for allocator noise.
+  // Keeping every frame would add 110 MB (the maps alone); the bound leaves room for allocator noise.
   EXPECT_LE(long_run.peak_rss_MB, 1.25 * short_run.peak_rss_MB + 50.0);
 }
 
