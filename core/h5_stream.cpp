@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <algorithm>
 #include <cerrno>
 #include <csignal>
@@ -100,12 +101,26 @@ void H5Stream::close_sets() {
 }
 
 H5Stream::~H5Stream() {
-  discard();
+  if (file_ < 0) return;
+  // Uncommitted (an error elsewhere, perhaps a full disk): thrown away with its staging folder. Its last
+  // writes go to an anonymous memory file, which also takes the final truncation, so the close succeeds.
+  void* handle = nullptr;
+  const int sink = ::memfd_create("tirstrain-discarded-h5", MFD_CLOEXEC);
+  if (sink < 0 || H5Fget_vfd_handle(file_, H5P_DEFAULT, &handle) < 0 || handle == nullptr) {
+    if (sink >= 0) ::close(sink);
+    discard();
+    return;
+  }
+  ::dup2(sink, *static_cast<int*>(handle));
+  ::close(sink);
+  close_sets();
+  H5Fclose(file_);
 }
 
-// An uncommitted file is thrown away (its staging folder goes with it): its writes go to /dev/null from
-// here on, so closing it cannot fail on a full disk. A close that fails leaves HDF5 with a half-closed file
-// that crashes the library's own clean-up at exit, after the error was reported.
+// A file the disk refused is thrown away (its staging folder goes with it): its writes go to /dev/null from
+// here on, so that flushing its datasets cannot fail again, and the file itself is left to the library's
+// clean-up at exit. A close that fails (on the full disk, or on /dev/null refusing the final truncation)
+// would leave HDF5 with a half-closed file that crashes that clean-up, after the error was reported.
 void H5Stream::discard() const {
   if (file_ < 0) return;
   void* handle = nullptr;
@@ -118,7 +133,6 @@ void H5Stream::discard() const {
   }
   for (auto& [name, set] : sets_) H5Dclose(set);
   sets_.clear();
-  H5Fclose(file_);
   file_ = -1;
 }
 
