@@ -421,7 +421,7 @@ class ChannelsStage final : public Stage {
     if (has_friction()) cells.push_back(f.mu_valid[row] ? format_double(f.mu[row]) : std::string());
   }
 
-  void write(H5Writer& out) const override {
+  void write(H5Stream& out) const override {
     const Fused& f = fused();
     const std::size_t n = f.t_s.size(), frames = frame_t_s_.size();
     out.write("/channels/t_s", std::span<const double>(f.t_s), {n});
@@ -532,7 +532,7 @@ class ChannelsStage final : public Stage {
   }
 
  private:
-  static void scalar(H5Writer& out, const std::string& name, double value) {
+  static void scalar(H5Stream& out, const std::string& name, double value) {
     out.write(name, std::span<const double>(&value, 1), {1});
   }
 

@@ -127,7 +127,7 @@ class ContactStage final : public Stage {
     for (double v : r.ellipse) cells.push_back(format_double(v));
   }
 
-  void write(H5Writer& out) const override {
+  void write(H5Stream& out) const override {
     const std::size_t n = records_.size();
     const auto hull_points = static_cast<std::size_t>(options_.hull_points);
     const auto by = static_cast<std::size_t>(blocks_.height), bx = static_cast<std::size_t>(blocks_.width);

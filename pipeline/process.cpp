@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
+#include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <sstream>
@@ -16,7 +18,7 @@
 #include "core/atomic_output.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
-#include "core/h5_file.hpp"
+#include "core/h5_stream.hpp"
 #include "core/progress.hpp"
 #include "core/scene.hpp"
 #include "core/version.hpp"
@@ -29,6 +31,8 @@ namespace tirstrain::pipeline {
 namespace {
 
 namespace fs = std::filesystem;
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // Overlay for people: an MP4 through FFmpeg, or a PNG sequence, written into the run's staging folder.
 // FFmpeg does not report a failed write, so a full disk is checked for when the video is closed.
@@ -183,14 +187,23 @@ Scene scene_with_overrides(const ProcessOptions& options, const std::optional<st
   return scene;
 }
 
-// What the frame loop kept of each frame, for replaying the trial without its images.
+// What the frame loop keeps of each frame (a few scalars: /frames, frames.csv, replaying the trial without
+// its images).
 struct FrameRows {
-  const std::vector<std::int64_t>& index;
-  const std::vector<std::int64_t>& device_id;
-  const std::vector<std::int64_t>& lost_before;
-  const std::vector<double>& t_s;
-  const std::vector<std::int32_t>& status;
-  const std::vector<char>& usable;
+  std::vector<std::int64_t> index, device_id, lost_before;
+  std::vector<double> t_s;
+  std::vector<std::int32_t> status;
+  std::vector<char> usable;
+
+  void add(const capture::Frame& frame, bool frame_usable) {
+    index.push_back(frame.index);
+    device_id.push_back(frame.device_frame_id);
+    lost_before.push_back(frame.frames_lost_before);
+    t_s.push_back(frame.device_time_s);
+    status.push_back(static_cast<std::int32_t>(frame.status));
+    usable.push_back(frame_usable ? 1 : 0);
+  }
+  std::size_t size() const { return t_s.size(); }
 };
 
 // Lets each stage finish; where one revises its results (finish() returns true), the stages after it are
@@ -274,217 +287,295 @@ void update_time_source(const capture::FrameSource& source, std::string& time_so
   warn("time: " + time_source);
 }
 
-}  // namespace
+// One run of `process`: the steps of run_process(), sharing what they build.
+class ProcessRun {
+ public:
+  explicit ProcessRun(const ProcessOptions& options) : options_(options) {}
 
-ProcessReport run_process(const ProcessOptions& options) {
-  const auto wall_start = std::chrono::steady_clock::now();
-  ProcessReport report;
-  const auto warn = [&](const std::string& message) {
-    report.warnings.push_back(message);
-    if (!options.quiet) std::fprintf(options.log, "tirstrain: warning: %s\n", message.c_str());
-  };
-
-  const std::optional<std::string> scene_path = scene_path_for(options);
-  if (scene_path && !options.scene_path && !options.quiet)
-    std::fprintf(options.log, "tirstrain: scene from the input folder: %s (--scene overrides it)\n",
-                 scene_path->c_str());
-  std::string stages_reason;
-  Scene scene = scene_with_overrides(options, scene_path, stages_reason);
-  if (!options.quiet) std::fprintf(options.log, "tirstrain: stages: %s\n", stages_reason.c_str());
-  const std::vector<std::string> default_notes = default_value_notes(scene);
-  for (const std::string& note : default_notes)
-    if (!options.quiet) std::fprintf(options.log, "tirstrain: %s\n", note.c_str());
-  // Made again once the first frame has told where the pattern band is.
-  StagePlan plan = checked_plan(scene, options.strict, warn);
-
-  std::unique_ptr<capture::FrameSource> source = capture::open_source(options.input);
-  const auto settings = source->settings();
-  const bool time_measured = settings.count("time_measured") == 0 || settings.at("time_measured") == "true";
-  std::string time_source = settings.count("time_source") ? settings.at("time_source") : "source timestamps";
-  if (!time_measured) {
-    if (options.strict)
-      throw Error("the input has no timestamps (no frames.csv) (--strict)", {.file = options.input});
-    warn("no timestamps for " + options.input + ": " + time_source);
+  ProcessReport run() {
+    plan_scene();
+    open_input();
+    open_outputs();
+    read_frames();
+    update_time_source(*source_, time_source_, warn());
+    if (!trial_) throw Error("no frame of the input could be decoded", {.file = options_.input});
+    finish_stages(scene_, *trial_, rows_, plan_.stages, options_);
+    // Outputs in order of increasing importance; result.h5 last, so its presence means a complete run.
+    if (const std::string name = overlay_->finish(); !name.empty())
+      report_.outputs.push_back((final_out() / name).string());
+    write_frames_csv();
+    write_summary();
+    write_result();
+    staging_->commit();
+    return report_;
   }
 
-  const std::unique_ptr<StagingDirectory> staging_folder = stage_output(options, scene_path);
-  StagingDirectory& staging = *staging_folder;
-  const fs::path out(staging.path());
-  const fs::path final_out(staging.final_path());
+ private:
+  std::function<void(const std::string&)> warn() {
+    return [this](const std::string& message) {
+      report_.warnings.push_back(message);
+      if (!options_.quiet) std::fprintf(options_.log, "tirstrain: warning: %s\n", message.c_str());
+    };
+  }
+  void note(const std::string& message) const {
+    if (!options_.quiet) std::fprintf(options_.log, "tirstrain: %s\n", message.c_str());
+  }
+  fs::path out() const { return staging_->path(); }
+  fs::path final_out() const { return staging_->final_path(); }
 
-  OverlayWriter overlay(options.overlay, staging.path(), options.log, options.quiet);
-  Progress progress("process", source->frame_count() > 0 ? static_cast<long>(source->frame_count()) : 1L,
-                    options.quiet, options.log);
+  // The scene with the command line's overrides, and the stages it asks for.
+  void plan_scene() {
+    scene_path_ = scene_path_for(options_);
+    if (scene_path_ && !options_.scene_path)
+      note("scene from the input folder: " + *scene_path_ + " (--scene overrides it)");
+    scene_ = scene_with_overrides(options_, scene_path_, stages_reason_);
+    note("stages: " + stages_reason_);
+    default_notes_ = default_value_notes(scene_);
+    for (const std::string& line : default_notes_) note(line);
+    // Made again once the first frame has told where the pattern band is.
+    plan_ = checked_plan(scene_, options_.strict, warn());
+  }
 
-  // Per-frame bookkeeping for /frames.
-  std::vector<std::int64_t> index, device_id, lost_before;
-  std::vector<double> t_s;
-  std::vector<std::int32_t> frame_status;
-  std::vector<char> usable;
-  std::optional<TrialInfo> trial;
-  cv::Size display_size;
-  PatternBandChoice band;
-  // Frames before the first usable one, given again to the stages made once that frame is seen.
-  std::vector<capture::Frame> before_first;
+  void open_input() {
+    source_ = capture::open_source(options_.input);
+    const auto settings = source_->settings();
+    time_measured_ = settings.count("time_measured") == 0 || settings.at("time_measured") == "true";
+    time_source_ = settings.count("time_source") ? settings.at("time_source") : "source timestamps";
+    if (time_measured_) return;
+    if (options_.strict)
+      throw Error("the input has no timestamps (no frames.csv) (--strict)", {.file = options_.input});
+    warn()("no timestamps for " + options_.input + ": " + time_source_);
+  }
 
-  {
-    PrefetchingReader reader(*source, 4);
+  // The staging folder, and result.h5 in it from the start: per-frame results go there as frames are done.
+  void open_outputs() {
+    staging_ = stage_output(options_, scene_path_);
+    h5_ = std::make_unique<H5Stream>((out() / "result.h5").string());
+    overlay_ =
+        std::make_unique<OverlayWriter>(options_.overlay, staging_->path(), options_.log, options_.quiet);
+  }
+
+  void read_frames() {
+    Progress progress("process", source_->frame_count() > 0 ? static_cast<long>(source_->frame_count()) : 1L,
+                      options_.quiet, options_.log);
+    PrefetchingReader reader(*source_, 4);
     while (std::optional<capture::Frame> frame = reader.next()) {
-      FrameContext context;
-      context.frame = &*frame;
-      context.usable = !frame->image.empty() && frame->status != capture::FrameStatus::kCorrupt &&
-                       frame->status != capture::FrameStatus::kIncomplete;
-      if (!context.usable) {
-        const std::string what =
-            frame->status == capture::FrameStatus::kIncomplete ? "is incomplete" : "could not be decoded";
-        if (options.strict)
-          throw Error("frame " + what + " (--strict)", {.file = frame->origin, .frame = frame->index});
-        warn(format_error("frame " + what + "; marked and skipped",
-                          {.file = frame->origin, .frame = frame->index}));
-        ++report.frames_skipped;
-      } else if (!trial) {
-        band = resolve_pattern_band(scene, frame->image);
-        if (!options.quiet) std::fprintf(options.log, "tirstrain: %s\n", band.describe().c_str());
-        plan = plan_stages(scene);
-        trial = TrialInfo{frame->image.size(), frame->image.depth(), source->frame_count(), &scene};
-        display_size = frame->image.size();
-        for (auto& stage : plan.stages) stage->start(*trial);
-        for (const capture::Frame& earlier : before_first) {
-          FrameContext unusable;
-          unusable.frame = &earlier;
-          for (auto& stage : plan.stages) stage->process(unusable);
-        }
-        before_first.clear();
-      }
-      if (trial) {
-        for (auto& stage : plan.stages) stage->process(context);
-      } else {
-        capture::Frame kept = *frame;
-        kept.image.release();
-        before_first.push_back(std::move(kept));
-      }
-
-      index.push_back(frame->index);
-      device_id.push_back(frame->device_frame_id);
-      lost_before.push_back(frame->frames_lost_before);
-      t_s.push_back(frame->device_time_s);
-      frame_status.push_back(static_cast<std::int32_t>(frame->status));
-      usable.push_back(context.usable ? 1 : 0);
-      if (context.contact && (context.contact->status & contact::kNoContact) == 0)
-        ++report.frames_with_contact;
-
-      if (overlay.enabled() && trial) {
-        cv::Mat bgr = to_display(context.usable ? frame->image : cv::Mat(), display_size);
-        draw_band(bgr, band);
-        for (const auto& stage : plan.stages) stage->draw(bgr, context);
-        const double scale = std::max(1.0, bgr.cols / 640.0);
-        char text[160];
-        std::snprintf(text, sizeof text, "frame %lld  t = %.4f s  %s", static_cast<long long>(frame->index),
-                      frame->device_time_s, context.usable ? "" : "(corrupt: skipped)");
-        cv::putText(bgr, text, cv::Point(8, static_cast<int>(20 * scale)), cv::FONT_HERSHEY_SIMPLEX,
-                    0.5 * scale, cv::Scalar(255, 255, 255), static_cast<int>(std::lround(scale)),
-                    cv::LINE_AA);
-        overlay.write(bgr);
-      }
-      ++report.frames;
-      progress.update(static_cast<long>(report.frames));
+      process_frame(*frame);
+      ++report_.frames;
+      if (report_.frames % kFlushEveryFrames == 0) mark_progress();
+      progress.update(static_cast<long>(report_.frames));
     }
+    progress.finish();
   }
-  progress.finish();
-  update_time_source(*source, time_source, warn);
-  if (!trial) throw Error("no frame of the input could be decoded", {.file = options.input});
-  finish_stages(scene, *trial, {index, device_id, lost_before, t_s, frame_status, usable}, plan.stages,
-                options);
 
-  const std::size_t n = t_s.size();
-  // Outputs in order of increasing importance; result.h5 last, so its presence means a complete run.
-  if (const std::string name = overlay.finish(); !name.empty())
-    report.outputs.push_back((final_out / name).string());
+  // Flushed now and then, so that a run killed later leaves the frames before it readable, and said to be
+  // incomplete both in result.h5.partial (`complete` 0) and in a summary.json of its own.
+  void mark_progress() {
+    h5_->mark_flushed(rows_.size());
+    const nlohmann::json partial = {{"complete", false},
+                                    {"frames_written", rows_.size()},
+                                    {"input", options_.input},
+                                    {"result", "result.h5.partial"}};
+    write_text_file((out() / "summary.json").string(), partial.dump(2) + "\n");
+  }
 
-  {
+  // The frame's row of /frames, written with the stages' rows.
+  void write_frame_row(const capture::Frame& frame) {
+    const std::size_t r = rows_.size() - 1;
+    const std::int32_t status = rows_.status.back();
+    h5_->write_row("/frames/index", r, std::span<const std::int64_t>(&frame.index, 1), {}, std::int64_t{-1});
+    h5_->write_row("/frames/t_s", r, std::span<const double>(&frame.device_time_s, 1), {}, kNaN);
+    h5_->write_row("/frames/status", r, std::span<const std::int32_t>(&status, 1), {}, -1);
+    h5_->write_row("/frames/device_frame_id", r, std::span<const std::int64_t>(&frame.device_frame_id, 1), {},
+                   std::int64_t{-1});
+    h5_->write_row("/frames/frames_lost_before", r,
+                   std::span<const std::int64_t>(&frame.frames_lost_before, 1), {}, std::int64_t{0});
+  }
+
+  void process_frame(const capture::Frame& frame) {
+    FrameContext context;
+    context.frame = &frame;
+    context.usable = !frame.image.empty() && frame.status != capture::FrameStatus::kCorrupt &&
+                     frame.status != capture::FrameStatus::kIncomplete;
+    if (!context.usable) {
+      skip_frame(frame);
+    } else if (!trial_) {
+      start_stages(frame);
+    }
+    if (trial_) {
+      for (auto& stage : plan_.stages) stage->process(context);
+    } else {
+      capture::Frame kept = frame;
+      kept.image.release();
+      before_first_.push_back(std::move(kept));
+    }
+    rows_.add(frame, context.usable);
+    write_frame_row(frame);
+    if (context.contact && (context.contact->status & contact::kNoContact) == 0)
+      ++report_.frames_with_contact;
+    if (overlay_->enabled() && trial_) draw_overlay(frame, context);
+  }
+
+  void skip_frame(const capture::Frame& frame) {
+    const std::string what =
+        frame.status == capture::FrameStatus::kIncomplete ? "is incomplete" : "could not be decoded";
+    if (options_.strict)
+      throw Error("frame " + what + " (--strict)", {.file = frame.origin, .frame = frame.index});
+    warn()(
+        format_error("frame " + what + "; marked and skipped", {.file = frame.origin, .frame = frame.index}));
+    ++report_.frames_skipped;
+  }
+
+  // The first usable frame tells where the pattern band is: the stages are made now and shown the
+  // unusable frames before it.
+  void start_stages(const capture::Frame& frame) {
+    band_ = resolve_pattern_band(scene_, frame.image);
+    note(band_.describe());
+    plan_ = plan_stages(scene_);
+    trial_ = TrialInfo{frame.image.size(), frame.image.depth(), source_->frame_count(), &scene_};
+    trial_->out = h5_.get();
+    display_size_ = frame.image.size();
+    for (auto& stage : plan_.stages) stage->start(*trial_);
+    for (const capture::Frame& earlier : before_first_) {
+      FrameContext unusable;
+      unusable.frame = &earlier;
+      for (auto& stage : plan_.stages) stage->process(unusable);
+    }
+    before_first_.clear();
+  }
+
+  void draw_overlay(const capture::Frame& frame, const FrameContext& context) {
+    cv::Mat bgr = to_display(context.usable ? frame.image : cv::Mat(), display_size_);
+    draw_band(bgr, band_);
+    for (const auto& stage : plan_.stages) stage->draw(bgr, context);
+    const double scale = std::max(1.0, bgr.cols / 640.0);
+    char text[160];
+    std::snprintf(text, sizeof text, "frame %lld  t = %.4f s  %s", static_cast<long long>(frame.index),
+                  frame.device_time_s, context.usable ? "" : "(corrupt: skipped)");
+    cv::putText(bgr, text, cv::Point(8, static_cast<int>(20 * scale)), cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale,
+                cv::Scalar(255, 255, 255), static_cast<int>(std::lround(scale)), cv::LINE_AA);
+    overlay_->write(bgr);
+  }
+
+  void write_frames_csv() {
     std::vector<std::string> header = {"index", "t_s", "frame_status"};
-    for (const auto& stage : plan.stages)
+    for (const auto& stage : plan_.stages)
       for (const auto& column : stage->csv_header()) header.push_back(column);
-    CsvWriter csv((out / "frames.csv").string(), header);
+    CsvWriter csv((out() / "frames.csv").string(), header);
     std::vector<std::string> cells;
-    for (std::size_t i = 0; i < n; ++i) {
-      cells = {std::to_string(index[i]), format_double(t_s[i]), std::to_string(frame_status[i])};
-      for (const auto& stage : plan.stages) stage->csv_row(i, cells);
+    for (std::size_t i = 0; i < rows_.size(); ++i) {
+      cells = {std::to_string(rows_.index[i]), format_double(rows_.t_s[i]), std::to_string(rows_.status[i])};
+      for (const auto& stage : plan_.stages) stage->csv_row(i, cells);
       csv.row_text(cells);
     }
     csv.commit();
-    report.outputs.push_back((final_out / "frames.csv").string());
+    report_.outputs.push_back((final_out() / "frames.csv").string());
   }
 
-  nlohmann::json summary;
-  summary["software"] = {{"name", "tirstrain"}, {"version", kVersion}};
-  summary["input"] = options.input;
-  summary["source"] = source->describe();
-  summary["time_source"] = time_source;
-  summary["time_measured"] = time_measured;
-  summary["scene"] = scene.file.empty() ? "defaults" : scene.file;
-  summary["px_per_mm"] = scene.px_per_mm;
-  summarize_scene_sources(summary, scene, default_notes, stages_reason, band);
-  std::vector<std::string> run_names;
-  for (const auto& stage : plan.stages) run_names.push_back(stage->name());
-  summary["stages_run"] = run_names;
-  summary["stages_unavailable"] = plan.unavailable;
-  std::map<std::string, std::int64_t> status_counts;
-  std::int64_t lost = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    ++status_counts[capture::to_string(static_cast<capture::FrameStatus>(frame_status[i]))];
-    lost += lost_before[i];
+  std::vector<std::string> stage_names() const {
+    std::vector<std::string> names;
+    for (const auto& stage : plan_.stages) names.push_back(stage->name());
+    return names;
   }
-  summary["frames"] = {{"total", n},
-                       {"skipped", report.frames_skipped},
-                       {"status_counts", status_counts},
-                       {"frames_lost", lost},
-                       {"width_px", trial->frame_size.width},
-                       {"height_px", trial->frame_size.height},
-                       {"t_first_s", n ? t_s.front() : 0.0},
-                       {"t_last_s", n ? t_s.back() : 0.0}};
-  for (const auto& stage : plan.stages) stage->summarize(summary);
-  summary["warnings"] = report.warnings;
-  summary["wall_time_s"] =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
-  summary["outputs"] = {"result.h5", "frames.csv", "summary.json"};
-  write_text_file((out / "summary.json").string(), summary.dump(2) + "\n");
-  report.outputs.push_back((final_out / "summary.json").string());
 
-  {
-    H5Writer h5((out / "result.h5").string());
-    h5.write("/frames/index", std::span<const std::int64_t>(index), {n});
-    h5.write("/frames/t_s", std::span<const double>(t_s), {n});
-    h5.write("/frames/status", std::span<const std::int32_t>(frame_status), {n});
-    h5.write("/frames/device_frame_id", std::span<const std::int64_t>(device_id), {n});
-    h5.write("/frames/frames_lost_before", std::span<const std::int64_t>(lost_before), {n});
-    h5.attribute("/frames", "time_source", time_source);
-    h5.attribute("/frames", "time_measured", time_measured ? 1.0 : 0.0);
+  void write_summary() {
+    const std::size_t n = rows_.size();
+    nlohmann::json summary;
+    summary["software"] = {{"name", "tirstrain"}, {"version", kVersion}};
+    summary["complete"] = true;
+    summary["input"] = options_.input;
+    summary["source"] = source_->describe();
+    summary["time_source"] = time_source_;
+    summary["time_measured"] = time_measured_;
+    summary["scene"] = scene_.file.empty() ? "defaults" : scene_.file;
+    summary["px_per_mm"] = scene_.px_per_mm;
+    summarize_scene_sources(summary, scene_, default_notes_, stages_reason_, band_);
+    summary["stages_run"] = stage_names();
+    summary["stages_unavailable"] = plan_.unavailable;
+    std::map<std::string, std::int64_t> status_counts;
+    std::int64_t lost = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      ++status_counts[capture::to_string(static_cast<capture::FrameStatus>(rows_.status[i]))];
+      lost += rows_.lost_before[i];
+    }
+    summary["frames"] = {{"total", n},
+                         {"skipped", report_.frames_skipped},
+                         {"status_counts", status_counts},
+                         {"frames_lost", lost},
+                         {"width_px", trial_->frame_size.width},
+                         {"height_px", trial_->frame_size.height},
+                         {"t_first_s", n ? rows_.t_s.front() : 0.0},
+                         {"t_last_s", n ? rows_.t_s.back() : 0.0}};
+    for (const auto& stage : plan_.stages) stage->summarize(summary);
+    summary["warnings"] = report_.warnings;
+    summary["wall_time_s"] =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start_).count();
+    summary["outputs"] = {"result.h5", "frames.csv", "summary.json"};
+    write_text_file((out() / "summary.json").string(), summary.dump(2) + "\n");
+    report_.outputs.push_back((final_out() / "summary.json").string());
+  }
+
+  void write_result() {
+    H5Stream& h5 = *h5_;
+    const std::size_t n = rows_.size();
+    h5.attribute("/frames", "time_source", time_source_);
+    h5.attribute("/frames", "time_measured", time_measured_ ? 1.0 : 0.0);
     h5.attribute("/frames", "status_codes",
                  "0 ok; 1 incomplete; 2 corrupt (skipped); 3 gap_before; 4 overrun");
-    h5.attribute("/frames", "width_px", static_cast<double>(trial->frame_size.width));
-    h5.attribute("/frames", "height_px", static_cast<double>(trial->frame_size.height));
-    for (const auto& stage : plan.stages) stage->write(h5);
+    h5.attribute("/frames", "width_px", static_cast<double>(trial_->frame_size.width));
+    h5.attribute("/frames", "height_px", static_cast<double>(trial_->frame_size.height));
+    for (const auto& stage : plan_.stages) stage->write(h5);
     std::ostringstream scene_yaml;
-    scene_yaml << scene_to_yaml(scene);
+    scene_yaml << scene_to_yaml(scene_);
     h5.attribute("/", "format", "tirstrain result");
     h5.attribute("/", "format_version", 1.0);
     h5.attribute("/", "software_version", std::string("tirstrain ") + kVersion);
     h5.attribute("/", "scene_yaml", scene_yaml.str());
-    h5.attribute("/", "scene_file", scene.file.empty() ? std::string("defaults") : scene.file);
-    h5.attribute("/", "input", options.input);
-    h5.attribute("/", "source", source->describe());
+    h5.attribute("/", "scene_file", scene_.file.empty() ? std::string("defaults") : scene_.file);
+    h5.attribute("/", "input", options_.input);
+    h5.attribute("/", "source", source_->describe());
     std::string stages_text;
-    for (const auto& name : run_names) {
+    for (const auto& name : stage_names()) {
       if (!stages_text.empty()) stages_text.push_back(',');
       stages_text.append(name);
     }
     h5.attribute("/", "stages", stages_text);
+    h5.attribute("/", "frames_written", static_cast<double>(n));
     h5.commit();
-    report.outputs.push_back((final_out / "result.h5").string());
+    report_.outputs.push_back((final_out() / "result.h5").string());
   }
-  staging.commit();
-  return report;
+
+  // Frames between flushes of result.h5: what a killed run can lose at most.
+  static constexpr std::int64_t kFlushEveryFrames = 64;
+
+  const ProcessOptions& options_;
+  const std::chrono::steady_clock::time_point wall_start_ = std::chrono::steady_clock::now();
+  ProcessReport report_;
+  std::optional<std::string> scene_path_;
+  std::string stages_reason_;
+  Scene scene_;
+  std::vector<std::string> default_notes_;
+  StagePlan plan_;
+  std::unique_ptr<capture::FrameSource> source_;
+  bool time_measured_ = true;
+  std::string time_source_;
+  // Declared in this order so that an error closes result.h5 and the overlay before the staging folder
+  // (destroyed uncommitted) is removed.
+  std::unique_ptr<StagingDirectory> staging_;
+  std::unique_ptr<H5Stream> h5_;
+  std::unique_ptr<OverlayWriter> overlay_;
+  FrameRows rows_;
+  std::optional<TrialInfo> trial_;
+  cv::Size display_size_;
+  PatternBandChoice band_;
+  // Frames before the first usable one, given again to the stages made once that frame is seen.
+  std::vector<capture::Frame> before_first_;
+};
+
+}  // namespace
+
+ProcessReport run_process(const ProcessOptions& options) {
+  return ProcessRun(options).run();
 }
 
 }  // namespace tirstrain::pipeline

@@ -2,8 +2,10 @@
 // The pipeline's plug-in point. Each analysis the scene's `compute` list can ask for (contact, tracking,
 // strain, channels) is a Stage: it sees every frame in order, keeps what it measures, and at the end writes
 // its own group of result.h5 (/contact, /tracks, /mesh, /strain, /energy, /channels), its columns of
-// frames.csv and its part of summary.json. Stages later in the list read the results of earlier ones from
-// the FrameContext (tracking needs the contact ROI, strain needs tracks).
+// frames.csv and its part of summary.json. Per-frame arrays (tracks, strains, maps) are written to result.h5
+// as each frame is done (TrialInfo::out) and not kept, so memory does not grow with the trial's length
+// beyond a few scalars per frame (for frames.csv and summary.json). Stages later in the list read the results
+// of earlier ones from the FrameContext (tracking needs the contact ROI, strain needs tracks).
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
@@ -15,7 +17,7 @@
 
 #include "capture/frame_source.hpp"
 #include "contact/segmenter.hpp"
-#include "core/h5_file.hpp"
+#include "core/h5_stream.hpp"
 #include "core/scene.hpp"
 #include "core/tensor2.hpp"
 #include "flow/tracker.hpp"
@@ -30,6 +32,9 @@ struct TrialInfo {
   // false in the live view: stages keep only the newest frame's record (enough to draw), so memory stays
   // flat however long the view runs; write() and csv_row() are then not called.
   bool keep_history = true;
+  // Where per-frame rows are written as frames are done (result row = frame's row in /frames); null when
+  // nothing is written (the live view).
+  H5Stream* out = nullptr;
 };
 
 // Appends a frame's record, or keeps only the newest one when the trial keeps no history.
@@ -76,12 +81,14 @@ class Stage {
   // After the last frame, before anything is written. A stage that revises its per-frame results now, with
   // the whole trial in hand (the tracking stage smooths its tracks in time), returns true: the stages after
   // it are then made afresh and run over contexts from replay(), so that what they derive follows the
-  // revision (the overlay, drawn while the frames were read, is not redrawn).
+  // revision (the overlay, drawn while the frames were read, is not redrawn); their rows are written again.
   virtual bool finish() { return false; }
   // Puts into `context` what process() put there for result row `row`, as revised by finish(): what later
   // stages read (tracks, plate). Called only on a stage whose finish() returned true, or one before it.
   virtual void replay(FrameContext& /*context*/, std::size_t /*row*/) {}
-  virtual void write(H5Writer& out) const = 0;
+  // After finish(): what is not per-frame (reference positions, the mesh, attributes) and what needs the
+  // whole trial's scalars (rates by central differences). Per-frame rows are already in `out`.
+  virtual void write(H5Stream& out) const = 0;
   virtual void summarize(nlohmann::json& /*summary*/) const {}
 };
 

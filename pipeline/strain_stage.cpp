@@ -21,6 +21,9 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 using strain::Triangle;
 // /mesh/status for a triangle that is not part of a frame's mesh.
 constexpr std::uint8_t kNotInMesh = 255;
+// Per-triangle and map values are stored as float32: 7 significant digits (strains to 1e-7 and better)
+// are far below their measurement noise, and they are half the file. Computed in double.
+constexpr H5Precision kStored = H5Precision::kFloat32;
 // /strain/source bits: where a triangle's strain is partly a model rather than matches.
 constexpr std::uint8_t kSourceExtrapolatedReference = 1;  // a vertex's reference position is extrapolated
 constexpr std::uint8_t kSourceVertexModel = 2;  // a vertex reports a model this frame (/tracks/model)
@@ -56,6 +59,16 @@ struct StrainFrame {
   double stick_ratio = kNaN;
   strain::StickZoneFit stick_zone;  // stick radius c from the Cattaneo–Mindlin slip-profile fit
   double t_s = kNaN;
+
+  // Once written to result.h5 and drawn, only the scalars are kept (frames.csv, summary.json, dU/dt).
+  void drop_arrays() {
+    // Swapped with empty vectors: assigning {} would keep their capacity.
+    std::vector<std::int32_t>().swap(active);
+    std::vector<std::uint8_t>().swap(status);
+    std::vector<std::int8_t>().swap(stuck);
+    std::vector<std::uint8_t>().swap(sources);
+    std::vector<double>().swap(values);
+  }
 };
 
 bool finite(const Strain2& e) {
@@ -68,115 +81,26 @@ class StrainStage final : public Stage {
 
   std::string name() const override { return "strain"; }
 
-  void start(const TrialInfo& info) override { keep_history_ = info.keep_history; }
+  void start(const TrialInfo& info) override {
+    keep_history_ = info.keep_history;
+    out_ = info.out;
+  }
 
   void process(FrameContext& context) override {
     StrainFrame record;
     record.t_s = context.frame ? context.frame->device_time_s : kNaN;
     if (!context.tracking) {
-      remember(frames_, std::move(record), keep_history_);
+      keep(std::move(record));
       return;
     }
     const auto t0 = std::chrono::steady_clock::now();
-    const auto& tracks = *context.tracking->tracks;
-    if (context.tracking->reference_frame) {
-      reference_normalization_ = *context.tracking->reference_normalization;
-      reference_has_ellipse_ = context.tracking->reference_has_ellipse;
-      // The reference contact as a disk map for the stick-radius fit: centre, axes and angle of the
-      // normalisation (q = s R(−φ)(X − centre), semi-major 1/s, semi-minor aspect/s).
-      const cv::Matx23d m = reference_normalization_.forward_matrix();
-      const double scale = reference_normalization_.scale_per_px();
-      const cv::Point2d centre = reference_normalization_.denormalize({0.0, 0.0});
-      disk_ = reference_has_ellipse_ ? strain::contact_disk({centre.x, centre.y}, 1.0 / scale,
-                                                            reference_normalization_.aspect() / scale,
-                                                            std::atan2(m(0, 1), m(0, 0)))
-                                     : strain::ContactDisk{};
-    }
-    reference_px_.resize(tracks.size());
-    current_px_.assign(tracks.size(), Vec2{kNaN, kNaN});
-    covariance_px2_.assign(tracks.size(), {kNaN, kNaN, kNaN});
-    vertex_source_.assign(tracks.size(), 0);
-    alive_.clear();
-    for (std::size_t k = 0; k < tracks.size(); ++k) {
-      reference_px_[k] = tracks[k].reference_px;
-      if (flow::is_alive(tracks[k].status)) {
-        current_px_[k] = tracks[k].position_px;
-        covariance_px2_[k] = tracks[k].covariance_px2;
-        vertex_source_[k] = vertex_source(tracks[k]);
-        alive_.push_back(static_cast<std::int32_t>(k));
-      }
-    }
+    const bool reference_frame = context.tracking->reference_frame;
+    if (reference_frame) take_reference(*context.tracking);
+    gather_vertices(*context.tracking->tracks);
     mesh_.update(alive_, reference_px_);
-    previous_px_.resize(tracks.size(), Vec2{kNaN, kNaN});
-
-    strain::FrameInput input;
-    input.triangles = mesh_.active_triangles();
-    input.reference_px = reference_px_;
-    input.current_px = current_px_;
-    if (!context.tracking->reference_frame) input.previous_px = previous_px_;
-    input.dt_s = record.t_s - previous_t_s_;
-    if (context.plate_displacement_px) {
-      input.plate_known = true;
-      input.plate_displacement_px = *context.plate_displacement_px;
-    }
-    const strain::FrameStrain fs = strain::compute_frame_strain(input, settings_.strain);
-
-    const std::size_t n = mesh_.active().size();
-    record.computed = true;
-    record.active = mesh_.active();
-    record.status.resize(n);
-    record.stuck = fs.stuck;
-    record.sources.assign(n, 0);
-    record.values.assign(n * kValueCount, kNaN);
-    record.counts = fs.counts;
-    incremental_.resize(mesh_.triangles().size(), Strain2{kNaN, kNaN, kNaN});
-    const double m_per_px = 1.0e-3 / settings_.strain.px_per_mm;
-    double energy = 0.0;
-    for (std::size_t t = 0; t < n; ++t) {
-      record.status[t] = static_cast<std::uint8_t>(fs.status[t]);
-      if (fs.status[t] != strain::TriangleStatus::kValid) continue;
-      // The paper's running sum of increments. A triangle that joins the mesh after the reference frame
-      // (re-triangulation around births and retirements) has no increments before it: its sum starts from
-      // its exact total at that frame, so the two modes differ only by what accumulates afterwards.
-      Strain2& sum = incremental_[static_cast<std::size_t>(record.active[t])];
-      if (!finite(sum)) {
-        sum = context.tracking->reference_frame ? Strain2{} : fs.total[t];
-      } else if (finite(fs.increment[t])) {
-        sum.xx += fs.increment[t].xx;
-        sum.yy += fs.increment[t].yy;
-        sum.xy += fs.increment[t].xy;
-      }
-      const bool incremental = settings_.mode == strain::StrainMode::kIncremental;
-      const Strain2& chosen = incremental ? sum : fs.total[t];
-      const Strain2& other = incremental ? fs.total[t] : sum;
-      double* v = &record.values[t * kValueCount];
-      v[kExx] = chosen.xx;
-      v[kEyy] = chosen.yy;
-      v[kExy] = chosen.xy;
-      v[kOtherExx] = other.xx;
-      v[kOtherEyy] = other.yy;
-      v[kOtherExy] = other.xy;
-      v[kRateXx] = fs.rate_per_s[t].xx;
-      v[kRateYy] = fs.rate_per_s[t].yy;
-      v[kRateXy] = fs.rate_per_s[t].xy;
-      v[kRotation] = fs.rotation_polar_rad[t];
-      v[kEnergy] =
-          plane_strain_energy_density_J_m3(chosen, settings_.strain.young_Pa, settings_.strain.poisson);
-      const Triangle& tri = mesh_.active_triangles()[t];
-      const Strain2 sd = total_standard_deviation(tri);
-      for (std::size_t v = 0; v < 3; ++v)
-        record.sources[t] |= vertex_source_[static_cast<std::size_t>(tri[v])];
-      v[kSdXx] = sd.xx;
-      v[kSdYy] = sd.yy;
-      v[kSdXy] = sd.xy;
-      const double area_m2 = std::abs(strain::signed_area(reference_px_[static_cast<std::size_t>(tri[0])],
-                                                          reference_px_[static_cast<std::size_t>(tri[1])],
-                                                          reference_px_[static_cast<std::size_t>(tri[2])])) *
-                             m_per_px * m_per_px;
-      energy += v[kEnergy] * area_m2;
-    }
-    record.energy_J = fs.counts.valid > 0 ? settings_.strain.depth_m * energy : kNaN;
-    record.stick_ratio = fs.stick_ratio;
+    previous_px_.resize(reference_px_.size(), Vec2{kNaN, kNaN});
+    const strain::FrameStrain fs = frame_strain(context, record.t_s);
+    fill_record(record, fs, reference_frame);
     if (reference_has_ellipse_)
       record.stick_zone = strain::fit_stick_zone(reference_px_, current_px_, disk_, settings_.strain.poisson,
                                                  settings_.stick_zone);
@@ -186,7 +110,7 @@ class StrainStage final : public Stage {
     previous_t_s_ = record.t_s;
     strain_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     ++strained_frames_;
-    remember(frames_, std::move(record), keep_history_);
+    keep(std::move(record));
   }
 
   void draw(cv::Mat& bgr, const FrameContext& context) const override {
@@ -235,82 +159,238 @@ class StrainStage final : public Stage {
     cells.push_back(format_double(stick_radius_mm(f)));
   }
 
-  void write(H5Writer& out) const override {
-    const std::size_t n = frames_.size();
+  // What is not per frame (the union mesh), the energy rate from the kept energies, and the attributes; the
+  // per-frame rows are written as frames are done.
+  void write(H5Stream& out) const override {
     const auto& triangles = mesh_.triangles();
     const std::size_t t_count = triangles.size();
     std::vector<std::int32_t> mesh(t_count * 3);
     for (std::size_t t = 0; t < t_count; ++t)
       for (int v = 0; v < 3; ++v)
         mesh[t * 3 + static_cast<std::size_t>(v)] = triangles[t][static_cast<std::size_t>(v)];
-    std::vector<double> total(n * t_count * 3, kNaN), other(n * t_count * 3, kNaN), sd(n * t_count * 3, kNaN),
-        rate(n * t_count * 3, kNaN), principal(n * t_count * 3, kNaN), rotation(n * t_count, kNaN),
-        density(n * t_count, kNaN);
-    std::vector<std::uint8_t> status(n * t_count, kNotInMesh);
-    std::vector<std::int8_t> stuck(n * t_count, -1);
-    std::vector<std::uint8_t> source(n * t_count, 0);
-    std::vector<double> energy(n, kNaN), stick(n, kNaN), energy_rate(n, kNaN);
-    std::vector<double> radius_mm(n, kNaN), radius_ratio(n, kNaN), slip_px(n, kNaN), residual_px(n, kNaN),
-        shift_px(n * 2, kNaN), amplitude_px(n * 2, kNaN), chi2(n * 2, kNaN);
-    std::vector<std::int8_t> radius_status(n, -1);
-    std::vector<std::int32_t> counts(n * 6, 0);
-    for (std::size_t i = 0; i < n; ++i) {
-      const StrainFrame& f = frames_[i];
-      energy[i] = f.energy_J;
-      stick[i] = f.stick_ratio;
-      if (f.computed && reference_has_ellipse_) {
-        const strain::StickZoneFit& z = f.stick_zone;
-        radius_mm[i] = stick_radius_mm(f);
-        radius_ratio[i] = z.ratio;
-        slip_px[i] = z.max_slip_px;
-        residual_px[i] = z.residual_rms_px;
-        shift_px[2 * i] = z.shift_px.x;
-        shift_px[2 * i + 1] = z.shift_px.y;
-        amplitude_px[2 * i] = z.amplitude_px.x;
-        amplitude_px[2 * i + 1] = z.amplitude_px.y;
-        radius_status[i] = static_cast<std::int8_t>(z.status);
-        chi2[2 * i] = z.chi2_slip;
-        chi2[2 * i + 1] = z.chi2_stick;
-      }
-      const strain::TriangleCounts& c = f.counts;
-      const std::int32_t row[6] = {c.valid,       c.missing_vertex, c.small_area,
-                                   c.small_angle, c.high_aspect,    c.inverted};
-      std::copy(row, row + 6, counts.begin() + static_cast<std::ptrdiff_t>(i * 6));
-      for (std::size_t a = 0; a < f.active.size(); ++a) {
-        const std::size_t cell = i * t_count + static_cast<std::size_t>(f.active[a]);
-        status[cell] = f.status[a];
-        stuck[cell] = f.stuck[a];
-        source[cell] = f.sources[a];
-        const double* v = &f.values[a * kValueCount];
-        for (int c3 = 0; c3 < 3; ++c3) {
-          total[cell * 3 + static_cast<std::size_t>(c3)] = v[kExx + c3];
-          other[cell * 3 + static_cast<std::size_t>(c3)] = v[kOtherExx + c3];
-          rate[cell * 3 + static_cast<std::size_t>(c3)] = v[kRateXx + c3];
-          sd[cell * 3 + static_cast<std::size_t>(c3)] = v[kSdXx + c3];
-        }
-        if (std::isfinite(v[kExx])) {
-          const Principal2 p = principal_strains({v[kExx], v[kEyy], v[kExy]});
-          principal[cell * 3] = p.e1;
-          principal[cell * 3 + 1] = p.e2;
-          principal[cell * 3 + 2] = p.angle_rad;
-        }
-        rotation[cell] = v[kRotation];
-        density[cell] = v[kEnergy];
+    out.write("/mesh/triangles", std::span<const std::int32_t>(mesh), {t_count, 3});
+    const std::vector<double> energy_rate = energy_rate_W();
+    out.write("/energy/rate_W", std::span<const double>(energy_rate), {energy_rate.size()});
+    write_attributes(out);
+  }
+
+  // The reference frame's normalisation, and its contact as a disk map for the stick-radius fit: centre,
+  // axes and angle of the normalisation (q = s R(−φ)(X − centre), semi-major 1/s, semi-minor aspect/s).
+  void take_reference(const FrameContext::Tracking& tracking) {
+    reference_normalization_ = *tracking.reference_normalization;
+    reference_has_ellipse_ = tracking.reference_has_ellipse;
+    const cv::Matx23d m = reference_normalization_.forward_matrix();
+    const double scale = reference_normalization_.scale_per_px();
+    const cv::Point2d centre = reference_normalization_.denormalize({0.0, 0.0});
+    disk_ = reference_has_ellipse_ ? strain::contact_disk({centre.x, centre.y}, 1.0 / scale,
+                                                          reference_normalization_.aspect() / scale,
+                                                          std::atan2(m(0, 1), m(0, 0)))
+                                   : strain::ContactDisk{};
+  }
+
+  // Every track's reference position; the alive ones' current position, covariance and source bits.
+  void gather_vertices(const std::vector<flow::Track>& tracks) {
+    reference_px_.resize(tracks.size());
+    current_px_.assign(tracks.size(), Vec2{kNaN, kNaN});
+    covariance_px2_.assign(tracks.size(), {kNaN, kNaN, kNaN});
+    vertex_source_.assign(tracks.size(), 0);
+    alive_.clear();
+    for (std::size_t k = 0; k < tracks.size(); ++k) {
+      reference_px_[k] = tracks[k].reference_px;
+      if (flow::is_alive(tracks[k].status)) {
+        current_px_[k] = tracks[k].position_px;
+        covariance_px2_[k] = tracks[k].covariance_px2;
+        vertex_source_[k] = vertex_source(tracks[k]);
+        alive_.push_back(static_cast<std::int32_t>(k));
       }
     }
-    // dU/dt by central differences on the frame times (one-sided at the ends and next to gaps).
+  }
+
+  strain::FrameStrain frame_strain(const FrameContext& context, double t_s) const {
+    strain::FrameInput input;
+    input.triangles = mesh_.active_triangles();
+    input.reference_px = reference_px_;
+    input.current_px = current_px_;
+    if (!context.tracking->reference_frame) input.previous_px = previous_px_;
+    input.dt_s = t_s - previous_t_s_;
+    if (context.plate_displacement_px) {
+      input.plate_known = true;
+      input.plate_displacement_px = *context.plate_displacement_px;
+    }
+    return strain::compute_frame_strain(input, settings_.strain);
+  }
+
+  // The frame's per-triangle values (in the order of Value) and its energy U.
+  void fill_record(StrainFrame& record, const strain::FrameStrain& fs, bool reference_frame) {
+    const std::size_t n = mesh_.active().size();
+    record.computed = true;
+    record.active = mesh_.active();
+    record.status.resize(n);
+    record.stuck = fs.stuck;
+    record.sources.assign(n, 0);
+    record.values.assign(n * kValueCount, kNaN);
+    record.counts = fs.counts;
+    incremental_.resize(mesh_.triangles().size(), Strain2{kNaN, kNaN, kNaN});
+    const double m_per_px = 1.0e-3 / settings_.strain.px_per_mm;
+    double energy = 0.0;
+    for (std::size_t t = 0; t < n; ++t) {
+      record.status[t] = static_cast<std::uint8_t>(fs.status[t]);
+      if (fs.status[t] != strain::TriangleStatus::kValid) continue;
+      const Strain2& sum = running_sum(static_cast<std::size_t>(record.active[t]), fs, t, reference_frame);
+      const bool incremental = settings_.mode == strain::StrainMode::kIncremental;
+      const Strain2& chosen = incremental ? sum : fs.total[t];
+      const Strain2& other = incremental ? fs.total[t] : sum;
+      double* v = &record.values[t * kValueCount];
+      v[kExx] = chosen.xx;
+      v[kEyy] = chosen.yy;
+      v[kExy] = chosen.xy;
+      v[kOtherExx] = other.xx;
+      v[kOtherEyy] = other.yy;
+      v[kOtherExy] = other.xy;
+      v[kRateXx] = fs.rate_per_s[t].xx;
+      v[kRateYy] = fs.rate_per_s[t].yy;
+      v[kRateXy] = fs.rate_per_s[t].xy;
+      v[kRotation] = fs.rotation_polar_rad[t];
+      v[kEnergy] =
+          plane_strain_energy_density_J_m3(chosen, settings_.strain.young_Pa, settings_.strain.poisson);
+      const Triangle& tri = mesh_.active_triangles()[t];
+      const Strain2 sd = total_standard_deviation(tri);
+      for (std::size_t c = 0; c < 3; ++c)
+        record.sources[t] |= vertex_source_[static_cast<std::size_t>(tri[c])];
+      v[kSdXx] = sd.xx;
+      v[kSdYy] = sd.yy;
+      v[kSdXy] = sd.xy;
+      const double area_m2 = std::abs(strain::signed_area(reference_px_[static_cast<std::size_t>(tri[0])],
+                                                          reference_px_[static_cast<std::size_t>(tri[1])],
+                                                          reference_px_[static_cast<std::size_t>(tri[2])])) *
+                             m_per_px * m_per_px;
+      energy += v[kEnergy] * area_m2;
+    }
+    record.energy_J = fs.counts.valid > 0 ? settings_.strain.depth_m * energy : kNaN;
+    record.stick_ratio = fs.stick_ratio;
+  }
+
+  // The paper's running sum of increments. A triangle that joins the mesh after the reference frame
+  // (re-triangulation around births and retirements) has no increments before it: its sum starts from
+  // its exact total at that frame, so the two modes differ only by what accumulates afterwards.
+  const Strain2& running_sum(std::size_t triangle, const strain::FrameStrain& fs, std::size_t t,
+                             bool reference_frame) {
+    Strain2& sum = incremental_[triangle];
+    if (!finite(sum)) {
+      sum = reference_frame ? Strain2{} : fs.total[t];
+    } else if (finite(fs.increment[t])) {
+      sum.xx += fs.increment[t].xx;
+      sum.yy += fs.increment[t].yy;
+      sum.xy += fs.increment[t].xy;
+    }
+    return sum;
+  }
+
+  // Appends a frame's record, writes its rows, and keeps its per-triangle arrays only until the next frame
+  // (draw() shows the newest).
+  void keep(StrainFrame&& record) {
+    if (out_) write_row(record, frames_.size());
+    if (!frames_.empty()) frames_.back().drop_arrays();
+    remember(frames_, std::move(record), keep_history_);
+  }
+
+  // dU/dt by central differences on the frame times (one-sided at the ends and next to gaps): the only
+  // per-frame result that needs neighbours in time, one frame either side, from the energies kept.
+  std::vector<double> energy_rate_W() const {
+    const std::size_t n = frames_.size();
+    std::vector<double> rate(n, kNaN);
     for (std::size_t i = 0; i < n; ++i) {
-      const bool has_prev = i > 0 && std::isfinite(energy[i - 1]);
-      const bool has_next = i + 1 < n && std::isfinite(energy[i + 1]);
+      const bool has_prev = i > 0 && std::isfinite(frames_[i - 1].energy_J);
+      const bool has_next = i + 1 < n && std::isfinite(frames_[i + 1].energy_J);
       const std::size_t lo = has_prev ? i - 1 : i, hi = has_next ? i + 1 : i;
-      if (lo == hi || !std::isfinite(energy[lo]) || !std::isfinite(energy[hi])) continue;
+      if (lo == hi || !std::isfinite(frames_[lo].energy_J) || !std::isfinite(frames_[hi].energy_J)) continue;
       const double dt = frames_[hi].t_s - frames_[lo].t_s;
-      if (dt > 0.0) energy_rate[i] = (energy[hi] - energy[lo]) / dt;
+      if (dt > 0.0) rate[i] = (frames_[hi].energy_J - frames_[lo].energy_J) / dt;
+    }
+    return rate;
+  }
+
+  // Frame `row`'s rows of /mesh, /strain, /energy, /stick and /maps: as wide as the union mesh so far.
+  void write_row(const StrainFrame& f, std::size_t row) const {
+    write_triangle_rows(f, row);
+    write_scalar_rows(f, row);
+    write_map_rows(f, row);
+  }
+
+  void write_triangle_rows(const StrainFrame& f, std::size_t r) const {
+    H5Stream& out = *out_;
+    const std::size_t t_count = f.computed ? mesh_.triangles().size() : 0;
+    std::vector<double> total(t_count * 3, kNaN), other(t_count * 3, kNaN), sd(t_count * 3, kNaN),
+        rate(t_count * 3, kNaN), principal(t_count * 3, kNaN), rotation(t_count, kNaN),
+        density(t_count, kNaN);
+    std::vector<std::uint8_t> status(t_count, kNotInMesh), source(t_count, 0);
+    std::vector<std::int8_t> stuck(t_count, -1);
+    for (std::size_t a = 0; a < f.active.size(); ++a) {
+      const auto cell = static_cast<std::size_t>(f.active[a]);
+      status[cell] = f.status[a];
+      stuck[cell] = f.stuck[a];
+      source[cell] = f.sources[a];
+      const double* v = &f.values[a * kValueCount];
+      for (std::size_t c = 0; c < 3; ++c) {
+        total[cell * 3 + c] = v[kExx + static_cast<int>(c)];
+        other[cell * 3 + c] = v[kOtherExx + static_cast<int>(c)];
+        rate[cell * 3 + c] = v[kRateXx + static_cast<int>(c)];
+        sd[cell * 3 + c] = v[kSdXx + static_cast<int>(c)];
+      }
+      if (std::isfinite(v[kExx])) {
+        const Principal2 p = principal_strains({v[kExx], v[kEyy], v[kExy]});
+        principal[cell * 3] = p.e1;
+        principal[cell * 3 + 1] = p.e2;
+        principal[cell * 3 + 2] = p.angle_rad;
+      }
+      rotation[cell] = v[kRotation];
+      density[cell] = v[kEnergy];
     }
     const bool incremental = settings_.mode == strain::StrainMode::kIncremental;
-    out.write("/mesh/triangles", std::span<const std::int32_t>(mesh), {t_count, 3});
-    out.write("/mesh/status", std::span<const std::uint8_t>(status), {n, t_count});
-    out.write("/mesh/counts", std::span<const std::int32_t>(counts), {n, 6});
+    const H5Shape tensors{t_count, 3}, cells{t_count};
+    out.write_row("/mesh/status", r, std::span<const std::uint8_t>(status), cells, kNotInMesh);
+    out.write_row("/strain/total", r, std::span<const double>(total), tensors, kNaN, kStored);
+    out.write_row(incremental ? "/strain/total_exact" : "/strain/total_incremental", r,
+                  std::span<const double>(other), tensors, kNaN, kStored);
+    out.write_row("/strain/total_sd", r, std::span<const double>(sd), tensors, kNaN, kStored);
+    out.write_row("/strain/source", r, std::span<const std::uint8_t>(source), cells, std::uint8_t{0});
+    out.write_row("/strain/rate", r, std::span<const double>(rate), tensors, kNaN, kStored);
+    out.write_row("/strain/principal", r, std::span<const double>(principal), tensors, kNaN, kStored);
+    out.write_row("/strain/rotation_rad", r, std::span<const double>(rotation), cells, kNaN, kStored);
+    out.write_row("/energy/density_J_m3", r, std::span<const double>(density), cells, kNaN, kStored);
+    out.write_row("/stick/stuck", r, std::span<const std::int8_t>(stuck), cells, std::int8_t{-1});
+  }
+
+  void write_scalar_rows(const StrainFrame& f, std::size_t r) const {
+    H5Stream& out = *out_;
+    const strain::TriangleCounts& c = f.counts;
+    const std::int32_t counts[6] = {c.valid,       c.missing_vertex, c.small_area,
+                                    c.small_angle, c.high_aspect,    c.inverted};
+    out.write_row("/mesh/counts", r, std::span<const std::int32_t>(counts), {6}, 0);
+    out.write_row("/energy/total_J", r, std::span<const double>(&f.energy_J, 1), {}, kNaN);
+    out.write_row("/stick/ratio", r, std::span<const double>(&f.stick_ratio, 1), {}, kNaN);
+    const bool fitted = f.computed && reference_has_ellipse_;
+    const strain::StickZoneFit& z = f.stick_zone;
+    const auto one = [&](const char* name, double value) {
+      out.write_row(name, r, std::span<const double>(&value, 1), {}, kNaN);
+    };
+    const auto two = [&](const char* name, double a, double b) {
+      const double pair[2] = {a, b};
+      out.write_row(name, r, std::span<const double>(pair), {2}, kNaN);
+    };
+    one("/stick/radius_mm", stick_radius_mm(f));
+    one("/stick/radius_ratio", fitted ? z.ratio : kNaN);
+    const std::int8_t radius_status = fitted ? static_cast<std::int8_t>(z.status) : std::int8_t{-1};
+    out.write_row("/stick/radius_status", r, std::span<const std::int8_t>(&radius_status, 1), {},
+                  std::int8_t{-1});
+    one("/stick/slip_max_px", fitted ? z.max_slip_px : kNaN);
+    one("/stick/fit_residual_px", fitted ? z.residual_rms_px : kNaN);
+    two("/stick/core_shift_px", fitted ? z.shift_px.x : kNaN, fitted ? z.shift_px.y : kNaN);
+    two("/stick/slip_amplitude_px", fitted ? z.amplitude_px.x : kNaN, fitted ? z.amplitude_px.y : kNaN);
+    two("/stick/fit_chi2", fitted ? z.chi2_slip : kNaN, fitted ? z.chi2_stick : kNaN);
+  }
+
+  void write_attributes(H5Stream& out) const {
     out.attribute("/mesh", "status_codes",
                   "0 valid; 1 missing vertex; 2 small area; 3 small angle; 4 high aspect; 5 inverted; "
                   "255 not in this frame's mesh");
@@ -320,42 +400,21 @@ class StrainStage final : public Stage {
     out.attribute("/mesh", "min_angle_deg", settings_.strain.quality.min_angle_deg);
     out.attribute("/mesh", "max_aspect", settings_.strain.quality.max_aspect);
     out.attribute("/mesh", "rebuilds", static_cast<double>(mesh_.rebuilds()));
-    out.write("/strain/total", std::span<const double>(total), {n, t_count, 3});
-    out.write(incremental ? "/strain/total_exact" : "/strain/total_incremental",
-              std::span<const double>(other), {n, t_count, 3});
-    out.write("/strain/total_sd", std::span<const double>(sd), {n, t_count, 3});
     out.attribute("/strain", "total_sd",
                   "predicted standard deviation of each total strain component from the vertices' match "
                   "covariances (/tracks/covariance_px2), vertices taken as independent: an upper bound of "
                   "the noise; NaN where a vertex has no covariance");
-    out.write("/strain/source", std::span<const std::uint8_t>(source), {n, t_count});
     out.attribute(
         "/strain", "source_bits",
         "0 every vertex matched; bit 1: a vertex's reference position is extrapolated "
         "(/tracks/reference_extrapolated); bit 2: a vertex reports a model this frame (/tracks/model)");
-    out.write("/strain/rate", std::span<const double>(rate), {n, t_count, 3});
-    out.write("/strain/principal", std::span<const double>(principal), {n, t_count, 3});
-    out.write("/strain/rotation_rad", std::span<const double>(rotation), {n, t_count});
     out.attribute("/strain", "mode", strain::to_string(settings_.mode));
     out.attribute("/strain", "components", "E_xx,E_yy,E_xy (Green-Lagrange, tensor shear)");
     out.attribute("/strain", "rate_unit", "1/s (Green-Lagrange strain of frame t-1 -> t over dt)");
-    out.write("/energy/density_J_m3", std::span<const double>(density), {n, t_count});
-    out.write("/energy/total_J", std::span<const double>(energy), {n});
-    out.write("/energy/rate_W", std::span<const double>(energy_rate), {n});
     out.attribute("/energy", "young_Pa", settings_.strain.young_Pa);
     out.attribute("/energy", "poisson", settings_.strain.poisson);
     out.attribute("/energy", "depth_m", settings_.strain.depth_m);
-    out.write("/stick/ratio", std::span<const double>(stick), {n});
-    out.write("/stick/stuck", std::span<const std::int8_t>(stuck), {n, t_count});
     out.attribute("/stick", "tolerance_px", settings_.strain.stick_tolerance_px);
-    out.write("/stick/radius_mm", std::span<const double>(radius_mm), {n});
-    out.write("/stick/radius_ratio", std::span<const double>(radius_ratio), {n});
-    out.write("/stick/radius_status", std::span<const std::int8_t>(radius_status), {n});
-    out.write("/stick/slip_max_px", std::span<const double>(slip_px), {n});
-    out.write("/stick/fit_residual_px", std::span<const double>(residual_px), {n});
-    out.write("/stick/core_shift_px", std::span<const double>(shift_px), {n, 2});
-    out.write("/stick/slip_amplitude_px", std::span<const double>(amplitude_px), {n, 2});
-    out.write("/stick/fit_chi2", std::span<const double>(chi2), {n, 2});
     out.attribute(
         "/stick", "radius_method",
         "cattaneo_mindlin_fit: least-squares fit of the Cattaneo-Mindlin slip profile (stuck-core shift "
@@ -368,7 +427,7 @@ class StrainStage final : public Stage {
                   reference_has_ellipse_ ? disk_.radius_px / settings_.strain.px_per_mm : kNaN);
     out.attribute("/stick", "fit_extent", settings_.stick_zone.extent);
     out.attribute("/stick", "fit_significance", settings_.stick_zone.significance);
-    write_maps(out);
+    write_map_attributes(out);
   }
 
   void summarize(nlohmann::json& summary) const override {
@@ -443,46 +502,49 @@ class StrainStage final : public Stage {
 
   // Maps on the standard ellipse of the reference frame: /maps/strain_total [N,G,G,3], its predicted SD
   // /maps/strain_total_sd [N,G,G,3] (where the measurement is weak), /maps/principal [N,G,G,2] (e1, e2),
-  // /maps/energy_density_J_m3 [N,G,G].
-  void write_maps(H5Writer& out) const {
-    const std::size_t n = frames_.size();
+  // /maps/energy_density_J_m3 [N,G,G]; NaN rows for frames without strain.
+  void write_map_rows(const StrainFrame& f, std::size_t r) const {
     const auto g = static_cast<std::size_t>(settings_.map_cells);
-    strain::NormalisedGrid grid;
-    grid.cells = settings_.map_cells;
-    grid.to_normalised = reference_normalization_.forward_matrix();
-    std::vector<double> total(n * g * g * 3, kNaN), principal(n * g * g * 2, kNaN), density(n * g * g, kNaN);
-    std::vector<double> total_sd(n * g * g * 3, kNaN);
-    std::vector<Triangle> triangles;
-    std::vector<std::uint8_t> usable;
-    for (std::size_t i = 0; i < n && reference_has_ellipse_; ++i) {
-      const StrainFrame& f = frames_[i];
-      if (!f.computed) continue;
-      triangles.clear();
-      usable.clear();
+    std::vector<double> total(g * g * 3, kNaN), principal(g * g * 2, kNaN), density(g * g, kNaN);
+    std::vector<double> total_sd(g * g * 3, kNaN);
+    if (f.computed && reference_has_ellipse_) {
+      std::vector<Triangle> triangles;
+      std::vector<std::uint8_t> usable;
       for (std::size_t a = 0; a < f.active.size(); ++a) {
         triangles.push_back(mesh_.triangles()[static_cast<std::size_t>(f.active[a])]);
         usable.push_back(std::isfinite(f.values[a * kValueCount + kExx]) ? 1 : 0);
       }
       const std::vector<std::int32_t> owner =
-          strain::rasterise_triangles(grid, triangles, reference_px_, usable);
+          strain::rasterise_triangles(map_grid(), triangles, reference_px_, usable);
       for (std::size_t cell = 0; cell < owner.size(); ++cell) {
         if (owner[cell] < 0) continue;
         const double* v = &f.values[static_cast<std::size_t>(owner[cell]) * kValueCount];
-        const std::size_t base = i * g * g + cell;
-        total[base * 3] = v[kExx];
-        total[base * 3 + 1] = v[kEyy];
-        total[base * 3 + 2] = v[kExy];
-        for (std::size_t c = 0; c < 3; ++c) total_sd[base * 3 + c] = v[kSdXx + static_cast<int>(c)];
+        total[cell * 3] = v[kExx];
+        total[cell * 3 + 1] = v[kEyy];
+        total[cell * 3 + 2] = v[kExy];
+        for (std::size_t c = 0; c < 3; ++c) total_sd[cell * 3 + c] = v[kSdXx + static_cast<int>(c)];
         const Principal2 p = principal_strains({v[kExx], v[kEyy], v[kExy]});
-        principal[base * 2] = p.e1;
-        principal[base * 2 + 1] = p.e2;
-        density[base] = v[kEnergy];
+        principal[cell * 2] = p.e1;
+        principal[cell * 2 + 1] = p.e2;
+        density[cell] = v[kEnergy];
       }
     }
-    out.write("/maps/strain_total", std::span<const double>(total), {n, g, g, 3});
-    out.write("/maps/strain_total_sd", std::span<const double>(total_sd), {n, g, g, 3});
-    out.write("/maps/principal", std::span<const double>(principal), {n, g, g, 2});
-    out.write("/maps/energy_density_J_m3", std::span<const double>(density), {n, g, g});
+    H5Stream& out = *out_;
+    out.write_row("/maps/strain_total", r, std::span<const double>(total), {g, g, 3}, kNaN, kStored);
+    out.write_row("/maps/strain_total_sd", r, std::span<const double>(total_sd), {g, g, 3}, kNaN, kStored);
+    out.write_row("/maps/principal", r, std::span<const double>(principal), {g, g, 2}, kNaN, kStored);
+    out.write_row("/maps/energy_density_J_m3", r, std::span<const double>(density), {g, g}, kNaN, kStored);
+  }
+
+  strain::NormalisedGrid map_grid() const {
+    strain::NormalisedGrid grid;
+    grid.cells = settings_.map_cells;
+    grid.to_normalised = reference_normalization_.forward_matrix();
+    return grid;
+  }
+
+  void write_map_attributes(H5Stream& out) const {
+    const auto g = static_cast<std::size_t>(settings_.map_cells);
     out.attribute("/maps", "grid",
                   "cells on [-1,1]x[-1,1] of the standard ellipse (x along the major axis, semi-major 1, y "
                   "down), centres at -1 + 2i/(cells-1); each cell the value of the reference triangle "
@@ -490,7 +552,7 @@ class StrainStage final : public Stage {
     out.attribute("/maps", "cells", static_cast<double>(g));
     out.attribute("/maps", "aspect", reference_normalization_.aspect());
     out.attribute("/maps", "reference_has_ellipse", reference_has_ellipse_ ? 1.0 : 0.0);
-    const cv::Matx23d m = grid.to_normalised;
+    const cv::Matx23d m = map_grid().to_normalised;
     out.attribute("/maps", "to_normalised",
                   format_double(m(0, 0)) + "," + format_double(m(0, 1)) + "," + format_double(m(0, 2)) + ";" +
                       format_double(m(1, 0)) + "," + format_double(m(1, 1)) + "," + format_double(m(1, 2)));
@@ -526,6 +588,7 @@ class StrainStage final : public Stage {
   double previous_t_s_ = kNaN;
   std::vector<StrainFrame> frames_;
   bool keep_history_ = true;
+  H5Stream* out_ = nullptr;  // result.h5, where rows go as frames are done (null in the live view)
   double strain_s_ = 0.0;
   std::int64_t strained_frames_ = 0;
 };

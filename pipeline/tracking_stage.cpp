@@ -25,22 +25,35 @@ constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
 // Contacts with semi-minor/semi-major above this are treated as circles by the normalised maps.
 constexpr double kCircularAspect = 0.95;
 
-// What is kept per frame: positions and status of the tracks that existed at that frame (K grows).
+// What is kept per frame: scalars only (for frames.csv, summary.json and replay); the tracks' positions and
+// statuses go to result.h5 as the frame is done.
 struct TrackFrame {
   double t_s = kNaN;
   int tracker_frame = -1;  // -1: not tracked (before the reference frame, or unusable)
-  std::vector<Vec2> position_px;
-  std::vector<std::int8_t> status;
-  // What each position is (flow::TrackModel) and the statistic that let a model stand in for the match.
-  std::vector<std::uint8_t> model;
-  std::vector<float> model_mahalanobis2;
-  std::vector<float> inside_fraction;                // share of the match's subset inside the contact
-  std::vector<std::array<float, 3>> covariance_px2;  // the own match's, xx xy yy
+  std::size_t tracks = 0;  // tracks that existed at this frame (the width of its /tracks rows)
   bool rest_tested = false, at_rest = false;
   double rest_chi2_per_dof = kNaN, rest_correlation_z = kNaN;
   std::optional<Vec2> plate_px;
   std::int8_t plate_status = kAbsent;  // flow::PlateStatus, kAbsent where not measured
   int alive = 0, born = 0, retired = 0;
+};
+
+// One frame's /tracks rows, built from the tracker and written at once (K = tracks so far).
+struct TrackRow {
+  std::vector<double> position_px;  // K x 2
+  std::vector<std::int8_t> status;
+  // What each position is (flow::TrackModel) and the statistic that let a model stand in for the match.
+  std::vector<std::uint8_t> model;
+  std::vector<float> model_mahalanobis2;
+  std::vector<float> inside_fraction;  // share of the match's subset inside the contact
+  std::vector<float> covariance_px2;   // K x 3: the own match's, xx xy yy
+};
+
+// One track through time, read back from result.h5 for smoothing in time.
+struct TrackColumn {
+  std::vector<double> position_px;     // N x 2
+  std::vector<double> covariance_px2;  // N x 3
+  std::vector<double> model, model_mahalanobis2;
 };
 
 class TrackingStage final : public Stage {
@@ -56,6 +69,7 @@ class TrackingStage final : public Stage {
   void start(const TrialInfo& info) override {
     frame_size_ = info.frame_size;
     keep_history_ = info.keep_history;
+    out_ = info.out;
   }
 
   void process(FrameContext& context) override {
@@ -65,43 +79,16 @@ class TrackingStage final : public Stage {
                              (context.contact->status & contact::kNoContact) == 0 &&
                              context.contact->outline_px.size() >= 3;
     if (!context.usable || (!tracker_ && !has_contact)) {
+      write_row(TrackRow{}, record);
       remember(frames_, std::move(record), keep_history_);
       return;
     }
     contact_mask(context, has_contact);
     const auto t0 = std::chrono::steady_clock::now();
     if (!tracker_) {
-      Scene sized = scene_;
-      // Model only what the scene needs: without a fixed ridge period, size the preset from the period the
-      // contact stage measured on this frame.
-      if (!scene_.ridge_period_mm && context.contact->ridge_period_px > 0.0)
-        sized.ridge_period_mm = context.contact->ridge_period_px / scene_.px_per_mm;
-      settings_ = flow::parse_tracking_settings(sized);
-      tracker_ = std::make_unique<flow::FeatureTracker>(settings_, scene_.reference_pattern_roi);
-      tracker_->start(context.frame->image, mask_, context.frame->device_time_s);
-      reference_has_ellipse_ = context.contact->ellipse.has_value();
-      if (reference_has_ellipse_) {
-        // A nearly circular contact has no meaningful major axis: its fitted angle is noise, and maps rotated
-        // by it could not be compared or averaged across trials. Below this aspect the maps keep the image
-        // axes (translation and scale only).
-        contact::Ellipse e = *context.contact->ellipse;
-        if (e.semi_minor_px > kCircularAspect * e.semi_major_px) e.angle_rad = 0.0;
-        reference_normalization_ = contact::EllipseNormalization(e);
-      } else {
-        reference_normalization_ = {};
-      }
-      reference_row_ = static_cast<std::int64_t>(frames_.size());
-      reference_frame_index_ = context.frame->index;
+      start_tracker(context);
     } else {
-      const flow::FrameStats& stats =
-          tracker_->track(context.frame->image, mask_, context.frame->device_time_s);
-      rest_frames_averaged_ += stats.rest_frames_averaged;
-      rest_frames_on_fit_ += stats.at_rest ? 1 : 0;
-      record.rest_tested = stats.rest_tested;
-      record.at_rest = stats.at_rest;
-      record.rest_chi2_per_dof = stats.rest_chi2_per_dof;
-      record.rest_correlation_z = stats.rest_correlation_z;
-      fusion_declined_ += stats.fusion_declined;
+      track_frame(context, record);
     }
     track_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     ++tracked_frames_;
@@ -109,37 +96,14 @@ class TrackingStage final : public Stage {
     const int frame = tracker_->frame_index();
     record.tracker_frame = frame;
     tracker_rows_.push_back(static_cast<std::int64_t>(frames_.size()));
-    const auto& tracks = tracker_->tracks();
-    record.position_px.resize(tracks.size(), Vec2{kNaN, kNaN});
-    record.status.resize(tracks.size(), kAbsent);
-    record.model.resize(tracks.size(), 0);
-    record.model_mahalanobis2.resize(tracks.size(), kNaNf);
-    record.inside_fraction.resize(tracks.size(), kNaNf);
-    record.covariance_px2.resize(tracks.size(), {kNaNf, kNaNf, kNaNf});
-    for (std::size_t k = 0; k < tracks.size(); ++k) {
-      const flow::Track& t = tracks[k];
-      if (flow::is_alive(t.status)) {
-        record.position_px[k] = t.position_px;
-        record.status[k] = static_cast<std::int8_t>(t.status);
-        record.model[k] = static_cast<std::uint8_t>(t.model);
-        record.model_mahalanobis2[k] = static_cast<float>(t.model_mahalanobis2);
-        record.inside_fraction[k] = static_cast<float>(t.subset_inside_fraction);
-        for (std::size_t c = 0; c < 3; ++c)
-          record.covariance_px2[k][c] = static_cast<float>(t.covariance_px2[c]);
-        ++model_track_frames_[static_cast<std::size_t>(t.model)];
-        ++record.alive;
-        if (t.status == flow::TrackStatus::kBorn && frame > 0) ++record.born;
-      } else if (t.retired_frame == frame) {
-        record.status[k] = static_cast<std::int8_t>(t.status);
-        ++record.retired;
-      }
-    }
+    const TrackRow row = record_tracks(record);
     record.plate_px = tracker_->plate_displacement_px();
     record.plate_status = tracker_->plate_status().value_or(kAbsent);
     if (record.plate_status > 0) ++plate_frames_not_matched_[record.plate_status == 1 ? 0 : 1];
-    context.tracking =
-        FrameContext::Tracking{&tracks, frame, frame == 0, &reference_normalization_, reference_has_ellipse_};
+    context.tracking = FrameContext::Tracking{&tracker_->tracks(), frame, frame == 0,
+                                              &reference_normalization_, reference_has_ellipse_};
     context.plate_displacement_px = record.plate_px;
+    write_row(row, record);
     remember(frames_, std::move(record), keep_history_);
   }
 
@@ -154,7 +118,7 @@ class TrackingStage final : public Stage {
 
   // Known from frame 0 on (the texture is judged there), so the overlay can say it.
   bool will_smooth() const {
-    if (!keep_history_ || !tracker_) return false;
+    if (!keep_history_ || !tracker_ || !out_) return false;
     const std::string& mode = tracker_->settings().smooth_in_time;
     return mode == "on" || (mode == "auto" && tracker_->low_snr_texture());
   }
@@ -162,13 +126,17 @@ class TrackingStage final : public Stage {
   void replay(FrameContext& context, std::size_t row) override {
     const TrackFrame& f = frames_.at(row);
     if (f.tracker_frame < 0) return;
-    // The tracks as they were in that frame: status and (revised) position from the row, the rest as now.
+    // The tracks as they were in that frame: status and (revised) position from result.h5's row, the rest
+    // as now.
+    const std::vector<double> status = out_->read_block("/tracks/status", {row, 0}, {1, f.tracks});
+    const std::vector<double> position =
+        out_->read_block("/tracks/position_px", {row, 0, 0}, {1, f.tracks, 2});
     replay_tracks_ = tracker_->tracks();
     for (std::size_t k = 0; k < replay_tracks_.size(); ++k) {
       flow::Track& t = replay_tracks_[k];
-      const bool existed = k < f.status.size() && f.status[k] != kAbsent;
-      t.status = existed ? static_cast<flow::TrackStatus>(f.status[k]) : flow::TrackStatus::kLeftContact;
-      if (existed && flow::is_alive(t.status)) t.position_px = f.position_px[k];
+      const bool existed = k < f.tracks && status[k] != kAbsent;
+      t.status = existed ? static_cast<flow::TrackStatus>(status[k]) : flow::TrackStatus::kLeftContact;
+      if (existed && flow::is_alive(t.status)) t.position_px = {position[2 * k], position[2 * k + 1]};
     }
     context.tracking = FrameContext::Tracking{&replay_tracks_, f.tracker_frame, f.tracker_frame == 0,
                                               &reference_normalization_, reference_has_ellipse_};
@@ -227,16 +195,10 @@ class TrackingStage final : public Stage {
     cells.push_back(std::to_string(f.plate_status));
   }
 
-  void write(H5Writer& out) const override {
-    const std::size_t n = frames_.size();
+  // Per-track datasets and the attributes; the per-frame rows are written as frames are done.
+  void write(H5Stream& out) const override {
     const std::size_t k = tracker_ ? tracker_->tracks().size() : 0;
-    std::vector<double> reference(k * 2), position(n * k * 2, kNaN), plate(n * 2, kNaN);
-    std::vector<std::int8_t> plate_status(n, kAbsent);
-    std::vector<std::int8_t> status(n * k, kAbsent);
-    std::vector<std::uint8_t> model(n * k, 0);
-    std::vector<float> model_d2(n * k, kNaNf), covariance(n * k * 3, kNaNf), inside(n * k, kNaNf);
-    std::vector<std::int8_t> rest_tested(n, 0), at_rest(n, 0);
-    std::vector<double> rest_chi2(n, kNaN), rest_z(n, kNaN);
+    std::vector<double> reference(k * 2);
     std::vector<std::int32_t> born(k), retired(k);
     std::vector<std::int8_t> extrapolated(k, 0);
     for (std::size_t j = 0; j < k; ++j) {
@@ -248,67 +210,11 @@ class TrackingStage final : public Stage {
       born[j] = row_of_tracker_frame(t.born_frame);
       retired[j] = row_of_tracker_frame(t.retired_frame);
     }
-    for (std::size_t i = 0; i < n; ++i) {
-      const TrackFrame& f = frames_[i];
-      for (std::size_t j = 0; j < f.position_px.size(); ++j) {
-        position[(i * k + j) * 2] = f.position_px[j].x;
-        position[(i * k + j) * 2 + 1] = f.position_px[j].y;
-        status[i * k + j] = f.status[j];
-        model[i * k + j] = f.model[j];
-        model_d2[i * k + j] = f.model_mahalanobis2[j];
-        if (j < f.inside_fraction.size()) inside[i * k + j] = f.inside_fraction[j];
-        for (std::size_t c = 0; c < 3; ++c) covariance[(i * k + j) * 3 + c] = f.covariance_px2[j][c];
-      }
-      rest_tested[i] = f.rest_tested ? 1 : 0;
-      at_rest[i] = f.at_rest ? 1 : 0;
-      rest_chi2[i] = f.rest_chi2_per_dof;
-      rest_z[i] = f.rest_correlation_z;
-      plate_status[i] = f.plate_status;
-      if (f.plate_px) {
-        plate[2 * i] = f.plate_px->x;
-        plate[2 * i + 1] = f.plate_px->y;
-      }
-    }
     out.write("/tracks/reference_px", std::span<const double>(reference), {k, 2});
-    out.write("/tracks/position_px", std::span<const double>(position), {n, k, 2});
-    out.write("/tracks/status", std::span<const std::int8_t>(status), {n, k});
-    out.write("/tracks/model", std::span<const std::uint8_t>(model), {n, k});
-    out.attribute(
-        "/tracks", "model_codes",
-        "0 own match; 1 neighbour fusion within the match's noise; 2 affine fit of a frame at rest; "
-        "3 smoothed in time within the match's noise (docs/flow.md, what a position is)");
-    out.write("/tracks/model_mahalanobis2", std::span<const float>(model_d2), {n, k});
-    out.write("/tracks/covariance_px2", std::span<const float>(covariance), {n, k, 3});
-    out.write("/tracks/subset_inside_fraction", std::span<const float>(inside), {n, k});
-    out.attribute(
-        "/tracks", "subset_inside_fraction",
-        "share of each match's subset pixels inside the contact (and the image); the others are not "
-        "used: below 1 where a subset crosses the contact's border");
-    out.write("/tracks/rest_tested", std::span<const std::int8_t>(rest_tested), {n});
-    out.write("/tracks/at_rest", std::span<const std::int8_t>(at_rest), {n});
-    out.write("/tracks/rest_chi2_per_dof", std::span<const double>(rest_chi2), {n});
-    out.write("/tracks/rest_correlation_z", std::span<const double>(rest_z), {n});
     out.write("/tracks/born_frame", std::span<const std::int32_t>(born), {k});
     out.write("/tracks/retired_frame", std::span<const std::int32_t>(retired), {k});
     out.write("/tracks/reference_extrapolated", std::span<const std::int8_t>(extrapolated), {k});
-    out.attribute("/tracks", "reference_extrapolated",
-                  "1: the track's reference position was not matched in the reference frame but extrapolated "
-                  "from its neighbours' map (skin the reference frame did not see); its displacement is "
-                  "partly a model");
-    out.attribute("/tracks", "preset", settings_.preset);
-    out.attribute("/tracks", "reference_frame_row", static_cast<double>(reference_row_));
-    out.attribute("/tracks", "status_codes",
-                  "-1 absent (not born yet or retired earlier); 0 tracked; 1 born; 2 recovered; 3 unchecked; "
-                  "10 left contact; 11 forward-backward; 12 poor match; 13 inconsistent; 14 left image");
-    out.attribute("/tracks", "settings", settings_summary().dump());
-    out.attribute("/tracks", "smoothed_in_time", smoothed_ ? 1.0 : 0.0);
-    out.write("/plate/displacement_px", std::span<const double>(plate), {n, 2});
-    out.attribute("/plate", "measured", scene_.reference_pattern_roi ? 1.0 : 0.0);
-    out.write("/plate/status", std::span<const std::int8_t>(plate_status), {n});
-    out.attribute("/plate", "status_codes",
-                  "-1 not measured; 0 matched into the pattern mosaic; 1 predicted from the last motion (the "
-                  "subsets disagree or none matched: a motion-blurred band); 2 LK only (the band left the "
-                  "mosaic)");
+    write_attributes(out);
   }
 
   void summarize(nlohmann::json& summary) const override {
@@ -333,7 +239,7 @@ class TrackingStage final : public Stage {
     int alive_last = 0;
     for (const TrackFrame& f : frames_) {
       alive_sum += f.alive;
-      if (!f.position_px.empty()) alive_last = f.alive;
+      if (f.tracker_frame >= 0 && f.tracks > 0) alive_last = f.alive;
     }
     s["tracks_alive_mean"] = tracked_frames_ > 0 ? alive_sum / static_cast<double>(tracked_frames_) : 0.0;
     s["tracks_alive_last"] = alive_last;
@@ -375,68 +281,221 @@ class TrackingStage final : public Stage {
                 cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * inset + 1, 2 * inset + 1)));
   }
 
+  // The reference frame: the tracker sized for this contact, and the normalisation the maps use.
+  void start_tracker(const FrameContext& context) {
+    Scene sized = scene_;
+    // Model only what the scene needs: without a fixed ridge period, size the preset from the period the
+    // contact stage measured on this frame.
+    if (!scene_.ridge_period_mm && context.contact->ridge_period_px > 0.0)
+      sized.ridge_period_mm = context.contact->ridge_period_px / scene_.px_per_mm;
+    settings_ = flow::parse_tracking_settings(sized);
+    tracker_ = std::make_unique<flow::FeatureTracker>(settings_, scene_.reference_pattern_roi);
+    tracker_->start(context.frame->image, mask_, context.frame->device_time_s);
+    reference_has_ellipse_ = context.contact->ellipse.has_value();
+    if (reference_has_ellipse_) {
+      // A nearly circular contact has no meaningful major axis: its fitted angle is noise, and maps rotated
+      // by it could not be compared or averaged across trials. Below this aspect the maps keep the image
+      // axes (translation and scale only).
+      contact::Ellipse e = *context.contact->ellipse;
+      if (e.semi_minor_px > kCircularAspect * e.semi_major_px) e.angle_rad = 0.0;
+      reference_normalization_ = contact::EllipseNormalization(e);
+    } else {
+      reference_normalization_ = {};
+    }
+    reference_row_ = static_cast<std::int64_t>(frames_.size());
+    reference_frame_index_ = context.frame->index;
+  }
+
+  void track_frame(const FrameContext& context, TrackFrame& record) {
+    const flow::FrameStats& stats =
+        tracker_->track(context.frame->image, mask_, context.frame->device_time_s);
+    rest_frames_averaged_ += stats.rest_frames_averaged;
+    rest_frames_on_fit_ += stats.at_rest ? 1 : 0;
+    record.rest_tested = stats.rest_tested;
+    record.at_rest = stats.at_rest;
+    record.rest_chi2_per_dof = stats.rest_chi2_per_dof;
+    record.rest_correlation_z = stats.rest_correlation_z;
+    fusion_declined_ += stats.fusion_declined;
+  }
+
+  // The tracks as they are after this frame: alive ones with position and what it is, retired ones with
+  // why; the counts go to the record.
+  TrackRow record_tracks(TrackFrame& record) {
+    const int frame = tracker_->frame_index();
+    const auto& tracks = tracker_->tracks();
+    const std::size_t k_count = tracks.size();
+    record.tracks = k_count;
+    TrackRow row;
+    row.position_px.assign(k_count * 2, kNaN);
+    row.status.assign(k_count, kAbsent);
+    row.model.assign(k_count, 0);
+    row.model_mahalanobis2.assign(k_count, kNaNf);
+    row.inside_fraction.assign(k_count, kNaNf);
+    row.covariance_px2.assign(k_count * 3, kNaNf);
+    for (std::size_t k = 0; k < k_count; ++k) {
+      const flow::Track& t = tracks[k];
+      if (flow::is_alive(t.status)) {
+        row.position_px[2 * k] = t.position_px.x;
+        row.position_px[2 * k + 1] = t.position_px.y;
+        row.status[k] = static_cast<std::int8_t>(t.status);
+        row.model[k] = static_cast<std::uint8_t>(t.model);
+        row.model_mahalanobis2[k] = static_cast<float>(t.model_mahalanobis2);
+        row.inside_fraction[k] = static_cast<float>(t.subset_inside_fraction);
+        for (std::size_t c = 0; c < 3; ++c)
+          row.covariance_px2[3 * k + c] = static_cast<float>(t.covariance_px2[c]);
+        ++model_track_frames_[static_cast<std::size_t>(t.model)];
+        ++record.alive;
+        if (t.status == flow::TrackStatus::kBorn && frame > 0) ++record.born;
+      } else if (t.retired_frame == frame) {
+        row.status[k] = static_cast<std::int8_t>(t.status);
+        ++record.retired;
+      }
+    }
+    return row;
+  }
+
+  // This frame's rows of /tracks and /plate (row = its row in /frames).
+  void write_row(const TrackRow& row, const TrackFrame& f) const {
+    if (!out_) return;
+    H5Stream& out = *out_;
+    const std::size_t r = frames_.size();
+    const std::size_t k = f.tracks;
+    out.write_row("/tracks/position_px", r, std::span<const double>(row.position_px), {k, 2}, kNaN);
+    out.write_row("/tracks/status", r, std::span<const std::int8_t>(row.status), {k}, kAbsent);
+    out.write_row("/tracks/model", r, std::span<const std::uint8_t>(row.model), {k}, std::uint8_t{0});
+    out.write_row("/tracks/model_mahalanobis2", r, std::span<const float>(row.model_mahalanobis2), {k},
+                  kNaNf);
+    out.write_row("/tracks/covariance_px2", r, std::span<const float>(row.covariance_px2), {k, 3}, kNaNf);
+    out.write_row("/tracks/subset_inside_fraction", r, std::span<const float>(row.inside_fraction), {k},
+                  kNaNf);
+    const std::int8_t rest[2] = {static_cast<std::int8_t>(f.rest_tested),
+                                 static_cast<std::int8_t>(f.at_rest)};
+    out.write_row("/tracks/rest_tested", r, std::span<const std::int8_t>(rest, 1), {}, std::int8_t{0});
+    out.write_row("/tracks/at_rest", r, std::span<const std::int8_t>(rest + 1, 1), {}, std::int8_t{0});
+    out.write_row("/tracks/rest_chi2_per_dof", r, std::span<const double>(&f.rest_chi2_per_dof, 1), {}, kNaN);
+    out.write_row("/tracks/rest_correlation_z", r, std::span<const double>(&f.rest_correlation_z, 1), {},
+                  kNaN);
+    const double plate[2] = {f.plate_px ? f.plate_px->x : kNaN, f.plate_px ? f.plate_px->y : kNaN};
+    out.write_row("/plate/displacement_px", r, std::span<const double>(plate), {2}, kNaN);
+    out.write_row("/plate/status", r, std::span<const std::int8_t>(&f.plate_status, 1), {}, kAbsent);
+  }
+
+  void write_attributes(H5Stream& out) const {
+    out.attribute(
+        "/tracks", "model_codes",
+        "0 own match; 1 neighbour fusion within the match's noise; 2 affine fit of a frame at rest; "
+        "3 smoothed in time within the match's noise (docs/flow.md, what a position is)");
+    out.attribute(
+        "/tracks", "subset_inside_fraction",
+        "share of each match's subset pixels inside the contact (and the image); the others are not "
+        "used: below 1 where a subset crosses the contact's border");
+    out.attribute("/tracks", "reference_extrapolated",
+                  "1: the track's reference position was not matched in the reference frame but extrapolated "
+                  "from its neighbours' map (skin the reference frame did not see); its displacement is "
+                  "partly a model");
+    out.attribute("/tracks", "preset", settings_.preset);
+    out.attribute("/tracks", "reference_frame_row", static_cast<double>(reference_row_));
+    out.attribute("/tracks", "status_codes",
+                  "-1 absent (not born yet or retired earlier); 0 tracked; 1 born; 2 recovered; 3 unchecked; "
+                  "10 left contact; 11 forward-backward; 12 poor match; 13 inconsistent; 14 left image");
+    out.attribute("/tracks", "settings", settings_summary().dump());
+    out.attribute("/tracks", "smoothed_in_time", smoothed_ ? 1.0 : 0.0);
+    out.attribute("/plate", "measured", scene_.reference_pattern_roi ? 1.0 : 0.0);
+    out.attribute("/plate", "status_codes",
+                  "-1 not measured; 0 matched into the pattern mosaic; 1 predicted from the last motion (the "
+                  "subsets disagree or none matched: a motion-blurred band); 2 LK only (the band left the "
+                  "mosaic)");
+  }
+
   // The smoothed position stands in for the frame's own where it lies within that match's predicted
   // noise; further away the series has a motion the smoothing would erase (a slip, a jump), and the
   // track keeps what it measured.
-  bool adopt_smoothed(TrackFrame& f, std::size_t k, Vec2 smoothed) {
-    Vec2& p = f.position_px[k];
-    const auto& c = f.covariance_px2[k];
+  bool adopt_smoothed(TrackColumn& column, std::size_t row, Vec2 smoothed) {
+    double* p = &column.position_px[2 * row];
+    const double* c = &column.covariance_px2[3 * row];
     Eigen::Matrix2d covariance;
     covariance << c[0], c[1], c[1], c[2];
     const double d2 = covariance.allFinite()
-                          ? flow::mahalanobis2({smoothed.x - p.x, smoothed.y - p.y}, covariance)
+                          ? flow::mahalanobis2({smoothed.x - p[0], smoothed.y - p[1]}, covariance)
                           : std::numeric_limits<double>::infinity();
     if (!(d2 <= flow::kModelShiftChi2)) return false;
-    p = smoothed;
-    --model_track_frames_[f.model[k]];
+    p[0] = smoothed.x;
+    p[1] = smoothed.y;
+    --model_track_frames_[static_cast<std::size_t>(column.model[row])];
     ++model_track_frames_[static_cast<std::size_t>(flow::TrackModel::kSmoothedInTime)];
-    f.model[k] = static_cast<std::uint8_t>(flow::TrackModel::kSmoothedInTime);
-    f.model_mahalanobis2[k] = static_cast<float>(d2);
+    column.model[row] = static_cast<double>(flow::TrackModel::kSmoothedInTime);
+    // Stored as float, as the tracker's own statistic is.
+    column.model_mahalanobis2[row] = static_cast<double>(static_cast<float>(d2));
     return true;
   }
 
+  // One track's rows through the whole trial, read back from result.h5 (chunks hold one track's rows of
+  // many frames, so this reads a few chunks, not the file).
+  TrackColumn read_column(std::size_t k) const {
+    const std::size_t n = frames_.size();
+    TrackColumn c;
+    c.position_px = out_->read_block("/tracks/position_px", {0, k, 0}, {n, 1, 2});
+    c.covariance_px2 = out_->read_block("/tracks/covariance_px2", {0, k, 0}, {n, 1, 3});
+    c.model = out_->read_block("/tracks/model", {0, k}, {n, 1});
+    c.model_mahalanobis2 = out_->read_block("/tracks/model_mahalanobis2", {0, k}, {n, 1});
+    return c;
+  }
+
+  void write_column(std::size_t k, const TrackColumn& c) const {
+    const std::size_t n = frames_.size();
+    out_->write_block("/tracks/position_px", {0, k, 0}, {n, 1, 2}, c.position_px);
+    out_->write_block("/tracks/model", {0, k}, {n, 1}, c.model);
+    out_->write_block("/tracks/model_mahalanobis2", {0, k}, {n, 1}, c.model_mahalanobis2);
+  }
+
   // Each track's runs of consecutive alive rows, x and y apart, smoothed with their own noise level; the
-  // reference frame keeps its exact position (the displacement is zero there by definition).
+  // reference frame keeps its exact position (the displacement is zero there by definition). One track is
+  // in memory at a time: the window in time is the track's whole life, at 16 bytes per frame.
   void smooth_tracks(const flow::TemporalSmoothing& options) {
     const std::size_t k_total = tracker_->tracks().size();
     std::vector<double> noise;
     std::vector<std::size_t> run;
     std::vector<double> t, x;
     std::array<std::vector<double>, 2> smoothed;
-    const auto smooth_run = [&](std::size_t k) {
+    TrackColumn column;
+    bool changed = false;
+    const auto smooth_run = [&]() {
       if (static_cast<int>(run.size()) < options.min_samples) return;
       t.clear();
       for (std::size_t row : run) t.push_back(frames_[row].t_s);
-      for (int c = 0; c < 2; ++c) {
+      for (std::size_t c = 0; c < 2; ++c) {
         x.clear();
-        for (std::size_t row : run)
-          x.push_back(c == 0 ? frames_[row].position_px[k].x : frames_[row].position_px[k].y);
+        for (std::size_t row : run) x.push_back(column.position_px[2 * row + c]);
         const double sigma = flow::series_noise(x);
         noise.push_back(sigma);
-        smoothed[static_cast<std::size_t>(c)] = flow::smooth_in_time(t, x, sigma, options);
+        smoothed[c] = flow::smooth_in_time(t, x, sigma, options);
       }
       for (std::size_t i = 0; i < run.size(); ++i) {
         if (static_cast<std::int64_t>(run[i]) == reference_row_) continue;
-        if (adopt_smoothed(frames_[run[i]], k, {smoothed[0][i], smoothed[1][i]}))
+        if (adopt_smoothed(column, run[i], {smoothed[0][i], smoothed[1][i]})) {
           ++smoothed_track_frames_;
-        else
+          changed = true;
+        } else {
           ++smoothing_declined_;
+        }
       }
     };
     for (std::size_t k = 0; k < k_total; ++k) {
+      column = read_column(k);
+      changed = false;
       run.clear();
       for (std::size_t row = 0; row < frames_.size(); ++row) {
-        const TrackFrame& f = frames_[row];
-        const bool alive = k < f.position_px.size() && std::isfinite(f.position_px[k].x) &&
-                           std::isfinite(f.position_px[k].y) && std::isfinite(f.t_s);
+        const bool alive = k < frames_[row].tracks && std::isfinite(column.position_px[2 * row]) &&
+                           std::isfinite(column.position_px[2 * row + 1]) && std::isfinite(frames_[row].t_s);
         if (alive) {
           run.push_back(row);
         } else {
-          smooth_run(k);
+          smooth_run();
           run.clear();
         }
       }
-      smooth_run(k);
+      smooth_run();
+      if (changed) write_column(k, column);
     }
     if (!noise.empty()) {
       const auto mid = noise.begin() + static_cast<std::ptrdiff_t>(noise.size() / 2);
@@ -463,6 +522,7 @@ class TrackingStage final : public Stage {
   std::int64_t reference_frame_index_ = -1;
   std::vector<TrackFrame> frames_;
   bool keep_history_ = true;
+  H5Stream* out_ = nullptr;  // result.h5, where rows go as frames are done (null in the live view)
   std::vector<std::int64_t> tracker_rows_;
   double track_s_ = 0.0;
   std::int64_t tracked_frames_ = 0;

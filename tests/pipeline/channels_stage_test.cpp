@@ -152,7 +152,7 @@ StageRun run_stage(const Scene& scene, const samples::Trial& trial, const fs::pa
   }
   run.stage->summarize(run.summary);
   run.h5_path = (dir / "result.h5").string();
-  H5Writer out(run.h5_path);
+  H5Stream out(run.h5_path);
   run.stage->write(out);
   out.commit();
   return run;

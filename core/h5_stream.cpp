@@ -1,0 +1,408 @@
+#include "core/h5_stream.hpp"
+
+#include <hdf5.h>
+#include <unistd.h>
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <algorithm>
+#include <cerrno>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <numeric>
+#include <type_traits>
+
+#include "core/atomic_output.hpp"
+#include "core/error.hpp"
+
+namespace tirstrain {
+namespace {
+
+static_assert(std::is_same_v<hid_t, std::int64_t>, "hid_t is a 64-bit id in the HDF5 versions supported");
+
+// One chunk holds at most this many bytes of a per-frame dataset: large enough that deflate works well,
+// small enough that the chunks being filled (one per 64 tracks or triangles: 74 for 4700 triangles) all stay
+// in the chunk cache, so none is written half full and read back.
+constexpr std::size_t kChunkBytes = 16 * 1024;
+constexpr std::size_t kChunkWidth = 64;
+constexpr std::size_t kMaxFramesPerChunk = 1024;
+// Chunk cache per open dataset: holds the partly filled chunks of a frame block (a few hundred kB for the
+// widest datasets), so each chunk is compressed and written once, when its block of frames is complete.
+constexpr std::size_t kChunkCacheBytes = 2u << 20;
+constexpr std::size_t kChunkCacheSlots = 521;
+
+std::size_t product(const H5Shape& shape, std::size_t from = 0) {
+  std::size_t n = 1;
+  for (std::size_t i = from; i < shape.size(); ++i) n *= shape[i];
+  return n;
+}
+
+// Errors that say the disk (or the process's file-size limit) refused the write, as errno left them.
+bool is_storage_errno(int code) {
+  return code == ENOSPC || code == EFBIG || code == EDQUOT || code == EROFS || code == EIO;
+}
+
+// The dataset's chunk: a block of frames by kChunkWidth along the growing axis by the whole trailing axes.
+std::vector<hsize_t> chunk_for(const H5Shape& row_shape, std::size_t element_size) {
+  std::vector<hsize_t> chunk(row_shape.size() + 1);
+  std::size_t frame_bytes = element_size;
+  for (std::size_t i = 0; i < row_shape.size(); ++i) {
+    const std::size_t extent =
+        i == 0 ? std::min(kChunkWidth, row_shape[0] == 0 ? kChunkWidth : row_shape[0]) : row_shape[i];
+    chunk[i + 1] = std::max<hsize_t>(1, extent);
+    frame_bytes *= static_cast<std::size_t>(chunk[i + 1]);
+  }
+  chunk[0] =
+      std::clamp<std::size_t>(kChunkBytes / std::max<std::size_t>(1, frame_bytes), 1, kMaxFramesPerChunk);
+  return chunk;
+}
+
+// Closes an HDF5 id at scope exit (property lists, spaces, attributes).
+struct Id {
+  hid_t id = -1;
+  explicit Id(hid_t value) : id(value) {}
+  Id(const Id&) = delete;
+  Id& operator=(const Id&) = delete;
+  ~Id() {
+    if (id < 0) return;
+    const H5I_type_t type = H5Iget_type(id);
+    if (type == H5I_GENPROP_LST)
+      H5Pclose(id);
+    else if (type == H5I_DATASPACE)
+      H5Sclose(id);
+    else if (type == H5I_ATTR)
+      H5Aclose(id);
+    else if (type == H5I_GROUP || type == H5I_DATASET)
+      H5Oclose(id);
+    else if (type == H5I_DATATYPE)
+      H5Tclose(id);
+  }
+  operator hid_t() const { return id; }
+};
+
+}  // namespace
+
+H5Stream::H5Stream(const std::string& path) : path_(path), partial_path_(path + ".partial") {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  // A write past RLIMIT_FSIZE must come back as EFBIG (an error with a message), not kill the process.
+  std::signal(SIGXFSZ, SIG_IGN);
+  file_ = H5Fcreate(partial_path_.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  if (file_ < 0) fail("cannot create HDF5 file", "");
+  attribute("/", "complete", 0.0);
+  attribute("/", "frames_written", 0.0);
+}
+
+void H5Stream::close_sets() {
+  for (auto& [name, set] : sets_) H5Dclose(set);
+  sets_.clear();
+}
+
+H5Stream::~H5Stream() {
+  if (file_ < 0) return;
+  // Uncommitted (an error elsewhere, perhaps a full disk): thrown away with its staging folder. Its last
+  // writes go to an anonymous memory file, which also takes the final truncation, so the close succeeds.
+  void* handle = nullptr;
+  const int sink = ::memfd_create("tirstrain-discarded-h5", MFD_CLOEXEC);
+  if (sink < 0 || H5Fget_vfd_handle(file_, H5P_DEFAULT, &handle) < 0 || handle == nullptr) {
+    if (sink >= 0) ::close(sink);
+    discard();
+    return;
+  }
+  ::dup2(sink, *static_cast<int*>(handle));
+  ::close(sink);
+  close_sets();
+  H5Fclose(file_);
+}
+
+// A file the disk refused is thrown away (its staging folder goes with it): its writes go to /dev/null from
+// here on, so that flushing its datasets cannot fail again, and the file itself is left to the library's
+// clean-up at exit. A close that fails (on the full disk, or on /dev/null refusing the final truncation)
+// would leave HDF5 with a half-closed file that crashes that clean-up, after the error was reported.
+void H5Stream::discard() const {
+  if (file_ < 0) return;
+  void* handle = nullptr;
+  if (H5Fget_vfd_handle(file_, H5P_DEFAULT, &handle) >= 0 && handle != nullptr) {
+    const int sink = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
+    if (sink >= 0) {
+      ::dup2(sink, *static_cast<int*>(handle));
+      ::close(sink);
+    }
+  }
+  for (auto& [name, set] : sets_) H5Dclose(set);
+  sets_.clear();
+  file_ = -1;
+}
+
+void H5Stream::fail(const std::string& what, const std::string& name) const {
+  const int cause = errno;
+  discard();
+  if (is_storage_errno(cause))
+    throw Error(std::string("cannot write: ") + std::strerror(cause),
+                {.file = partial_path_, .column = name});
+  check_complete_write(partial_path_);
+  check_writable(std::filesystem::path(partial_path_).parent_path().string());
+  throw Error(what, {.file = partial_path_, .column = name});
+}
+
+void H5Stream::ensure_parent_groups(const std::string& name) {
+  std::size_t pos = 1;
+  while ((pos = name.find('/', pos)) != std::string::npos) {
+    const std::string group = name.substr(0, pos);
+    if (H5Lexists(file_, group.c_str(), H5P_DEFAULT) <= 0) {
+      Id made(H5Gcreate2(file_, group.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+      if (made < 0) fail("cannot create group", group);
+    }
+    ++pos;
+  }
+}
+
+bool H5Stream::has(const std::string& name) const {
+  std::size_t pos = 1;
+  while (true) {
+    pos = name.find('/', pos);
+    const std::string part = pos == std::string::npos ? name : name.substr(0, pos);
+    if (H5Lexists(file_, part.c_str(), H5P_DEFAULT) <= 0) return false;
+    if (pos == std::string::npos) return true;
+    ++pos;
+  }
+}
+
+std::int64_t H5Stream::open_or_create(const std::string& name, const H5Shape& row_shape, const void* fill,
+                                      std::int64_t memory_type, std::int64_t file_type) {
+  auto& sets = sets_;
+  if (const auto it = sets.find(name); it != sets.end()) return it->second;
+  Id access(H5Pcreate(H5P_DATASET_ACCESS));
+  H5Pset_chunk_cache(access, kChunkCacheSlots, kChunkCacheBytes, 1.0);
+  hid_t set = -1;
+  if (has(name)) {
+    set = H5Dopen2(file_, name.c_str(), access);
+  } else {
+    ensure_parent_groups(name);
+    const std::size_t rank = row_shape.size() + 1;
+    std::vector<hsize_t> dims(rank, 0), max_dims(rank, H5S_UNLIMITED);
+    for (std::size_t i = 1; i < row_shape.size(); ++i) dims[i + 1] = max_dims[i + 1] = row_shape[i];
+    Id space(H5Screate_simple(static_cast<int>(rank), dims.data(), max_dims.data()));
+    Id create(H5Pcreate(H5P_DATASET_CREATE));
+    const std::vector<hsize_t> chunk = chunk_for(row_shape, H5Tget_size(file_type));
+    H5Pset_chunk(create, static_cast<int>(rank), chunk.data());
+    H5Pset_fill_value(create, memory_type, fill);
+    H5Pset_shuffle(create);
+    H5Pset_deflate(create, 4);
+    set = H5Dcreate2(file_, name.c_str(), file_type, space, H5P_DEFAULT, create, access);
+  }
+  if (set < 0) fail("cannot create per-frame dataset", name);
+  sets[name] = set;
+  return set;
+}
+
+H5Shape H5Stream::shape(const std::string& name) const {
+  if (!has(name)) throw Error("no such dataset", {.file = partial_path_, .column = name});
+  const auto& sets = sets_;
+  const auto it = sets.find(name);
+  Id opened(it == sets.end() ? H5Dopen2(file_, name.c_str(), H5P_DEFAULT) : -1);
+  const hid_t set = it == sets.end() ? opened.id : it->second;
+  Id space(H5Dget_space(set));
+  std::vector<hsize_t> dims(static_cast<std::size_t>(std::max(0, H5Sget_simple_extent_ndims(space))));
+  H5Sget_simple_extent_dims(space, dims.data(), nullptr);
+  return H5Shape(dims.begin(), dims.end());
+}
+
+template <typename T>
+void H5Stream::write_row_impl(const std::string& name, std::size_t row, std::span<const T> data,
+                              const H5Shape& row_shape, T fill, std::int64_t memory_type,
+                              std::int64_t file_type) {
+  if (product(row_shape) != data.size())
+    throw Error("internal: row size does not match its shape", {.file = partial_path_, .column = name});
+  const hid_t set = open_or_create(name, row_shape, &fill, memory_type, file_type);
+  std::vector<hsize_t> dims(row_shape.size() + 1);
+  {
+    Id space(H5Dget_space(set));
+    if (H5Sget_simple_extent_ndims(space) != static_cast<int>(dims.size()))
+      throw Error("internal: row rank differs from the dataset's", {.file = partial_path_, .column = name});
+    H5Sget_simple_extent_dims(space, dims.data(), nullptr);
+  }
+  std::vector<hsize_t> wanted = dims;
+  wanted[0] = std::max<hsize_t>(dims[0], row + 1);
+  if (!row_shape.empty()) wanted[1] = std::max<hsize_t>(dims[1], row_shape[0]);
+  for (std::size_t i = 1; i < row_shape.size(); ++i)
+    if (wanted[i + 1] != row_shape[i])
+      throw Error("internal: row shape differs from the dataset's", {.file = partial_path_, .column = name});
+  if (wanted != dims && H5Dset_extent(set, wanted.data()) < 0) fail("cannot extend dataset", name);
+  if (data.empty()) return;
+  std::vector<hsize_t> offset(dims.size(), 0), count(dims.size(), 1);
+  offset[0] = row;
+  for (std::size_t i = 0; i < row_shape.size(); ++i) count[i + 1] = row_shape[i];
+  Id file_space(H5Dget_space(set));
+  H5Sselect_hyperslab(file_space, H5S_SELECT_SET, offset.data(), nullptr, count.data(), nullptr);
+  Id memory_space(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr));
+  if (H5Dwrite(set, memory_type, memory_space, file_space, H5P_DEFAULT, data.data()) < 0)
+    fail("cannot write dataset row", name);
+}
+
+void H5Stream::write_row(const std::string& name, std::size_t row, std::span<const double> data,
+                         const H5Shape& row_shape, double fill, H5Precision precision) {
+  write_row_impl(name, row, data, row_shape, fill, H5T_NATIVE_DOUBLE,
+                 precision == H5Precision::kFloat32 ? H5T_IEEE_F32LE : H5T_IEEE_F64LE);
+}
+void H5Stream::write_row(const std::string& name, std::size_t row, std::span<const float> data,
+                         const H5Shape& row_shape, float fill) {
+  write_row_impl(name, row, data, row_shape, fill, H5T_NATIVE_FLOAT, H5T_IEEE_F32LE);
+}
+void H5Stream::write_row(const std::string& name, std::size_t row, std::span<const std::int64_t> data,
+                         const H5Shape& row_shape, std::int64_t fill) {
+  write_row_impl(name, row, data, row_shape, fill, H5T_NATIVE_INT64, H5T_STD_I64LE);
+}
+void H5Stream::write_row(const std::string& name, std::size_t row, std::span<const std::int32_t> data,
+                         const H5Shape& row_shape, std::int32_t fill) {
+  write_row_impl(name, row, data, row_shape, fill, H5T_NATIVE_INT32, H5T_STD_I32LE);
+}
+void H5Stream::write_row(const std::string& name, std::size_t row, std::span<const std::int8_t> data,
+                         const H5Shape& row_shape, std::int8_t fill) {
+  write_row_impl(name, row, data, row_shape, fill, H5T_NATIVE_INT8, H5T_STD_I8LE);
+}
+void H5Stream::write_row(const std::string& name, std::size_t row, std::span<const std::uint8_t> data,
+                         const H5Shape& row_shape, std::uint8_t fill) {
+  write_row_impl(name, row, data, row_shape, fill, H5T_NATIVE_UINT8, H5T_STD_U8LE);
+}
+
+std::vector<double> H5Stream::read_block(const std::string& name, const H5Shape& offset,
+                                         const H5Shape& count) const {
+  const auto& sets = sets_;
+  const auto it = sets.find(name);
+  if (it == sets.end())
+    throw Error("internal: dataset not open for reading", {.file = partial_path_, .column = name});
+  std::vector<double> data(product(count));
+  if (data.empty()) return data;
+  const std::vector<hsize_t> start(offset.begin(), offset.end()), extent(count.begin(), count.end());
+  Id file_space(H5Dget_space(it->second));
+  H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start.data(), nullptr, extent.data(), nullptr);
+  Id memory_space(H5Screate_simple(static_cast<int>(extent.size()), extent.data(), nullptr));
+  if (H5Dread(it->second, H5T_NATIVE_DOUBLE, memory_space, file_space, H5P_DEFAULT, data.data()) < 0)
+    fail("cannot read back dataset", name);
+  return data;
+}
+
+void H5Stream::write_block(const std::string& name, const H5Shape& offset, const H5Shape& count,
+                           std::span<const double> data) {
+  const auto& sets = sets_;
+  const auto it = sets.find(name);
+  if (it == sets.end() || product(count) != data.size())
+    throw Error("internal: block write to a dataset not open or of the wrong size",
+                {.file = partial_path_, .column = name});
+  if (data.empty()) return;
+  const std::vector<hsize_t> start(offset.begin(), offset.end()), extent(count.begin(), count.end());
+  Id file_space(H5Dget_space(it->second));
+  H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start.data(), nullptr, extent.data(), nullptr);
+  Id memory_space(H5Screate_simple(static_cast<int>(extent.size()), extent.data(), nullptr));
+  if (H5Dwrite(it->second, H5T_NATIVE_DOUBLE, memory_space, file_space, H5P_DEFAULT, data.data()) < 0)
+    fail("cannot write dataset block", name);
+}
+
+template <typename T>
+void H5Stream::write_whole(const std::string& name, std::span<const T> data, const H5Shape& shape,
+                           std::int64_t memory_type) {
+  if (product(shape) != data.size())
+    throw Error("internal: dataset size does not match its shape", {.file = partial_path_, .column = name});
+  if (has(name)) {
+    close_sets();
+    if (H5Ldelete(file_, name.c_str(), H5P_DEFAULT) < 0) fail("cannot replace dataset", name);
+  }
+  ensure_parent_groups(name);
+  const std::vector<hsize_t> dims(shape.begin(), shape.end());
+  Id space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr));
+  Id create(H5Pcreate(H5P_DATASET_CREATE));
+  if (!shape.empty() && shape[0] > 0 && data.size() * sizeof(T) > 16 * 1024) {
+    std::vector<hsize_t> chunk = dims;
+    chunk[0] = std::clamp<hsize_t>(kChunkBytes / std::max<std::size_t>(1, product(shape, 1) * sizeof(T)), 1,
+                                   dims[0]);
+    H5Pset_chunk(create, static_cast<int>(chunk.size()), chunk.data());
+    H5Pset_shuffle(create);
+    H5Pset_deflate(create, 4);
+  }
+  Id set(H5Dcreate2(file_, name.c_str(), memory_type, space, H5P_DEFAULT, create, H5P_DEFAULT));
+  if (set < 0) fail("cannot create dataset", name);
+  if (!data.empty() && H5Dwrite(set, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0)
+    fail("cannot write dataset", name);
+}
+
+void H5Stream::write(const std::string& name, std::span<const double> data, const H5Shape& shape) {
+  write_whole(name, data, shape, H5T_NATIVE_DOUBLE);
+}
+void H5Stream::write(const std::string& name, std::span<const std::int32_t> data, const H5Shape& shape) {
+  write_whole(name, data, shape, H5T_NATIVE_INT32);
+}
+void H5Stream::write(const std::string& name, std::span<const std::int8_t> data, const H5Shape& shape) {
+  write_whole(name, data, shape, H5T_NATIVE_INT8);
+}
+
+void H5Stream::write(const std::string& name, std::span<const float> data, const H5Shape& shape) {
+  write_whole(name, data, shape, H5T_NATIVE_FLOAT);
+}
+void H5Stream::write(const std::string& name, std::span<const std::int64_t> data, const H5Shape& shape) {
+  write_whole(name, data, shape, H5T_NATIVE_INT64);
+}
+void H5Stream::write(const std::string& name, std::span<const std::uint8_t> data, const H5Shape& shape) {
+  write_whole(name, data, shape, H5T_NATIVE_UINT8);
+}
+
+void H5Stream::attribute(const std::string& object, const std::string& name, const std::string& value) {
+  if (object != "/" && !has(object)) ensure_parent_groups(object + "/");
+  Id target(H5Oopen(file_, object.c_str(), H5P_DEFAULT));
+  if (target < 0) fail("cannot open object for attribute '" + name + "'", object);
+  if (H5Aexists(target, name.c_str()) > 0) H5Adelete(target, name.c_str());
+  Id type(H5Tcopy(H5T_C_S1));
+  const std::string text = value.empty() ? std::string(" ") : value;
+  H5Tset_size(type, text.size());
+  Id space(H5Screate(H5S_SCALAR));
+  Id attr(H5Acreate2(target, name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT));
+  if (attr < 0 || H5Awrite(attr, type, text.data()) < 0)
+    fail("cannot write attribute '" + name + "'", object);
+}
+
+void H5Stream::attribute(const std::string& object, const std::string& name, double value) {
+  if (object != "/" && !has(object)) ensure_parent_groups(object + "/");
+  Id target(H5Oopen(file_, object.c_str(), H5P_DEFAULT));
+  if (target < 0) fail("cannot open object for attribute '" + name + "'", object);
+  if (H5Aexists(target, name.c_str()) > 0) H5Adelete(target, name.c_str());
+  Id space(H5Screate(H5S_SCALAR));
+  Id attr(H5Acreate2(target, name.c_str(), H5T_NATIVE_DOUBLE, space, H5P_DEFAULT, H5P_DEFAULT));
+  if (attr < 0 || H5Awrite(attr, H5T_NATIVE_DOUBLE, &value) < 0)
+    fail("cannot write attribute '" + name + "'", object);
+}
+
+void H5Stream::mark_flushed(std::size_t frames_written) {
+  attribute("/", "frames_written", static_cast<double>(frames_written));
+  if (H5Fflush(file_, H5F_SCOPE_GLOBAL) < 0) fail("cannot flush HDF5 file", "");
+  // HDF5 keeps freed buffers on free lists of its own, one per size; compressed chunks come in many sizes,
+  // so without this the lists grow with the recording.
+  H5garbage_collect();
+}
+
+void H5Stream::commit() {
+  attribute("/", "complete", 1.0);
+  // Everything written and checked while the file is open, so a failure is reported, never lost in a close.
+  if (H5Fflush(file_, H5F_SCOPE_GLOBAL) < 0) fail("cannot finish HDF5 file", "");
+  while (!sets_.empty()) {
+    const auto node = sets_.extract(sets_.begin());
+    if (H5Dclose(node.mapped()) < 0) fail("cannot finish dataset", node.key());
+  }
+  const hid_t file = file_;
+  file_ = -1;
+  if (H5Fclose(file) < 0) throw Error("cannot finish HDF5 file", {.file = partial_path_});
+  const int fd = ::open(partial_path_.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0 || ::fsync(fd) != 0) {
+    const int cause = errno;
+    if (fd >= 0) ::close(fd);
+    throw Error(std::string("cannot write: ") + std::strerror(cause), {.file = partial_path_});
+  }
+  ::close(fd);
+  if (::rename(partial_path_.c_str(), path_.c_str()) != 0)
+    throw Error(std::string("cannot rename finished file into place: ") + std::strerror(errno),
+                {.file = path_});
+  committed_ = true;
+}
+
+}  // namespace tirstrain
