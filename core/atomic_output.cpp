@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <linux/fs.h>
+#include <algorithm>
 #include <cerrno>
 #include <csignal>
 #include <cstring>
@@ -85,6 +86,33 @@ StagingDirectory::~StagingDirectory() {
 void StagingDirectory::commit() {
   swap_in_directory(staging_path_, final_path_);
   committed_ = true;
+}
+
+namespace {
+
+// Leftovers of an interrupted writer inside a folder (partial files of a run before staging).
+bool is_leftover(const std::string& name) {
+  const auto ends_with = [&](const std::string& tail) {
+    return name.size() >= tail.size() && name.compare(name.size() - tail.size(), tail.size(), tail) == 0;
+  };
+  return ends_with(".partial") || ends_with(".partial.mp4") || name == ".tirstrain-write-probe";
+}
+
+}  // namespace
+
+void check_replaceable_output(const std::string& dir, const std::vector<std::string>& own_names,
+                              const std::string& command) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (std::find(own_names.begin(), own_names.end(), name) != own_names.end() || is_leftover(name)) continue;
+    throw Error(
+        "the output folder holds '" + name + "', which tirstrain " + command +
+            " does not write; the folder is replaced as a whole when the run completes, so give a new "
+            "or empty folder",
+        {.file = dir, .key = "--out"});
+  }
 }
 
 void swap_in_directory(const std::string& staging, const std::string& final_path) {

@@ -4,6 +4,7 @@
 // in. Write errors name their cause from errno ("No space left on device", "File too large").
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace tirstrain {
 
@@ -31,6 +32,12 @@ class StagingDirectory {
   std::string staging_path_;
   bool committed_ = false;
 };
+
+// Throws Error (key --out) when the folder `dir` exists and holds anything but `own_names` (or leftovers of
+// an interrupted writer, "*.partial"): `command` replaces the folder as a whole when it completes, which
+// would delete the rest.
+void check_replaceable_output(const std::string& dir, const std::vector<std::string>& own_names,
+                              const std::string& command);
 
 // Puts the complete directory `staging` in place of `final_path`: an existing <final_path> is exchanged
 // atomically (renameat2 RENAME_EXCHANGE) and only then removed, so at every instant <final_path> is either

@@ -17,14 +17,6 @@ bool is_camera_uri(const std::string& input) {
   return false;
 }
 
-// Leftovers of an interrupted writer inside the folder (a pre-staging run's partial files).
-bool is_leftover(const std::string& name) {
-  const auto ends_with = [&](const std::string& tail) {
-    return name.size() >= tail.size() && name.compare(name.size() - tail.size(), tail.size(), tail) == 0;
-  };
-  return ends_with(".partial") || ends_with(".partial.mp4") || name == ".tirstrain-write-probe";
-}
-
 }  // namespace
 
 const std::vector<std::string>& process_output_names() {
@@ -50,17 +42,7 @@ void check_output_folder(const std::string& out_dir, const std::vector<std::stri
                       " the input " + input +
                       "; it is replaced as a whole when the run completes, so give a folder of its own",
                   {.file = out_dir, .key = "--out"});
-  std::error_code ec;
-  if (!fs::is_directory(out_dir, ec)) return;
-  const auto& known = process_output_names();
-  for (const auto& entry : fs::directory_iterator(out_dir, ec)) {
-    const std::string name = entry.path().filename().string();
-    if (std::find(known.begin(), known.end(), name) != known.end() || is_leftover(name)) continue;
-    throw Error("the output folder holds '" + name +
-                    "', which tirstrain process does not write; the folder is replaced as a whole when the "
-                    "run completes, so give a new or empty folder",
-                {.file = out_dir, .key = "--out"});
-  }
+  check_replaceable_output(out_dir, process_output_names(), "process");
 }
 
 }  // namespace tirstrain::pipeline

@@ -144,8 +144,13 @@ void add_average_command(CLI::App& app) {
       energy.push_back(density[0]);
       used += (used.empty() ? "" : ";") + input + "@" + std::to_string(frame);
     }
-    ensure_output_dir(args->out, "--out");
-    const fs::path out(args->out);
+    // Built in "<out>.partial" and swapped in whole: a failed run leaves the earlier output as it was.
+    check_replaceable_output(
+        args->out,
+        {"average.h5", "average_E_xx.png", "average_E_yy.png", "average_E_xy.png", "average_count.png"},
+        "average");
+    StagingDirectory staging(args->out);
+    const fs::path out(staging.path());
     cv::Mat count;
     const cv::Mat m_exx = strain::nan_mean(exx, &count), m_eyy = strain::nan_mean(eyy),
                   m_exy = strain::nan_mean(exy);
@@ -191,8 +196,9 @@ void add_average_command(CLI::App& app) {
     png("average_E_yy.png", m_eyy, "E_yy, mean of " + n + " trials", true);
     png("average_E_xy.png", m_exy, "E_xy, mean of " + n + " trials", true);
     png("average_count.png", count, "trials covering each cell", false);
+    staging.commit();
     std::cerr << "averaged " << args->inputs.size() << " trials (" << g << "x" << g << " cells) -> "
-              << (out / "average.h5").string() << "\n";
+              << (fs::path(args->out) / "average.h5").string() << "\n";
   });
 }
 

@@ -76,7 +76,13 @@ void run_points(const ModelOptions& options, const model::CattaneoMindlin& cm) {
 }
 
 void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
-  ensure_output_dir(options.out, "--out");
+  // Built in "<out>.partial" and swapped in whole: a failed run leaves the earlier output as it was.
+  check_replaceable_output(options.out,
+                           {"model.h5", "strain_Exx.png", "strain_Eyy.png", "strain_Exy.png",
+                            "energy_density.png", "summary.json"},
+                           "model");
+  StagingDirectory staging(options.out);
+  const std::string& dir = staging.path();
   const std::size_t n = static_cast<std::size_t>(options.grid);
   const double a = cm.hertz().contact_radius_m;
   const double half = options.extent_a * a;
@@ -116,7 +122,7 @@ void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
     }
   }
 
-  const std::string h5_path = options.out + "/model.h5";
+  const std::string h5_path = dir + "/model.h5";
   H5Writer h5(h5_path);
   h5.write("/grid/x_m", std::span<const double>(axis), {n});
   h5.write("/grid/y_m", std::span<const double>(axis), {n});
@@ -166,7 +172,7 @@ void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
     map.title = m.title;
     map.unit = m.unit;
     map.diverging = m.diverging;
-    write_heatmap_png(options.out + "/" + m.file, *m.values, map);
+    write_heatmap_png(dir + "/" + m.file, *m.values, map);
   }
 
   nlohmann::ordered_json summary;
@@ -189,7 +195,8 @@ void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
   summary["max_e1"] = e1_max;
   summary["min_e2"] = e2_min;
   summary["max_energy_density_J_m3"] = energy_max;
-  write_text_file(options.out + "/summary.json", summary.dump(2) + "\n");
+  write_text_file(dir + "/summary.json", summary.dump(2) + "\n");
+  staging.commit();
   std::cout << "contact radius a = " << a_mm << " mm, stick radius c = " << cm.stick_radius_m() * 1e3
             << " mm, rigid shift = " << cm.rigid_shift_m() * 1e6 << " um\n"
             << "wrote " << h5_path

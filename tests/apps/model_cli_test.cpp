@@ -53,6 +53,27 @@ TEST(ModelCli, GridModeWritesH5MapsAndSummary) {
   EXPECT_DOUBLE_EQ(h5.attribute_number("/", "stick_radius_m"), cm.stick_radius_m());
 }
 
+// The output folder is staged and swapped in whole: a rerun replaces the earlier output (no staging folder
+// left), and a folder holding anything else is refused before anything is written, the file untouched.
+TEST(ModelCli, GridOutputIsReplacedWholeAndForeignFilesAreRefused) {
+  const std::string out = fresh_dir("model_grid_rerun");
+  ASSERT_EQ(run_cli(kLoads + " --grid 41 --out " + out).exit_code, 0);
+  ASSERT_EQ(run_cli(kLoads + " --grid 21 --out " + out).exit_code, 0);
+  H5Shape shape;
+  H5Reader(out + "/model.h5").read_doubles("/strain", &shape);
+  EXPECT_EQ(shape, (H5Shape{21, 21, 3}));
+  EXPECT_FALSE(std::filesystem::exists(out + ".partial"));
+
+  const std::string mixed = fresh_dir("model_grid_foreign");
+  std::filesystem::create_directories(mixed);
+  std::ofstream(mixed + "/notes.txt") << "mine\n";
+  const auto r = run_cli(kLoads + " --grid 21 --out " + mixed);
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("notes.txt"), std::string::npos) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(mixed + "/notes.txt"));
+  EXPECT_FALSE(std::filesystem::exists(mixed + "/model.h5"));
+}
+
 TEST(ModelCli, PointsModeWritesFullPrecisionColumns) {
   const std::string dir = fresh_dir("model_points");
   std::filesystem::create_directories(dir);
