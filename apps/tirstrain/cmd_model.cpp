@@ -199,8 +199,7 @@ void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
   staging.commit();
   std::cout << "contact radius a = " << a_mm << " mm, stick radius c = " << cm.stick_radius_m() * 1e3
             << " mm, rigid shift = " << cm.rigid_shift_m() * 1e6 << " um\n"
-            << "wrote " << h5_path
-            << ", strain_Exx.png, strain_Eyy.png, strain_Exy.png, energy_density.png and "
+            << "wrote model.h5, strain_Exx.png, strain_Eyy.png, strain_Exy.png, energy_density.png and "
             << "summary.json in " << options.out << '\n';
 }
 
