@@ -61,6 +61,24 @@ void ensure_output_dir(const std::string& dir, const std::string& what) {
   fs::remove(probe, ec);
 }
 
+std::string recorded_path(std::string text, const std::vector<StagedFolder>& folders) {
+  for (const StagedFolder& folder : folders) {
+    if (folder.staging.empty()) continue;
+    std::string out;
+    std::size_t from = 0;
+    for (std::size_t at = text.find(folder.staging); at != std::string::npos;
+         at = text.find(folder.staging, at + 1)) {
+      const std::size_t end = at + folder.staging.size();
+      // Only the whole folder name: "/x/a.partial" in "/x/a.partial/b", not in "/x/a.partial2".
+      if (at < from || (end < text.size() && text[end] != '/')) continue;
+      out.append(text, from, at - from).append(folder.final_path);
+      from = end;
+    }
+    text = out.append(text, from, std::string::npos);
+  }
+  return text;
+}
+
 StagingDirectory::StagingDirectory(const std::string& final_path)
     : final_path_(fs::path(final_path).lexically_normal().string()) {
   while (final_path_.size() > 1 && final_path_.back() == '/') final_path_.pop_back();
@@ -169,7 +187,8 @@ void AtomicFile::write_all(std::string_view bytes) {
   }
 }
 
-void AtomicFile::commit() {
+void AtomicFile::make_durable() {
+  if (fd_ < 0) return;
   flush_buffer();
   if (::fsync(fd_) != 0)
     throw Error(std::string("cannot write: ") + std::strerror(errno), {.file = partial_path_});
@@ -177,6 +196,10 @@ void AtomicFile::commit() {
   fd_ = -1;
   if (::close(fd) != 0)
     throw Error(std::string("cannot write: ") + std::strerror(errno), {.file = partial_path_});
+}
+
+void AtomicFile::commit() {
+  make_durable();
   if (::rename(partial_path_.c_str(), path_.c_str()) != 0)
     throw Error(std::string("cannot rename finished file into place: ") + std::strerror(errno),
                 {.file = path_});

@@ -12,6 +12,17 @@ namespace tirstrain {
 // option or key the path came from, for the message.
 void ensure_output_dir(const std::string& dir, const std::string& what);
 
+// A folder being built (`staging`) and where it will be once swapped in (`final_path`): paths that outputs
+// record (an input inside the folder, say) name the final place, so that they stay true after the swap.
+struct StagedFolder {
+  std::string staging;
+  std::string final_path;
+};
+
+// `text` with every path under a staging folder of `folders` renamed to the folder's final place, the
+// folders taken in order (innermost first).
+std::string recorded_path(std::string text, const std::vector<StagedFolder>& folders);
+
 // A directory built at "<final>.partial" and swapped in for <final> by commit(): an existing <final> is
 // exchanged atomically (renameat2 RENAME_EXCHANGE) and only then removed, so at every instant <final> is
 // either the earlier complete output or the new complete one. Destroyed uncommitted (error, exception), it
@@ -25,6 +36,7 @@ class StagingDirectory {
 
   const std::string& path() const { return staging_path_; }
   const std::string& final_path() const { return final_path_; }
+  StagedFolder folder() const { return {staging_path_, final_path_}; }
   void commit();
 
  private:
@@ -56,6 +68,9 @@ class AtomicFile {
   AtomicFile& operator=(const AtomicFile&) = delete;
 
   void append(std::string_view bytes);
+  // Writes out everything appended and makes it durable, so that commit() only renames: a writer of
+  // several files calls it on each before committing any.
+  void make_durable();
   void commit();
   const std::string& partial_path() const { return partial_path_; }
 

@@ -374,7 +374,7 @@ class ProcessRun {
     h5_->mark_flushed(rows_.size());
     const nlohmann::json partial = {{"complete", false},
                                     {"frames_written", rows_.size()},
-                                    {"input", options_.input},
+                                    {"input", recorded(options_.input)},
                                     {"result", "result.h5.partial"}};
     write_text_file((out() / "summary.json").string(), partial.dump(2) + "\n");
   }
@@ -483,11 +483,11 @@ class ProcessRun {
     nlohmann::json summary;
     summary["software"] = {{"name", "tirstrain"}, {"version", kVersion}};
     summary["complete"] = true;
-    summary["input"] = options_.input;
-    summary["source"] = source_->describe();
-    summary["time_source"] = time_source_;
+    summary["input"] = recorded(options_.input);
+    summary["source"] = recorded(source_->describe());
+    summary["time_source"] = recorded(time_source_);
     summary["time_measured"] = time_measured_;
-    summary["scene"] = scene_.file.empty() ? "defaults" : scene_.file;
+    summary["scene"] = scene_.file.empty() ? "defaults" : recorded(scene_.file);
     summary["px_per_mm"] = scene_.px_per_mm;
     summarize_scene_sources(summary, scene_, default_notes_, stages_reason_, band_);
     summary["stages_run"] = stage_names();
@@ -507,7 +507,8 @@ class ProcessRun {
                          {"t_first_s", n ? rows_.t_s.front() : 0.0},
                          {"t_last_s", n ? rows_.t_s.back() : 0.0}};
     for (const auto& stage : plan_.stages) stage->summarize(summary);
-    summary["warnings"] = report_.warnings;
+    summary["warnings"] = nlohmann::json::array();
+    for (const std::string& w : report_.warnings) summary["warnings"].push_back(recorded(w));
     summary["wall_time_s"] =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start_).count();
     summary["outputs"] = {"result.h5", "frames.csv", "summary.json"};
@@ -518,7 +519,7 @@ class ProcessRun {
   void write_result() {
     H5Stream& h5 = *h5_;
     const std::size_t n = rows_.size();
-    h5.attribute("/frames", "time_source", time_source_);
+    h5.attribute("/frames", "time_source", recorded(time_source_));
     h5.attribute("/frames", "time_measured", time_measured_ ? 1.0 : 0.0);
     h5.attribute("/frames", "status_codes",
                  "0 ok; 1 incomplete; 2 corrupt (skipped); 3 gap_before; 4 overrun");
@@ -531,9 +532,9 @@ class ProcessRun {
     h5.attribute("/", "format_version", 1.0);
     h5.attribute("/", "software_version", std::string("tirstrain ") + kVersion);
     h5.attribute("/", "scene_yaml", scene_yaml.str());
-    h5.attribute("/", "scene_file", scene_.file.empty() ? std::string("defaults") : scene_.file);
-    h5.attribute("/", "input", options_.input);
-    h5.attribute("/", "source", source_->describe());
+    h5.attribute("/", "scene_file", scene_.file.empty() ? std::string("defaults") : recorded(scene_.file));
+    h5.attribute("/", "input", recorded(options_.input));
+    h5.attribute("/", "source", recorded(source_->describe()));
     std::string stages_text;
     for (const auto& name : stage_names()) {
       if (!stages_text.empty()) stages_text.push_back(',');
@@ -559,6 +560,10 @@ class ProcessRun {
   std::unique_ptr<capture::FrameSource> source_;
   bool time_measured_ = true;
   std::string time_source_;
+
+  // A path as the outputs record it: where it will be once the caller's staging folders are swapped in.
+  std::string recorded(const std::string& path) const { return recorded_path(path, options_.staged_folders); }
+
   // Declared in this order so that an error closes result.h5 and the overlay before the staging folder
   // (destroyed uncommitted) is removed.
   std::unique_ptr<StagingDirectory> staging_;

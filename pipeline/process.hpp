@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "core/atomic_output.hpp"
+
 namespace tirstrain::pipeline {
 
 enum class OverlayMode { kNone, kMp4, kPng };
@@ -22,6 +24,9 @@ struct ProcessOptions {
   // false: without scene_path, the defaults even when INPUT holds a scene.yaml (--no-scene).
   bool folder_scene = true;
   std::string out_dir;
+  // Folders around the input that a caller is staging (validate, bench): the paths recorded in the
+  // outputs name where the input will be once they are swapped in.
+  std::vector<StagedFolder> staged_folders;
   bool quiet = false;
   // Stop at the first corrupt frame, at a requested stage that is not available, or when the input has
   // no timestamps, instead of marking/skipping/assuming.

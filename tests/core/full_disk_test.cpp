@@ -155,6 +155,19 @@ TEST(StagingDirectory, EarlierOutputStaysWholeUntilTheSwap) {
   EXPECT_FALSE(fs::exists(final_dir + ".partial"));
 }
 
+TEST(RecordedPath, NamesTheFinalPlaceOfWholeStagingFolderNamesOnly) {
+  const std::vector<StagedFolder> nested = {{"/o/v.partial", "/o/v"}, {"/b.partial", "/b"}};
+  EXPECT_EQ(recorded_path("/o/v.partial/trial", nested), "/o/v/trial");
+  EXPECT_EQ(recorded_path("image folder /o/v.partial/trial/frames (t_s from /o/v.partial/trial/frames.csv)",
+                          nested),
+            "image folder /o/v/trial/frames (t_s from /o/v/trial/frames.csv)");
+  EXPECT_EQ(recorded_path("/o/v.partial", nested), "/o/v");
+  EXPECT_EQ(recorded_path("/b.partial/runs/x", nested), "/b/runs/x");      // the outer folder, next in order
+  EXPECT_EQ(recorded_path("/o/v.partial2/x", nested), "/o/v.partial2/x");  // another folder's name
+  EXPECT_EQ(recorded_path("/elsewhere/trial", nested), "/elsewhere/trial");
+  EXPECT_EQ(recorded_path("/o/v.partial/x", {}), "/o/v.partial/x");
+}
+
 TEST(PathIsWithin, ComparesResolvedPaths) {
   const fs::path dir = testing::scratch_dir("core", "within");
   fs::create_directories(dir / "a" / "b");
