@@ -219,6 +219,48 @@ std::vector<std::string> write_side_by_side_maps(const ValidateOptions& options,
   return outputs;
 }
 
+// The files and folders a validate run writes into its output folder.
+const std::vector<std::string>& validate_output_names() {
+  static const std::vector<std::string> names = {"trial",
+                                                 "result",
+                                                 "validation.csv",
+                                                 "validation_rings.csv",
+                                                 "validation_frames.csv",
+                                                 "validation_tracks.csv",
+                                                 "maps_E_xx.png",
+                                                 "maps_E_yy.png",
+                                                 "maps_E_xy.png"};
+  return names;
+}
+
+// The output folder is replaced as a whole when the run completes: it must hold nothing but an earlier
+// validate run's files, and none of this run's inputs (the swap would delete them).
+void check_validate_output(const ValidateOptions& options) {
+  const std::pair<const std::optional<std::string>*, const char*> inputs[] = {
+      {&options.scene_path, "--scene"},
+      {&options.trial_dir, "--trial"},
+      {&options.result_dir, "--result"},
+      {&options.process_scene_path, "--process-scene"}};
+  for (const auto& [path, option] : inputs)
+    if (*path && path_is_within(**path, options.out_dir))
+      throw Error(std::string("the output folder ") +
+                      (path_is_within(options.out_dir, **path) ? "is" : "contains") + " the " + option +
+                      " input " + **path +
+                      "; it is replaced as a whole when the run completes, so give a folder of its own",
+                  {.file = options.out_dir, .key = "--out"});
+  check_replaceable_output(options.out_dir, validate_output_names(), "validate");
+}
+
+// The report's paths inside the staging folder, renamed to where they are after the swap.
+ValidationReport with_final_paths(ValidationReport report, const StagingDirectory& staging) {
+  const auto rebase = [&](std::string& path) {
+    if (path.rfind(staging.path(), 0) == 0) path = staging.final_path() + path.substr(staging.path().size());
+  };
+  rebase(report.result_dir);
+  for (std::string& path : report.outputs) rebase(path);
+  return report;
+}
+
 }  // namespace
 
 const ErrorStats* ValidationReport::find(const std::string& quantity, const std::string& reference,
@@ -231,8 +273,11 @@ const ErrorStats* ValidationReport::find(const std::string& quantity, const std:
 ValidationReport run_validate(const ValidateOptions& options) {
   if (options.scene_path.has_value() == options.trial_dir.has_value())
     throw Error("validate needs exactly one of --scene (synthesise) and --trial (an existing trial folder)");
-  ensure_output_dir(options.out_dir, "--out");
-  const fs::path out(options.out_dir);
+  check_validate_output(options);
+  // Built in "<out>.partial" and swapped in whole: a failed or killed run leaves the earlier output as it
+  // was.
+  StagingDirectory staging(options.out_dir);
+  const fs::path out(staging.path());
   ValidationReport report;
 
   std::string trial_dir;
@@ -267,6 +312,9 @@ ValidationReport run_validate(const ValidateOptions& options) {
       process.scene_path = options.process_scene_path.value_or(scene_path);
     }
     process.out_dir = report.result_dir;
+    process.staged_folders = {staging.folder()};
+    process.staged_folders.insert(process.staged_folders.end(), options.staged_folders.begin(),
+                                  options.staged_folders.end());
     process.quiet = options.quiet;
     process.overlay = OverlayMode::kNone;
     process.compute = {"contact", "tracking", "strain"};
@@ -681,7 +729,8 @@ ValidationReport run_validate(const ValidateOptions& options) {
 
   for (std::string& path : write_side_by_side_maps(options, h5, result_path, trial, mode, out, n, u_argmax))
     report.outputs.push_back(std::move(path));
-  return report;
+  staging.commit();
+  return with_final_paths(std::move(report), staging);
 }
 
 }  // namespace tirstrain::pipeline

@@ -19,6 +19,8 @@
 #include <string>
 #include <vector>
 
+#include "core/atomic_output.hpp"
+
 namespace tirstrain::pipeline {
 
 struct ValidateOptions {
@@ -26,6 +28,9 @@ struct ValidateOptions {
   std::optional<std::string> trial_dir;   // or an existing synthesised trial folder
   std::optional<std::string> result_dir;  // an existing result of processing the trial (skips processing)
   std::string out_dir;
+  // Folders around out_dir that the caller is staging (bench): paths recorded in the outputs name where
+  // they will be once swapped in.
+  std::vector<StagedFolder> staged_folders;
   // Scene used for processing (e.g. with other tracking settings); default: the trial's own scene.yaml. The
   // truth always comes from the trial's scene.
   std::optional<std::string> process_scene_path;

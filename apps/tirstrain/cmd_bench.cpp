@@ -389,8 +389,33 @@ void run_generalisation_bench(const fs::path& out, bool quick, const std::vector
   const std::vector<pipeline::GeneralisationResult> results =
       pipeline::run_generalisation_suite(suite, print_generalisation_row);
   write_generalisation_csv(results, out);
-  std::cerr << "bench: wrote " << (out / "generalisation.csv").string() << ", generalisation_frames.csv and "
-            << "generalisation_chirp.csv\n";
+  std::cerr << "bench: wrote generalisation.csv, generalisation_frames.csv and generalisation_chirp.csv\n";
+}
+
+// The files and folders a bench run writes into its output folder.
+const std::vector<std::string>& bench_output_names() {
+  static const std::vector<std::string> names = {"bench.csv",
+                                                 "bench.png",
+                                                 "runs",
+                                                 "trials",
+                                                 "generalisation.csv",
+                                                 "generalisation_frames.csv",
+                                                 "generalisation_chirp.csv"};
+  return names;
+}
+
+// The trials an earlier run synthesised (OUT/trials), reused by this one: hard links into the staging
+// folder, so the earlier output stays whole until the swap (trial files are replaced, never modified in
+// place); a copy where links cannot be made.
+void carry_over_trials(const fs::path& earlier_out, const fs::path& staging) {
+  std::error_code ec;
+  const fs::path trials = earlier_out / "trials";
+  if (!fs::is_directory(trials, ec)) return;
+  fs::copy(trials, staging / "trials", fs::copy_options::recursive | fs::copy_options::create_hard_links, ec);
+  if (!ec) return;
+  fs::remove_all(staging / "trials", ec);
+  fs::copy(trials, staging / "trials", fs::copy_options::recursive, ec);
+  if (ec) throw Error("cannot reuse the earlier run's trials: " + ec.message(), {.file = trials.string()});
 }
 
 struct BenchArgs {
@@ -438,8 +463,9 @@ fs::path synthesise_trial(const BenchArgs& args, const fs::path& out, const std:
 
 // One configuration on one trial, REPEATS child runs of `tirstrain validate`: medians of the speeds, the
 // errors of the first run (they are deterministic).
-Row measure_config(const fs::path& out, const fs::path& trial, const std::string& scene_name,
-                   const Config& config, int repeats, std::size_t& run_index, std::size_t total_runs) {
+Row measure_config(const fs::path& out, const StagedFolder& staged, const fs::path& trial,
+                   const std::string& scene_name, const Config& config, int repeats, std::size_t& run_index,
+                   std::size_t total_runs) {
   Row row;
   row.scene = scene_name;
   row.config = config.name;
@@ -452,9 +478,10 @@ Row measure_config(const fs::path& out, const fs::path& trial, const std::string
     const fs::path rep = run_dir / ("repeat" + std::to_string(r));
     double peak = 0.0;
     const std::string log = (run_dir / ("repeat" + std::to_string(r) + ".log")).string();
-    const int code = run_child({"validate", "--trial", trial.string(), "--process-scene", scene_file, "--out",
-                                rep.string(), "--no-maps", "--quiet"},
-                               log, &peak);
+    const int code = run_child(
+        {"validate", "--trial", trial.string(), "--process-scene", scene_file, "--out", rep.string(),
+         "--no-maps", "--quiet", "--staged-in", staged.staging + "=" + staged.final_path},
+        log, &peak);
     std::cerr << "bench: [" << run_index << "/" << total_runs << "] " << scene_name << " " << config.name
               << " repeat " << r + 1 << (code == 0 ? "" : " FAILED") << "\n";
     if (code != 0) {
@@ -568,7 +595,7 @@ void write_bench_csv(const std::vector<Row>& rows, const fs::path& path) {
 
 // The pipeline suite: every scene x configuration through `tirstrain validate`, a table, bench.csv and the
 // Pareto plot.
-void run_pipeline_bench(const BenchArgs& args, const fs::path& out) {
+void run_pipeline_bench(const BenchArgs& args, const fs::path& out, const StagedFolder& staged) {
   std::vector<std::string> scenes = args.scenes;
   std::vector<std::string> config_names = args.configs;
   int repeats = args.repeats;
@@ -587,13 +614,12 @@ void run_pipeline_bench(const BenchArgs& args, const fs::path& out) {
   for (const std::string& scene_name : scenes) {
     const fs::path trial = synthesise_trial(args, out, scene_name);
     for (const Config& config : configs)
-      rows.push_back(measure_config(out, trial, scene_name, config, repeats, run_index, total_runs));
+      rows.push_back(measure_config(out, staged, trial, scene_name, config, repeats, run_index, total_runs));
   }
   print_rows(rows);
   write_bench_csv(rows, out / "bench.csv");
   write_plot(rows, scenes, (out / "bench.png").string());
-  std::cerr << "bench: wrote " << (out / "bench.csv").string() << " and " << (out / "bench.png").string()
-            << "\n";
+  std::cerr << "bench: wrote bench.csv and bench.png\n";
 }
 
 }  // namespace
@@ -637,7 +663,9 @@ void add_bench_command(CLI::App& app) {
       "Writes OUT/generalisation.csv, generalisation_frames.csv (per frame) and generalisation_chirp.csv\n"
       "(the chirp's windows). With --quick: the small test sizes (192x128, chirp 512x96), a few seconds.\n"
       "Example: tirstrain bench --suite generalisation --out gen-output");
-  sub->add_option("--out", args->out, "Output folder (default bench-output)");
+  sub->add_option("--out", args->out,
+                  "Output folder (default bench-output; replaced as a whole when the run completes, its "
+                  "cached trials reused)");
   sub->add_option("--scenes-dir", args->scenes_dir, "Folder of the scene files")
       ->check(CLI::ExistingDirectory);
   sub->add_option("--scenes", args->scenes, "Scene names (files in --scenes-dir without .yaml)")
@@ -654,12 +682,19 @@ void add_bench_command(CLI::App& app) {
   sub->add_option("--cases", args->cases, "With --suite generalisation: the cases to run (default: all)")
       ->delimiter(',');
   sub->callback([args] {
-    ensure_output_dir(args->out, "--out");
-    const fs::path out(args->out);
-    if (args->suite == "generalisation")
+    // Built in "<out>.partial" and swapped in whole: a failed or killed run leaves the earlier output as it
+    // was.
+    check_replaceable_output(args->out, bench_output_names(), "bench");
+    StagingDirectory staging(args->out);
+    const fs::path out(staging.path());
+    if (args->suite == "generalisation") {
       run_generalisation_bench(out, args->quick, args->configs, args->cases);
-    else
-      run_pipeline_bench(*args, out);
+    } else {
+      if (!args->fresh) carry_over_trials(args->out, out);
+      run_pipeline_bench(*args, out, staging.folder());
+    }
+    staging.commit();
+    std::cerr << "bench: results in " << staging.final_path() << "\n";
   });
 }
 

@@ -33,7 +33,7 @@ void print_table(const pipeline::ValidationReport& report) {
 
 void add_validate_command(CLI::App& app) {
   struct Args {
-    std::string scene, trial, result, out, preset, segmentation, strain_mode, process_scene;
+    std::string scene, trial, result, out, preset, segmentation, strain_mode, process_scene, staged_in;
     double border_mm = 0.3;
     int map_frame = -1;
     bool quiet = false, no_maps = false, process_defaults = false;
@@ -68,7 +68,8 @@ void add_validate_command(CLI::App& app) {
   sub->add_option("--result", args->result,
                   "An existing process output folder for that trial (skip processing)")
       ->check(CLI::ExistingDirectory);
-  sub->add_option("--out", args->out, "Output folder")->required();
+  sub->add_option("--out", args->out, "Output folder (replaced as a whole when the run completes)")
+      ->required();
   sub->add_option("--process-scene", args->process_scene,
                   "Process with this scene (e.g. other tracking settings) instead of the trial's own")
       ->check(CLI::ExistingFile);
@@ -90,12 +91,16 @@ void add_validate_command(CLI::App& app) {
   sub->add_option("--map-frame", args->map_frame, "Frame of the map images (default: largest true energy)");
   sub->add_flag("--no-maps", args->no_maps, "Do not write the map images");
   sub->add_flag("--quiet", args->quiet, "No progress on stderr");
+  // For `bench`, which runs validate inside its own staging folder: STAGING=FINAL.
+  sub->add_option("--staged-in", args->staged_in)->group("");
   sub->callback([args] {
     pipeline::ValidateOptions o;
     if (!args->scene.empty()) o.scene_path = args->scene;
     if (!args->trial.empty()) o.trial_dir = args->trial;
     if (!args->result.empty()) o.result_dir = args->result;
     o.out_dir = args->out;
+    if (const std::size_t eq = args->staged_in.find('='); eq != std::string::npos)
+      o.staged_folders.push_back({args->staged_in.substr(0, eq), args->staged_in.substr(eq + 1)});
     if (!args->process_scene.empty()) o.process_scene_path = args->process_scene;
     o.process_defaults = args->process_defaults;
     o.tracking_preset = args->preset;

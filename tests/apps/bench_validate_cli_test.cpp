@@ -30,6 +30,11 @@ std::vector<std::string> split(const std::string& line) {
   return cells;
 }
 
+std::string read_text(const std::string& path) {
+  std::ifstream in(path);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
 TEST(BenchCli, QuickRunWritesTheTableAndThePlot) {
   const std::string out = fresh_dir("bench_quick");
   const auto run = run_cli("bench --quick --configs default --out " + out);
@@ -63,10 +68,19 @@ TEST(BenchCli, QuickRunWritesTheTableAndThePlot) {
   EXPECT_LT(std::strtod(value("disp_rms_px").c_str(), nullptr), 0.5);
   EXPECT_LT(std::strtod(value("strain_rms").c_str(), nullptr), 0.05);
 
-  // Unknown configuration names are errors, not silently skipped.
+  // The runs were made inside the staging folder; what they record names where they are now.
+  EXPECT_EQ(read_text(out + "/runs/quick/default/repeat0/result/summary.json").find(".partial"),
+            std::string::npos);
+
+  // Unknown configuration names are errors, not silently skipped; the failed run leaves the earlier output
+  // whole (its cached trial too) and no staging folder behind.
+  const std::string earlier_csv = read_text(out + "/bench.csv");
   const auto bad = run_cli("bench --quick --configs fastest --out " + out);
   EXPECT_EQ(bad.exit_code, 1);
   EXPECT_NE(bad.output.find("fastest"), std::string::npos) << bad.output;
+  EXPECT_EQ(read_text(out + "/bench.csv"), earlier_csv);
+  EXPECT_TRUE(fs::exists(fs::path(out) / "trials" / "quick" / "truth.h5"));
+  EXPECT_FALSE(fs::exists(out + ".partial"));
 }
 
 TEST(BenchCli, GeneralisationSuiteWritesOneRowPerCaseTextureNoiseAndPreset) {
@@ -92,9 +106,21 @@ TEST(BenchCli, GeneralisationSuiteWritesOneRowPerCaseTextureNoiseAndPreset) {
   EXPECT_TRUE(fs::exists(fs::path(out) / "generalisation_frames.csv"));
   EXPECT_TRUE(fs::exists(fs::path(out) / "generalisation_chirp.csv"));
 
+  const std::string earlier_csv = read_text(out + "/generalisation.csv");
   const auto bad_case = run_cli("bench --suite generalisation --quick --cases wobble --out " + out);
   EXPECT_EQ(bad_case.exit_code, 1);
   EXPECT_NE(bad_case.output.find("wobble"), std::string::npos) << bad_case.output;
+  // The failed run leaves the earlier output whole and no staging folder behind.
+  EXPECT_EQ(read_text(out + "/generalisation.csv"), earlier_csv);
+  EXPECT_FALSE(fs::exists(out + ".partial"));
+  // The folder is replaced as a whole: one holding anything else is refused, and nothing is deleted.
+  std::ofstream(out + "/notes.txt") << "mine\n";
+  const auto foreign =
+      run_cli("bench --suite generalisation --quick --cases chirp --configs auto --out " + out);
+  EXPECT_EQ(foreign.exit_code, 1);
+  EXPECT_NE(foreign.output.find("notes.txt"), std::string::npos) << foreign.output;
+  EXPECT_EQ(read_text(out + "/notes.txt"), "mine\n");
+  fs::remove(out + "/notes.txt");
   const auto bad_config = run_cli("bench --suite generalisation --quick --configs fastest --out " + out);
   EXPECT_EQ(bad_config.exit_code, 1);
   EXPECT_NE(bad_config.output.find("fastest"), std::string::npos) << bad_config.output;
@@ -248,6 +274,31 @@ TEST(ValidateCli, ComparesAnExistingTrialAndNamesMissingInputs) {
        {"validation.csv", "validation_frames.csv", "maps_E_xx.png", "maps_E_yy.png", "maps_E_xy.png"})
     EXPECT_TRUE(fs::exists(fs::path(out) / name)) << name;
   EXPECT_NE(run.output.find("E_xx"), std::string::npos) << run.output;
+
+  // The paths the result records name where the files are, not the staging folder they were built in.
+  EXPECT_EQ(read_text(out + "/result/summary.json").find(".partial"), std::string::npos);
+
+  // A failed rerun leaves the earlier output whole and no staging folder behind.
+  const std::string earlier_csv = read_text(out + "/validation.csv");
+  const std::string empty_result = fresh_dir("validate_cli_empty_result");
+  fs::create_directories(empty_result);
+  const auto failed = run_cli("validate --trial " + trial + "/trials/quick --result " + empty_result +
+                              " --out " + out + " --quiet");
+  EXPECT_EQ(failed.exit_code, 1) << failed.output;
+  EXPECT_NE(failed.output.find("result.h5"), std::string::npos) << failed.output;
+  EXPECT_EQ(read_text(out + "/validation.csv"), earlier_csv);
+  EXPECT_FALSE(fs::exists(out + ".partial"));
+  // An output folder holding the input, or anything validate does not write, is refused (the swap would
+  // delete it).
+  const auto holds_input = run_cli("validate --trial " + trial + "/trials/quick --out " + trial + " --quiet");
+  EXPECT_EQ(holds_input.exit_code, 1);
+  EXPECT_NE(holds_input.output.find("contains the --trial input"), std::string::npos) << holds_input.output;
+  EXPECT_TRUE(fs::exists(fs::path(trial) / "trials" / "quick" / "truth.h5"));
+  std::ofstream(out + "/notes.txt") << "mine\n";
+  const auto foreign = run_cli("validate --trial " + trial + "/trials/quick --out " + out + " --quiet");
+  EXPECT_EQ(foreign.exit_code, 1);
+  EXPECT_NE(foreign.output.find("notes.txt"), std::string::npos) << foreign.output;
+  fs::remove(out + "/notes.txt");
 
   const auto neither = run_cli("validate --out " + out);
   EXPECT_EQ(neither.exit_code, 1);
