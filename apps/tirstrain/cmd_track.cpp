@@ -21,6 +21,7 @@
 #include "core/scene.hpp"
 #include "flow/settings.hpp"
 #include "flow/tracker.hpp"
+#include "pipeline/output_folder.hpp"
 #include "pipeline/tracking_report.hpp"
 #include "tirstrain/commands.hpp"
 
@@ -69,7 +70,22 @@ std::string settings_path(const std::string& csv) {
   return (has_extension ? csv.substr(0, dot) : csv) + ".json";
 }
 
+// Writing beside or over an input would change it: the CSV and its settings file must lie outside every
+// input (the frames' folder or file, the scene, the points).
+void check_track_output(const TrackOptions& o) {
+  std::vector<std::string> inputs = pipeline::input_locations(o.input);
+  for (const std::string* path : {&o.scene, &o.points_csv})
+    if (!path->empty()) inputs.push_back(*path);
+  for (const std::string& output : {o.out, settings_path(o.out)})
+    for (const std::string& input : inputs)
+      if (path_is_within(output, input))
+        throw Error(output + (output == input || path_is_within(input, output) ? " is" : " lies inside") +
+                        " the input " + input + "; write the tracks elsewhere",
+                    {.key = "--out"});
+}
+
 void run_track(const TrackOptions& o) {
+  check_track_output(o);
   Scene scene;
   if (!o.scene.empty()) scene = load_scene(o.scene);
   flow::TrackerSettings settings = flow::parse_tracking_settings(scene, o.preset);
@@ -172,8 +188,13 @@ void run_track(const TrackOptions& o) {
                              {"rest_fit", by_model[2]},
                              {"smoothed_in_time", by_model[3]}}},
                            {"per_frame", frames_json}};
-  write_text_file(json_path, report.dump(2) + "\n");
+  // Both files are complete before either is renamed into place, so a run that fails leaves the earlier
+  // pair as it was.
+  AtomicFile json(json_path);
+  json.append(report.dump(2) + "\n");
+  json.make_durable();
   out.commit();
+  json.commit();
   long alive = 0;
   for (const flow::Track& t : tracker.tracks()) alive += flow::is_alive(t.status) ? 1 : 0;
   if (!o.quiet) {

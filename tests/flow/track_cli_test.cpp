@@ -82,6 +82,14 @@ TEST(TrackCli, SubPixelShiftOfSpeckle) {
   long alive_rows = 0;
   for (std::size_t i = 0; i < t.rows(); ++i) alive_rows += t.column("status")[i] < 10 ? 1 : 0;
   EXPECT_EQ(by_model["own_match"].get<long>() + by_model["fused"].get<long>(), alive_rows);
+
+  // Tracks written into the frames' folder would change the input: refused, and the folder stays as it was.
+  EXPECT_EQ(run("track " + (dir / "frames").string() + " --grid 16 --out " +
+                (dir / "frames" / "t.csv").string() + " --quiet 2>/dev/null"),
+            1);
+  std::size_t files = 0;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(dir / "frames")) ++files;
+  EXPECT_EQ(files, 2u);
 }
 
 TEST(TrackCli, RequiresPointsOrGrid) {
