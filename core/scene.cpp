@@ -11,7 +11,7 @@
 namespace tirstrain {
 
 const std::vector<std::string>& known_stages() {
-  static const std::vector<std::string> stages = {"contact", "tracking", "strain", "channels"};
+  static const std::vector<std::string> stages = {"contact", "tracking", "strain", "channels", "fit"};
   return stages;
 }
 
@@ -56,7 +56,7 @@ Scene parse_scene(const YAML::Node& root, const std::string& file) {
       const std::string name = s.as<std::string>();
       const auto& known = known_stages();
       if (std::find(known.begin(), known.end(), name) == known.end())
-        throw Error("unknown stage '" + name + "' (known: contact, tracking, strain, channels)",
+        throw Error("unknown stage '" + name + "' (known: contact, tracking, strain, channels, fit)",
                     {.file = file, .key = "compute"});
       scene.compute.push_back(name);
     }

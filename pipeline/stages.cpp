@@ -5,6 +5,7 @@
 
 #include "pipeline/channels_stage.hpp"
 #include "pipeline/contact_stage.hpp"
+#include "pipeline/fit_stage.hpp"
 #include "pipeline/stage.hpp"
 #include "pipeline/strain_stage.hpp"
 #include "pipeline/tracking_stage.hpp"
@@ -13,10 +14,9 @@ namespace tirstrain::pipeline {
 
 const std::vector<StageSpec>& stage_registry() {
   static const std::vector<StageSpec> registry = {
-      {"contact", {}, make_contact_stage},
-      {"tracking", {"contact"}, make_tracking_stage},
-      {"strain", {"tracking"}, make_strain_stage},
-      {"channels", {}, make_channels_stage},
+      {"contact", {}, make_contact_stage},         {"tracking", {"contact"}, make_tracking_stage},
+      {"strain", {"tracking"}, make_strain_stage}, {"channels", {}, make_channels_stage},
+      {"fit", {"tracking"}, make_fit_stage},
   };
   return registry;
 }

@@ -19,13 +19,15 @@
 namespace tirstrain::cli {
 namespace {
 
-// The scene's analysis stages (contact, tracking, strain; not channels, which need recorded files) run on the
-// frames the display shows and draw onto them. Stages keep only the newest frame (TrialInfo::keep_history).
+// The scene's analysis stages (contact, tracking, strain; not channels, which need recorded files, nor fit,
+// which fits a finished trial) run on the frames the display shows and draw onto them. Stages keep only the
+// newest frame (TrialInfo::keep_history).
 class LiveAnalysis {
  public:
   explicit LiveAnalysis(Scene scene) : scene_(std::move(scene)) {
-    scene_.compute.erase(std::remove(scene_.compute.begin(), scene_.compute.end(), "channels"),
-                         scene_.compute.end());
+    for (const char* offline : {"channels", "fit"})
+      scene_.compute.erase(std::remove(scene_.compute.begin(), scene_.compute.end(), offline),
+                           scene_.compute.end());
     if (!scene_.compute.empty()) plan_ = pipeline::plan_stages(scene_);
   }
 

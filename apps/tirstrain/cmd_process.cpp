@@ -21,7 +21,8 @@ void add_process_command(CLI::App& app) {
       "process",
       "Measure contact, tracks, strain and channels from a recording: the stages the scene's compute list\n"
       "asks for, or without one every stage whose inputs exist (channels: a channels: section, or\n"
-      "channels.csv beside the frames with tirstrain synth's column names).\n"
+      "channels.csv beside the frames with tirstrain synth's column names). The model fit (fit) runs only\n"
+      "when the scene or --compute asks for it.\n"
       "INPUT: a folder of frames (DIR/frames/*.png + DIR/frames.csv, or images directly in DIR), a printf "
       "or\n"
       "glob pattern ('run/img_%05d.tif', 'run/*.png'), or a video file. Time comes from frames.csv "
@@ -43,7 +44,8 @@ void add_process_command(CLI::App& app) {
   sub->add_option(
          "--compute", args->compute,
          "Stages to run in addition to the scene's compute list (or the default one): contact, tracking, "
-         "strain, channels")
+         "strain, channels, fit (the Cattaneo-Mindlin fit of tirstrain fit, per frame; never run unless "
+         "asked)")
       ->delimiter(',');
   sub->add_option("--preset", args->preset, "Tracking preset, replacing the scene's: auto or delhaye2016")
       ->check(CLI::IsMember({"auto", "delhaye2016"}));

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "core/h5_file.hpp"
 #include "tests/apps/cli_support.hpp"
 
 namespace tirstrain {
@@ -260,6 +261,56 @@ TEST(ValidateCli, NoisyAndLowContrastScenesMeetTheDisplacementTarget) {
               << rms["U,same triangles,exact"] << " %, c error " << rms["stick_radius_c,model,"] << " %\n";
     EXPECT_LE(rms["displacement,tracks,"], 0.10) << scene;
   }
+}
+
+// `process` with the fit stage on the default trial cut to 12 frames (five at rest, then partial slip): the
+// fitted tangential force against the trial's true load, and the same fit as `tirstrain fit` on the result.
+TEST(ProcessCli, FitStageRecoversTheLoadAndMatchesTheFitCommand) {
+  const std::string dir = fresh_dir("process_fit_stage");
+  fs::create_directories(dir);
+  std::string scene = read_text(std::string(TIRSTRAIN_SOURCE_SCENES_DIR) + "/default.yaml");
+  const std::size_t at = scene.find("frames: 60");
+  ASSERT_NE(at, std::string::npos);
+  scene.replace(at, 10, "frames: 12");
+  std::ofstream(dir + "/scene.yaml") << scene;
+  ASSERT_EQ(run_cli("synth --scene " + dir + "/scene.yaml --out " + dir + "/trial --quiet").exit_code, 0);
+  const auto run =
+      run_cli("process " + dir + "/trial --out " + dir + "/result --compute fit --overlay none --quiet");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const auto fit = run_cli("fit " + dir + "/result --out " + dir + "/fit --quiet");
+  ASSERT_EQ(fit.exit_code, 0) << fit.output;
+
+  const H5Reader result(dir + "/result/result.h5"), truth(dir + "/trial/truth.h5"),
+      alone(dir + "/fit/fit.h5");
+  const std::vector<double> q_fit = result.read_doubles("/fit/tangential_N");
+  const std::vector<double> q_true = truth.read_doubles("/load/tangential_N");
+  const std::vector<double> p_true = truth.read_doubles("/load/normal_N");
+  ASSERT_EQ(q_fit.size(), 12u);
+  ASSERT_EQ(q_true.size(), 12u);
+  int loaded = 0;
+  for (std::size_t i = 0; i < q_fit.size(); ++i) {
+    const double mu_p = 1.0 * p_true[i];  // the scene's friction is 1
+    if (q_true[i] == 0.0 && std::isfinite(q_fit[i]))
+      EXPECT_LE(std::abs(q_fit[i]), 0.02 * mu_p) << "frame " << i;  // measured <= 0.0002 muP
+    if (q_true[i] > 0.1 * mu_p && q_true[i] < 0.95 * mu_p) {
+      ++loaded;
+      ASSERT_TRUE(std::isfinite(q_fit[i])) << "frame " << i;
+      EXPECT_LE(std::abs(q_fit[i] - q_true[i]), 0.05 * mu_p) << "frame " << i;  // measured <= 0.036 muP
+    }
+  }
+  EXPECT_GE(loaded, 5);
+  // The stage and the command fit the same tracks and ellipses: the same numbers.
+  for (const char* name :
+       {"/fit/tangential_N", "/fit/c_mm", "/fit/direction_deg", "/fit/model", "/fit/c_mm_sd"}) {
+    const std::vector<double> a = result.read_doubles(name), b = alone.read_doubles(name);
+    ASSERT_EQ(a.size(), b.size()) << name;
+    for (std::size_t i = 0; i < a.size(); ++i)
+      EXPECT_TRUE(a[i] == b[i] || (std::isnan(a[i]) && std::isnan(b[i]))) << name << " frame " << i;
+  }
+  std::ifstream summary_file(dir + "/result/summary.json");
+  const std::string summary((std::istreambuf_iterator<char>(summary_file)), std::istreambuf_iterator<char>());
+  EXPECT_NE(summary.find("\"frames_by_model\""), std::string::npos);
+  EXPECT_NE(read_text(dir + "/result/frames.csv").find("fit_tangential_N"), std::string::npos);
 }
 
 TEST(ValidateCli, ComparesAnExistingTrialAndNamesMissingInputs) {
