@@ -290,8 +290,9 @@ TEST(ProcessCli, FitStageRecoversTheLoadAndMatchesTheFitCommand) {
   int loaded = 0;
   for (std::size_t i = 0; i < q_fit.size(); ++i) {
     const double mu_p = 1.0 * p_true[i];  // the scene's friction is 1
-    if (q_true[i] == 0.0 && std::isfinite(q_fit[i]))
+    if (q_true[i] == 0.0 && std::isfinite(q_fit[i])) {
       EXPECT_LE(std::abs(q_fit[i]), 0.02 * mu_p) << "frame " << i;  // measured <= 0.0002 muP
+    }
     if (q_true[i] > 0.1 * mu_p && q_true[i] < 0.95 * mu_p) {
       ++loaded;
       ASSERT_TRUE(std::isfinite(q_fit[i])) << "frame " << i;
