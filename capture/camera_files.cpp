@@ -331,11 +331,28 @@ class PhotronSource final : public IndexedFileSource {
 }  // namespace
 
 void unpack_msb_first(const std::uint8_t* packed, int bits, std::size_t count, std::uint16_t* out) {
+  // Whole groups of the two packings in use byte by byte (12 bit: 2 pixels in 3 bytes, 10 bit: 4 in 5);
+  // any remainder, and other widths, bit by bit.
+  std::size_t k = 0;
+  if (bits == 12)
+    for (; k + 2 <= count; k += 2, packed += 3) {
+      out[k] = static_cast<std::uint16_t>(packed[0] << 4 | packed[1] >> 4);
+      out[k + 1] = static_cast<std::uint16_t>((packed[1] & 0x0f) << 8 | packed[2]);
+    }
+  if (bits == 10)
+    for (; k + 4 <= count; k += 4, packed += 5) {
+      out[k] = static_cast<std::uint16_t>(packed[0] << 2 | packed[1] >> 6);
+      out[k + 1] = static_cast<std::uint16_t>((packed[1] & 0x3f) << 4 | packed[2] >> 4);
+      out[k + 2] = static_cast<std::uint16_t>((packed[2] & 0x0f) << 6 | packed[3] >> 2);
+      out[k + 3] = static_cast<std::uint16_t>((packed[3] & 0x03) << 8 | packed[4]);
+    }
+  out += k;
+  count -= k;
   std::uint64_t bit = 0;
-  for (std::size_t k = 0; k < count; ++k) {
+  for (std::size_t r = 0; r < count; ++r) {
     std::uint32_t v = 0;
     for (int b = 0; b < bits; ++b, ++bit) v = (v << 1) | ((packed[bit >> 3] >> (7 - (bit & 7))) & 1u);
-    out[k] = static_cast<std::uint16_t>(v);
+    out[r] = static_cast<std::uint16_t>(v);
   }
 }
 

@@ -99,7 +99,10 @@ class TiffStackSource final : public IndexedFileSource {
 
  private:
   cv::Mat read_frame(std::int64_t index) override {
-    if (!TIFFSetDirectory(tif_.get(), static_cast<tdir_t>(index)))
+    // Frames are read in order: the next page is the next directory (TIFFSetDirectory starts from the first).
+    const bool next_page = index == static_cast<std::int64_t>(TIFFCurrentDirectory(tif_.get())) + 1;
+    if (!(next_page ? TIFFReadDirectory(tif_.get())
+                    : TIFFSetDirectory(tif_.get(), static_cast<tdir_t>(index))))
       throw Error("cannot go to page " + std::to_string(index) + ": " + message_,
                   {.file = path_, .frame = index});
     const PageLayout p = page_layout(tif_.get());

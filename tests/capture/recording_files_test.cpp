@@ -290,6 +290,24 @@ TEST(PhotronMraw, EightTwelveAndSixteenBitFramesTimedFromTheTrigger) {
   EXPECT_NE(message.find("claims 3 frames"), std::string::npos) << message;
 }
 
+// The byte-wise fast paths and the bit-wise remainder agree with packing done bit by bit here.
+TEST(PackedPixels, TenTwelveAndOddWidthsUnpackExactly) {
+  for (int bits : {10, 12, 14}) {
+    for (std::size_t count : {std::size_t{1}, std::size_t{7}, std::size_t{64}}) {
+      std::vector<std::uint16_t> values(count), unpacked(count);
+      std::vector<std::uint8_t> packed((count * static_cast<std::size_t>(bits) + 7) / 8);
+      std::size_t bit = 0;
+      for (std::size_t k = 0; k < count; ++k) {
+        values[k] = static_cast<std::uint16_t>((k * 2654435761u) % (1u << bits));
+        for (int b = bits - 1; b >= 0; --b, ++bit)
+          if ((values[k] >> b) & 1) packed[bit / 8] |= static_cast<std::uint8_t>(0x80 >> (bit % 8));
+      }
+      unpack_msb_first(packed.data(), bits, count, unpacked.data());
+      EXPECT_EQ(unpacked, values) << bits << " bits, " << count << " pixels";
+    }
+  }
+}
+
 // ---- anything else ----
 
 TEST(UnrecognisedFile, NamesWhatItFoundAndTheFormatsRead) {
