@@ -123,12 +123,24 @@ class TiffStackSource final : public IndexedFileSource {
     return to_grey(pixels, p);
   }
 
+  // Whole strips decoded straight into the image (the cv::Mat is continuous, rows back to back).
   void read_strips(cv::Mat& pixels, std::int64_t index) {
-    for (int y = 0; y < pixels.rows; ++y)
-      if (TIFFReadScanline(tif_.get(), pixels.ptr(y), static_cast<std::uint32_t>(y), 0) < 0)
-        throw Error(
-            "cannot decode row " + std::to_string(y) + " of page " + std::to_string(index) + ": " + message_,
-            {.file = path_, .frame = index});
+    const std::size_t total = pixels.total() * pixels.elemSize();
+    std::size_t done = 0;
+    const tstrip_t strips = TIFFNumberOfStrips(tif_.get());
+    for (tstrip_t s = 0; s < strips && done < total; ++s) {
+      const tmsize_t got =
+          TIFFReadEncodedStrip(tif_.get(), s, pixels.data + done, static_cast<tmsize_t>(total - done));
+      if (got < 0)
+        throw Error("cannot decode strip " + std::to_string(s) + " of page " + std::to_string(index) + ": " +
+                        message_,
+                    {.file = path_, .frame = index});
+      done += static_cast<std::size_t>(got);
+    }
+    if (done != total)
+      throw Error("page " + std::to_string(index) + " holds " + std::to_string(done) +
+                      " bytes of pixels, not " + std::to_string(total),
+                  {.file = path_, .frame = index});
   }
 
   void read_tiles(cv::Mat& pixels, std::int64_t index) {
