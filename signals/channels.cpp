@@ -1,6 +1,7 @@
 #include "signals/channels.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -333,6 +334,23 @@ ChannelTable read_channels(const std::string& path, const ChannelReadOptions& op
   const std::string ext = lower_extension(path);
   if (ext == "mat") return read_channels_mat(path, options);
   if (ext == "h5" || ext == "hdf5") return read_channels_hdf5(path, options);
+  // Any other name: the first bytes say whether it is a MAT-file or HDF5 under another name, or binary
+  // that the CSV reader would only report as a ragged row.
+  std::ifstream in(path, std::ios::binary);
+  std::string head(4096, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(in.gcount()));
+  if (head.rfind("MATLAB ", 0) == 0) return read_channels_mat(path, options);
+  if (head.rfind("\x89HDF\r\n\x1a\n", 0) == 0) return read_channels_hdf5(path, options);
+  if (head.find('\0') != std::string::npos) {
+    std::string shown;
+    for (std::size_t k = 0; k < std::min<std::size_t>(head.size(), 8); ++k)
+      shown += std::isprint(static_cast<unsigned char>(head[k])) ? head[k] : '.';
+    throw Error("is not a channel file read here (binary, starting with '" + shown +
+                    "'); channel files are CSV (a header row and a time column), HDF5 (.h5, .hdf5) or MATLAB "
+                    ".mat (v4, v5, v7, v7.3)",
+                {.file = path});
+  }
   return read_channels_csv(path, options);
 }
 

@@ -176,6 +176,14 @@ TEST(MatChannels, ErrorsNameTheFileTheVariableAndWhatWasExpected) {
   std::ofstream(tmp("text.mat")) << "t_s,force\n0,1\n";
   e = error_of([&] { ts::read_channels(tmp("text.mat")); });
   EXPECT_NE(e.message().find("v4, v5, v7 and v7.3"), std::string::npos) << e.what();
+  // A MAT-file under another name is still read as one; other binary is named, not parsed as CSV.
+  std::filesystem::copy_file(path, tmp("rec.daq"), std::filesystem::copy_options::overwrite_existing);
+  EXPECT_EQ(ts::read_channels(tmp("rec.daq"), {.time_column = "t", .required = {"force"}}).column("force")[1],
+            force(1));
+  std::ofstream(tmp("image.bin"), std::ios::binary) << std::string("II*\0\0\0\0\0", 8);
+  e = error_of([&] { ts::read_channels(tmp("image.bin")); });
+  EXPECT_NE(e.message().find("binary, starting with 'II*.....'"), std::string::npos) << e.what();
+  EXPECT_NE(e.message().find("HDF5"), std::string::npos) << e.what();
 }
 
 TEST(ChannelsCsv, RateInsteadOfATimeColumn) {
