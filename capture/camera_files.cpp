@@ -126,6 +126,11 @@ class CineSource final : public IndexedFileSource {
     if (compression == 1)
       throw Error("is a JPEG-compressed cine; uncompressed mono cines are read (save it uncompressed)",
                   {.file = path_});
+    // 2 is a colour sensor's raw (CFA) image: read as grey it would carry the colour mosaic.
+    if (compression != 0)
+      throw Error("has Compression " + std::to_string(compression) +
+                      " (2: raw colour, CFA); grey (0) mono cines are read",
+                  {.file = path_});
     const std::uint64_t bih = file_.get<std::uint32_t>(L::kOffImageHeader, "OffImageHeader");
     width_ = file_.get<std::int32_t>(bih + L::kBiWidth, "biWidth");
     const auto height = file_.get<std::int32_t>(bih + L::kBiHeight, "biHeight");

@@ -243,6 +243,15 @@ TEST(PhantomCine, WithoutATimeBlockTheRecordedFrameRateCountsFromTheTrigger) {
   ASSERT_EQ(frames.size(), 3u);
   EXPECT_DOUBLE_EQ(frames[0].device_time_s, -2.0 / 2000.0);
   EXPECT_DOUBLE_EQ(frames[2].device_time_s, 0.0);
+  // A colour sensor's raw (CFA) cine is refused, not read as grey.
+  {
+    std::fstream f(dir / "rec.cine", std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(4);
+    f.put(2);
+  }
+  EXPECT_NE(error_of([&] { open_source((dir / "rec.cine").string()); }).find("raw colour"),
+            std::string::npos);
+  write_cine(dir / "rec.cine", 3, 8, false, 2000);
   // A file cut short is an error naming it, never fewer frames.
   std::filesystem::resize_file(dir / "rec.cine", std::filesystem::file_size(dir / "rec.cine") - 100);
   auto cut = open_source((dir / "rec.cine").string());
