@@ -1,5 +1,6 @@
 // Lossless encode + write cost of one 1280x1024 Mono8 TIR-like frame per format: what bounds the record
-// rate once the camera delivers (the end-to-end rate from the fake camera is bench/capture_record_bench.sh).
+// rate once the camera delivers (the end-to-end rate from the fake camera is bench/capture_record_bench.sh);
+// and the read rate of single-file recordings (multi-page TIFF, Photron .mraw) with their pixel errors.
 // Frames are written to $TIRSTRAIN_BENCH_DIR (default /tmp/tirstrain-capture-bench) and deleted.
 #include <benchmark/benchmark.h>
 
@@ -13,6 +14,8 @@
 #include <fstream>
 #include <string>
 #include <vector>
+
+#include "capture/file_sources.hpp"
 
 namespace {
 
@@ -119,6 +122,71 @@ void BM_Ffv1Mkv(benchmark::State& state) {
   std::filesystem::remove(path);
 }
 BENCHMARK(BM_Ffv1Mkv)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Reading single-file recordings (capture/file_formats.hpp): 32 frames of 1280x1024, each frame the TIR-like
+// image scaled to 12 bits plus its frame number, read back through open_source. Speed next to error: the
+// pixels that differ from what was written (must be 0).
+constexpr int kRecordingFrames = 32;
+
+cv::Mat frame_12bit(const cv::Mat& base, int i) {
+  cv::Mat out;
+  base.convertTo(out, CV_16UC1, 16.0, i);
+  return out;
+}
+
+void read_back(benchmark::State& state, const std::string& path, const cv::Mat& base) {
+  double wrong = 0;
+  for (auto _ : state) {
+    auto source = tirstrain::capture::open_source(path);
+    int i = 0;
+    while (auto frame = source->next()) {
+      state.PauseTiming();
+      wrong += cv::countNonZero(frame->image != frame_12bit(base, i++));
+      state.ResumeTiming();
+    }
+    if (i != kRecordingFrames) state.SkipWithError("wrong frame count");
+  }
+  state.counters["frames_per_s"] = benchmark::Counter(
+      static_cast<double>(state.iterations()) * kRecordingFrames, benchmark::Counter::kIsRate);
+  state.counters["pixel_errors"] = wrong;
+}
+
+void BM_ReadMultiPageTiff16(benchmark::State& state) {
+  const cv::Mat base = tir_frame();
+  const std::string path = bench_dir() + "/stack.tif";
+  std::vector<cv::Mat> pages;
+  for (int i = 0; i < kRecordingFrames; ++i) pages.push_back(frame_12bit(base, i));
+  cv::imwritemulti(path, pages, {cv::IMWRITE_TIFF_COMPRESSION, static_cast<int>(state.range(0))});
+  read_back(state, path, base);
+  std::filesystem::remove(path);
+}
+// Arg: TIFF compression tag, 1 none (as cameras export), 5 LZW (OpenCV's default).
+BENCHMARK(BM_ReadMultiPageTiff16)->Arg(1)->Arg(5)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Photron's 12-bit packing: two pixels in three bytes, most significant bit first.
+void BM_ReadMraw12(benchmark::State& state) {
+  const cv::Mat base = tir_frame();
+  const std::string stem = bench_dir() + "/rec";
+  std::ofstream(stem + ".cih")
+      << "Record Rate(fps) : 1000\nStart Frame : 0\nTotal Frame : " << kRecordingFrames
+      << "\nImage Width : 1280\nImage Height : 1024\nColor Type : Mono\nColor Bit : 12\n"
+      << "File Format : MRaw\nEND\n";
+  std::vector<unsigned char> packed;
+  for (int i = 0; i < kRecordingFrames; ++i) {
+    const cv::Mat f = frame_12bit(base, i);
+    for (auto it = f.begin<std::uint16_t>(); it != f.end<std::uint16_t>(); it += 2) {
+      const unsigned a = *it, b = *(it + 1);
+      packed.push_back(static_cast<unsigned char>(a >> 4));
+      packed.push_back(static_cast<unsigned char>(((a & 0xf) << 4) | (b >> 8)));
+      packed.push_back(static_cast<unsigned char>(b & 0xff));
+    }
+  }
+  write_file(stem + ".mraw", packed);
+  read_back(state, stem + ".mraw", base);
+  std::filesystem::remove(stem + ".mraw");
+  std::filesystem::remove(stem + ".cih");
+}
+BENCHMARK(BM_ReadMraw12)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 

@@ -1,4 +1,5 @@
 #include "capture/aravis_source.hpp"
+#include "capture/file_sources.hpp"
 
 #include <arv.h>
 #include <sys/resource.h>
@@ -713,9 +714,15 @@ std::map<std::string, std::int64_t> aravis_stream_statistics(const FrameSource& 
 
 // Camera settings reach the camera backends; for every other URI they would silently do nothing.
 std::unique_ptr<FrameSource> open_source(const std::string& uri, const CameraSettings& settings) {
+  return open_source(uri, settings, FileSourceOptions{});
+}
+
+std::unique_ptr<FrameSource> open_source(const std::string& uri, const CameraSettings& settings,
+                                         const FileSourceOptions& file_options) {
   const auto colon = uri.find(':');
   if (colon != std::string::npos && colon > 1 && uri.find('/') > colon) {
     const std::string scheme = uri.substr(0, colon);
+    if (file_options.frame_rate_Hz && scheme != "file") return open_source(uri, file_options);  // refuses it
     if (scheme == "aravis") return open_aravis_source(uri.substr(colon + 1), settings);
     if (scheme == "v4l2") return open_v4l2_source(uri.substr(colon + 1), settings);
     if (scheme == "libcamera") return open_libcamera_source(uri.substr(colon + 1), settings);
@@ -727,7 +734,7 @@ std::unique_ptr<FrameSource> open_source(const std::string& uri, const CameraSet
         "camera settings (pixel format, ROI, exposure, gain, frame rate, trigger) only apply to camera "
         "sources (aravis:<id>, v4l2:/dev/videoN, libcamera:<id>); this input is a file source",
         {.file = uri});
-  return open_source(uri);
+  return open_source(uri, file_options);
 }
 
 }  // namespace tirstrain::capture

@@ -10,10 +10,13 @@
 #include <cctype>
 #include <chrono>
 #include <cstdio>
+#include <deque>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <optional>
 
+#include "capture/file_formats.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
 
@@ -179,6 +182,7 @@ class ImageSequenceSource final : public FrameSource {
       frame.frames_lost_before = file.number - files_[i - 1].number - 1;
       frame.status = FrameStatus::kGapBefore;
     }
+    refuse_multi_page(file.path, frame.index);
     const cv::Mat decoded = read_image(file.path);
     if (decoded.empty()) {
       frame.status = FrameStatus::kCorrupt;
@@ -272,6 +276,18 @@ class ImageSequenceSource final : public FrameSource {
     time_source_ = "t_s from " + csv;
   }
 
+  // A multi-page TIFF among the images would give only its first page: the user is told to open it alone.
+  static void refuse_multi_page(const std::string& path, std::int64_t index) {
+    const std::string ext = lower(fs::path(path).extension().string());
+    if (ext != ".tif" && ext != ".tiff") return;
+    const std::int64_t pages = tiff_page_count(path);
+    if (pages > 1)
+      throw Error("is a multi-page TIFF of " + std::to_string(pages) +
+                      " pages inside an image sequence, which reads one frame per file; give this file alone "
+                      "as the input to read every page",
+                  {.file = path, .frame = index});
+  }
+
   std::vector<SequenceFile> files_;
   std::string description_;
   std::vector<double> times_s_;
@@ -292,14 +308,22 @@ class VideoFileSource final : public FrameSource {
     count_ = static_cast<std::int64_t>(capture_.get(cv::CAP_PROP_FRAME_COUNT));
     fps_ = capture_.get(cv::CAP_PROP_FPS);
     // Decoding the first frame now turns an undecodable stream into an error before any work starts.
-    pending_ = read_one();
-    if (!pending_) throw Error("the video contains no decodable frame", {.file = path_, .frame = 0});
+    std::optional<Frame> first = read_one();
+    if (!first) throw Error("the video contains no decodable frame", {.file = path_, .frame = 0});
+    pending_.push_back(std::move(*first));
+    // FFmpeg also opens still images (whatever their name); a single decoded frame is never taken for a
+    // recording, so the second frame is decoded now too.
+    std::optional<Frame> second = read_one();
+    if (!second)
+      throw Error("FFmpeg decodes a single frame from it (a still image?), not a recording of frames",
+                  {.file = path_});
+    pending_.push_back(std::move(*second));
   }
 
   std::optional<Frame> next() override {
-    if (pending_) {
-      std::optional<Frame> out = std::move(pending_);
-      pending_.reset();
+    if (!pending_.empty()) {
+      Frame out = std::move(pending_.front());
+      pending_.pop_front();
       return out;
     }
     return read_one();
@@ -369,7 +393,7 @@ class VideoFileSource final : public FrameSource {
   double last_time_s_ = 0.0;
   std::optional<std::int64_t> fallback_from_;  // first frame timed by the frame rate
   std::string fallback_cause_;
-  std::optional<Frame> pending_;
+  std::deque<Frame> pending_;  // frames decoded by the constructor, not yet delivered
 };
 
 std::vector<std::string> list_images(const fs::path& dir) {
@@ -386,6 +410,52 @@ std::vector<std::string> list_images(const fs::path& dir) {
 std::optional<std::string> existing(const fs::path& path) {
   if (fs::is_regular_file(path)) return path.string();
   return std::nullopt;
+}
+
+// The first bytes of a file as text for a message: printable characters as they are, others in hex.
+std::string first_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char head[8] = {};
+  in.read(head, sizeof head);
+  std::string text;
+  for (std::streamsize i = 0; i < in.gcount(); ++i) {
+    const auto c = static_cast<unsigned char>(head[i]);
+    char hex[8];
+    std::snprintf(hex, sizeof hex, "\\x%02x", c);
+    text += std::isprint(c) ? std::string(1, static_cast<char>(c)) : std::string(hex);
+  }
+  return "'" + text + "'";
+}
+
+std::unique_ptr<FrameSource> open_single_image(const std::string& path) {
+  // A single image is a one-frame sequence; its time comes from a frames.csv beside it, as for folders.
+  const fs::path file(path);
+  const fs::path dir = file.has_parent_path() ? file.parent_path() : fs::path(".");
+  return std::make_unique<ImageSequenceSource>(make_sequence({path}), "image " + path,
+                                               existing(dir / "frames.csv"));
+}
+
+// A file is judged by its first bytes before its name: a multi-page TIFF named .dat is still every page.
+std::unique_ptr<FrameSource> open_regular_file(const std::string& path, const FileSourceOptions& options) {
+  switch (sniff_file_kind(path)) {
+    case FileKind::kTiff:
+    case FileKind::kBigTiff:
+      return open_tiff_stack(path, options);
+    case FileKind::kCine:
+      return open_cine(path, options);
+    case FileKind::kPhotron:
+      return open_photron(path, options);
+    case FileKind::kOther:
+      break;
+  }
+  if (is_image_file_name(path)) return open_single_image(path);
+  try {
+    return open_video_file(path);
+  } catch (const Error& e) {
+    throw Error("is not a recording read here (it starts with " + first_bytes(path) + "; " + e.message() +
+                    "). Frames are read from " + frame_formats_read(),
+                {.file = path});
+  }
 }
 
 }  // namespace
@@ -474,21 +544,12 @@ std::unique_ptr<FrameSource> open_video_file(const std::string& path) {
   return std::make_unique<VideoFileSource>(path);
 }
 
-std::unique_ptr<FrameSource> open_file_source(const std::string& path) {
+std::unique_ptr<FrameSource> open_file_source(const std::string& path, const FileSourceOptions& options) {
   if (path.empty()) throw Error("empty input path");
   std::error_code ec;
   const auto status = fs::status(path, ec);
   if (fs::is_directory(status)) return open_image_folder(path);
-  if (fs::is_regular_file(status)) {
-    if (is_image_file_name(path)) {
-      // A single image is a one-frame sequence; its time comes from a frames.csv beside it, as for folders.
-      const fs::path file(path);
-      const fs::path dir = file.has_parent_path() ? file.parent_path() : fs::path(".");
-      return std::make_unique<ImageSequenceSource>(make_sequence({path}), "image " + path,
-                                                   existing(dir / "frames.csv"));
-    }
-    return open_video_file(path);
-  }
+  if (fs::is_regular_file(status)) return open_regular_file(path, options);
   if (fs::exists(status)) throw Error("not a regular file or folder", {.file = path});
   const std::string name = fs::path(path).filename().string();
   if (has_glob_chars(name) || has_printf_spec(name)) return open_image_pattern(path);

@@ -1,6 +1,7 @@
 #pragma once
 // Frame sources backed by files: image sequences (a folder, a printf pattern such as "run/img_%05d.png",
-// or a glob such as "run/*.tif") and video files decoded by OpenCV/FFmpeg.
+// or a glob such as "run/*.tif"), single-file recordings (capture/file_formats.hpp) and video files decoded
+// by OpenCV/FFmpeg.
 //
 // Time axis (DESIGN: time comes from the source's timestamps, never index / fps):
 // - image sequences take t_s from a `frames.csv` (`index,t_s`) next to the images, or in the folder that
@@ -11,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "capture/file_formats.hpp"
 #include "capture/frame_source.hpp"
 
 namespace tirstrain::capture {
@@ -20,8 +22,18 @@ std::unique_ptr<FrameSource> open_image_folder(const std::string& dir);
 // "a/b_%06d.png" (printf) or "a/*.png" (glob, wildcards only in the file name).
 std::unique_ptr<FrameSource> open_image_pattern(const std::string& pattern);
 std::unique_ptr<FrameSource> open_video_file(const std::string& path);
-// Chooses among the three by what `path` is. Throws Error naming the path if nothing fits.
-std::unique_ptr<FrameSource> open_file_source(const std::string& path);
+// Chooses by what `path` is: a folder, a pattern, or a file judged by its first bytes (multi-page TIFF,
+// BigTIFF, .cine, .mraw/.cih: capture/file_formats.hpp), then by its name (an image, else a video). Throws
+// Error naming the path, what it holds and the formats read if nothing fits.
+std::unique_ptr<FrameSource> open_file_source(const std::string& path, const FileSourceOptions& options = {});
+
+// open_source(uri) (capture/frame_source.hpp) with options for file sources; giving them for a camera URI is
+// an error.
+std::unique_ptr<FrameSource> open_source(const std::string& uri, const FileSourceOptions& file_options);
+
+// open_source(uri, settings) (capture/frame_source.hpp) with options for file sources as well.
+std::unique_ptr<FrameSource> open_source(const std::string& uri, const CameraSettings& settings,
+                                         const FileSourceOptions& file_options);
 
 // Image extensions read as frames (lower case, with the dot).
 bool is_image_file_name(const std::string& name);

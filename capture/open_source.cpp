@@ -31,12 +31,21 @@ const char* to_string(FrameStatus status) {
 }
 
 std::unique_ptr<FrameSource> open_source(const std::string& uri) {
+  return open_source(uri, FileSourceOptions{});
+}
+
+std::unique_ptr<FrameSource> open_source(const std::string& uri, const FileSourceOptions& file_options) {
   const auto colon = uri.find(':');
   // A one-letter "scheme" would be a Windows drive; a slash before the colon means a path containing ':'.
   if (colon != std::string::npos && colon > 1 && uri.find('/') > colon) {
     const std::string scheme = uri.substr(0, colon);
     const std::string rest = uri.substr(colon + 1);
-    if (scheme == "file") return open_file_source(rest);
+    if (scheme == "file") return open_file_source(rest, file_options);
+    if (file_options.frame_rate_Hz && scheme != "file")
+      throw Error(
+          "--frame-rate-Hz times a recorded file that holds no timestamps; a camera stamps its own "
+          "frames (set its rate with --fps)",
+          {.file = uri, .key = "--frame-rate-Hz"});
     if (scheme == "aravis") return open_aravis_source(rest, {});
     if (scheme == "v4l2") return open_v4l2_source(rest, {});
     if (scheme == "libcamera") return open_libcamera_source(rest, {});
@@ -49,7 +58,7 @@ std::unique_ptr<FrameSource> open_source(const std::string& uri) {
               "file:PATH or a plain path (a folder of frames, an image pattern or a video file)",
           {.key = "URI"});
   }
-  return open_file_source(uri);
+  return open_file_source(uri, file_options);
 }
 
 }  // namespace tirstrain::capture

@@ -13,6 +13,8 @@ find_package(Ceres REQUIRED)
 pkg_check_modules(ARAVIS REQUIRED IMPORTED_TARGET aravis-0.8)
 pkg_check_modules(LIBV4L2 REQUIRED IMPORTED_TARGET libv4l2)
 pkg_check_modules(LIBCAMERA REQUIRED IMPORTED_TARGET libcamera)
+pkg_check_modules(LIBTIFF REQUIRED IMPORTED_TARGET libtiff-4)
+pkg_check_modules(MATIO REQUIRED IMPORTED_TARGET matio)
 
 # HDF5's CMake variables, wrapped as one target.
 add_library(tirstrain_hdf5 INTERFACE)

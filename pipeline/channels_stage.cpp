@@ -108,6 +108,42 @@ struct Config {
   }
 };
 
+// How raw files are read: a sample rate for a file without time column, names for the columns of .mat
+// matrices, and per-column calibration (raw DAQ volts -> the unit given under channels.units).
+void parse_reading(YamlSection& top, const std::string& scene_file, ts::ChannelReadOptions& read) {
+  if (top.has("rate_hz")) read.rate_Hz = top.number("rate_hz", 0.0, 1e-9, 1e12);
+  if (top.has("mat_column_names")) {
+    const YAML::Node map = top.raw("mat_column_names");
+    if (!map.IsMap())
+      throw Error("expected a map from a matrix variable to the list of its column names",
+                  {.file = scene_file, .key = "channels.mat_column_names"});
+    for (const auto& item : map) {
+      const std::string matrix = item.first.as<std::string>();
+      if (!item.second.IsSequence())
+        throw Error("expected a list of column names, in column order",
+                    {.file = scene_file, .key = "channels.mat_column_names." + matrix});
+      auto& names = read.mat_column_names[matrix];
+      for (const auto& name : item.second) names.push_back(name.as<std::string>());
+    }
+  }
+  YamlSection calibration = top.section("calibration");
+  if (top.has("calibration")) {
+    const YAML::Node map = top.raw("calibration");
+    for (const auto& item : map) {
+      const std::string column = item.first.as<std::string>();
+      YamlSection one = calibration.section(column);
+      ts::ChannelCalibration cal;
+      cal.gain = one.required_number("gain", -1e12, 1e12);
+      cal.offset = one.number("offset", 0.0, -1e12, 1e12);
+      if (cal.gain == 0.0)
+        throw Error("a gain of 0 would erase the channel", {.file = scene_file, .key = one.path_of("gain")});
+      one.finish();
+      read.calibration[column] = cal;
+    }
+  }
+  calibration.finish();
+}
+
 Config parse_config(const Scene& scene) {
   Config c;
   c.scene_file = scene.file;
@@ -123,6 +159,7 @@ Config parse_config(const Scene& scene) {
   c.read.time_column = top.text("time_column", "t_s");
   c.read.hdf5_group = top.text("hdf5_group", "/");
   c.read.rate_tolerance = top.number("rate_tolerance", 0.01, 0.0, 1.0);
+  parse_reading(top, scene.file, c.read);
 
   YamlSection columns = top.section("columns");
   YamlSection units = top.section("units");

@@ -14,6 +14,7 @@
 #include <memory>
 #include <sstream>
 
+#include "capture/file_sources.hpp"
 #include "capture/frame_source.hpp"
 #include "core/atomic_output.hpp"
 #include "core/csv.hpp"
@@ -337,7 +338,8 @@ class ProcessRun {
   }
 
   void open_input() {
-    source_ = capture::open_source(options_.input);
+    source_ = capture::open_source(options_.input,
+                                   capture::FileSourceOptions{.frame_rate_Hz = options_.frame_rate_Hz});
     const auto settings = source_->settings();
     time_measured_ = settings.count("time_measured") == 0 || settings.at("time_measured") == "true";
     time_source_ = settings.count("time_source") ? settings.at("time_source") : "source timestamps";

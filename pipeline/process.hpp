@@ -18,6 +18,9 @@ enum class OverlayMode { kNone, kMp4, kPng };
 
 struct ProcessOptions {
   std::string input;  // folder, pattern, video file or source URI
+  // Frame rate of a recording whose file holds no timestamps (a multi-page TIFF without frames.csv), Hz;
+  // unset: none (capture/file_formats.hpp).
+  std::optional<double> frame_rate_Hz;
   // Absent: INPUT/scene.yaml when INPUT is a folder holding one (a synthesised or saved trial), otherwise
   // the documented defaults with the rest measured from the images.
   std::optional<std::string> scene_path;

@@ -5,6 +5,7 @@
 #include <sstream>
 #include <vector>
 
+#include "capture/file_sources.hpp"
 #include "capture/frame_source.hpp"
 #include "contact/pattern_band.hpp"
 #include "contact/segmenter.hpp"
@@ -35,7 +36,8 @@ std::string number(double v, const char* format = "%.4g") {
 
 SceneSurvey survey_recording(const SceneInitOptions& options) {
   SceneSurvey survey;
-  std::unique_ptr<capture::FrameSource> source = capture::open_source(options.input);
+  std::unique_ptr<capture::FrameSource> source =
+      capture::open_source(options.input, capture::FileSourceOptions{.frame_rate_Hz = options.frame_rate_Hz});
   const auto settings = source->settings();
   const bool time_measured = settings.count("time_measured") == 0 || settings.at("time_measured") == "true";
   survey.time_source = settings.count("time_source") ? settings.at("time_source") : "source timestamps";

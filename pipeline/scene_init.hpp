@@ -11,7 +11,8 @@
 namespace tirstrain::pipeline {
 
 struct SceneInitOptions {
-  std::string input;  // as `process` takes it
+  std::string input;                    // as `process` takes it
+  std::optional<double> frame_rate_Hz;  // as `process --frame-rate-Hz` takes it, Hz; unset: none
   std::string out_path;
   std::int64_t max_frames = 300;  // frames read at most (the contact and ridges need a few with contact)
 };

@@ -1,6 +1,7 @@
 #include "signals/channels.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -50,6 +51,16 @@ long csv_line_of_data_row(const std::string& path, std::size_t data_index) {
     ++data_seen;
   }
   return static_cast<long>(data_index) + 2;
+}
+
+std::string rate_conflict() {
+  return "the file has this time column and --rate-Hz (rate_hz) was given too; a recording has one clock: "
+         "drop the rate, or name another time column";
+}
+
+std::string time_source_of(const ChannelReadOptions& options) {
+  if (!options.rate_Hz) return options.time_column + " column";
+  return "sample index / " + fmt(*options.rate_Hz) + " Hz (--rate-Hz; the file holds no time column)";
 }
 
 void check_unknown_and_required(const ChannelTable& table, const ChannelReadOptions& options) {
@@ -134,12 +145,15 @@ ChannelTable read_channels_csv(const std::string& path, const ChannelReadOptions
   ChannelTable table;
   table.path = path;
   table.time_column = options.time_column;
-  if (!csv.has(options.time_column)) {
+  if (!csv.has(options.time_column) && !options.rate_Hz) {
     std::string present;
     for (const auto& n : csv.names) present += (present.empty() ? "" : ", ") + n;
-    throw Error("no time column (columns present: " + present + ")",
+    throw Error("no time column (columns present: " + present +
+                    "); name it with --time-column, or give the sample rate with --rate-Hz",
                 {.file = path, .column = options.time_column});
   }
+  if (csv.has(options.time_column) && options.rate_Hz)
+    throw Error(rate_conflict(), {.file = path, .column = options.time_column, .key = "--rate-Hz"});
   for (std::size_t j = 0; j < csv.names.size(); ++j) {
     if (csv.names[j] == options.time_column) {
       table.time_s = csv.columns[j];
@@ -148,7 +162,11 @@ ChannelTable read_channels_csv(const std::string& path, const ChannelReadOptions
       table.columns.push_back(csv.columns[j]);
     }
   }
+  if (options.rate_Hz && !table.columns.empty())
+    table.time_s = times_from_rate(table.columns.front().size(), *options.rate_Hz, path);
+  table.time_source = time_source_of(options);
   check_unknown_and_required(table, options);
+  apply_calibration(table, options.calibration);
   double rate_Hz = 0.0;
   if (auto problem = find_time_problem(table.time_s, options.rate_tolerance, rate_Hz)) {
     const long row = table.time_s.size() < 2 ? 1 : csv_line_of_data_row(path, problem->index);
@@ -285,12 +303,16 @@ ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOption
         table.columns.push_back(std::move(values));
       }
     }
-    if (!have_time) {
+    if (have_time && options.rate_Hz)
+      throw Error(rate_conflict(), {.file = path, .column = options.time_column, .key = "--rate-Hz"});
+    if (!have_time && options.rate_Hz && !table.columns.empty()) {
+      table.time_s = times_from_rate(table.columns.front().size(), *options.rate_Hz, path);
+    } else if (!have_time) {
       std::string present;
       for (const auto& n : table.names) present += (present.empty() ? "" : ", ") + n;
-      throw Error(
-          "no time dataset in group '" + options.hdf5_group + "' (numeric datasets present: " + present + ")",
-          {.file = path, .column = options.time_column});
+      throw Error("no time dataset in group '" + options.hdf5_group + "' (numeric datasets present: " +
+                      present + "); name it with --time-column, or give the sample rate with --rate-Hz",
+                  {.file = path, .column = options.time_column});
     }
   } catch (const H5::Exception& e) {
     throw Error("cannot read HDF5 file: " + std::string(e.getCDetailMsg()), {.file = path});
@@ -301,15 +323,63 @@ ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOption
                       options.time_column + "' has " + std::to_string(table.time_s.size()),
                   {.file = path, .column = table.names[j]});
   check_unknown_and_required(table, options);
+  table.time_source = time_source_of(options);
   table.sample_rate_Hz =
       validate_time_axis(table.time_s, options.rate_tolerance, path, options.time_column, -1);
+  apply_calibration(table, options.calibration);
   return table;
 }
 
 ChannelTable read_channels(const std::string& path, const ChannelReadOptions& options) {
   const std::string ext = lower_extension(path);
-  if (ext == "h5" || ext == "hdf5" || ext == "mat") return read_channels_hdf5(path, options);
+  if (ext == "mat") return read_channels_mat(path, options);
+  if (ext == "h5" || ext == "hdf5") return read_channels_hdf5(path, options);
+  // Any other name: the first bytes say whether it is a MAT-file or HDF5 under another name, or binary
+  // that the CSV reader would only report as a ragged row.
+  std::ifstream in(path, std::ios::binary);
+  std::string head(4096, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(in.gcount()));
+  if (head.rfind("MATLAB ", 0) == 0) return read_channels_mat(path, options);
+  if (head.rfind("\x89HDF\r\n\x1a\n", 0) == 0) return read_channels_hdf5(path, options);
+  if (head.find('\0') != std::string::npos) {
+    std::string shown;
+    for (std::size_t k = 0; k < std::min<std::size_t>(head.size(), 8); ++k)
+      shown += std::isprint(static_cast<unsigned char>(head[k])) ? head[k] : '.';
+    throw Error("is not a channel file read here (binary, starting with '" + shown +
+                    "'); channel files are CSV (a header row and a time column), HDF5 (.h5, .hdf5) or MATLAB "
+                    ".mat (v4, v5, v7, v7.3)",
+                {.file = path});
+  }
   return read_channels_csv(path, options);
+}
+
+std::vector<double> times_from_rate(std::size_t count, double rate_Hz, const std::string& where) {
+  if (!(rate_Hz > 0.0) || !std::isfinite(rate_Hz))
+    throw Error("the sample rate must be a positive number of Hz, not " + fmt(rate_Hz),
+                {.file = where, .key = "--rate-Hz"});
+  std::vector<double> t(count);
+  for (std::size_t i = 0; i < count; ++i) t[i] = static_cast<double>(i) / rate_Hz;
+  return t;
+}
+
+void apply_calibration(ChannelTable& table, const std::map<std::string, ChannelCalibration>& calibration) {
+  for (const auto& [name, cal] : calibration) {
+    if (!std::isfinite(cal.gain) || !std::isfinite(cal.offset) || cal.gain == 0.0)
+      throw Error("calibration gain must be finite and non-zero and offset finite (gain " + fmt(cal.gain) +
+                      ", offset " + fmt(cal.offset) + ")",
+                  {.file = table.path, .column = name});
+    if (!table.has(name)) {
+      std::string present;
+      for (const auto& n : table.names) present += (present.empty() ? "" : ", ") + n;
+      throw Error("a calibration is given for this channel but the file has no such channel (channels: " +
+                      present + ")",
+                  {.file = table.path, .column = name});
+    }
+    for (std::size_t j = 0; j < table.names.size(); ++j)
+      if (table.names[j] == name)
+        for (double& v : table.columns[j]) v = cal.gain * v + cal.offset;
+  }
 }
 
 std::vector<double> resample_linear(const std::vector<double>& time_s, const std::vector<double>& values,

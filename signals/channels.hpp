@@ -3,11 +3,16 @@
 //
 // Formats:
 //   - CSV with a header row of names, units in the name ("tangential_N"); the time column (default "t_s").
-//   - HDF5 with one 1-D numeric dataset per channel inside a group (default "/"), including MATLAB v7.3
-//     .mat files, which are HDF5 with one root dataset per variable. MATLAB writes arrays transposed
-//     (column-major), so an N×1 column vector arrives as a 1×N dataset; any dataset whose shape has one
-//     non-singleton dimension is taken as a vector. Character arrays (MATLAB_class "char", stored as
-//     uint16), cells, structs and non-numeric types are rejected by name.
+//   - HDF5 with one 1-D numeric dataset per channel inside a group (default "/"). MATLAB writes arrays
+//     transposed (column-major), so an N×1 column vector arrives as a 1×N dataset; any dataset whose shape
+//     has one non-singleton dimension is taken as a vector. Character arrays (MATLAB_class "char", stored
+//     as uint16), cells, structs and non-numeric types are rejected by name.
+//   - MATLAB .mat of every version (v4, v5, v7 compressed, v7.3) through libmatio (read_channels_mat);
+//     a v7.3 file matio cannot open is read by the HDF5 reader above. A channel is a variable `NAME`, a
+//     matrix column `NAME[:,k]` or row `NAME[k,:]` (1-based, as in MATLAB), a struct field `a.b.c` (with
+//     or without a column), or a column of a matrix named in `mat_column_names`.
+// Without a time column, `rate_Hz` gives the sample times (i / rate_Hz); without either, it is an error.
+// `calibration` then maps raw values (DAQ volts) to physical units per channel: gain * raw + offset.
 //
 // Validation (every failure is a tirstrain::Error naming file, row (CSV line, header = row 1) or sample
 // index (HDF5), and column): missing requested columns, columns not in an `expected` list when one is
@@ -15,6 +20,7 @@
 // sample interval that deviates from the median interval by more than `rate_tolerance` (relative).
 // Nothing is interpolated or repaired.
 #include <cstddef>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -28,6 +34,7 @@ struct ChannelTable {
   std::vector<std::string> names;            // channel names (time column excluded), in file order
   std::vector<std::vector<double>> columns;  // columns[j][i]
   double sample_rate_Hz = 0.0;               // 1 / median interval
+  std::string time_source;                   // the time column's name, or how times were made from a rate
   // Maps a sample index to the row number a user sees in the file (CSV line), or -1 for HDF5.
   long first_data_row = 2;
 
@@ -37,16 +44,31 @@ struct ChannelTable {
   const std::vector<double>& column(const std::string& name) const;
 };
 
+// raw -> physical: value = gain * raw + offset (e.g. a force sensor's N/V and its zero in N).
+struct ChannelCalibration {
+  double gain = 1.0;    // physical units per raw unit (N/V, m/s² per V, ...)
+  double offset = 0.0;  // physical units added after the gain
+};
+
 struct ChannelReadOptions {
   std::string time_column = "t_s";
   std::vector<std::string> required;  // must be present
   std::vector<std::string> expected;  // when non-empty, any other column is an "unknown column" error
   double rate_tolerance = 0.01;       // max |dt_i − median dt| / median dt
   std::string hdf5_group = "/";
+  // Sample rate of a file holding no time column, Hz: sample i is at i / rate_Hz s. Unset: the time
+  // column is required. Given for a file that has a time column, it is an error (two clocks).
+  std::optional<double> rate_Hz;
+  // .mat: the column names of matrix variables, in column order ("dataQ" -> {"lateral_N", "normal_N"});
+  // each named column becomes a channel. The key may be a struct path ("rec.data").
+  std::map<std::string, std::vector<std::string>> mat_column_names;
+  // Per channel name: raw -> physical units, applied after reading (channels not named stay raw).
+  std::map<std::string, ChannelCalibration> calibration;
 };
 
-// Dispatches on the extension: .csv (and anything not HDF5) as CSV; .h5, .hdf5, .mat as HDF5.
+// Dispatches on the extension: .mat as MATLAB; .h5, .hdf5 as HDF5; anything else as CSV.
 ChannelTable read_channels(const std::string& path, const ChannelReadOptions& options = {});
+ChannelTable read_channels_mat(const std::string& path, const ChannelReadOptions& options = {});
 ChannelTable read_channels_csv(const std::string& path, const ChannelReadOptions& options = {});
 ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOptions& options = {});
 
@@ -55,6 +77,14 @@ ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOption
 // sample indices).
 double validate_time_axis(const std::vector<double>& time_s, double rate_tolerance, const std::string& where,
                           const std::string& column, long first_row);
+
+// Sample times 0, 1/rate_Hz, 2/rate_Hz, ... of `count` samples (rate_Hz checked positive and finite; `where`
+// names the file for the message).
+std::vector<double> times_from_rate(std::size_t count, double rate_Hz, const std::string& where);
+
+// gain * raw + offset on the channels named in `calibration`; a calibration naming no channel of the table
+// is an error (a typo would leave volts labelled as newtons).
+void apply_calibration(ChannelTable& table, const std::map<std::string, ChannelCalibration>& calibration);
 
 // Linear interpolation of a channel at query times (e.g. frame timestamps). A query outside
 // [time_s.front(), time_s.back()] is an error naming the query index as a frame: nothing is extrapolated.

@@ -7,6 +7,7 @@
 #include <optional>
 #include <string>
 
+#include "capture/file_sources.hpp"
 #include "capture/frame_source.hpp"
 #include "capture/live.hpp"
 #include "core/error.hpp"
@@ -69,6 +70,7 @@ class LiveAnalysis {
 void add_live_command(CLI::App& app) {
   struct Args {
     std::string uri, scene, record, format = "tiff";
+    std::optional<double> frame_rate_Hz;
     std::int64_t frames = -1;
     double seconds = -1;
     bool no_window = false, quiet = false, overwrite = false;
@@ -91,6 +93,10 @@ void add_live_command(CLI::App& app) {
       "--scene", args->scene,
       "Scene file (YAML): calibration, what to compute, and the camera: section (settings that the "
       "camera flags below override)");
+  sub->add_option("--frame-rate-Hz", args->frame_rate_Hz,
+                  "Frame rate (Hz) of a recording whose file holds no timestamps and has no frames.csv "
+                  "beside it (a multi-page TIFF)")
+      ->check(CLI::PositiveNumber);
   sub->add_option("--record", args->record, "Also record losslessly into this folder");
   sub->add_option("--format", args->format, "Recording image format: tiff (default), pgm, png")
       ->check(CLI::IsMember({"png", "tiff", "pgm"}));
@@ -136,7 +142,8 @@ void add_live_command(CLI::App& app) {
             s.elapsed_s, static_cast<long long>(s.frames_received), s.receive_rate_hz, s.show_rate_hz,
             static_cast<long long>(s.frames_lost), static_cast<long long>(s.frames_incomplete), s.latency_ms);
       };
-    std::unique_ptr<capture::FrameSource> source = capture::open_source(args->uri, settings);
+    std::unique_ptr<capture::FrameSource> source = capture::open_source(
+        args->uri, settings, capture::FileSourceOptions{.frame_rate_Hz = args->frame_rate_Hz});
     if (source->is_live()) options.record.requested_settings = capture::describe_requested(settings);
     if (!args->quiet) std::cerr << "live: " << source->describe() << "\n";
     const capture::LiveReport report = capture::run_live(*source, options);

@@ -13,6 +13,7 @@ namespace tirstrain::cli {
 void add_process_command(CLI::App& app) {
   struct Args {
     std::string input, scene, out, overlay = "mp4", preset, segmentation, strain_mode;
+    std::optional<double> frame_rate_Hz;
     std::vector<std::string> compute;
     bool quiet = false, strict = false, no_scene = false;
   };
@@ -34,7 +35,14 @@ void add_process_command(CLI::App& app) {
       "Writes DIR/result.h5, DIR/frames.csv, DIR/summary.json and DIR/overlay.mp4 (see docs/formats.md),\n"
       "built in DIR.partial and swapped in for DIR only when complete: an earlier result stays whole until\n"
       "then. DIR must not be, or hold, INPUT or the scene, nor hold files process does not write.");
-  sub->add_option("INPUT", args->input, "Frames folder, image pattern or video file")->required();
+  sub->add_option("INPUT", args->input,
+                  "Frames folder, image pattern, multi-page TIFF, .cine, .mraw/.cih or video file "
+                  "(docs/formats.md)")
+      ->required();
+  sub->add_option("--frame-rate-Hz", args->frame_rate_Hz,
+                  "Frame rate (Hz) of a recording whose file holds no timestamps and has no frames.csv "
+                  "beside it (a multi-page TIFF)")
+      ->check(CLI::PositiveNumber);
   sub->add_option("--scene", args->scene, "Scene file (YAML) for calibration and what to compute");
   sub->add_flag(
       "--no-scene", args->no_scene,
@@ -67,6 +75,7 @@ void add_process_command(CLI::App& app) {
   sub->callback([args] {
     pipeline::ProcessOptions options;
     options.input = args->input;
+    options.frame_rate_Hz = args->frame_rate_Hz;
     if (!args->scene.empty()) options.scene_path = args->scene;
     options.folder_scene = !args->no_scene;
     options.out_dir = args->out;

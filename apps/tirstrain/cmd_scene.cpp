@@ -22,6 +22,10 @@ void add_scene_command(CLI::App& app) {
                    "Frames folder, image pattern or video file (as process takes)")
       ->required();
   init->add_option("--out", options->out_path, "Scene file to write (YAML)")->required();
+  init->add_option("--frame-rate-Hz", options->frame_rate_Hz,
+                   "Frame rate (Hz) of a recording whose file holds no timestamps and has no frames.csv "
+                   "beside it (a multi-page TIFF)")
+      ->check(CLI::PositiveNumber);
   init->add_option("--frames", options->max_frames, "Frames read at most (default 300)")
       ->check(CLI::Range(1, 1000000));
   init->callback([options] {

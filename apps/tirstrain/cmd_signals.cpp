@@ -31,8 +31,10 @@ namespace ts = tirstrain::signals;
 using nlohmann::json;
 
 constexpr const char* kInputHelp =
-    "channel file: CSV with a header row (units in the names) and a time column, or HDF5 / MATLAB v7.3 .mat "
-    "with one numeric vector per channel";
+    "channel file: CSV with a header row (units in the names) and a time column, HDF5 with one numeric "
+    "vector "
+    "per channel, or MATLAB .mat of any version (v4, v5, v7, v7.3); a channel is a name, a matrix column "
+    "NAME[:,k] (1-based) or a struct field a.b.c (docs/formats.md)";
 
 constexpr const char* kWelchConventions =
     "Spectra follow scipy.signal.welch/csd (MATLAB pwelch/cpsd/tfestimate/mscohere): periodic Hann window of "
@@ -46,6 +48,7 @@ struct Common {
   std::string time_column = "t_s";
   double rate_tolerance = 0.01;
   std::string group = "/";
+  std::optional<double> rate_Hz;  // of a file without a time column, Hz; unset: the time column is read
 };
 
 void add_common(CLI::App* sub, Common& c, const std::string& out_help) {
@@ -56,6 +59,10 @@ void add_common(CLI::App* sub, Common& c, const std::string& out_help) {
                   "largest allowed relative deviation of a sample interval from the median interval")
       ->capture_default_str();
   sub->add_option("--group", c.group, "HDF5 group holding the channel datasets")->capture_default_str();
+  sub->add_option(
+         "--rate-Hz", c.rate_Hz,
+         "sample rate, Hz, of a file holding no time column (sample i at i / rate); an error when it has one")
+      ->check(CLI::PositiveNumber);
 }
 
 ts::ChannelTable load(const Common& c, const std::string& path, std::vector<std::string> required) {
@@ -64,6 +71,7 @@ ts::ChannelTable load(const Common& c, const std::string& path, std::vector<std:
   options.required = std::move(required);
   options.rate_tolerance = c.rate_tolerance;
   options.hdf5_group = c.group;
+  options.rate_Hz = c.rate_Hz;
   return ts::read_channels(path, options);
 }
 
@@ -289,6 +297,10 @@ void add_rqa(CLI::App& signals) {
   sub->add_option("--rate-tolerance", o->c.rate_tolerance, "largest relative sample-interval deviation")
       ->capture_default_str();
   sub->add_option("--group", o->c.group, "HDF5 group holding the channel datasets")->capture_default_str();
+  sub->add_option(
+         "--rate-Hz", o->c.rate_Hz,
+         "sample rate, Hz, of a file holding no time column (sample i at i / rate); an error when it has one")
+      ->check(CLI::PositiveNumber);
   sub->add_option("--column", o->column, "channel")->required();
   sub->add_option("--dim", o->dim, "embedding dimension D")->required();
   sub->add_option("--delay", o->delay, "embedding delay tau, samples")->required();
@@ -751,8 +763,9 @@ void add_align(CLI::App& signals) {
     } else {
       if (o->camera.empty() || o->camera_column.empty())
         throw Error("--position needs --camera and --camera-column", {.key = "--camera"});
-      const auto camera = load(Common{o->camera, "", o->camera_time_column, o->c.rate_tolerance, o->c.group},
-                               o->camera, {o->camera_column});
+      const auto camera =
+          load(Common{o->camera, "", o->camera_time_column, o->c.rate_tolerance, o->c.group, std::nullopt},
+               o->camera, {o->camera_column});
       const auto oriented = [](std::vector<double> v) {
         double best = 0.0;
         for (double x : v)

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "capture/file_sources.hpp"
 #include "capture/frame_source.hpp"
 #include "core/atomic_output.hpp"
 #include "core/csv.hpp"
@@ -30,6 +31,7 @@ namespace {
 
 struct TrackOptions {
   std::string input;
+  std::optional<double> frame_rate_Hz;  // of a recording without timestamps, Hz; unset: none
   std::string points_csv;
   double grid_step_px = 0.0;
   std::string roi;
@@ -92,7 +94,8 @@ void run_track(const TrackOptions& o) {
   // Points given by the user are tracked as they are; nothing is born.
   settings.births = false;
 
-  std::unique_ptr<capture::FrameSource> source = capture::open_source(o.input);
+  std::unique_ptr<capture::FrameSource> source =
+      capture::open_source(o.input, capture::FileSourceOptions{.frame_rate_Hz = o.frame_rate_Hz});
   std::optional<capture::Frame> first = source->next();
   if (!first) throw Error("the sequence has no frames", {.file = o.input});
   const cv::Size size = first->image.size();
@@ -221,7 +224,13 @@ void add_track_command(CLI::App& app) {
       "it)\n"
       "and, beside the CSV, a JSON of the settings in effect, the texture and the per-frame tests.\n"
       "Example: tirstrain track frames/ --grid 10 --out tracks.csv   (writes tracks.csv and tracks.json)");
-  cmd->add_option("input", o->input, "Image folder, printf/glob pattern or video file")->required();
+  cmd->add_option("input", o->input,
+                  "Image folder, printf/glob pattern, multi-page TIFF, .cine, .mraw/.cih or video file")
+      ->required();
+  cmd->add_option("--frame-rate-Hz", o->frame_rate_Hz,
+                  "Frame rate (Hz) of a recording whose file holds no timestamps and has no frames.csv "
+                  "beside it (a multi-page TIFF)")
+      ->check(CLI::PositiveNumber);
   CLI::Option* points =
       cmd->add_option("--points", o->points_csv, "CSV with columns x_px,y_px (first frame)");
   CLI::Option* grid = cmd->add_option("--grid", o->grid_step_px, "Track a grid with this spacing (px)")

@@ -32,6 +32,7 @@ struct RecordingOptions {
   std::string time_column = "t_s";                        // seconds
   double rate_tolerance = 0.01;                           // largest relative deviation of a sample interval
   std::string group = "/";                                // HDF5 group of the datasets
+  std::optional<double> rate_Hz;                          // of a file without a time column, Hz
   std::string normal, tangential, position;               // columns
   bool invert_normal = false, invert_tangential = false;  // flip a channel's sign as read
   std::vector<double> tare_s;                             // a given quiet stretch T0,T1 (empty: found)
@@ -41,7 +42,8 @@ struct RecordingOptions {
 
 void add_recording_options(CLI::App* sub, RecordingOptions& o) {
   sub->add_option("IN", o.input,
-                  "channel file: CSV with a header row and a time column, or HDF5 / MATLAB v7.3 .mat")
+                  "channel file: CSV with a header row and a time column, HDF5, or MATLAB .mat (v4 to v7.3; "
+                  "NAME, NAME[:,k] or a.b.c)")
       ->required();
   sub->add_option("--normal", o.normal, "normal force channel W, N")->required();
   sub->add_option("--tangential", o.tangential, "tangential force channel F_t, N")->required();
@@ -64,6 +66,10 @@ void add_recording_options(CLI::App* sub, RecordingOptions& o) {
   sub->add_option("--rate-tolerance", o.rate_tolerance, "largest relative sample-interval deviation")
       ->capture_default_str();
   sub->add_option("--group", o.group, "HDF5 group holding the channel datasets")->capture_default_str();
+  sub->add_option(
+         "--rate-Hz", o.rate_Hz,
+         "sample rate, Hz, of a file holding no time column (sample i at i / rate); an error when it has one")
+      ->check(CLI::PositiveNumber);
 }
 
 struct Recording {
@@ -82,6 +88,7 @@ Recording read_recording(RecordingOptions& o) {
   read.time_column = o.time_column;
   read.rate_tolerance = o.rate_tolerance;
   read.hdf5_group = o.group;
+  read.rate_Hz = o.rate_Hz;
   read.required = {o.normal, o.tangential};
   if (!o.position.empty()) read.required.push_back(o.position);
   Recording r;

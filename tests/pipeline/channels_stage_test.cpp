@@ -3,6 +3,7 @@
 // from the scene; resampled channels against direct evaluation; the three clock alignments recovering a
 // known offset; bad channel files and scene sections named by file, row, column or key.
 #include <gtest/gtest.h>
+#include <matio.h>
 #include <sys/wait.h>
 #include <yaml-cpp/yaml.h>
 
@@ -432,6 +433,57 @@ TEST(ChannelsStage, RealRecordingIsTaredAndSegmented) {
   // μ at the frames (0–1 s, the approach: W below the minimum) is absent, not a ratio of offsets.
   H5Reader h5(run.h5_path);
   for (const auto v : h5.read_integers("/friction/valid")) EXPECT_EQ(v, 0);
+}
+
+// A DAQ recording as MATLAB saves it: one matrix of raw columns (normal force in volts), no time vector;
+// the channel config names the columns, gives the sample rate and the load cell's calibration.
+TEST(ChannelsStage, MatlabMatrixOfVoltsWithRateAndCalibration) {
+  const samples::Trial trial = make_trial(0.0, 0.0, 0.0);
+  const samples::ChannelSeries s = trial.channels();
+  const fs::path dir = scratch("matlab");
+  constexpr double kGain_N_per_V = 2.5, kOffset_N = -0.125;
+  const std::size_t n = s.t_s.size();
+  std::vector<double> data(3 * n);
+  for (std::size_t i = 0; i < n; ++i) {
+    data[i] = (s.normal_N[i] - kOffset_N) / kGain_N_per_V;
+    data[n + i] = s.plate_x_mm[i];
+    data[2 * n + i] = s.plate_y_mm[i];
+  }
+  {
+    mat_t* mat = Mat_CreateVer((dir / "rec.mat").c_str(), nullptr, MAT_FT_MAT5);
+    ASSERT_NE(mat, nullptr);
+    std::size_t dims[2] = {n, 3};
+    matvar_t* var = Mat_VarCreate("dataQ", MAT_C_DOUBLE, MAT_T_DOUBLE, 2, dims, data.data(), 0);
+    ASSERT_EQ(Mat_VarWrite(mat, var, MAT_COMPRESSION_ZLIB), 0);
+    Mat_VarFree(var);
+    Mat_Close(mat);
+  }
+  const Scene scene = channels_scene(
+      dir,
+      "{file: rec.mat, rate_hz: 1000, mat_column_names: {dataQ: [normal_V, plate_x_mm, plate_y_mm]}, "
+      "calibration: {normal_V: {gain: 2.5, offset: -0.125}}, units: {normal_force: N}, "
+      "columns: {normal_force: normal_V, plate_position_x: plate_x_mm, plate_position_y: plate_y_mm}}");
+  const StageRun run = run_stage(scene, trial, dir, 0.0);
+  H5Reader h5(run.h5_path);
+  const auto t_s = h5.read_doubles("/channels/t_s");
+  const auto normal = h5.read_doubles("/channels/normal_force_N");
+  ASSERT_EQ(normal.size(), n);
+  double worst_t = 0.0, worst_w = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    worst_t = std::max(worst_t, std::abs(t_s[i] - s.t_s[i]));
+    worst_w = std::max(worst_w, std::abs(normal[i] - s.normal_N[i]));
+  }
+  EXPECT_LE(worst_t, 1e-12);  // i / 1000 Hz against the synthesised sample times
+  EXPECT_LE(worst_w, 1e-12);  // volts back to newtons: rounding only
+  // Without rate_hz the file has no clock: the error names the file and what to give.
+  const Error e = expect_error([&] {
+    make_channels_stage(channels_scene(dir,
+                                       "{file: rec.mat, mat_column_names: {dataQ: [normal_V, x_mm, y_mm]}, "
+                                       "units: {normal_force: N}, columns: {normal_force: normal_V}}"))
+        ->start(TrialInfo{});
+  });
+  EXPECT_NE(std::string(e.what()).find("rec.mat"), std::string::npos) << e.what();
+  EXPECT_NE(std::string(e.what()).find("rate_hz"), std::string::npos) << e.what();
 }
 
 TEST(ChannelsStage, BadChannelFilesAndScenesAreLocated) {

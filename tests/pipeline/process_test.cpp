@@ -260,6 +260,24 @@ TEST(Process, VideoInputUsesContainerTimestamps) {
   EXPECT_TRUE(fs::exists(out / "overlay" / "000003.png"));
 }
 
+// A multi-page TIFF, as several fingertip-imaging pipelines store 1 kHz recordings: every page is a frame,
+// timed by --frame-rate-Hz (the file holds no timestamps).
+TEST(Process, MultiPageTiffGivesEveryPageAsAFrame) {
+  const fs::path dir = scratch("tiff_trial");
+  const std::string video = (dir / "video.tif").string();
+  std::vector<cv::Mat> pages;
+  for (int i = 0; i < 3; ++i) pages.push_back(test::render_tir(frame_scene(i)));
+  ASSERT_TRUE(cv::imwritemulti(video, pages));
+  const fs::path out = scratch("tiff_out");
+  const CliRun run =
+      run_cli("process " + video + " --frame-rate-Hz 1000 --out " + out.string() + " --quiet --overlay none");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  H5Reader h5((out / "result.h5").string());
+  const auto t_s = h5.read_doubles("/frames/t_s");
+  ASSERT_EQ(t_s.size(), 3u);
+  for (std::size_t i = 0; i < 3; ++i) EXPECT_DOUBLE_EQ(t_s[i], static_cast<double>(i) / 1000.0);
+}
+
 TEST(Process, StagesAskedForBringWhatTheyNeed) {
   const fs::path trial = write_trial("stages_trial", 3, false);
   const fs::path scene = trial / "scene.yaml";

@@ -1,0 +1,199 @@
+// MATLAB .mat channels through libmatio: files of every version are written here with matio itself (v4,
+// v5, v7 compressed, v7.3) and read back exactly: vectors, matrix columns (1-based), named columns, struct
+// fields, a sample rate instead of a time vector, calibration; errors name file, variable and what was
+// expected.
+#include <gtest/gtest.h>
+
+#include <matio.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/error.hpp"
+#include "signals/channels.hpp"
+
+namespace ts = tirstrain::signals;
+
+namespace {
+
+constexpr std::size_t kSamples = 6;
+
+// One folder per test (CTest runs tests in parallel processes); every file in it is written anew.
+std::string tmp(const std::string& name) {
+  const std::filesystem::path dir = std::filesystem::path(TIRSTRAIN_TEST_TMP) / "signals_mat" /
+                                    ::testing::UnitTest::GetInstance()->current_test_info()->name();
+  std::filesystem::create_directories(dir);
+  return (dir / name).string();
+}
+
+// Values exact in binary so every comparison is ==.
+double force(std::size_t i) {
+  return 0.25 * static_cast<double>(i) - 1.0;
+}
+double column_value(std::size_t i, std::size_t k) {
+  return static_cast<double>(100 * k + i) / 8.0;
+}
+
+void add(mat_t* mat, matvar_t* var, matio_compression compression) {
+  ASSERT_NE(var, nullptr);
+  ASSERT_EQ(Mat_VarWrite(mat, var, compression), 0);
+  Mat_VarFree(var);
+}
+
+matvar_t* vector_var(const char* name, std::vector<double> values) {
+  std::size_t dims[2] = {values.size(), 1};
+  return Mat_VarCreate(name, MAT_C_DOUBLE, MAT_T_DOUBLE, 2, dims, values.data(), 0);
+}
+
+// t (s), force (N x 1), dataQ (N x 3, column-major), and in v5+ rec.force.Fz (a struct in a struct) and a
+// char array.
+void write_recording(const std::string& path, mat_ft version, matio_compression compression, bool with_time) {
+  mat_t* mat = Mat_CreateVer(path.c_str(), nullptr, version);
+  ASSERT_NE(mat, nullptr) << "matio cannot write this version";
+  std::vector<double> t(kSamples), f(kSamples), q(kSamples * 3);
+  for (std::size_t i = 0; i < kSamples; ++i) {
+    t[i] = static_cast<double>(i) / 1024.0;
+    f[i] = force(i);
+    for (std::size_t k = 0; k < 3; ++k) q[k * kSamples + i] = column_value(i, k);
+  }
+  if (with_time) add(mat, vector_var("t", t), compression);
+  add(mat, vector_var("force", f), compression);
+  std::size_t qdims[2] = {kSamples, 3};
+  add(mat, Mat_VarCreate("dataQ", MAT_C_DOUBLE, MAT_T_DOUBLE, 2, qdims, q.data(), 0), compression);
+  if (version != MAT_FT_MAT4) {
+    std::size_t one[2] = {1, 1};
+    const char* inner_fields[] = {"Fz"};
+    matvar_t* inner = Mat_VarCreateStruct("force", 2, one, inner_fields, 1);
+    std::vector<double> fz(kSamples);
+    for (std::size_t i = 0; i < kSamples; ++i) fz[i] = 2.0 * force(i);
+    Mat_VarSetStructFieldByName(inner, "Fz", 0, vector_var("Fz", fz));
+    const char* outer_fields[] = {"force"};
+    matvar_t* rec = Mat_VarCreateStruct("rec", 2, one, outer_fields, 1);
+    Mat_VarSetStructFieldByName(rec, "force", 0, inner);
+    add(mat, rec, compression);
+    const char text[] = "subject 1";
+    std::size_t cdims[2] = {1, sizeof text - 1};
+    add(mat, Mat_VarCreate("note", MAT_C_CHAR, MAT_T_UINT8, 2, cdims, const_cast<char*>(text), 0),
+        compression);
+  }
+  Mat_Close(mat);
+}
+
+tirstrain::Error error_of(const std::function<void()>& fn) {
+  try {
+    fn();
+  } catch (const tirstrain::Error& e) {
+    return e;
+  }
+  ADD_FAILURE() << "expected tirstrain::Error";
+  return tirstrain::Error("none");
+}
+
+struct Version {
+  const char* name;
+  mat_ft version;
+  matio_compression compression;
+};
+
+TEST(MatChannels, EveryVersionReadsVectorsColumnsAndStructFieldsExactly) {
+  for (const Version& v :
+       {Version{"v4", MAT_FT_MAT4, MAT_COMPRESSION_NONE}, Version{"v5", MAT_FT_MAT5, MAT_COMPRESSION_NONE},
+        Version{"v7", MAT_FT_MAT5, MAT_COMPRESSION_ZLIB},
+        Version{"v73", MAT_FT_MAT73, MAT_COMPRESSION_NONE}}) {
+    SCOPED_TRACE(v.name);
+    const std::string path = tmp(std::string(v.name) + ".mat");
+    write_recording(path, v.version, v.compression, true);
+    std::vector<std::string> wanted = {"force", "dataQ[:,2]"};
+    if (v.version != MAT_FT_MAT4) wanted.push_back("rec.force.Fz");
+    const auto table = ts::read_channels(path, {.time_column = "t", .required = wanted});
+    EXPECT_EQ(table.sample_rate_Hz, 1024.0);
+    for (std::size_t i = 0; i < kSamples; ++i) {
+      EXPECT_EQ(table.time_s[i], static_cast<double>(i) / 1024.0);
+      EXPECT_EQ(table.column("force")[i], force(i));
+      EXPECT_EQ(table.column("dataQ[:,2]")[i], column_value(i, 1));
+      if (v.version != MAT_FT_MAT4) {
+        EXPECT_EQ(table.column("rec.force.Fz")[i], 2.0 * force(i));
+      }
+    }
+  }
+}
+
+TEST(MatChannels, NamedColumnsCalibrationAndARateInsteadOfATimeVector) {
+  const std::string path = tmp("rec.mat");
+  write_recording(path, MAT_FT_MAT5, MAT_COMPRESSION_ZLIB, false);
+  ts::ChannelReadOptions options;
+  options.mat_column_names = {{"dataQ", {"lateral_V", "normal_N", "vib_V"}}};
+  options.calibration = {{"normal_N", {.gain = 4.0, .offset = -0.5}}};
+  options.rate_Hz = 10000.0;
+  const auto table = ts::read_channels(path, options);
+  EXPECT_EQ(table.names, (std::vector<std::string>{"lateral_V", "normal_N", "vib_V"}));
+  for (std::size_t i = 0; i < kSamples; ++i) {
+    EXPECT_EQ(table.time_s[i], static_cast<double>(i) / 10000.0);
+    EXPECT_EQ(table.column("lateral_V")[i], column_value(i, 0));
+    EXPECT_EQ(table.column("normal_N")[i], 4.0 * column_value(i, 1) - 0.5);
+  }
+  EXPECT_NE(table.time_source.find("10000 Hz"), std::string::npos) << table.time_source;
+  // Without the rate there is no time axis, and the message says how to give one.
+  options.rate_Hz.reset();
+  auto e = error_of([&] { ts::read_channels(path, options); });
+  EXPECT_EQ(e.context().file, path);
+  EXPECT_EQ(e.context().column, "t_s");
+  EXPECT_NE(e.message().find("--rate-Hz"), std::string::npos) << e.what();
+  // A calibration for a channel the file does not have would leave volts labelled as newtons.
+  options.rate_Hz = 10000.0;
+  options.calibration = {{"normal", {.gain = 4.0}}};
+  e = error_of([&] { ts::read_channels(path, options); });
+  EXPECT_EQ(e.context().column, "normal");
+}
+
+TEST(MatChannels, ErrorsNameTheFileTheVariableAndWhatWasExpected) {
+  const std::string path = tmp("rec.mat");
+  write_recording(path, MAT_FT_MAT5, MAT_COMPRESSION_NONE, true);
+  const auto read = [&](const std::string& name) {
+    ts::read_channels(path, {.time_column = "t", .required = {name}});
+  };
+  auto e = error_of([&] { read("dataQ"); });
+  EXPECT_EQ(e.context().column, "dataQ");
+  EXPECT_NE(e.message().find("6x3 matrix"), std::string::npos) << e.what();
+  EXPECT_NE(e.message().find("dataQ[:,k] (k = 1..3)"), std::string::npos) << e.what();
+  e = error_of([&] { read("dataQ[:,4]"); });
+  EXPECT_NE(e.message().find("column 4"), std::string::npos) << e.what();
+  e = error_of([&] { read("forse"); });
+  EXPECT_NE(e.message().find("no variable 'forse'"), std::string::npos) << e.what();
+  EXPECT_NE(e.message().find("dataQ"), std::string::npos) << e.what();
+  e = error_of([&] { read("rec.force.Fy"); });
+  EXPECT_NE(e.message().find("no field 'Fy' (fields: Fz)"), std::string::npos) << e.what();
+  e = error_of([&] { read("note"); });
+  EXPECT_NE(e.message().find("char array"), std::string::npos) << e.what();
+  e = error_of(
+      [&] { ts::read_channels(path, {.time_column = "t", .required = {"force"}, .rate_Hz = 100.0}); });
+  EXPECT_EQ(e.context().key, "--rate-Hz");
+  // Not a MAT-file at all.
+  std::ofstream(tmp("text.mat")) << "t_s,force\n0,1\n";
+  e = error_of([&] { ts::read_channels(tmp("text.mat")); });
+  EXPECT_NE(e.message().find("v4, v5, v7 and v7.3"), std::string::npos) << e.what();
+  // A MAT-file under another name is still read as one; other binary is named, not parsed as CSV.
+  std::filesystem::copy_file(path, tmp("rec.daq"), std::filesystem::copy_options::overwrite_existing);
+  EXPECT_EQ(ts::read_channels(tmp("rec.daq"), {.time_column = "t", .required = {"force"}}).column("force")[1],
+            force(1));
+  std::ofstream(tmp("image.bin"), std::ios::binary) << std::string("II*\0\0\0\0\0", 8);
+  e = error_of([&] { ts::read_channels(tmp("image.bin")); });
+  EXPECT_NE(e.message().find("binary, starting with 'II*.....'"), std::string::npos) << e.what();
+  EXPECT_NE(e.message().find("HDF5"), std::string::npos) << e.what();
+}
+
+TEST(ChannelsCsv, RateInsteadOfATimeColumn) {
+  const std::string path = tmp("daq.csv");
+  std::ofstream(path) << "force_V\n1\n2\n3\n";
+  const auto table = ts::read_channels(path, {.rate_Hz = 4.0, .calibration = {{"force_V", {.gain = 2.0}}}});
+  EXPECT_EQ(table.time_s, (std::vector<double>{0.0, 0.25, 0.5}));
+  EXPECT_EQ(table.column("force_V"), (std::vector<double>{2.0, 4.0, 6.0}));
+  const auto e = error_of([&] { ts::read_channels(path); });
+  EXPECT_NE(e.message().find("--rate-Hz"), std::string::npos) << e.what();
+}
+
+}  // namespace
