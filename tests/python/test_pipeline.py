@@ -67,11 +67,37 @@ def test_read_result_keeps_dtypes(tmp_path):
     assert r["/c"].dtype == np.float32 and r["/c"][0] == 1.5 and math.isnan(r["/c"][1])
 
 
-def test_errors_are_the_cli_messages(tmp_path, cli):
+def test_errors_name_the_input(tmp_path):
+    # tirstrain process prints the same; test_track_reads_a_frames_folder compares a message with the CLI.
     missing = tmp_path / "no_such_recording"
     with pytest.raises(tirstrain.Error) as e:
         tirstrain.process(missing, tmp_path / "out", quiet=True)
-    assert str(e.value) == cli_error(cli("process", missing, "--out", tmp_path / "out", "--quiet"))
+    assert str(e.value) == f"{missing}: no such file or folder"
     assert not (tmp_path / "out").exists()
     with pytest.raises(tirstrain.Error, match="cannot read HDF5 file"):
         tirstrain.read_result(tmp_path / "none.h5")
+
+
+def test_track_reads_a_frames_folder(trial, tmp_path, cli):
+    truth = tirstrain.read_result(trial / "truth.h5")
+    # The box inside the rendered contact (outside it, the dots printed on the glass move with the plate).
+    ys, xs = np.nonzero(truth["/contact/mask"][0])
+    box = (int(xs.min()) + 20, int(ys.min()) + 20, int(xs.max() - xs.min()) - 40, int(ys.max() - ys.min()) - 40)
+    reference, position, status = tirstrain.track(trial, grid_px=12, roi=box)
+    assert position.shape == (4, len(reference), 2) and status.shape == (4, len(reference))
+    alive = status[-1] < 10
+    assert alive.sum() >= 4
+    # Against the rendered field (truth grid, bilinear between its nodes): the tracker is good to ~0.03 px here.
+    gx, gy, u = truth["/grid/x_px"], truth["/grid/y_px"], truth["/field/displacement_px"][-1]
+    for k in np.nonzero(alive)[0]:
+        x, y = reference[k]
+        i, j = np.searchsorted(gx, x) - 1, np.searchsorted(gy, y) - 1
+        fx, fy = (x - gx[i]) / (gx[i + 1] - gx[i]), (y - gy[j]) / (gy[j + 1] - gy[j])
+        expected = (u[j, i] * (1 - fx) * (1 - fy) + u[j, i + 1] * fx * (1 - fy) + u[j + 1, i] * (1 - fx) * fy +
+                    u[j + 1, i + 1] * fx * fy)
+        np.testing.assert_allclose(position[-1][k] - reference[k], expected, atol=0.1)
+    assert np.abs(u).max() > 3.0  # the field moved the skin by pixels, not hundredths
+    missing = tmp_path / "no_frames_here"
+    with pytest.raises(tirstrain.Error) as e:
+        tirstrain.track(missing, grid_px=20)
+    assert str(e.value) == cli_error(cli("track", missing, "--grid", 20, "--out", tmp_path / "t.csv"))
