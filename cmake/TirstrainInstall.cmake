@@ -37,9 +37,22 @@ install(FILES ${PROJECT_BINARY_DIR}/tirstrainConfig.cmake ${PROJECT_BINARY_DIR}/
 
 install(TARGETS tirstrain RUNTIME DESTINATION bin COMPONENT cli)
 
-# Debian packages: tirstrain (the CLI and the Python module; library dependencies from dpkg-shlibdeps) and
-# tirstrain-dev (headers, static libraries, CMake package; depends on the -dev packages the headers and the
-# static libraries' links need).
+# Debian packages: tirstrain (the CLI), python3-tirstrain (the module) and tirstrain-dev (headers, static
+# libraries, CMake package; depends on the -dev packages the headers and the static libraries' links need).
+# The runtime Depends are Debian 12's packages of the shared libraries the CLI and the module link
+# (tests/package/check_deb.sh checks every one they need is named); TIRSTRAIN_DEB_SHLIBDEPS computes them
+# with dpkg-shlibdeps instead, which takes ~10 s of CPU a package.
+option(TIRSTRAIN_DEB_SHLIBDEPS "cpack -G DEB: runtime Depends from dpkg-shlibdeps instead of the list" OFF)
+set(TIRSTRAIN_DEB_RUNTIME_DEPENDS
+    "libc6 (>= 2.35), libstdc++6 (>= 12), libgcc-s1, libopencv-core406, libopencv-imgproc406, libopencv-imgcodecs406, libopencv-videoio406, libopencv-video406, libopencv-highgui406, libhdf5-103-1, libhdf5-cpp-103-1, libyaml-cpp0.7, libaravis-0.8-0 (>= 0.8.26), libcamera0.0.3, libglib2.0-0, libgmp10, libgoogle-glog0v6, libcholmod3, libcxsparse3, libspqr2, libatlas3-base"
+    CACHE STRING "Depends of the tirstrain and python3-tirstrain packages (without TIRSTRAIN_DEB_SHLIBDEPS)")
+set(tirstrain_runtime_depends "")
+if(NOT TIRSTRAIN_DEB_SHLIBDEPS)
+  set(tirstrain_runtime_depends "${TIRSTRAIN_DEB_RUNTIME_DEPENDS}")
+  if(TIRSTRAIN_SANITIZE)
+    string(APPEND tirstrain_runtime_depends ", libasan8, libubsan1")
+  endif()
+endif()
 set(CPACK_PACKAGE_NAME tirstrain)
 set(CPACK_PACKAGE_VENDOR tirstrain)
 set(CPACK_PACKAGE_CONTACT "tirstrain maintainers <tirstrain@localhost>")
@@ -60,11 +73,15 @@ set(CPACK_DEBIAN_DEV_PACKAGE_NAME tirstrain-dev)
 set(CPACK_DEBIAN_CLI_PACKAGE_SECTION science)
 set(CPACK_DEBIAN_PYTHON_PACKAGE_SECTION python)
 set(CPACK_DEBIAN_DEV_PACKAGE_SECTION libdevel)
-set(CPACK_DEBIAN_CLI_PACKAGE_SHLIBDEPS ON)
-set(CPACK_DEBIAN_PYTHON_PACKAGE_SHLIBDEPS ON)
+set(CPACK_DEBIAN_CLI_PACKAGE_SHLIBDEPS ${TIRSTRAIN_DEB_SHLIBDEPS})
+set(CPACK_DEBIAN_PYTHON_PACKAGE_SHLIBDEPS ${TIRSTRAIN_DEB_SHLIBDEPS})
+set(CPACK_DEBIAN_CLI_PACKAGE_DEPENDS "${tirstrain_runtime_depends}")
 # The extension is built for one interpreter version (its file name carries the ABI tag).
 set(CPACK_DEBIAN_PYTHON_PACKAGE_DEPENDS
     "python3 (>= ${Python3_VERSION_MAJOR}.${Python3_VERSION_MINOR}), python3 (<< ${Python3_VERSION_MAJOR}.${Python3_VERSION_MINOR}.99), python3-numpy")
+if(tirstrain_runtime_depends)
+  string(APPEND CPACK_DEBIAN_PYTHON_PACKAGE_DEPENDS ", ${tirstrain_runtime_depends}")
+endif()
 set(CPACK_DEBIAN_DEV_PACKAGE_DEPENDS
     "libopencv-dev, libeigen3-dev, libhdf5-dev, libyaml-cpp-dev, nlohmann-json3-dev, libcgal-dev, libceres-dev, libaravis-dev, libcamera-dev, pkg-config")
 include(CPack)

@@ -22,7 +22,7 @@ cmake --build "$work/consumer" > "$work/build.log" || { cat "$work/build.log"; e
 "$work/consumer/consumer_pipeline"
 if [ -n "$python" ]; then
   # A sanitizer build's module needs the ASan runtime loaded into the (uninstrumented) interpreter first.
-  PYTHONPATH="$prefix/lib/python3/dist-packages" LD_PRELOAD="${TIRSTRAIN_PYTHON_PRELOAD:-}" \
+  PYTHONPATH=$(echo "$prefix"/lib/python3*/dist-packages) LD_PRELOAD="${TIRSTRAIN_PYTHON_PRELOAD:-}" \
     ASAN_OPTIONS=detect_leaks=0 "$python" -c "
 import sys, tirstrain
 assert tirstrain.__file__.startswith(sys.argv[1]), tirstrain.__file__
