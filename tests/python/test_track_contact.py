@@ -45,6 +45,9 @@ def test_track_accepts_uint8_and_roi():
     assert ((reference >= [40, 20]) & (reference <= [99, 79])).all()
     alive = status[-1] < 10
     np.testing.assert_allclose(np.median(position[1][alive] - reference[alive], axis=0), SHIFTS[1], atol=0.05)
+    # A 3-D array [N, H, W] is its N frames.
+    stacked = tirstrain.track(np.stack(frames), grid_px=12, roi=(40, 20, 60, 60))
+    np.testing.assert_array_equal(stacked[1], position)
 
 
 def test_track_errors_name_the_frame():
