@@ -85,3 +85,10 @@ endif()
 set(CPACK_DEBIAN_DEV_PACKAGE_DEPENDS
     "libopencv-dev, libeigen3-dev, libhdf5-dev, libyaml-cpp-dev, nlohmann-json3-dev, libcgal-dev, libceres-dev, libaravis-dev, libcamera-dev, pkg-config")
 include(CPack)
+
+# The packaged binaries record only the shared libraries they use, so that their Depends (above) are the
+# same whatever the build type and whatever the dependencies' link lines drag in.
+target_link_options(tirstrain PRIVATE -Wl,--as-needed)
+if(TIRSTRAIN_BUILD_PYTHON)
+  target_link_options(tirstrain_python PRIVATE -Wl,--as-needed)
+endif()
