@@ -1,4 +1,5 @@
-// libFuzzer target: channels in an HDF5 or MATLAB v7.3 file (signals/channels.hpp read_channels).
+// libFuzzer target: channels in an HDF5 or MATLAB file of any version (signals/channels.hpp read_channels;
+// MATLAB v4, v5 and v7 through libmatio, recognised by their first bytes).
 #include <cstddef>
 #include <cstdint>
 
