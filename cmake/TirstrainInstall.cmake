@@ -44,7 +44,7 @@ install(TARGETS tirstrain RUNTIME DESTINATION bin COMPONENT cli)
 # with dpkg-shlibdeps instead, which takes ~10 s of CPU a package.
 option(TIRSTRAIN_DEB_SHLIBDEPS "cpack -G DEB: runtime Depends from dpkg-shlibdeps instead of the list" OFF)
 set(TIRSTRAIN_DEB_RUNTIME_DEPENDS
-    "libc6 (>= 2.35), libstdc++6 (>= 12), libgcc-s1, libopencv-core406, libopencv-imgproc406, libopencv-imgcodecs406, libopencv-videoio406, libopencv-video406, libopencv-highgui406, libhdf5-103-1, libhdf5-cpp-103-1, libyaml-cpp0.7, libaravis-0.8-0 (>= 0.8.26), libcamera0.0.3, libglib2.0-0, libgmp10, libgoogle-glog0v6, libcholmod3, libcxsparse3, libspqr2, libatlas3-base"
+    "libc6 (>= 2.35), libstdc++6 (>= 12), libgcc-s1, libopencv-core406, libopencv-imgproc406, libopencv-imgcodecs406, libopencv-videoio406, libopencv-video406, libopencv-highgui406, libhdf5-103-1, libhdf5-cpp-103-1, libyaml-cpp0.7, libaravis-0.8-0 (>= 0.8.26), libcamera0.0.3, libtiff6, libmatio11, libglib2.0-0, libgmp10, libgoogle-glog0v6, libcholmod3, libcxsparse3, libspqr2, libatlas3-base"
     CACHE STRING "Depends of the tirstrain and python3-tirstrain packages (without TIRSTRAIN_DEB_SHLIBDEPS)")
 set(tirstrain_runtime_depends "")
 if(NOT TIRSTRAIN_DEB_SHLIBDEPS)
@@ -83,7 +83,7 @@ if(tirstrain_runtime_depends)
   string(APPEND CPACK_DEBIAN_PYTHON_PACKAGE_DEPENDS ", ${tirstrain_runtime_depends}")
 endif()
 set(CPACK_DEBIAN_DEV_PACKAGE_DEPENDS
-    "libopencv-dev, libeigen3-dev, libhdf5-dev, libyaml-cpp-dev, nlohmann-json3-dev, libcgal-dev, libceres-dev, libaravis-dev, libcamera-dev, pkg-config")
+    "libopencv-dev, libeigen3-dev, libhdf5-dev, libyaml-cpp-dev, nlohmann-json3-dev, libcgal-dev, libceres-dev, libaravis-dev, libcamera-dev, libtiff-dev, libmatio-dev, pkg-config")
 include(CPack)
 
 # The packaged binaries record only the shared libraries they use, so that their Depends (above) are the
