@@ -53,6 +53,10 @@ Scene parse_scene(const YAML::Node& root, const std::string& file) {
     scene.compute.clear();
     scene.compute_given = true;
     for (const auto& s : stages) {
+      if (!s.IsScalar())
+        throw Error("row " + std::to_string(s.Mark().line + 1) +
+                        ": a stage name must be plain text, not a list or mapping",
+                    {.file = file, .key = "compute"});
       const std::string name = s.as<std::string>();
       const auto& known = known_stages();
       if (std::find(known.begin(), known.end(), name) == known.end())

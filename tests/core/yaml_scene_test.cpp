@@ -140,6 +140,15 @@ TEST(Scene, KeyThatIsNotTextIsRefusedWithItsLine) {
   EXPECT_NE(finish.find("a key must be plain text"), std::string::npos) << finish;
 }
 
+TEST(Scene, StageNameThatIsNotTextIsRefusedWithItsLine) {
+  // yaml-cpp's own conversion error would escape without the file, key or line.
+  const std::string message =
+      error_of(write_scene("map_stage.yaml", "calibration: {px_per_mm: 52}\ncompute: [contact, {mm: 5}]\n"));
+  EXPECT_NE(message.find("map_stage.yaml"), std::string::npos) << message;
+  EXPECT_NE(message.find("compute"), std::string::npos) << message;
+  EXPECT_NE(message.find("row 2: a stage name must be plain text"), std::string::npos) << message;
+}
+
 TEST(Scene, KeyGivenTwiceIsRefusedWithBothLines) {
   // yaml-cpp would keep both and a lookup would find the first: the second calibration would be ignored.
   const std::string top = write_scene("twice.yaml",
