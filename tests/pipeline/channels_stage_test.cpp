@@ -29,6 +29,7 @@
 #include "samples/trial.hpp"
 #include "signals/channels.hpp"
 #include "tests/signals/synthetic_recording.hpp"
+#include "tests/support/expect_error.hpp"
 #include "tests/support/scratch.hpp"
 
 namespace tirstrain::pipeline {
@@ -165,15 +166,7 @@ double scalar(const H5Reader& h5, const std::string& name) {
   return v.empty() ? std::nan("") : v.front();
 }
 
-Error expect_error(const std::function<void()>& fn) {
-  try {
-    fn();
-  } catch (const Error& e) {
-    return e;
-  }
-  ADD_FAILURE() << "expected tirstrain::Error";
-  return Error("none");
-}
+using tirstrain::testing::expect_error;
 
 TEST(ChannelsStage, FrictionEventsAndWorkMatchTheLoadHistory) {
   // Force noise 10 mN (normal) and 5 mN (tangential), as a lab's force plate.

@@ -17,6 +17,7 @@
 
 #include "core/error.hpp"
 #include "signals/channels.hpp"
+#include "tests/support/expect_error.hpp"
 
 namespace ts = tirstrain::signals;
 
@@ -36,15 +37,7 @@ std::string write_text(const std::string& name, const std::string& text) {
   return path;
 }
 
-tirstrain::Error expect_error(const std::function<void()>& fn) {
-  try {
-    fn();
-  } catch (const tirstrain::Error& e) {
-    return e;
-  }
-  ADD_FAILURE() << "expected tirstrain::Error";
-  return tirstrain::Error("none");
-}
+using tirstrain::testing::expect_error;
 
 template <typename Where>
 void write_vector(Where& where, const std::string& name, const std::vector<double>& v,

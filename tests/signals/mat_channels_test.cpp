@@ -15,6 +15,7 @@
 
 #include "core/error.hpp"
 #include "signals/channels.hpp"
+#include "tests/support/expect_error.hpp"
 
 namespace ts = tirstrain::signals;
 
@@ -83,15 +84,7 @@ void write_recording(const std::string& path, mat_ft version, matio_compression 
   Mat_Close(mat);
 }
 
-tirstrain::Error error_of(const std::function<void()>& fn) {
-  try {
-    fn();
-  } catch (const tirstrain::Error& e) {
-    return e;
-  }
-  ADD_FAILURE() << "expected tirstrain::Error";
-  return tirstrain::Error("none");
-}
+using tirstrain::testing::expect_error;
 
 struct Version {
   const char* name;
@@ -139,14 +132,14 @@ TEST(MatChannels, NamedColumnsCalibrationAndARateInsteadOfATimeVector) {
   EXPECT_NE(table.time_source.find("10000 Hz"), std::string::npos) << table.time_source;
   // Without the rate there is no time axis, and the message says how to give one.
   options.rate_Hz.reset();
-  auto e = error_of([&] { ts::read_channels(path, options); });
+  auto e = expect_error([&] { ts::read_channels(path, options); });
   EXPECT_EQ(e.context().file, path);
   EXPECT_EQ(e.context().column, "t_s");
   EXPECT_NE(e.message().find("--rate-Hz"), std::string::npos) << e.what();
   // A calibration for a channel the file does not have would leave volts labelled as newtons.
   options.rate_Hz = 10000.0;
   options.calibration = {{"normal", {.gain = 4.0}}};
-  e = error_of([&] { ts::read_channels(path, options); });
+  e = expect_error([&] { ts::read_channels(path, options); });
   EXPECT_EQ(e.context().column, "normal");
 }
 
@@ -156,32 +149,32 @@ TEST(MatChannels, ErrorsNameTheFileTheVariableAndWhatWasExpected) {
   const auto read = [&](const std::string& name) {
     ts::read_channels(path, {.time_column = "t", .required = {name}});
   };
-  auto e = error_of([&] { read("dataQ"); });
+  auto e = expect_error([&] { read("dataQ"); });
   EXPECT_EQ(e.context().column, "dataQ");
   EXPECT_NE(e.message().find("6x3 matrix"), std::string::npos) << e.what();
   EXPECT_NE(e.message().find("dataQ[:,k] (k = 1..3)"), std::string::npos) << e.what();
-  e = error_of([&] { read("dataQ[:,4]"); });
+  e = expect_error([&] { read("dataQ[:,4]"); });
   EXPECT_NE(e.message().find("column 4"), std::string::npos) << e.what();
-  e = error_of([&] { read("forse"); });
+  e = expect_error([&] { read("forse"); });
   EXPECT_NE(e.message().find("no variable 'forse'"), std::string::npos) << e.what();
   EXPECT_NE(e.message().find("dataQ"), std::string::npos) << e.what();
-  e = error_of([&] { read("rec.force.Fy"); });
+  e = expect_error([&] { read("rec.force.Fy"); });
   EXPECT_NE(e.message().find("no field 'Fy' (fields: Fz)"), std::string::npos) << e.what();
-  e = error_of([&] { read("note"); });
+  e = expect_error([&] { read("note"); });
   EXPECT_NE(e.message().find("char array"), std::string::npos) << e.what();
-  e = error_of(
+  e = expect_error(
       [&] { ts::read_channels(path, {.time_column = "t", .required = {"force"}, .rate_Hz = 100.0}); });
   EXPECT_EQ(e.context().key, "--rate-Hz");
   // Not a MAT-file at all.
   std::ofstream(tmp("text.mat")) << "t_s,force\n0,1\n";
-  e = error_of([&] { ts::read_channels(tmp("text.mat")); });
+  e = expect_error([&] { ts::read_channels(tmp("text.mat")); });
   EXPECT_NE(e.message().find("v4, v5, v7 and v7.3"), std::string::npos) << e.what();
   // A MAT-file under another name is still read as one; other binary is named, not parsed as CSV.
   std::filesystem::copy_file(path, tmp("rec.daq"), std::filesystem::copy_options::overwrite_existing);
   EXPECT_EQ(ts::read_channels(tmp("rec.daq"), {.time_column = "t", .required = {"force"}}).column("force")[1],
             force(1));
   std::ofstream(tmp("image.bin"), std::ios::binary) << std::string("II*\0\0\0\0\0", 8);
-  e = error_of([&] { ts::read_channels(tmp("image.bin")); });
+  e = expect_error([&] { ts::read_channels(tmp("image.bin")); });
   EXPECT_NE(e.message().find("binary, starting with 'II*.....'"), std::string::npos) << e.what();
   EXPECT_NE(e.message().find("HDF5"), std::string::npos) << e.what();
 }
@@ -192,7 +185,7 @@ TEST(ChannelsCsv, RateInsteadOfATimeColumn) {
   const auto table = ts::read_channels(path, {.rate_Hz = 4.0, .calibration = {{"force_V", {.gain = 2.0}}}});
   EXPECT_EQ(table.time_s, (std::vector<double>{0.0, 0.25, 0.5}));
   EXPECT_EQ(table.column("force_V"), (std::vector<double>{2.0, 4.0, 6.0}));
-  const auto e = error_of([&] { ts::read_channels(path); });
+  const auto e = expect_error([&] { ts::read_channels(path); });
   EXPECT_NE(e.message().find("--rate-Hz"), std::string::npos) << e.what();
 }
 
