@@ -61,6 +61,92 @@ void add_run(std::vector<std::uint64_t>& hist, std::size_t length, std::uint64_t
   hist[length] += weight;
 }
 
+// The key of the target-th smallest pair (1-based): a few histogram passes narrow the range, then the
+// pairs in the last bin are collected and selected exactly.
+double key_at_rank(const Embedding& e, RecurrenceNorm norm, std::uint64_t target) {
+  constexpr std::size_t kBins = 1 << 16;
+  constexpr std::uint64_t kCollectLimit = 1 << 22;
+  double lo = 0.0, hi = upper_bound_key(e, norm);
+  std::uint64_t below = 0;  // pairs with key < lo
+  std::vector<std::uint64_t> hist(kBins);
+  std::vector<double> bin_min(kBins), bin_max(kBins);
+  for (int pass = 0; pass < 64; ++pass) {
+    if (!(hi > lo)) return lo;
+    const double width = (hi - lo) / static_cast<double>(kBins);
+    auto bin_of = [&](double k) {
+      return std::min<std::size_t>(kBins - 1, static_cast<std::size_t>((k - lo) / width));
+    };
+    std::fill(hist.begin(), hist.end(), 0);
+    std::fill(bin_min.begin(), bin_min.end(), std::numeric_limits<double>::infinity());
+    std::fill(bin_max.begin(), bin_max.end(), -std::numeric_limits<double>::infinity());
+    std::uint64_t new_below = 0;
+    for_each_pair(e, norm, [&](std::size_t, std::size_t, double k) {
+      if (k < lo) {
+        ++new_below;
+      } else if (k <= hi) {
+        const std::size_t b = bin_of(k);
+        ++hist[b];
+        bin_min[b] = std::min(bin_min[b], k);
+        bin_max[b] = std::max(bin_max[b], k);
+      }
+    });
+    below = new_below;
+    std::uint64_t cumulative = below;
+    std::size_t b = 0;
+    for (; b < kBins; ++b) {
+      if (cumulative + hist[b] >= target) break;
+      cumulative += hist[b];
+    }
+    if (b == kBins) return hi;
+    if (bin_min[b] == bin_max[b]) return bin_min[b];
+    if (hist[b] <= kCollectLimit) {
+      std::vector<double> keys;
+      keys.reserve(hist[b]);
+      const double bmin = bin_min[b], bmax = bin_max[b];
+      for_each_pair(e, norm, [&](std::size_t, std::size_t, double k) {
+        if (k >= bmin && k <= bmax && k >= lo && k <= hi && bin_of(k) == b) keys.push_back(k);
+      });
+      const std::size_t rank = static_cast<std::size_t>(target - cumulative - 1);
+      std::nth_element(keys.begin(), keys.begin() + static_cast<std::ptrdiff_t>(rank), keys.end());
+      return keys[rank];
+    }
+    lo = bin_min[b];
+    hi = bin_max[b];
+  }
+  return hi;
+}
+
+std::uint64_t pair_count(std::size_t points) {
+  return static_cast<std::uint64_t>(points) * (points > 0 ? points - 1 : 0) / 2;
+}
+
+// ceil(rate · pairs) as an integer, at least 1: the promise of a fixed recurrence rate.
+std::uint64_t pairs_for_rate(double rate, std::uint64_t pairs, const char* key) {
+  if (!(rate > 0.0 && rate <= 1.0)) throw Error("recurrence rate must lie in (0, 1]", {.key = key});
+  // A decimal rate such as 0.05 is not exact in binary: the product is allowed a relative 1e-12 so that
+  // 0.05 · 100 pairs asks for 5 pairs, not 6.
+  const double wanted = rate * static_cast<double>(pairs);
+  const auto target = static_cast<std::uint64_t>(std::ceil(wanted * (1.0 - 1e-12)));
+  return std::clamp<std::uint64_t>(target, 1, std::max<std::uint64_t>(pairs, 1));
+}
+
+RecurrenceMatrix matrix_at_key(const Embedding& e, double key, RecurrenceNorm norm) {
+  RecurrenceMatrix r(e.points);
+  for_each_pair(e, norm, [&](std::size_t i, std::size_t j, double k) {
+    if (k <= key) r.set_pair(i, j);
+  });
+  return r;
+}
+
+std::uint64_t joint_pairs_within(const Embedding& x, const Embedding& y, double key_x, double key_y,
+                                 RecurrenceNorm norm) {
+  std::uint64_t n = 0;
+  for_each_pair(x, norm, [&](std::size_t i, std::size_t j, double k) {
+    if (k <= key_x && pair_key(y, i, j, norm) <= key_y) ++n;
+  });
+  return n;
+}
+
 }  // namespace
 
 Embedding delay_embed(const std::vector<double>& x, std::size_t dim, std::size_t delay) {
@@ -111,69 +197,45 @@ RecurrenceMatrix RecurrenceMatrix::operator&(const RecurrenceMatrix& other) cons
 RecurrenceMatrix recurrence_matrix(const Embedding& e, double threshold, RecurrenceNorm norm) {
   if (!(threshold >= 0.0) || !std::isfinite(threshold))
     throw Error("recurrence threshold must be a finite number >= 0", {.key = "threshold"});
-  const double key = key_of_threshold(threshold, norm);
-  RecurrenceMatrix r(e.points);
-  for_each_pair(e, norm, [&](std::size_t i, std::size_t j, double k) {
-    if (k <= key) r.set_pair(i, j);
-  });
-  return r;
+  return matrix_at_key(e, key_of_threshold(threshold, norm), norm);
 }
 
 double threshold_for_recurrence_rate(const Embedding& e, double rate, RecurrenceNorm norm) {
-  if (!(rate > 0.0 && rate <= 1.0))
-    throw Error("recurrence rate must lie in (0, 1]", {.key = "recurrence_rate"});
-  const double pairs = 0.5 * static_cast<double>(e.points) * static_cast<double>(e.points - 1);
-  const auto target = static_cast<std::uint64_t>(std::max(1.0, std::ceil(rate * pairs - 1e-9)));
-  constexpr std::size_t kBins = 1 << 16;
-  constexpr std::uint64_t kCollectLimit = 1 << 22;
-  double lo = 0.0, hi = upper_bound_key(e, norm);
-  std::uint64_t below = 0;  // pairs with key < lo
-  std::vector<std::uint64_t> hist(kBins);
-  std::vector<double> bin_min(kBins), bin_max(kBins);
-  for (int pass = 0; pass < 64; ++pass) {
-    if (!(hi > lo)) return threshold_of_key(lo, norm);
-    const double width = (hi - lo) / static_cast<double>(kBins);
-    auto bin_of = [&](double k) {
-      return std::min<std::size_t>(kBins - 1, static_cast<std::size_t>((k - lo) / width));
-    };
-    std::fill(hist.begin(), hist.end(), 0);
-    std::fill(bin_min.begin(), bin_min.end(), std::numeric_limits<double>::infinity());
-    std::fill(bin_max.begin(), bin_max.end(), -std::numeric_limits<double>::infinity());
-    std::uint64_t new_below = 0;
-    for_each_pair(e, norm, [&](std::size_t, std::size_t, double k) {
-      if (k < lo) {
-        ++new_below;
-      } else if (k <= hi) {
-        const std::size_t b = bin_of(k);
-        ++hist[b];
-        bin_min[b] = std::min(bin_min[b], k);
-        bin_max[b] = std::max(bin_max[b], k);
-      }
-    });
-    below = new_below;
-    std::uint64_t cumulative = below;
-    std::size_t b = 0;
-    for (; b < kBins; ++b) {
-      if (cumulative + hist[b] >= target) break;
-      cumulative += hist[b];
-    }
-    if (b == kBins) return threshold_of_key(hi, norm);
-    if (bin_min[b] == bin_max[b]) return threshold_of_key(bin_min[b], norm);
-    if (hist[b] <= kCollectLimit) {
-      std::vector<double> keys;
-      keys.reserve(hist[b]);
-      const double bmin = bin_min[b], bmax = bin_max[b];
-      for_each_pair(e, norm, [&](std::size_t, std::size_t, double k) {
-        if (k >= bmin && k <= bmax && k >= lo && k <= hi && bin_of(k) == b) keys.push_back(k);
-      });
-      const std::size_t rank = static_cast<std::size_t>(target - cumulative - 1);
-      std::nth_element(keys.begin(), keys.begin() + static_cast<std::ptrdiff_t>(rank), keys.end());
-      return threshold_of_key(keys[rank], norm);
-    }
-    lo = bin_min[b];
-    hi = bin_max[b];
+  const std::uint64_t target = pairs_for_rate(rate, pair_count(e.points), "recurrence_rate");
+  return threshold_of_key(key_at_rank(e, norm, target), norm);
+}
+
+RateRecurrence recurrence_at_rate(const Embedding& e, double rate, RecurrenceNorm norm) {
+  const std::uint64_t target = pairs_for_rate(rate, pair_count(e.points), "recurrence_rate");
+  const double key = key_at_rank(e, norm, target);
+  return {matrix_at_key(e, key, norm), threshold_of_key(key, norm)};
+}
+
+JointRateRecurrence joint_recurrence_at_rate(const Embedding& x, const Embedding& y, double joint_rate,
+                                             RecurrenceNorm norm) {
+  if (x.points != y.points)
+    throw Error("joint recurrence needs series of equal embedded length (" + std::to_string(x.points) +
+                " vs " + std::to_string(y.points) + " points)");
+  const std::uint64_t pairs = pair_count(x.points);
+  const std::uint64_t target = pairs_for_rate(joint_rate, pairs, "joint_recurrence_rate");
+  // Each series keeps its own k nearest pairs; the joint count grows with k, so the smallest k whose joint
+  // plot holds the target is found by bisection over k.
+  std::uint64_t lo = target, hi = pairs;
+  while (lo < hi) {
+    const std::uint64_t mid = lo + (hi - lo) / 2;
+    const double kx = key_at_rank(x, norm, mid), ky = key_at_rank(y, norm, mid);
+    if (joint_pairs_within(x, y, kx, ky, norm) >= target)
+      hi = mid;
+    else
+      lo = mid + 1;
   }
-  return threshold_of_key(hi, norm);
+  const double key_x = key_at_rank(x, norm, lo), key_y = key_at_rank(y, norm, lo);
+  JointRateRecurrence out;
+  out.matrix = matrix_at_key(x, key_x, norm) & matrix_at_key(y, key_y, norm);
+  out.threshold_x = threshold_of_key(key_x, norm);
+  out.threshold_y = threshold_of_key(key_y, norm);
+  out.rate_each = static_cast<double>(lo) / static_cast<double>(pairs);
+  return out;
 }
 
 LineHistograms& LineHistograms::operator+=(const LineHistograms& other) {
@@ -267,6 +329,20 @@ RqaMeasures rqa_measures(const LineHistograms& h, std::size_t min_line) {
   }
   if (diag_lines > 0.0) out.mean_diagonal_length = diag_points / diag_lines;
   if (vert_lines > 0.0) out.trapping_time = vert_points / vert_lines;
+  return out;
+}
+
+RecurrenceMatrix ensemble_matrix(const std::vector<RecurrenceMatrix>& trials, std::size_t min_trials) {
+  if (min_trials < 1 || min_trials > trials.size())
+    throw Error("an ensemble cell needs between 1 and " + std::to_string(trials.size()) +
+                    " recurring trials, not " + std::to_string(min_trials),
+                {.key = "ensemble_min_trials"});
+  const auto counts = ensemble_sum(trials);
+  const std::size_t m = trials.front().size();
+  RecurrenceMatrix out(m);
+  for (std::size_t i = 0; i < m; ++i)
+    for (std::size_t j = i + 1; j < m; ++j)
+      if (counts[i * m + j] >= min_trials) out.set_pair(i, j);
   return out;
 }
 

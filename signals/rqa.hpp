@@ -13,7 +13,14 @@
 //   - RR = Σ R / (M(M−1)); DET = Σ_{l≥lmin} l·P(l) / Σ R; L = Σ_{l≥lmin} l·P(l) / Σ_{l≥lmin} P(l);
 //     LAM = Σ_{v≥lmin} v·P(v) / Σ R; a measure with an empty denominator is 0;
 //   - fixed recurrence rate r: ε is the smallest off-diagonal distance d such that at least
-//     ceil(r·M(M−1)/2) of the M(M−1)/2 pairs have distance <= d (ties may push RR slightly above r).
+//     ceil(r·M(M−1)/2) of the M(M−1)/2 pairs have distance <= d (ties may push RR slightly above r);
+//     recurrence_at_rate builds the matrix from the very comparison key that chose ε, so the promise holds
+//     exactly (ε as a distance is only reported);
+//   - fixed joint recurrence rate r: each series keeps its k closest pairs, with the smallest k for which
+//     at least ceil(r·M(M−1)/2) pairs recur in both (one more when two pairs enter at the same k, ties
+//     aside); both series then recur at the same rate k / (M(M−1)/2);
+//   - ensemble of trials: the recurrence matrices are summed cell by cell; a cell of the ensemble plot
+//     recurs when it recurs in at least a given number of trials.
 // Memory: the matrix is a bitset (M²/8 bytes: 12.5 MB for M = 10⁴); choosing ε for a fixed rate uses two
 // or three histogram passes over the distances instead of storing them.
 #include <cstddef>
@@ -62,6 +69,22 @@ RecurrenceMatrix recurrence_matrix(const Embedding& e, double threshold, Recurre
 // ε for a target recurrence rate in (0, 1], see the conventions above.
 double threshold_for_recurrence_rate(const Embedding& e, double rate, RecurrenceNorm norm);
 
+// The matrix at a fixed recurrence rate, and the threshold that gives it (see the conventions above).
+struct RateRecurrence {
+  RecurrenceMatrix matrix;
+  double threshold = 0.0;  // ε, in the series' units
+};
+RateRecurrence recurrence_at_rate(const Embedding& e, double rate, RecurrenceNorm norm);
+
+// The joint recurrence matrix of two embeddings of equal length at a fixed joint recurrence rate.
+struct JointRateRecurrence {
+  RecurrenceMatrix matrix;
+  double threshold_x = 0.0, threshold_y = 0.0;  // each series' ε, in its units
+  double rate_each = 0.0;                       // the recurrence rate each series is held at
+};
+JointRateRecurrence joint_recurrence_at_rate(const Embedding& x, const Embedding& y, double joint_rate,
+                                             RecurrenceNorm norm);
+
 // Line-length histograms; index l holds the number of lines of length l (both triangles for diagonals).
 struct LineHistograms {
   std::vector<std::uint64_t> diagonal;
@@ -87,5 +110,7 @@ RqaMeasures rqa_measures(const LineHistograms& h, std::size_t min_line = 2);
 // Ensemble sum over trials: cell (i, j) counts the trials in which i and j recur. All matrices must have
 // the same size; the counts are M² 16-bit values, so callers should keep M moderate (2·M² bytes).
 std::vector<std::uint16_t> ensemble_sum(const std::vector<RecurrenceMatrix>& trials);
+// The ensemble recurrence plot: cells that recur in at least min_trials of the trials.
+RecurrenceMatrix ensemble_matrix(const std::vector<RecurrenceMatrix>& trials, std::size_t min_trials);
 
 }  // namespace tirstrain::signals

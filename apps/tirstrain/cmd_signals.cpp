@@ -17,10 +17,10 @@
 #include "signals/filter.hpp"
 #include "signals/friction.hpp"
 #include "signals/mechanics.hpp"
-#include "signals/rqa.hpp"
 #include "signals/spatial.hpp"
 #include "signals/spectral.hpp"
 #include "tirstrain/commands.hpp"
+#include "tirstrain/signals_common.hpp"
 #include "tirstrain/signals_verbs.hpp"
 #include "tirstrain/value_checks.hpp"
 
@@ -30,77 +30,11 @@ namespace {
 namespace ts = tirstrain::signals;
 using nlohmann::json;
 
-constexpr const char* kInputHelp =
-    "channel file: CSV with a header row (units in the names) and a time column, HDF5 with one numeric "
-    "vector "
-    "per channel, or MATLAB .mat of any version (v4, v5, v7, v7.3); a channel is a name, a matrix column "
-    "NAME[:,k] (1-based) or a struct field a.b.c (docs/formats.md)";
-
 constexpr const char* kWelchConventions =
     "Spectra follow scipy.signal.welch/csd (MATLAB pwelch/cpsd/tfestimate/mscohere): periodic Hann window of "
     "--segment samples, 50 % overlap, per-segment mean removal, one-sided density scaling (units^2/Hz), "
     "segments "
     "averaged; the last partial segment is dropped.";
-
-struct Common {
-  std::string input;
-  std::string out;
-  std::string time_column = "t_s";
-  double rate_tolerance = 0.01;
-  std::string group = "/";
-  std::optional<double> rate_Hz;  // of a file without a time column, Hz; unset: the time column is read
-};
-
-void add_common(CLI::App* sub, Common& c, const std::string& out_help) {
-  sub->add_option("IN", c.input, kInputHelp)->required();
-  sub->add_option("--out", c.out, out_help)->required();
-  sub->add_option("--time-column", c.time_column, "name of the time column, seconds")->capture_default_str();
-  sub->add_option("--rate-tolerance", c.rate_tolerance,
-                  "largest allowed relative deviation of a sample interval from the median interval")
-      ->capture_default_str();
-  sub->add_option("--group", c.group, "HDF5 group holding the channel datasets")->capture_default_str();
-  sub->add_option(
-         "--rate-Hz", c.rate_Hz,
-         "sample rate, Hz, of a file holding no time column (sample i at i / rate); an error when it has one")
-      ->check(CLI::PositiveNumber);
-}
-
-ts::ChannelTable load(const Common& c, const std::string& path, std::vector<std::string> required) {
-  ts::ChannelReadOptions options;
-  options.time_column = c.time_column;
-  options.required = std::move(required);
-  options.rate_tolerance = c.rate_tolerance;
-  options.hdf5_group = c.group;
-  options.rate_Hz = c.rate_Hz;
-  return ts::read_channels(path, options);
-}
-
-// Library errors know the parameter but not the file or option the user typed; add them.
-template <typename Fn>
-auto in_context(const std::string& file, const std::string& column, Fn fn) -> decltype(fn()) {
-  return with_error_context(fn, [&](ErrorContext& ctx) {
-    ctx.file = file;
-    if (ctx.column.empty()) ctx.column = column;
-    if (!ctx.key.empty() && ctx.key.rfind("--", 0) != 0) {
-      std::string key = ctx.key;
-      for (char& ch : key)
-        if (ch == '_') ch = '-';
-      ctx.key = "--" + key;
-    }
-  });
-}
-
-// One-line description for `tirstrain signals --help`; the full contract goes into the verb's own --help.
-CLI::App* add_verb(CLI::App& signals, const std::string& name, const std::string& summary,
-                   const std::string& details) {
-  CLI::App* sub = signals.add_subcommand(name, summary);
-  sub->footer(details);
-  return sub;
-}
-
-void write_json(const std::string& path, const json& j) {
-  write_text_file(path, j.dump(2) + "\n");
-}
 
 ts::WelchOptions welch_options(long segment, long overlap) {
   if (segment < 2) throw Error("segment must be at least 2 samples", {.key = "--segment"});
@@ -108,21 +42,6 @@ ts::WelchOptions welch_options(long segment, long overlap) {
   w.segment = static_cast<std::size_t>(segment);
   if (overlap >= 0) w.overlap = static_cast<std::size_t>(overlap);
   return w;
-}
-
-ts::RecurrenceNorm parse_norm(const std::string& name) {
-  if (name == "euclidean") return ts::RecurrenceNorm::euclidean;
-  if (name == "supremum" || name == "max") return ts::RecurrenceNorm::supremum;
-  throw Error("unknown norm '" + name + "' (use euclidean or supremum)", {.key = "--norm"});
-}
-
-json measures_json(const ts::RqaMeasures& m) {
-  return {{"recurrence_rate", m.recurrence_rate},
-          {"determinism", m.determinism},
-          {"mean_diagonal_length", m.mean_diagonal_length},
-          {"laminarity", m.laminarity},
-          {"trapping_time", m.trapping_time},
-          {"max_diagonal_length", m.max_diagonal_length}};
 }
 
 void add_filter(CLI::App& signals) {
@@ -263,110 +182,6 @@ void add_tf(CLI::App& signals) {
     for (std::size_t k = 0; k < t.freq_Hz.size(); ++k)
       out.row({t.freq_Hz[k], std::abs(t.h1[k]), std::arg(t.h1[k]), t.coherence[k]});
     out.commit();
-  });
-}
-
-void add_rqa(CLI::App& signals) {
-  struct Opts {
-    Common c;
-    std::vector<std::string> inputs;
-    std::string column, joint_column, norm = "euclidean";
-    long dim = 0, delay = 0, min_line = 2;
-    double threshold = -1.0, joint_threshold = -1.0, rate = -1.0;
-  };
-  auto o = std::make_shared<Opts>();
-  CLI::App* sub = add_verb(
-      signals, "rqa", "Recurrence quantification analysis (RR, DET, L, LAM), joint or ensemble",
-      "Recurrence quantification analysis of one channel (several IN files: an ensemble over trials, "
-      "measures "
-      "from the pooled line histograms, plus each trial's).\n"
-      "Output JSON: recurrence_rate, determinism, mean_diagonal_length, laminarity (+ trapping_time, "
-      "max_diagonal_length, threshold, embedded_points).\n"
-      "Conventions: delay embedding y_i = (x_i, x_{i+tau}, ..., x_{i+(D-1)tau}); Euclidean distance (--norm "
-      "supremum for the max norm); recurrent when distance <= epsilon; the line of identity is excluded from "
-      "every measure (not a recurrence, not a diagonal line, and it splits vertical lines); rates over the "
-      "M(M-1) off-diagonal cells; minimum diagonal and vertical line length 2 (--min-line); DET = points on "
-      "diagonal lines / recurrent points, L = mean diagonal line length, LAM = points on vertical lines / "
-      "recurrent points; an empty ratio is reported as 0. With --recurrence-rate R, epsilon is the smallest "
-      "distance such that at least ceil(R * M(M-1)/2) pairs are within it. --joint-column adds joint "
-      "recurrence (both channels recur). Memory: an M x M bitset (12.5 MB for 10^4 points).");
-  sub->add_option("IN", o->inputs, kInputHelp)->required();
-  sub->add_option("--out", o->c.out, "output JSON")->required();
-  sub->add_option("--time-column", o->c.time_column, "name of the time column, seconds")
-      ->capture_default_str();
-  sub->add_option("--rate-tolerance", o->c.rate_tolerance, "largest relative sample-interval deviation")
-      ->capture_default_str();
-  sub->add_option("--group", o->c.group, "HDF5 group holding the channel datasets")->capture_default_str();
-  sub->add_option(
-         "--rate-Hz", o->c.rate_Hz,
-         "sample rate, Hz, of a file holding no time column (sample i at i / rate); an error when it has one")
-      ->check(CLI::PositiveNumber);
-  sub->add_option("--column", o->column, "channel")->required();
-  sub->add_option("--dim", o->dim, "embedding dimension D")->required();
-  sub->add_option("--delay", o->delay, "embedding delay tau, samples")->required();
-  sub->add_option("--threshold", o->threshold, "fixed recurrence threshold epsilon, in the channel's units");
-  sub->add_option("--recurrence-rate", o->rate,
-                  "fixed recurrence rate R in (0, 1]; epsilon chosen per series");
-  sub->add_option("--min-line", o->min_line, "minimum diagonal/vertical line length")->capture_default_str();
-  sub->add_option("--norm", o->norm, "euclidean or supremum")->capture_default_str();
-  sub->add_option("--joint-column", o->joint_column, "second channel for joint recurrence");
-  sub->add_option("--joint-threshold", o->joint_threshold,
-                  "threshold for the joint channel (default --threshold)");
-  sub->callback([o] {
-    if ((o->threshold >= 0.0) == (o->rate > 0.0))
-      throw Error("give exactly one of --threshold EPS or --recurrence-rate R", {.key = "--threshold"});
-    if (o->dim < 1) throw Error("must be at least 1", {.key = "--dim"});
-    if (o->delay < 1) throw Error("must be at least 1 sample", {.key = "--delay"});
-    if (o->min_line < 1) throw Error("must be at least 1", {.key = "--min-line"});
-    const auto norm = parse_norm(o->norm);
-    ts::LineHistograms pooled;
-    json trials = json::array();
-    for (const std::string& path : o->inputs) {
-      std::vector<std::string> required{o->column};
-      if (!o->joint_column.empty()) required.push_back(o->joint_column);
-      const auto table = load(o->c, path, required);
-      auto matrix_for = [&](const std::string& column, double fixed, double& eps_out) {
-        return in_context(path, column, [&] {
-          const auto e = ts::delay_embed(table.column(column), static_cast<std::size_t>(o->dim),
-                                         static_cast<std::size_t>(o->delay));
-          if (e.points > 40000)
-            throw Error(std::to_string(e.points) + " embedded points need a " +
-                        std::to_string(e.points * e.points / 8 / 1000000) +
-                        " MB recurrence bitset; decimate or split the series (limit 40000)");
-          eps_out = fixed >= 0.0 ? fixed : ts::threshold_for_recurrence_rate(e, o->rate, norm);
-          return ts::recurrence_matrix(e, eps_out, norm);
-        });
-      };
-      double eps = 0.0, eps_joint = 0.0;
-      auto r = matrix_for(o->column, o->threshold, eps);
-      json trial = {{"file", path}, {"threshold", eps}, {"embedded_points", r.size()}};
-      if (!o->joint_column.empty()) {
-        const double fixed =
-            o->rate > 0.0 ? -1.0 : (o->joint_threshold >= 0.0 ? o->joint_threshold : o->threshold);
-        r = in_context(path, o->joint_column,
-                       [&] { return r & matrix_for(o->joint_column, fixed, eps_joint); });
-        trial["joint_threshold"] = eps_joint;
-      }
-      const auto h = ts::line_histograms(r);
-      pooled += h;
-      trial.update(measures_json(ts::rqa_measures(h, static_cast<std::size_t>(o->min_line))));
-      trials.push_back(trial);
-    }
-    json out = measures_json(ts::rqa_measures(pooled, static_cast<std::size_t>(o->min_line)));
-    if (trials.size() == 1) {
-      out.update(trials[0]);
-    } else {
-      out["trials"] = trials;
-      out["ensemble"] = "measures pooled over the trials' line histograms";
-    }
-    out["conventions"] = {{"norm", o->norm},
-                          {"recurrent_when", "distance <= threshold"},
-                          {"line_of_identity", "excluded"},
-                          {"min_line", o->min_line},
-                          {"dim", o->dim},
-                          {"delay_samples", o->delay}};
-    if (o->rate > 0.0) out["target_recurrence_rate"] = o->rate;
-    write_json(o->c.out, out);
   });
 }
 
@@ -813,7 +628,7 @@ void add_signals_command(CLI::App& app) {
   add_filter(*signals);
   add_psd(*signals);
   add_tf(*signals);
-  add_rqa(*signals);
+  add_signals_recurrence_verbs(*signals);
   add_impedance(*signals);
   add_signals_friction_verb(*signals);
   add_signals_phases_verb(*signals);

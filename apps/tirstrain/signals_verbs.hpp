@@ -7,5 +7,7 @@ namespace tirstrain::cli {
 // `signals phases` and `signals friction`: tare, phases and strokes of a real recording; μ and events.
 void add_signals_phases_verb(CLI::App& signals);
 void add_signals_friction_verb(CLI::App& signals);
+// `signals rqa`, `signals recurrence-plot` and `signals embedding`.
+void add_signals_recurrence_verbs(CLI::App& signals);
 
 }  // namespace tirstrain::cli

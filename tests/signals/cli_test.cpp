@@ -107,6 +107,53 @@ TEST(SignalsCli, RqaJsonHasTheFourMeasures) {
   EXPECT_NE(help.output.find("Euclidean"), std::string::npos);
 }
 
+TEST(SignalsCli, RecurrenceInTheSpatialDomainAcrossAnEnsembleAndAsAPicture) {
+  // Two profiles sampled every 0.01 mm: a 0.5 mm sine with a little noise, lengths also reported in mm.
+  std::vector<std::string> files;
+  for (int trial = 0; trial < 2; ++trial) {
+    files.push_back(dir() + "/profile" + std::to_string(trial) + ".csv");
+    std::ofstream out(files.back());
+    out << "x_mm,height_um\n";
+    for (int i = 0; i < 500; ++i)
+      out << tirstrain::format_double(i * 0.01) << ','
+          << tirstrain::format_double(std::sin(2 * std::numbers::pi * i * 0.01 / 0.5 + trial) +
+                                      0.02 * std::sin(i * 1.7))
+          << '\n';
+  }
+  const std::string both = files[0] + " " + files[1], common = " --column height_um --dim 2 --delay 12 ";
+  const std::string json_out = dir() + "/rqa_spatial.json";
+  const auto r = run("signals rqa " + both + common + "--time-column x_mm --spatial --ensemble sum " +
+                     "--recurrence-rate 0.05 --out " + json_out);
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream f(json_out);
+  const auto j = nlohmann::json::parse(f);
+  EXPECT_EQ(j["ensemble_min_trials"].get<int>(), 1);
+  EXPECT_NEAR(j["mean_diagonal_length_mm"].get<double>(), 0.01 * j["mean_diagonal_length"].get<double>(),
+              1e-9);
+  for (const auto& t : j["trials"]) EXPECT_NEAR(t["recurrence_rate"].get<double>(), 0.05, 0.0005);
+  // Recurring in either trial is at least as frequent as in each.
+  EXPECT_GE(j["recurrence_rate"].get<double>(), 0.05);
+  const std::string png = dir() + "/rp.png";
+  const auto plot = run("signals recurrence-plot " + files[0] + common +
+                        "--time-column x_mm --recurrence-rate 0.05 --side-px 200 --out " + png);
+  ASSERT_EQ(plot.code, 0) << plot.output;
+  EXPECT_GT(std::filesystem::file_size(png), 1000u);
+  const std::string emb = dir() + "/embedding.json";
+  const auto e = run("signals embedding " + files[0] +
+                     " --column height_um --time-column x_mm --max-delay 30 " + "--max-dim 4 --out " + emb);
+  ASSERT_EQ(e.code, 0) << e.output;
+  std::ifstream ef(emb);
+  const auto ej = nlohmann::json::parse(ef);
+  // The values themselves are checked against closed forms in recurrence_test.cpp; here the contract.
+  EXPECT_EQ(ej["mutual_information_nats"].size(), 31u);
+  ASSERT_EQ(ej["false_neighbour_fraction"].size(), 4u);
+  EXPECT_GT(ej["false_neighbour_fraction"][0].get<double>(), ej["false_neighbour_fraction"][1].get<double>());
+  EXPECT_EQ(ej["fnn_delay"].get<int>(), std::max(1, ej["suggested_delay"].get<int>()));
+  const auto bad = run("signals rqa " + files[0] + common + "--joint-recurrence-rate 0.05 --out " + json_out);
+  EXPECT_EQ(bad.code, 1);
+  EXPECT_NE(bad.output.find("--joint-column"), std::string::npos) << bad.output;
+}
+
 TEST(SignalsCli, BadInputIsLocated) {
   const std::string bad = dir() + "/bad.csv";
   std::ofstream(bad) << "t_s,force_N\n0,1\n0.001,2\n0.001,3\n0.003,4\n";

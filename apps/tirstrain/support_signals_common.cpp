@@ -1,0 +1,51 @@
+#include "tirstrain/signals_common.hpp"
+
+#include "core/atomic_output.hpp"
+
+namespace tirstrain::cli {
+
+const char* const kChannelInputHelp =
+    "channel file: CSV with a header row (units in the names) and a time column, HDF5 with one numeric "
+    "vector per channel, or MATLAB .mat of any version (v4, v5, v7, v7.3); a channel is a name, a matrix "
+    "column NAME[:,k] (1-based) or a struct field a.b.c (docs/formats.md)";
+
+void add_reading_options(CLI::App* sub, Common& c) {
+  sub->add_option("--time-column", c.time_column, "name of the time column, seconds")->capture_default_str();
+  sub->add_option("--rate-tolerance", c.rate_tolerance,
+                  "largest allowed relative deviation of a sample interval from the median interval")
+      ->capture_default_str();
+  sub->add_option("--group", c.group, "HDF5 group holding the channel datasets")->capture_default_str();
+  sub->add_option(
+         "--rate-Hz", c.rate_Hz,
+         "sample rate, Hz, of a file holding no time column (sample i at i / rate); an error when it has one")
+      ->check(CLI::PositiveNumber);
+}
+
+void add_common(CLI::App* sub, Common& c, const std::string& out_help) {
+  sub->add_option("IN", c.input, kChannelInputHelp)->required();
+  sub->add_option("--out", c.out, out_help)->required();
+  add_reading_options(sub, c);
+}
+
+signals::ChannelTable load(const Common& c, const std::string& path, std::vector<std::string> required) {
+  signals::ChannelReadOptions options;
+  options.time_column = c.time_column;
+  options.required = std::move(required);
+  options.rate_tolerance = c.rate_tolerance;
+  options.hdf5_group = c.group;
+  options.rate_Hz = c.rate_Hz;
+  return signals::read_channels(path, options);
+}
+
+CLI::App* add_verb(CLI::App& signals, const std::string& name, const std::string& summary,
+                   const std::string& details) {
+  CLI::App* sub = signals.add_subcommand(name, summary);
+  sub->footer(details);
+  return sub;
+}
+
+void write_json(const std::string& path, const nlohmann::json& j) {
+  write_text_file(path, j.dump(2) + "\n");
+}
+
+}  // namespace tirstrain::cli
