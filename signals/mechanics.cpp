@@ -17,17 +17,17 @@ constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
 }  // namespace
 
-ImpedanceSpectrum mechanical_impedance(const std::vector<double>& force_N,
-                                       const std::vector<double>& accel_m_s2, double sample_rate_Hz,
-                                       const WelchOptions& options) {
-  const TransferEstimate est = transfer_estimate(force_N, accel_m_s2, sample_rate_Hz, options);
+ImpedanceSpectrum mechanical_impedance(const std::vector<double>& force_N, const std::vector<double>& motion,
+                                       double sample_rate_Hz, const WelchOptions& options, MotionKind kind) {
+  const TransferEstimate est = transfer_estimate(force_N, motion, sample_rate_Hz, options);
+  const bool velocity = kind == MotionKind::velocity_m_s;
   ImpedanceSpectrum z;
   z.freq_Hz = est.freq_Hz;
   z.z_Ns_m.assign(est.freq_Hz.size(), cplx(0.0, 0.0));
   z.coherence = est.coherence;
   for (std::size_t i = 0; i < est.freq_Hz.size(); ++i) {
     if (std::abs(est.h1[i]) > 0.0) {
-      z.z_Ns_m[i] = cplx(0.0, kTwoPi * est.freq_Hz[i]) / est.h1[i];
+      z.z_Ns_m[i] = (velocity ? cplx(1.0, 0.0) : cplx(0.0, kTwoPi * est.freq_Hz[i])) / est.h1[i];
     } else {
       z.coherence[i] = 0.0;
     }
@@ -111,8 +111,14 @@ MckFit fit_mass_spring_damper(const std::vector<double>& f,
                     std::to_string(options.min_coherence) + " in the band; found " +
                     std::to_string(bins.size()),
                 {.key = "min_coherence"});
+  const bool fixed_k = options.fixed_stiffness_N_m.has_value();
+  const double k_fixed = fixed_k ? *options.fixed_stiffness_N_m : 0.0;
+  if (fixed_k && !std::isfinite(k_fixed))
+    throw Error("fixed stiffness must be a finite number of N/m", {.key = "fixed_stiffness_N_m"});
+  // Unknowns: (k, m, c), or (m, c) with k fixed and moved to the right-hand side.
+  const Eigen::Index cols = fixed_k ? 2 : 3, col_m = fixed_k ? 0 : 1, col_c = col_m + 1;
   const Eigen::Index rows = static_cast<Eigen::Index>(2 * bins.size());
-  Eigen::MatrixXd design = Eigen::MatrixXd::Zero(rows, 3);
+  Eigen::MatrixXd design = Eigen::MatrixXd::Zero(rows, cols);
   Eigen::VectorXd rhs(rows);
   for (std::size_t r = 0; r < bins.size(); ++r) {
     const std::size_t i = bins[r];
@@ -120,25 +126,41 @@ MckFit fit_mass_spring_damper(const std::vector<double>& f,
     const cplx dyn = dynamic_stiffness_N_m[i];
     const double w = 1.0 / std::abs(dyn);
     const Eigen::Index re = static_cast<Eigen::Index>(2 * r), im = re + 1;
-    design(re, 0) = w;
-    design(re, 1) = -omega * omega * w;
-    rhs(re) = dyn.real() * w;
-    design(im, 2) = omega * w;
+    if (!fixed_k) design(re, 0) = w;
+    design(re, col_m) = -omega * omega * w;
+    rhs(re) = (dyn.real() - k_fixed) * w;
+    design(im, col_c) = omega * w;
     rhs(im) = dyn.imag() * w;
   }
   // Columns differ by orders of magnitude (1 vs ω²); equilibrate before the QR solve.
-  Eigen::Vector3d scale = design.colwise().norm().transpose();
-  for (int j = 0; j < 3; ++j)
+  Eigen::VectorXd scale = design.colwise().norm().transpose();
+  for (Eigen::Index j = 0; j < cols; ++j)
     if (scale(j) == 0.0) scale(j) = 1.0;
   const Eigen::MatrixXd scaled = design * scale.cwiseInverse().asDiagonal();
-  const Eigen::Vector3d sol = scaled.colPivHouseholderQr().solve(rhs).cwiseQuotient(scale);
+  const Eigen::VectorXd sol = scaled.colPivHouseholderQr().solve(rhs).cwiseQuotient(scale);
   MckFit fit;
-  fit.mck = {sol(1), sol(2), sol(0)};
+  fit.mck = {sol(col_m), sol(col_c), fixed_k ? k_fixed : sol(0)};
+  fit.stiffness_fixed = fixed_k;
   fit.frequencies_used = bins.size();
   fit.band_low_Hz = f[bins.front()];
   fit.band_high_Hz = f[bins.back()];
   const double norm = rhs.norm();
-  fit.relative_residual = norm > 0.0 ? (design * sol - rhs).norm() / norm : 0.0;
+  const Eigen::VectorXd residual = design * sol - rhs;
+  fit.relative_residual = norm > 0.0 ? residual.norm() / norm : 0.0;
+  // Parameter covariance σ²(AᵀA)⁻¹ in the scaled columns, then back to the parameters' units.
+  const double dof = static_cast<double>(rows - cols);
+  const double variance = dof > 0.0 ? residual.squaredNorm() / dof : 0.0;
+  const Eigen::MatrixXd inv =
+      (scaled.transpose() * scaled).ldlt().solve(Eigen::MatrixXd::Identity(cols, cols));
+  const Eigen::MatrixXd cov =
+      variance * scale.cwiseInverse().asDiagonal() * inv * scale.cwiseInverse().asDiagonal();
+  fit.m_sd_kg = std::sqrt(std::max(0.0, cov(col_m, col_m)));
+  fit.c_sd_Ns_m = std::sqrt(std::max(0.0, cov(col_c, col_c)));
+  if (!fixed_k) {
+    fit.k_sd_N_m = std::sqrt(std::max(0.0, cov(0, 0)));
+    // The correlation follows from the design alone (σ² cancels), so it is defined even for a perfect fit.
+    fit.m_k_correlation = inv(0, col_m) / std::sqrt(inv(0, 0) * inv(col_m, col_m));
+  }
   return fit;
 }
 

@@ -10,6 +10,7 @@
 //     with the force-driven estimate X_p = G2·F per frequency band.
 #include <complex>
 #include <cstddef>
+#include <optional>
 #include <vector>
 
 #include "signals/spectral.hpp"
@@ -22,10 +23,14 @@ struct ImpedanceSpectrum {
   std::vector<double> coherence;             // force–acceleration coherence
 };
 
-// Z = jω / H1(F→A). Bins where the force has no power (H1 = 0) get Z = 0 and coherence 0.
-ImpedanceSpectrum mechanical_impedance(const std::vector<double>& force_N,
-                                       const std::vector<double>& accel_m_s2, double sample_rate_Hz,
-                                       const WelchOptions& options);
+// What the motion channel measures: a plate accelerometer, or a velocity (a laser vibrometer).
+enum class MotionKind { acceleration_m_s2, velocity_m_s };
+
+// Z = jω / H1(F→A) from acceleration, Z = 1 / H1(F→V) from velocity. Bins where the force has no power
+// (H1 = 0) get Z = 0 and coherence 0.
+ImpedanceSpectrum mechanical_impedance(const std::vector<double>& force_N, const std::vector<double>& motion,
+                                       double sample_rate_Hz, const WelchOptions& options,
+                                       MotionKind kind = MotionKind::acceleration_m_s2);
 
 struct FingerImpedance {
   std::vector<double> freq_Hz;
@@ -55,12 +60,24 @@ struct MckFit {
   std::size_t frequencies_used = 0;
   double band_low_Hz = 0.0, band_high_Hz = 0.0;
   double relative_residual = 0.0;  // ‖fit − data‖ / ‖data‖ over the used bins
+  // Standard deviations from the weighted least squares (residual variance × (AᵀA)⁻¹), in the
+  // parameters' units; 0 for a fixed stiffness.
+  double m_sd_kg = 0.0, c_sd_Ns_m = 0.0, k_sd_N_m = 0.0;
+  // Correlation of the m and k estimates: near ±1 the band cannot tell a stiffer spring from a lighter
+  // mass (k − mω² barely changes across it); 0 for a fixed stiffness.
+  double m_k_correlation = 0.0;
+  bool stiffness_fixed = false;
 };
+
+// |m_k_correlation| above this: the fit trades k against m and says so.
+inline constexpr double kMassStiffnessCorrelationLimit = 0.95;
 
 struct MckFitOptions {
   double band_low_Hz = 0.0;    // 0 = from the first non-DC bin
   double band_high_Hz = 0.0;   // 0 = up to Nyquist
   double min_coherence = 0.9;  // bins below are not used
+  // Stiffness held at this value, N/m (e.g. 0: a mass and a damper only); unset: fitted.
+  std::optional<double> fixed_stiffness_N_m;
 };
 
 // Least squares on Re: k − mω² = Re(F/X) and Im: cω = Im(F/X), with F/X = −ω²/H1(F→A); each bin weighted

@@ -7,10 +7,29 @@
 #include "core/error.hpp"
 
 namespace tirstrain::signals {
+namespace {
+
+// Largest |x(t_j) − x(t_i)| / (t_j − t_i) with t_j the first sample at least `window_s` after t_i.
+double peak_speed(const std::vector<double>& time_s, const std::vector<double>& position_m, std::size_t begin,
+                  std::size_t end, double window_s) {
+  if (!(window_s >= 0.0) || !std::isfinite(window_s))
+    throw Error("speed window must be a finite number of seconds >= 0", {.key = "speed_window_s"});
+  double peak = 0.0;
+  std::size_t j = begin + 1;
+  for (std::size_t i = begin; i + 1 < end; ++i) {
+    j = std::max(j, i + 1);
+    while (j + 1 < end && time_s[j] - time_s[i] < window_s) ++j;
+    if (time_s[j] - time_s[i] < window_s && i > begin) break;  // no full window left
+    peak = std::max(peak, std::abs(position_m[j] - position_m[i]) / (time_s[j] - time_s[i]));
+  }
+  return peak;
+}
+
+}  // namespace
 
 SpatialSeries to_spatial_domain(const std::vector<double>& time_s, const std::vector<double>& position_m,
                                 const std::vector<double>& values, double dx_m, std::size_t begin,
-                                std::size_t end) {
+                                std::size_t end, double speed_window_s) {
   if (time_s.size() != position_m.size() || time_s.size() != values.size())
     throw Error("time, position and value channels have different lengths");
   end = std::min(end, time_s.size());
@@ -39,6 +58,7 @@ SpatialSeries to_spatial_domain(const std::vector<double>& time_s, const std::ve
   const double x0 = position_m[begin], x1 = position_m[end - 1];
   const double travel = std::abs(x1 - x0);
   out.mean_speed_m_s = travel / (time_s[end - 1] - time_s[begin]);
+  out.peak_speed_m_s = peak_speed(time_s, position_m, begin, end, speed_window_s);
   const std::size_t count = static_cast<std::size_t>(std::floor(travel / dx_m + 1e-9)) + 1;
   out.x_m.resize(count);
   out.values.resize(count);
@@ -55,7 +75,7 @@ SpatialSeries to_spatial_domain(const std::vector<double>& time_s, const std::ve
 
 SpatialSpectrum spatial_spectrum(const SpatialSeries& series, const WelchOptions& options) {
   const PowerSpectrum p = welch(series.values, 1.0 / series.dx_m, options);
-  return {p.freq_Hz, p.psd, series.mean_speed_m_s};
+  return {p.freq_Hz, p.psd, series.mean_speed_m_s, series.peak_speed_m_s};
 }
 
 }  // namespace tirstrain::signals

@@ -2,6 +2,7 @@
 // column t_s, sample rate from it) or an HDF5/.mat file, validates it (see signals/channels.hpp) and writes
 // a CSV with a header row or a JSON file, each through a temporary name.
 #include <cmath>
+#include <iostream>
 #include <memory>
 #include <numbers>
 #include <optional>
@@ -185,10 +186,38 @@ void add_tf(CLI::App& signals) {
   });
 }
 
+json fit_json(const ts::MckFit& fit) {
+  json j = {{"m_kg", fit.mck.m_kg},
+            {"c_Ns_m", fit.mck.c_Ns_m},
+            {"k_N_m", fit.mck.k_N_m},
+            {"m_sd_kg", fit.m_sd_kg},
+            {"c_sd_Ns_m", fit.c_sd_Ns_m},
+            {"k_sd_N_m", fit.k_sd_N_m},
+            {"m_k_correlation", fit.m_k_correlation},
+            {"stiffness_fixed", fit.stiffness_fixed},
+            {"natural_frequency_Hz", fit.mck.natural_frequency_Hz()},
+            {"damping_ratio", fit.mck.damping_ratio()},
+            {"frequencies_used", fit.frequencies_used},
+            {"band_low_Hz", fit.band_low_Hz},
+            {"band_high_Hz", fit.band_high_Hz},
+            {"relative_residual", fit.relative_residual},
+            {"warnings", json::array()}};
+  if (std::abs(fit.m_k_correlation) > ts::kMassStiffnessCorrelationLimit) {
+    const std::string warning =
+        "m and k are correlated at " + std::to_string(fit.m_k_correlation) +
+        ": the band does not separate the stiffness from the mass; widen --band-Hz or "
+        "fix k with --fix-stiffness";
+    j["warnings"].push_back(warning);
+    std::cerr << "tirstrain signals impedance: warning: " << warning << "\n";
+  }
+  return j;
+}
+
 void add_impedance(CLI::App& signals) {
   struct Opts {
     Common c;
-    std::string force, accel, unloaded;
+    std::string force, accel, velocity, unloaded;
+    std::optional<double> fix_stiffness_N_m;
     long segment = 0, overlap = -1;
     std::vector<double> band_Hz;
     double min_coherence = 0.9;
@@ -199,17 +228,26 @@ void add_impedance(CLI::App& signals) {
       signals, "impedance", "Mechanical impedance of a finger on a vibrating plate; spring-mass-damper fit",
       std::string(
           "Mechanical impedance of a finger on a vibrating plate from force (N) and plate acceleration "
-          "(m/s^2).\nZ = F/V = j*omega*F/A from the H1 estimate of A given F; with --unloaded, the "
+          "(m/s^2, --accel) or velocity (m/s, --velocity-column, e.g. a laser vibrometer).\nZ = F/V = "
+          "j*omega*F/A from the H1 estimate of A given F (Z = F/V from H1 of V given F); with --unloaded, "
+          "the "
           "finger's share Z_f = Z_loaded - Z_unloaded (same channel names, sample rate and segment). Per "
           "frequency: m = Im(Z_f)/omega (kg), b = Re(Z_f) (N*s/m), damping ratio b/(2*m*omega).\n"
           "Output CSV: freq_Hz,z_real_Ns_m,z_imag_Ns_m,mass_kg,damping_Ns_m,damping_ratio,coherence. "
           "--fit-out fits a spring-mass-damper F/X = (k - m*omega^2) + j*omega*c by weighted linear least "
           "squares over the bins with coherence >= --min-coherence in --band-Hz, written as JSON: m_kg, "
-          "c_Ns_m, k_N_m, natural_frequency_Hz, damping_ratio.\n") +
+          "c_Ns_m, k_N_m, natural_frequency_Hz, damping_ratio, their standard deviations (m_sd_kg, "
+          "c_sd_Ns_m, k_sd_N_m) and the m-k correlation; --fix-stiffness K holds k at K N/m (0: mass and "
+          "damper only). When |m-k correlation| > 0.95 the band cannot separate the stiffness from the mass: "
+          "the JSON carries a warning (also printed) to widen the band or fix k.\n"
+          "Example: tirstrain signals impedance plate.csv --force F_N --accel a_m_s2 --segment 4096 "
+          "--band-Hz 20,400 --fit-out fit.json --out z.csv\n") +
           kWelchConventions);
   add_common(sub, o->c, "output CSV (see above)");
   sub->add_option("--force", o->force, "force channel, N")->required();
-  sub->add_option("--accel", o->accel, "acceleration channel, m/s^2")->required();
+  sub->add_option("--accel", o->accel, "acceleration channel, m/s^2");
+  sub->add_option("--velocity-column", o->velocity, "velocity channel, m/s (instead of --accel)");
+  sub->add_option("--fix-stiffness", o->fix_stiffness_N_m, "hold the fitted stiffness k at this value, N/m");
   sub->add_option("--segment", o->segment, "segment length nperseg, samples")->required();
   sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)")
       ->check(kSamplesAtLeastZero);
@@ -220,14 +258,18 @@ void add_impedance(CLI::App& signals) {
   sub->callback([o] {
     if (!o->band_Hz.empty() && o->band_Hz.size() != 2)
       throw Error("expects LOW,HIGH in Hz", {.key = "--band-Hz"});
+    if (o->accel.empty() == o->velocity.empty())
+      throw Error("give exactly one motion channel: --accel or --velocity-column", {.key = "--accel"});
     const auto w = welch_options(o->segment, o->overlap);
+    const std::string motion = o->accel.empty() ? o->velocity : o->accel;
+    const auto kind = o->accel.empty() ? ts::MotionKind::velocity_m_s : ts::MotionKind::acceleration_m_s2;
     auto impedance_of = [&](const std::string& path) {
-      const auto table = load(o->c, path, {o->force, o->accel});
+      const auto table = load(o->c, path, {o->force, motion});
       return std::make_pair(in_context(path, o->force,
                                        [&] {
                                          return ts::mechanical_impedance(table.column(o->force),
-                                                                         table.column(o->accel),
-                                                                         table.sample_rate_Hz, w);
+                                                                         table.column(motion),
+                                                                         table.sample_rate_Hz, w, kind);
                                        }),
                             table.sample_rate_Hz);
     };
@@ -254,6 +296,7 @@ void add_impedance(CLI::App& signals) {
         dyn[k] = std::complex<double>(0.0, 2.0 * std::numbers::pi * finger.freq_Hz[k]) * finger.z_Ns_m[k];
       ts::MckFitOptions fo;
       fo.min_coherence = o->min_coherence;
+      fo.fixed_stiffness_N_m = o->fix_stiffness_N_m;
       if (o->band_Hz.size() == 2) {
         fo.band_low_Hz = o->band_Hz[0];
         fo.band_high_Hz = o->band_Hz[1];
@@ -261,15 +304,7 @@ void add_impedance(CLI::App& signals) {
       const auto fit = in_context(o->c.input, "", [&] {
         return ts::fit_mass_spring_damper(finger.freq_Hz, dyn, finger.coherence, fo);
       });
-      write_json(o->fit_out, {{"m_kg", fit.mck.m_kg},
-                              {"c_Ns_m", fit.mck.c_Ns_m},
-                              {"k_N_m", fit.mck.k_N_m},
-                              {"natural_frequency_Hz", fit.mck.natural_frequency_Hz()},
-                              {"damping_ratio", fit.mck.damping_ratio()},
-                              {"frequencies_used", fit.frequencies_used},
-                              {"band_low_Hz", fit.band_low_Hz},
-                              {"band_high_Hz", fit.band_high_Hz},
-                              {"relative_residual", fit.relative_residual}});
+      write_json(o->fit_out, fit_json(fit));
     }
     out.commit();
   });
@@ -317,7 +352,7 @@ void add_spatial(CLI::App& signals) {
     Common c;
     std::string force, position;
     long segment = 0, overlap = -1;
-    double dx_m = 0.0, from_s = -1.0, to_s = -1.0;
+    double dx_m = 0.0, from_s = -1.0, to_s = -1.0, speed_window_s = 0.02;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* sub = add_verb(
@@ -326,8 +361,9 @@ void add_spatial(CLI::App& signals) {
           "Spatial spectrum of a force recorded while the plate slides: the force is resampled uniformly "
           "in plate position (linear interpolation; the stroke must move one way) and Welch-averaged "
           "with 'sample rate' 1/dx.\nOutput CSV (DC row omitted): "
-          "spatial_freq_per_m,wavelength_m,psd,predicted_freq_Hz, with psd in N^2*m and "
-          "predicted_freq_Hz = mean speed / wavelength (v/lambda).\n") +
+          "spatial_freq_per_m,wavelength_m,psd,predicted_freq_Hz,predicted_freq_peak_speed_Hz, with psd in "
+          "N^2*m, predicted_freq_Hz = mean speed / wavelength (v/lambda) and predicted_freq_peak_speed_Hz "
+          "= peak speed / wavelength, the peak speed over windows of --speed-window-s.\n") +
           kWelchConventions);
   add_common(sub, o->c, "output CSV (see above)");
   sub->add_option("--force", o->force, "force channel, N")->required();
@@ -338,6 +374,8 @@ void add_spatial(CLI::App& signals) {
   sub->add_option("--dx-m", o->dx_m, "spatial step, m (default: median |dx| of the stroke)");
   sub->add_option("--from-s", o->from_s, "start of the stroke, s (default: record start)");
   sub->add_option("--to-s", o->to_s, "end of the stroke, s (default: record end)");
+  sub->add_option("--speed-window-s", o->speed_window_s, "window of the peak speed, s")
+      ->capture_default_str();
   sub->callback([o] {
     const auto table = load(o->c, o->c.input, {o->force, o->position});
     std::size_t begin = 0, end = table.samples();
@@ -349,13 +387,15 @@ void add_spatial(CLI::App& signals) {
                                      table.time_s.begin());
     const auto spec = in_context(o->c.input, o->position, [&] {
       const auto s = ts::to_spatial_domain(table.time_s, table.column(o->position), table.column(o->force),
-                                           o->dx_m, begin, end);
+                                           o->dx_m, begin, end, o->speed_window_s);
       return ts::spatial_spectrum(s, welch_options(o->segment, o->overlap));
     });
-    CsvWriter out(o->c.out, {"spatial_freq_per_m", "wavelength_m", "psd", "predicted_freq_Hz"});
+    CsvWriter out(o->c.out, {"spatial_freq_per_m", "wavelength_m", "psd", "predicted_freq_Hz",
+                             "predicted_freq_peak_speed_Hz"});
     for (std::size_t k = 1; k < spec.psd.size(); ++k)
       out.row({spec.spatial_freq_per_m[k], 1.0 / spec.spatial_freq_per_m[k], spec.psd[k],
-               spec.mean_speed_m_s * spec.spatial_freq_per_m[k]});
+               spec.mean_speed_m_s * spec.spatial_freq_per_m[k],
+               spec.peak_speed_m_s * spec.spatial_freq_per_m[k]});
     out.commit();
   });
 }

@@ -26,7 +26,7 @@ double sweep(double t, double f0, double f1, double period) {
 }
 
 struct Response {
-  std::vector<double> force, disp, accel;
+  std::vector<double> force, disp, vel, accel;
 };
 
 // RK4 on m x'' + c x' + k x = F(t), F evaluated exactly at the sub-steps; acceleration from the equation
@@ -41,6 +41,7 @@ Response simulate(Force force, double fs, std::size_t n, double m, double c, dou
     const double t = i * dt;
     r.force.push_back(force(t));
     r.disp.push_back(x);
+    r.vel.push_back(v);
     r.accel.push_back(acc(t, x, v));
     const double k1x = v, k1v = acc(t, x, v);
     const double k2x = v + 0.5 * dt * k1v, k2v = acc(t + 0.5 * dt, x + 0.5 * dt * k1x, v + 0.5 * dt * k1v);
@@ -100,6 +101,65 @@ TEST(Mechanics, FingerImpedanceIsLoadedMinusUnloaded) {
     ++checked;
   }
   EXPECT_GT(checked, 100);
+}
+
+TEST(Mechanics, VelocityChannelGivesTheSameImpedanceAsAcceleration) {
+  const double fs = 5000.0;
+  const auto r = simulate([](double t) { return sweep(t, 20.0, 400.0, 2.0); }, fs, 60000, kM, kC, kK);
+  const ts::WelchOptions w{.segment = 2048};
+  const auto from_accel = ts::mechanical_impedance(r.force, r.accel, fs, w);
+  const auto from_velocity = ts::mechanical_impedance(r.force, r.vel, fs, w, ts::MotionKind::velocity_m_s);
+  int checked = 0;
+  for (std::size_t i = 0; i < from_accel.freq_Hz.size(); ++i) {
+    const double fr = from_accel.freq_Hz[i];
+    if (fr < 40.0 || fr > 350.0) continue;
+    const double omega = 2 * kPi * fr;
+    const std::complex<double> truth(kC, omega * kM - kK / omega);
+    EXPECT_NEAR(std::abs(from_velocity.z_Ns_m[i] - truth), 0.0, 0.02 * std::abs(truth)) << fr;
+    EXPECT_NEAR(std::abs(from_velocity.z_Ns_m[i] - from_accel.z_Ns_m[i]), 0.0, 0.02 * std::abs(truth)) << fr;
+    ++checked;
+  }
+  EXPECT_GT(checked, 100);
+}
+
+TEST(Mechanics, NarrowBandTradesStiffnessForMassAndSaysSoAFixedStiffnessResolvesIt) {
+  const double fs = 5000.0;
+  auto r = simulate([](double t) { return 0.5 * sweep(t, 5.0, 300.0, 2.0); }, fs, 100000, kM, kC, kK);
+  std::mt19937_64 rng(7);
+  add_noise(r.force, 0.01, rng);
+  add_noise(r.accel, 0.01, rng);
+  const ts::WelchOptions w{.segment = 4096};
+  const auto wide =
+      ts::fit_mass_spring_damper(r.force, r.accel, fs, w, {.band_low_Hz = 5.0, .band_high_Hz = 250.0});
+  EXPECT_LT(std::abs(wide.m_k_correlation), ts::kMassStiffnessCorrelationLimit);
+  EXPECT_LT(wide.m_sd_kg, 0.02 * kM);
+  // 150-200 Hz, well above the 27 Hz resonance: k − mω² changes little, the estimates move together.
+  const auto narrow =
+      ts::fit_mass_spring_damper(r.force, r.accel, fs, w, {.band_low_Hz = 150.0, .band_high_Hz = 200.0});
+  EXPECT_GT(std::abs(narrow.m_k_correlation), ts::kMassStiffnessCorrelationLimit);
+  EXPECT_GT(narrow.k_sd_N_m, 5 * wide.k_sd_N_m);
+  // The true error of m is of the order of its reported standard deviation.
+  EXPECT_LT(std::abs(narrow.mck.m_kg - kM), 4 * narrow.m_sd_kg + 0.01 * kM);
+  ts::MckFitOptions fixed{.band_low_Hz = 150.0, .band_high_Hz = 200.0};
+  fixed.fixed_stiffness_N_m = kK;
+  const auto held = ts::fit_mass_spring_damper(r.force, r.accel, fs, w, fixed);
+  EXPECT_TRUE(held.stiffness_fixed);
+  EXPECT_EQ(held.mck.k_N_m, kK);
+  EXPECT_NEAR(held.mck.m_kg, kM, 0.02 * kM);
+  EXPECT_NEAR(held.mck.c_Ns_m, kC, 0.05 * kC);
+  EXPECT_EQ(held.m_k_correlation, 0.0);
+}
+
+TEST(Mechanics, MassAndDamperAloneWithStiffnessFixedAtZero) {
+  // The vibrating-plate finger model without a spring: F = m a + c v.
+  const double fs = 5000.0, m = 0.012, c = 3.5;
+  const auto r = simulate([](double t) { return sweep(t, 50.0, 500.0, 2.0); }, fs, 60000, m, c, 0.0);
+  ts::MckFitOptions o{.band_low_Hz = 60.0, .band_high_Hz = 450.0};
+  o.fixed_stiffness_N_m = 0.0;
+  const auto fit = ts::fit_mass_spring_damper(r.force, r.accel, fs, {.segment = 2048}, o);
+  EXPECT_NEAR(fit.mck.m_kg, m, 0.01 * m);
+  EXPECT_NEAR(fit.mck.c_Ns_m, c, 0.02 * c);
+  EXPECT_EQ(fit.mck.k_N_m, 0.0);
 }
 
 TEST(Mechanics, PadTransferCalibrationAndBothDisplacementEstimatesAgree) {

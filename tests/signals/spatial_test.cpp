@@ -22,6 +22,9 @@ TEST(Spatial, AcceleratingStrokeGivesPeakAtInverseWavelength) {
   }
   const auto s = ts::to_spatial_domain(t, x, f);
   EXPECT_NEAR(s.mean_speed_m_s, (x.back() - x.front()) / (t.back() - t.front()), 1e-12);
+  // Peak speed over the last 20 ms window: v(t) = 0.02 + 0.02 t at its middle, t ≈ 3.99 s (to a sample or
+  // two of the window's placement, 2e-6 m/s each); the mean speed is 0.06 m/s.
+  EXPECT_NEAR(s.peak_speed_m_s, 0.02 + 0.02 * 3.99, 1e-5);
   const auto spec = ts::spatial_spectrum(s, {.segment = 8192});
   const auto k =
       static_cast<std::size_t>(std::max_element(spec.psd.begin() + 1, spec.psd.end()) - spec.psd.begin());
