@@ -102,6 +102,7 @@ InteractionPrediction predict_interaction(const TextureInteractionParams& p, dou
     for (std::size_t j = 0; j < n; ++j)
       c += s.area_m2[j] * std::polar(1.0, -kTwoPi * static_cast<double>(m * j) / static_cast<double>(n));
     const double amplitude = 2.0 * std::abs(c) / static_cast<double>(n);
+    out.lines.push_back({m, static_cast<double>(m) * out.surface_frequency_Hz, amplitude});
     if (amplitude > out.modulation_m2) {
       out.modulation_m2 = amplitude;
       out.peak_harmonic = m;

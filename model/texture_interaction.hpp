@@ -41,6 +41,13 @@ struct OverlapSeries {
   std::vector<double> area_m2;  // overlap area per unit width
 };
 
+// One spectral line of the overlap area: the harmonic m·v/λ_s and its amplitude.
+struct SpectralLine {
+  std::size_t harmonic = 0;
+  double frequency_Hz = 0.0;
+  double amplitude_m2 = 0.0;
+};
+
 struct InteractionPrediction {
   double surface_frequency_Hz = 0.0;  // v/λ_s
   double ridge_frequency_Hz = 0.0;    // v/λ_f
@@ -49,6 +56,7 @@ struct InteractionPrediction {
   double modulation_m2 = 0.0;         // amplitude of that harmonic
   double mean_area_m2 = 0.0;
   TextureZone zone = TextureZone::comparable_to_ridges;
+  std::vector<SpectralLine> lines;  // every harmonic m = 1 … samples_per_period/2, in order
 };
 
 // Throws std::invalid_argument naming the field for non-positive lengths, speed or sample counts.

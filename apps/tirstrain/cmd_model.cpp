@@ -16,6 +16,7 @@
 #include "core/version.hpp"
 #include "model/cattaneo_mindlin.hpp"
 #include "tirstrain/commands.hpp"
+#include "tirstrain/model_verbs.hpp"
 
 namespace tirstrain::cli {
 namespace {
@@ -206,7 +207,8 @@ void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
 }  // namespace
 
 void add_model_command(CLI::App& app) {
-  CLI::App* model = app.add_subcommand("model", "Analytic contact models (validation references)");
+  CLI::App* model = app.add_subcommand(
+      "model", "Analytic models: Hertz + Cattaneo-Mindlin contact, fingerprint-texture interaction");
   model->require_subcommand(1);
   auto options = std::make_shared<ModelOptions>();
   CLI::App* cm = model->add_subcommand(
@@ -238,6 +240,7 @@ void add_model_command(CLI::App& app) {
   cm->add_option("--out", options->out, "Output directory (with --grid) or CSV file (with --points)")
       ->required();
   grid->excludes(points);
+  add_model_texture_interaction_verb(*model);
   cm->callback([options, grid, points] {
     if (!*grid && !*points) throw Error("give either --grid N (maps) or --points IN.csv", {.key = "--grid"});
     const model::CattaneoMindlin field = build_model(*options);

@@ -17,6 +17,7 @@
 #include "signals/channels.hpp"
 #include "signals/filter.hpp"
 #include "signals/friction.hpp"
+#include "signals/friction_speed.hpp"
 #include "signals/mechanics.hpp"
 #include "signals/spatial.hpp"
 #include "signals/spectral.hpp"
@@ -310,6 +311,21 @@ void add_impedance(CLI::App& signals) {
   });
 }
 
+json power_law_json(const ts::PowerLawFit& fit) {
+  return {{"a", fit.a},
+          {"b", fit.b},
+          {"a_low", fit.a_low},
+          {"a_high", fit.a_high},
+          {"b_low", fit.b_low},
+          {"b_high", fit.b_high},
+          {"a_stderr", fit.a_stderr},
+          {"b_stderr", fit.b_stderr},
+          {"covariance_ab", fit.covariance_ab},
+          {"confidence", fit.confidence},
+          {"residual_rms", fit.residual_rms},
+          {"samples", fit.samples}};
+}
+
 void add_power_law(CLI::App& signals) {
   struct Opts {
     std::string input, out, normal = "normal_N", mu = "mu";
@@ -332,18 +348,62 @@ void add_power_law(CLI::App& signals) {
     const auto fit = in_context(o->input, o->mu, [&] {
       return ts::fit_power_law(table.column(o->normal), table.column(o->mu), o->confidence);
     });
-    write_json(o->out, {{"a", fit.a},
-                        {"b", fit.b},
-                        {"a_low", fit.a_low},
-                        {"a_high", fit.a_high},
-                        {"b_low", fit.b_low},
-                        {"b_high", fit.b_high},
-                        {"a_stderr", fit.a_stderr},
-                        {"b_stderr", fit.b_stderr},
-                        {"covariance_ab", fit.covariance_ab},
-                        {"confidence", fit.confidence},
-                        {"residual_rms", fit.residual_rms},
-                        {"samples", fit.samples}});
+    write_json(o->out, power_law_json(fit));
+  });
+}
+
+void add_friction_speed(CLI::App& signals) {
+  struct Opts {
+    std::string input, out, speed = "speed_m_s", mu = "mu";
+    double reference_speed_m_s = 0.01, confidence = 0.95;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = add_verb(
+      signals, "friction-speed", "Fit mu against sliding speed: power law and logarithmic law, compared",
+      "One row per trial or stroke (no time column needed). Two laws, each with confidence intervals "
+      "(estimate +/- t(n-2) * standard error): the power law mu = a * v^b (nonlinear least squares, Ceres, "
+      "as `signals power-law`) and the logarithmic law mu = mu_ref + beta * ln(v / v_ref) (linear least "
+      "squares). Both have two parameters, so their AIC = n ln(RSS/n) + 4 compares them directly; "
+      "`preferred` names the lower, `delta_aic` says by how much (below 2: the data do not prefer either).\n"
+      "Output JSON: power{a, b, intervals, residual_rms, aic}, log{mu_ref, beta, intervals, "
+      "reference_speed_m_s, residual_rms, aic}, preferred, delta_aic.\n"
+      "Example: tirstrain signals friction-speed strokes.csv --speed speed_m_s --mu mu --out speed_law.json");
+  sub->add_option("IN", o->input, "CSV with one row per trial or stroke")->required();
+  sub->add_option("--out", o->out, "output JSON")->required();
+  sub->add_option("--speed", o->speed, "sliding speed column, m/s")->capture_default_str();
+  sub->add_option("--mu", o->mu, "friction coefficient column")->capture_default_str();
+  sub->add_option("--reference-speed-m-s", o->reference_speed_m_s, "v_ref of the logarithmic law, m/s")
+      ->capture_default_str();
+  sub->add_option("--confidence", o->confidence, "confidence level of the intervals")->capture_default_str();
+  sub->callback([o] {
+    const auto table = read_numeric_csv(o->input);
+    const auto& speed = table.column(o->speed);
+    const auto& mu = table.column(o->mu);
+    const auto power =
+        in_context(o->input, o->speed, [&] { return ts::fit_power_law(speed, mu, o->confidence); });
+    const auto log_law = in_context(o->input, o->speed, [&] {
+      return ts::fit_log_speed_law(speed, mu, o->reference_speed_m_s, o->confidence);
+    });
+    json pj = power_law_json(power);
+    pj["aic"] = ts::least_squares_aic(power.residual_rms, power.samples, 2);
+    json lj = {{"mu_ref", log_law.mu_ref},
+               {"beta", log_law.beta},
+               {"mu_ref_low", log_law.mu_ref_low},
+               {"mu_ref_high", log_law.mu_ref_high},
+               {"beta_low", log_law.beta_low},
+               {"beta_high", log_law.beta_high},
+               {"mu_ref_stderr", log_law.mu_ref_stderr},
+               {"beta_stderr", log_law.beta_stderr},
+               {"reference_speed_m_s", log_law.reference_speed_m_s},
+               {"confidence", log_law.confidence},
+               {"residual_rms", log_law.residual_rms},
+               {"samples", log_law.samples},
+               {"aic", ts::least_squares_aic(log_law.residual_rms, log_law.samples, 2)}};
+    const double delta = pj["aic"].get<double>() - lj["aic"].get<double>();
+    write_json(o->out, {{"power", pj},
+                        {"log", lj},
+                        {"preferred", delta <= 0.0 ? "power" : "log"},
+                        {"delta_aic", std::abs(delta)}});
   });
 }
 
@@ -673,6 +733,7 @@ void add_signals_command(CLI::App& app) {
   add_signals_friction_verb(*signals);
   add_signals_phases_verb(*signals);
   add_power_law(*signals);
+  add_friction_speed(*signals);
   add_spatial(*signals);
   add_pad_deformation(*signals);
   add_resample(*signals);

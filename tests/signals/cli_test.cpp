@@ -154,6 +154,38 @@ TEST(SignalsCli, RecurrenceInTheSpatialDomainAcrossAnEnsembleAndAsAPicture) {
   EXPECT_NE(bad.output.find("--joint-column"), std::string::npos) << bad.output;
 }
 
+TEST(SignalsCli, FrictionSpeedAndTextureInteractionWriteTheirContracts) {
+  const std::string csv = dir() + "/speeds.csv", out = dir() + "/speed_law.json";
+  {
+    std::ofstream f(csv);
+    f << "speed_m_s,mu\n";
+    for (int i = 0; i < 8; ++i) {
+      const double v = 0.004 * std::pow(1.8, i);
+      f << tirstrain::format_double(v) << ',' << tirstrain::format_double(0.9 - 0.05 * std::log(v / 0.01))
+        << '\n';
+    }
+  }
+  const auto r = run("signals friction-speed " + csv + " --out " + out);
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream jf(out);
+  const auto j = nlohmann::json::parse(jf);
+  EXPECT_NEAR(j["log"]["beta"].get<double>(), -0.05, 1e-9);
+  EXPECT_NEAR(j["log"]["mu_ref"].get<double>(), 0.9, 1e-9);
+  EXPECT_EQ(j["preferred"], "log");
+  const std::string tex = dir() + "/texture.json";
+  const auto t = run("model texture-interaction --texture-period-mm 0.2 1.0 --speed-mm-s 50 --out " + tex);
+  ASSERT_EQ(t.code, 0) << t.output;
+  EXPECT_NE(t.output.find("finer_than_ridges"), std::string::npos) << t.output;
+  std::ifstream tf(tex);
+  const auto tj = nlohmann::json::parse(tf);
+  ASSERT_EQ(tj["predictions"].size(), 2u);
+  EXPECT_NEAR(tj["predictions"][1]["surface_frequency_Hz"].get<double>(), 50.0, 1e-9);  // v / λ
+  EXPECT_EQ(tj["predictions"][1]["zone"], "coarser_than_ridges");
+  const auto bad = run("model texture-interaction --texture-period-mm 0.2 --speed-mm-s -1");
+  EXPECT_EQ(bad.code, 1);
+  EXPECT_NE(bad.output.find("--speed-mm-s"), std::string::npos) << bad.output;
+}
+
 TEST(SignalsCli, BadInputIsLocated) {
   const std::string bad = dir() + "/bad.csv";
   std::ofstream(bad) << "t_s,force_N\n0,1\n0.001,2\n0.001,3\n0.003,4\n";

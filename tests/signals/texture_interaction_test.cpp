@@ -1,6 +1,7 @@
 // model/texture_interaction: v/λ, zone naming, and properties of the overlap model that hold exactly.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -53,4 +54,19 @@ TEST(TextureInteraction, MatchedWavelengthsModulateMostStrongly) {
   EXPECT_EQ(sweep[1].zone, tmodel::TextureZone::comparable_to_ridges);
   EXPECT_GT(sweep[1].modulation_m2, 5.0 * sweep[0].modulation_m2);
   for (const auto& r : sweep) EXPECT_NEAR(std::fmod(r.peak_frequency_Hz, r.surface_frequency_Hz), 0.0, 1e-9);
+}
+
+TEST(TextureInteraction, LinesAreTheHarmonicsOfVOverLambdaAndThePeakIsTheStrongest) {
+  tirstrain::model::TextureInteractionParams p;
+  p.surface_wavelength_m = 0.2e-3;
+  p.speed_m_s = 0.05;
+  const auto r = tirstrain::model::predict_interaction(p);
+  ASSERT_EQ(r.lines.size(), p.samples_per_period / 2);
+  double strongest = 0.0;
+  for (const auto& line : r.lines) {
+    EXPECT_NEAR(line.frequency_Hz, static_cast<double>(line.harmonic) * 250.0, 1e-9);
+    strongest = std::max(strongest, line.amplitude_m2);
+  }
+  EXPECT_EQ(strongest, r.modulation_m2);
+  EXPECT_EQ(r.lines[r.peak_harmonic - 1].amplitude_m2, r.modulation_m2);
 }
