@@ -544,6 +544,28 @@ TEST(StrainPipeline, AverageIsTheCellwiseMeanOverCoveringTrials) {
     }
   const double expected = 0.5 * ((0.10 + 0.5 * 0.10 * 0.10) + (-0.06 + 0.5 * 0.06 * 0.06));
   EXPECT_NEAR(sum / n, expected, 0.003);
+
+  // The same two trials' principal directions: field a stretches along x (e1 at 0 deg), field b along y
+  // (e1 at 90 deg); both nearly uniform in direction, and Kuiper's test tells them apart.
+  const fs::path orient = scratch("orientation_out");
+  const std::string orient_command = std::string(TIRSTRAIN_CLI) + " orientation-stats " + result_a + " " +
+                                     b.result_dir + " --at last --out " + orient.string() + " 2>&1";
+  ASSERT_EQ(std::system(orient_command.c_str()), 0);
+  std::ifstream jf(orient / "orientation_stats.json");
+  const auto j = nlohmann::json::parse(jf);
+  ASSERT_EQ(j["groups"].size(), 2u);
+  const auto& pa = j["groups"][0]["principal"];
+  const auto& pb = j["groups"][1]["principal"];
+  const double dir_a = pa["mean_direction_deg"].get<double>();
+  EXPECT_LT(std::min(dir_a, 180.0 - dir_a), 2.0);
+  EXPECT_NEAR(pb["mean_direction_deg"].get<double>(), 90.0, 2.0);
+  EXPECT_GT(pa["resultant_length"].get<double>(), 0.95);
+  EXPECT_GT(pb["resultant_length"].get<double>(), 0.95);
+  EXPECT_GT(pa["count"].get<int>(), 300);
+  ASSERT_EQ(j["kuiper"]["principal"].size(), 1u);
+  EXPECT_GT(j["kuiper"]["principal"][0]["kuiper_V"].get<double>(), 0.9);
+  EXPECT_LT(j["kuiper"]["principal"][0]["p_value"].get<double>(), 1e-6);
+  EXPECT_TRUE(fs::exists(orient / "rose_principal.png"));
 }
 
 TEST(StrainPipeline, MotionBlurredPlateFrameIsMarkedAndBridged) {
