@@ -18,6 +18,7 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "core/full_scale.hpp"
 #include "core/median.hpp"
 #include "flow/detail/tracker_impl.hpp"
 #include "flow/mask_erosion.hpp"
@@ -51,13 +52,11 @@ const char* to_string(TrackStatus status) {
   return "?";
 }
 
-void to_float_image(const cv::Mat& image, cv::Mat& out) {
+void to_float_image(const cv::Mat& image, cv::Mat& out, double full_scale) {
   switch (image.depth()) {
     case CV_8U:
-      image.convertTo(out, CV_32F, 1.0 / 255.0);
-      return;
     case CV_16U:
-      image.convertTo(out, CV_32F, 1.0 / 65535.0);
+      image.convertTo(out, CV_32F, 1.0 / full_scale);
       return;
     case CV_32F:
       image.copyTo(out);
@@ -69,17 +68,17 @@ void to_float_image(const cv::Mat& image, cv::Mat& out) {
 
 cv::Mat to_float_image(const cv::Mat& image) {
   cv::Mat out;
-  to_float_image(image, out);
+  to_float_image(image, out, full_scale_of(image));
   return out;
 }
 
-void to_u8_image(const cv::Mat& image, cv::Mat& out) {
+void to_u8_image(const cv::Mat& image, cv::Mat& out, double full_scale) {
   switch (image.depth()) {
     case CV_8U:
       image.copyTo(out);
       return;
     case CV_16U:
-      image.convertTo(out, CV_8U, 1.0 / 257.0);
+      image.convertTo(out, CV_8U, 255.0 / full_scale);
       return;
     case CV_32F:
       image.convertTo(out, CV_8U, 255.0);
@@ -104,8 +103,12 @@ void FeatureTracker::Impl::check_input(const cv::Mat& image, const cv::Mat& cont
 }
 
 void FeatureTracker::Impl::prepare(const cv::Mat& image, const cv::Mat& contact_mask) {
-  to_float_image(image, current_f);
-  to_u8_image(image, current_u8);
+  // Decided once, on the first frame, by the rule contact/ uses: a 10-bit camera's codes in 16-bit files
+  // are fractions of 1023, not of 65535, and every later frame is scaled alike so that brightness stays
+  // comparable between frames.
+  if (full_scale <= 0.0) full_scale = full_scale_of(image);
+  to_float_image(image, current_f, full_scale);
+  to_u8_image(image, current_u8, full_scale);
   if (contact_mask.empty())
     mask = cv::Mat(image.size(), CV_8U, cv::Scalar(1));
   else

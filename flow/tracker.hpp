@@ -139,9 +139,10 @@ class FeatureTracker {
   std::unique_ptr<Impl> impl_;
 };
 
-// Frame conversions shared with the plate tracker: float with full scale 1, and 8 bits for LK.
-cv::Mat to_float_image(const cv::Mat& image);
-void to_float_image(const cv::Mat& image, cv::Mat& out);
-void to_u8_image(const cv::Mat& image, cv::Mat& out);
+// Frame conversions: float with full scale 1, and 8 bits for LK. `full_scale` is the code of full scale of
+// an 8- or 16-bit image (core/full_scale.hpp decides it); float images are taken as fractions already.
+cv::Mat to_float_image(const cv::Mat& image);  // with full_scale_of(image)
+void to_float_image(const cv::Mat& image, cv::Mat& out, double full_scale);
+void to_u8_image(const cv::Mat& image, cv::Mat& out, double full_scale);
 
 }  // namespace tirstrain::flow

@@ -109,6 +109,7 @@ struct FeatureTracker::Impl {
   // Where frame 0 seeded tracks, with a tolerance for the outline's jitter: its contact eroded by a little
   // less than border_margin_px (start()).
   cv::Mat first_seeded;
+  double full_scale = 0.0;  // code of full scale of the sequence's frames, set by the first frame
   cv::Mat current_f, current_u8, previous_u8, mask, match_mask, birth_mask, eigen, eigen_scratch;
   cv::Mat erosion_scratch;
   cv::Mat match_f;  // what subsets are matched in: current_f, smoothed by prefilter_sigma_px
