@@ -19,6 +19,7 @@
 #include "core/atomic_output.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
+#include "core/progress.hpp"
 #include "core/scene.hpp"
 #include "flow/settings.hpp"
 #include "flow/tracker.hpp"
@@ -86,25 +87,8 @@ void check_track_output(const TrackOptions& o) {
                     {.key = "--out"});
 }
 
-void run_track(const TrackOptions& o) {
-  check_track_output(o);
-  Scene scene;
-  if (!o.scene.empty()) scene = load_scene(o.scene);
-  flow::TrackerSettings settings = flow::parse_tracking_settings(scene, o.preset);
-  // Points given by the user are tracked as they are; nothing is born.
-  settings.births = false;
-
-  std::unique_ptr<capture::FrameSource> source =
-      capture::open_source(o.input, capture::FileSourceOptions{.frame_rate_Hz = o.frame_rate_Hz});
-  std::optional<capture::Frame> first = source->next();
-  if (!first) throw Error("the sequence has no frames", {.file = o.input});
-  const cv::Size size = first->image.size();
-
-  cv::Mat mask;
-  if (!o.roi.empty()) {
-    mask = cv::Mat::zeros(size, CV_8U);
-    mask(parse_roi(o.roi, size)).setTo(1);
-  }
+// Where tracking starts: the user's points, or a grid over the region a full subset inside it.
+std::vector<Vec2> seed_points(const TrackOptions& o, const flow::TrackerSettings& settings, cv::Size size) {
   std::vector<Vec2> points;
   if (!o.points_csv.empty()) {
     const CsvTable table = read_numeric_csv(o.points_csv);
@@ -112,104 +96,163 @@ void run_track(const TrackOptions& o) {
     const auto& ys = table.column("y_px");
     for (std::size_t i = 0; i < xs.size(); ++i) points.push_back({xs[i], ys[i]});
     if (points.empty()) throw Error("no points to track", {.file = o.points_csv});
-  } else {
-    const cv::Rect r = o.roi.empty() ? cv::Rect(0, 0, size.width, size.height) : parse_roi(o.roi, size);
-    // Keep a margin of the refinement subset so every grid point starts with a full subset.
-    const double margin = settings.refine ? settings.subset_radius_px + 2.0 : settings.window_px / 2.0;
-    for (double y = r.y + margin; y <= r.y + r.height - 1 - margin; y += o.grid_step_px)
-      for (double x = r.x + margin; x <= r.x + r.width - 1 - margin; x += o.grid_step_px)
-        points.push_back({x, y});
-    if (points.empty())
-      throw Error("the grid has no point at least " + std::to_string(static_cast<int>(margin)) +
-                      " px inside the tracked region",
-                  {.key = "--grid"});
+    return points;
+  }
+  const cv::Rect r = o.roi.empty() ? cv::Rect(0, 0, size.width, size.height) : parse_roi(o.roi, size);
+  // Keep a margin of the refinement subset so every grid point starts with a full subset.
+  const double margin = settings.refine ? settings.subset_radius_px + 2.0 : settings.window_px / 2.0;
+  for (double y = r.y + margin; y <= r.y + r.height - 1 - margin; y += o.grid_step_px)
+    for (double x = r.x + margin; x <= r.x + r.width - 1 - margin; x += o.grid_step_px)
+      points.push_back({x, y});
+  if (points.empty())
+    throw Error("the grid has no point at least " + std::to_string(static_cast<int>(margin)) +
+                    " px inside the tracked region",
+                {.key = "--grid"});
+  return points;
+}
+
+nlohmann::json frame_json(const flow::FrameStats& s) {
+  nlohmann::json f = {{"frame", s.frame},
+                      {"alive", s.alive},
+                      {"fused", s.fused},
+                      {"fusion_declined", s.fusion_declined},
+                      {"rest_tested", s.rest_tested},
+                      {"at_rest", s.at_rest},
+                      {"on_rest_fit", s.on_rest_fit}};
+  if (s.rest_tested) {
+    f["rest_chi2_per_dof"] =
+        std::isfinite(s.rest_chi2_per_dof) ? nlohmann::json(s.rest_chi2_per_dof) : nullptr;
+    f["rest_correlation_z"] =
+        std::isfinite(s.rest_correlation_z) ? nlohmann::json(s.rest_correlation_z) : nullptr;
+    f["rest_pairs"] = s.rest_pairs;
+  }
+  return f;
+}
+
+// One run of `track`: frames in, one CSV row per track and frame out, and the JSON report beside it.
+class TrackRun {
+ public:
+  explicit TrackRun(const TrackOptions& o)
+      : o_(o), out_(o.out, {"frame", "id", "X_px", "Y_px", "x_px", "y_px", "status", "model"}) {}
+
+  void run() {
+    open_input();
+    start();
+    track_frames();
+    write_report();
+    print_summary();
   }
 
-  flow::FeatureTracker tracker(settings);
-  CsvWriter out(o.out, {"frame", "id", "X_px", "Y_px", "x_px", "y_px", "status", "model"});
-  nlohmann::json frames_json = nlohmann::json::array();
-  std::array<long, 4> by_model{};
-  const auto write = [&](int frame) {
-    for (const flow::Track& t : tracker.tracks()) {
-      if (!flow::is_alive(t.status) && t.retired_frame != frame) continue;
-      out.row_text({std::to_string(frame), std::to_string(t.id), format_double(t.reference_px.x),
-                    format_double(t.reference_px.y), format_double(t.position_px.x),
-                    format_double(t.position_px.y), std::to_string(static_cast<int>(t.status)),
-                    std::to_string(static_cast<int>(t.model))});
-      if (flow::is_alive(t.status)) ++by_model[static_cast<std::size_t>(t.model)];
-    }
-  };
-  const auto record_frame = [&](const flow::FrameStats& s) {
-    nlohmann::json f = {{"frame", s.frame},
-                        {"alive", s.alive},
-                        {"fused", s.fused},
-                        {"fusion_declined", s.fusion_declined},
-                        {"rest_tested", s.rest_tested},
-                        {"at_rest", s.at_rest},
-                        {"on_rest_fit", s.on_rest_fit}};
-    if (s.rest_tested) {
-      f["rest_chi2_per_dof"] =
-          std::isfinite(s.rest_chi2_per_dof) ? nlohmann::json(s.rest_chi2_per_dof) : nullptr;
-      f["rest_correlation_z"] =
-          std::isfinite(s.rest_correlation_z) ? nlohmann::json(s.rest_correlation_z) : nullptr;
-      f["rest_pairs"] = s.rest_pairs;
-    }
-    frames_json.push_back(f);
-  };
-  try {
-    tracker.start(first->image, mask, first->device_time_s, points);
-  } catch (const Error& e) {
-    throw Error(e.message(), {.file = o.input, .frame = 0});
+ private:
+  void open_input() {
+    Scene scene;
+    if (!o_.scene.empty()) scene = load_scene(o_.scene);
+    settings_ = flow::parse_tracking_settings(scene, o_.preset);
+    settings_.births = false;  // points given by the user are tracked as they are; nothing is born
+    source_ = capture::open_source(o_.input, capture::FileSourceOptions{.frame_rate_Hz = o_.frame_rate_Hz});
   }
-  write(0);
-  record_frame(tracker.stats());
-  int frames = 1;
-  while (std::optional<capture::Frame> f = source->next()) {
-    if (f->status == capture::FrameStatus::kCorrupt || f->status == capture::FrameStatus::kIncomplete) {
-      if (!o.quiet)
-        std::cerr << "tirstrain track: skipping frame " << f->index << " (" << capture::to_string(f->status)
-                  << ")\n";
-      continue;
+
+  void start() {
+    std::optional<capture::Frame> first = source_->next();
+    if (!first) throw Error("the sequence has no frames", {.file = o_.input});
+    const cv::Size size = first->image.size();
+    if (!o_.roi.empty()) {
+      mask_ = cv::Mat::zeros(size, CV_8U);
+      mask_(parse_roi(o_.roi, size)).setTo(1);
     }
+    tracker_ = std::make_unique<flow::FeatureTracker>(settings_);
     try {
-      tracker.track(f->image, mask, f->device_time_s);
+      tracker_->start(first->image, mask_, first->device_time_s, seed_points(o_, settings_, size));
     } catch (const Error& e) {
-      throw Error(e.message(), {.file = o.input, .frame = f->index});
+      throw Error(e.message(), {.file = o_.input, .frame = 0});
     }
-    write(tracker.frame_index());
-    record_frame(tracker.stats());
-    ++frames;
+    write_rows(0);
   }
-  const std::string json_path = settings_path(o.out);
-  nlohmann::json report = {{"settings", pipeline::tracking_settings_json(tracker.settings())},
-                           {"texture", pipeline::texture_json(tracker)},
-                           {"input", o.input},
-                           {"frames", frames},
-                           {"track_frames_by_model",
-                            {{"own_match", by_model[0]},
-                             {"fused", by_model[1]},
-                             {"rest_fit", by_model[2]},
-                             {"smoothed_in_time", by_model[3]}}},
-                           {"per_frame", frames_json}};
+
+  void track_frames() {
+    Progress progress("track", source_->frame_count() > 0 ? static_cast<long>(source_->frame_count()) : 1L,
+                      o_.quiet);
+    while (std::optional<capture::Frame> f = source_->next()) {
+      if (f->status == capture::FrameStatus::kCorrupt || f->status == capture::FrameStatus::kIncomplete) {
+        if (!o_.quiet)
+          std::cerr << "tirstrain track: skipping frame " << f->index << " (" << capture::to_string(f->status)
+                    << ")\n";
+        continue;
+      }
+      try {
+        tracker_->track(f->image, mask_, f->device_time_s);
+      } catch (const Error& e) {
+        throw Error(e.message(), {.file = o_.input, .frame = f->index});
+      }
+      write_rows(tracker_->frame_index());
+      progress.update(static_cast<long>(f->index) + 1);
+    }
+    progress.finish();
+  }
+
+  // The frame's rows: every alive track, and those retired this frame with their reason.
+  void write_rows(int frame) {
+    for (const flow::Track& t : tracker_->tracks()) {
+      if (!flow::is_alive(t.status) && t.retired_frame != frame) continue;
+      out_.row_text({std::to_string(frame), std::to_string(t.id), format_double(t.reference_px.x),
+                     format_double(t.reference_px.y), format_double(t.position_px.x),
+                     format_double(t.position_px.y), std::to_string(static_cast<int>(t.status)),
+                     std::to_string(static_cast<int>(t.model))});
+      if (flow::is_alive(t.status)) ++by_model_[static_cast<std::size_t>(t.model)];
+    }
+    frames_json_.push_back(frame_json(tracker_->stats()));
+    ++frames_;
+  }
+
   // Both files are complete before either is renamed into place, so a run that fails leaves the earlier
   // pair as it was.
-  AtomicFile json(json_path);
-  json.append(report.dump(2) + "\n");
-  json.make_durable();
-  out.commit();
-  json.commit();
-  long alive = 0;
-  for (const flow::Track& t : tracker.tracks()) alive += flow::is_alive(t.status) ? 1 : 0;
-  if (!o.quiet) {
-    std::cout << "tracked " << tracker.tracks().size() << " points through " << frames << " frames (" << alive
-              << " alive at the end, preset " << settings.preset << "); wrote " << o.out << " and "
+  void write_report() {
+    const nlohmann::json report = {{"settings", pipeline::tracking_settings_json(tracker_->settings())},
+                                   {"texture", pipeline::texture_json(*tracker_)},
+                                   {"input", o_.input},
+                                   {"frames", frames_},
+                                   {"track_frames_by_model",
+                                    {{"own_match", by_model_[0]},
+                                     {"fused", by_model_[1]},
+                                     {"rest_fit", by_model_[2]},
+                                     {"smoothed_in_time", by_model_[3]}}},
+                                   {"per_frame", frames_json_}};
+    AtomicFile json(settings_path(o_.out));
+    json.append(report.dump(2) + "\n");
+    json.make_durable();
+    out_.commit();
+    json.commit();
+  }
+
+  void print_summary() const {
+    if (o_.quiet) return;
+    long alive = 0;
+    for (const flow::Track& t : tracker_->tracks()) alive += flow::is_alive(t.status) ? 1 : 0;
+    const std::string json_path = settings_path(o_.out);
+    std::cout << "tracked " << tracker_->tracks().size() << " points through " << frames_ << " frames ("
+              << alive << " alive at the end, preset " << settings_.preset << "); wrote " << o_.out << " and "
               << json_path << '\n';
-    std::cout << "texture: " << pipeline::texture_note(tracker) << '\n';
-    std::cout << "positions: " << by_model[0] << " own matches, " << by_model[1] << " neighbour-fused, "
-              << by_model[2]
+    std::cout << "texture: " << pipeline::texture_note(*tracker_) << '\n';
+    std::cout << "positions: " << by_model_[0] << " own matches, " << by_model_[1] << " neighbour-fused, "
+              << by_model_[2]
               << " on the rest fit (track-frames; column model, and the rest test per frame in " << json_path
               << ")\n";
   }
+
+  const TrackOptions& o_;
+  flow::TrackerSettings settings_;
+  std::unique_ptr<capture::FrameSource> source_;
+  std::unique_ptr<flow::FeatureTracker> tracker_;
+  cv::Mat mask_;
+  CsvWriter out_;
+  nlohmann::json frames_json_ = nlohmann::json::array();
+  std::array<long, 4> by_model_{};
+  int frames_ = 0;
+};
+
+void run_track(const TrackOptions& o) {
+  check_track_output(o);
+  TrackRun(o).run();
 }
 
 }  // namespace
