@@ -1,12 +1,11 @@
 #include "core/heatmap.hpp"
+#include "core/png_file.hpp"
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 
 #include "core/error.hpp"
 
@@ -125,12 +124,7 @@ cv::Mat render_heatmap(const cv::Mat& values, const HeatmapOptions& options) {
 }
 
 void write_heatmap_png(const std::string& path, const cv::Mat& values, const HeatmapOptions& options) {
-  const cv::Mat image = render_heatmap(values, options);
-  const std::string partial = path + ".partial.png";
-  if (!cv::imwrite(partial, image)) throw Error("cannot write PNG image", {.file = path});
-  std::error_code ec;
-  std::filesystem::rename(partial, path, ec);
-  if (ec) throw Error("cannot rename finished file into place: " + ec.message(), {.file = path});
+  write_png_file(path, render_heatmap(values, options));
 }
 
 }  // namespace tirstrain

@@ -1,11 +1,10 @@
 #include "core/rose_plot.hpp"
+#include "core/png_file.hpp"
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <numbers>
 
 #include "core/error.hpp"
@@ -82,12 +81,7 @@ cv::Mat render_rose(const std::vector<RoseGroup>& groups, const RoseOptions& o) 
 
 void write_rose_png(const std::string& path, const std::vector<RoseGroup>& groups,
                     const RoseOptions& options) {
-  const cv::Mat image = render_rose(groups, options);
-  const std::string partial = path + ".partial.png";
-  if (!cv::imwrite(partial, image)) throw Error("cannot write PNG image", {.file = path});
-  std::error_code ec;
-  std::filesystem::rename(partial, path, ec);
-  if (ec) throw Error("cannot rename finished file into place: " + ec.message(), {.file = path});
+  write_png_file(path, render_rose(groups, options));
 }
 
 }  // namespace tirstrain

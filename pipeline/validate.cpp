@@ -22,6 +22,7 @@
 #include "core/error.hpp"
 #include "core/h5_file.hpp"
 #include "core/heatmap.hpp"
+#include "core/png_file.hpp"
 #include "core/tensor2.hpp"
 #include "pipeline/contact_observability.hpp"
 #include "pipeline/error_accumulator.hpp"
@@ -194,9 +195,7 @@ std::vector<std::string> write_side_by_side_maps(const ValidateOptions& options,
     cv::Mat row;
     cv::hconcat(std::vector<cv::Mat>{left, middle, right}, row);
     const std::string path = (out / (std::string("maps_") + names[c] + ".png")).string();
-    const std::string partial = path + ".partial.png";
-    if (!cv::imwrite(partial, row)) throw Error("cannot write map image", {.file = path});
-    fs::rename(partial, path);
+    write_png_file(path, row);
     outputs.push_back(path);
   }
   return outputs;

@@ -1,14 +1,13 @@
 #include "signals/phases_plot.hpp"
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 
 #include "core/error.hpp"
+#include "core/png_file.hpp"
 
 namespace tirstrain::signals {
 namespace {
@@ -159,12 +158,7 @@ cv::Mat render_phases_plot(const std::vector<double>& time_s, const Phases& phas
 
 void write_phases_png(const std::string& path, const std::vector<double>& time_s, const Phases& phases,
                       const PhasesPlotOptions& options) {
-  const cv::Mat image = render_phases_plot(time_s, phases, options);
-  const std::string partial = path + ".partial.png";
-  if (!cv::imwrite(partial, image)) throw Error("cannot write PNG image", {.file = path});
-  std::error_code ec;
-  std::filesystem::rename(partial, path, ec);
-  if (ec) throw Error("cannot rename finished file into place: " + ec.message(), {.file = path});
+  write_png_file(path, render_phases_plot(time_s, phases, options));
 }
 
 }  // namespace tirstrain::signals

@@ -1,12 +1,10 @@
 #include "signals/recurrence_plot.hpp"
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <functional>
 
 #include "core/error.hpp"
@@ -87,17 +85,6 @@ cv::Mat render_ensemble_plot(const std::vector<std::uint16_t>& counts, std::size
   const double per_trial = 1.0 / static_cast<double>(trials);
   return render(
       size, [&](std::size_t i, std::size_t j) { return counts[i * size + j] * per_trial; }, options, layout);
-}
-
-void write_png(const std::string& path, const cv::Mat& image) {
-  const std::string partial = path + ".partial.png";
-  if (!cv::imwrite(partial, image)) throw Error("cannot write PNG image", {.file = path});
-  std::error_code ec;
-  std::filesystem::rename(partial, path, ec);
-  if (ec) {
-    std::filesystem::remove(partial, ec);
-    throw Error("cannot move the PNG image into place", {.file = path});
-  }
 }
 
 }  // namespace tirstrain::signals

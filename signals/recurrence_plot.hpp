@@ -30,7 +30,6 @@ cv::Mat render_recurrence_plot(const RecurrenceMatrix& r, const RecurrencePlotOp
 // counts: M×M, row-major, the number of trials in which each cell recurs (ensemble_sum).
 cv::Mat render_ensemble_plot(const std::vector<std::uint16_t>& counts, std::size_t size, std::size_t trials,
                              const RecurrencePlotOptions& options, RecurrencePlotLayout* layout = nullptr);
-// Writes a PNG through a temporary name; throws Error on failure.
-void write_png(const std::string& path, const cv::Mat& image);
+// Written with core/png_file.hpp's write_png_file.
 
 }  // namespace tirstrain::signals

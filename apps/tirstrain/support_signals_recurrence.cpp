@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
+#include "core/png_file.hpp"
 #include "signals/embedding.hpp"
 #include "signals/recurrence_plot.hpp"
 #include "signals/rqa.hpp"
@@ -299,14 +300,14 @@ void add_recurrence_plot(CLI::App& signals) {
     plot.title = o->r.column + (o->r.joint_column.empty() ? "" : " & " + o->r.joint_column) +
                  ", D = " + std::to_string(o->r.dim) + ", tau = " + std::to_string(o->r.delay);
     if (trials.size() == 1) {
-      ts::write_png(o->out, ts::render_recurrence_plot(trials.front().matrix, plot));
+      write_png_file(o->out, ts::render_recurrence_plot(trials.front().matrix, plot));
       return;
     }
     std::vector<ts::RecurrenceMatrix> matrices;
     for (const auto& t : trials) matrices.push_back(t.matrix);
     plot.title += ", " + std::to_string(trials.size()) + " trials summed";
-    ts::write_png(o->out, ts::render_ensemble_plot(ts::ensemble_sum(matrices), matrices.front().size(),
-                                                   matrices.size(), plot));
+    write_png_file(o->out, ts::render_ensemble_plot(ts::ensemble_sum(matrices), matrices.front().size(),
+                                                    matrices.size(), plot));
   });
 }
 
