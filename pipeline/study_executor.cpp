@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <map>
@@ -26,7 +27,24 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-pid_t spawn(const std::vector<std::string>& argv, const std::string& log) {
+// The environment of a trial's child: with several trials at a time, OpenCV's parallel loops get the
+// cores shared out (OPENCV_FOR_THREADS_NUM), because trials in parallel use the cores better than one
+// trial's loops over a few hundred tracks do. A value the user set is kept.
+std::vector<std::string> child_environment(int jobs) {
+  std::vector<std::string> env;
+  for (char** e = environ; *e != nullptr; ++e) env.emplace_back(*e);
+  if (jobs > 1 && std::getenv("OPENCV_FOR_THREADS_NUM") == nullptr) {
+    const long cores = std::max(1L, ::sysconf(_SC_NPROCESSORS_ONLN));
+    env.push_back("OPENCV_FOR_THREADS_NUM=" + std::to_string(std::max(1L, cores / jobs)));
+  }
+  return env;
+}
+
+pid_t spawn(const std::vector<std::string>& argv, const std::string& log,
+            const std::vector<std::string>& environment = {}) {
+  std::vector<char*> env;
+  for (const std::string& e : environment) env.push_back(const_cast<char*>(e.c_str()));
+  env.push_back(nullptr);
   std::vector<char*> args;
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
@@ -37,7 +55,8 @@ pid_t spawn(const std::vector<std::string>& argv, const std::string& log) {
     posix_spawn_file_actions_adddup2(&actions, 1, 2);
   }
   pid_t pid = 0;
-  const int rc = posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ);
+  const int rc =
+      posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environment.empty() ? environ : env.data());
   posix_spawn_file_actions_destroy(&actions);
   if (rc != 0) throw Error("cannot start " + argv[0] + ": " + std::strerror(rc));
   return pid;
@@ -113,6 +132,7 @@ std::string slurm_script(const std::string& dir, const StudySpec& spec,
   if (!r.partition.empty()) s << "#SBATCH --partition=" << r.partition << "\n";
   if (r.mem_MB > 0) s << "#SBATCH --mem=" << r.mem_MB << "M\n";
   if (r.time_min > 0) s << "#SBATCH --time=" << r.time_min << "\n";
+  s << "export OPENCV_FOR_THREADS_NUM=\"${OPENCV_FOR_THREADS_NUM:-$SLURM_CPUS_PER_TASK}\"\n";
   s << "exec '" << cli << "' study run-trial '" << dir << "' \"$SLURM_ARRAY_TASK_ID\"\n";
   return s.str();
 }
@@ -127,6 +147,17 @@ std::size_t count_recorded(const std::string& dir, const StudySpec& spec,
     *failed += s == "failed";
   }
   return n;
+}
+
+// True while the job has tasks pending or running. squeue forgets a finished job after MinJobAge and then
+// says "Invalid job id": that is the job's end too, not an error.
+bool job_queued(const std::string& job) {
+  try {
+    return !run_command("squeue -h -j " + job + " -o %i").empty();
+  } catch (const Error& e) {
+    if (std::string(e.what()).find("Invalid job id") != std::string::npos) return false;
+    throw;
+  }
 }
 
 }  // namespace
@@ -157,13 +188,14 @@ int run_local(const std::string& dir, const StudySpec& spec, const std::vector<s
   StudyProgress progress(indices.size(), options.quiet);
   std::map<pid_t, std::size_t> running;  // child -> trial index
   std::size_t next = 0, finished = 0, failed = 0;
+  const std::vector<std::string> environment = child_environment(options.jobs);
   progress.draw(0, 0, 0);
   while (finished < indices.size()) {
     while (next < indices.size() && running.size() < static_cast<std::size_t>(std::max(1, options.jobs))) {
       const std::size_t i = indices[next++];
       std::remove(log_path(dir, spec.trials[i].name).c_str());
       running[spawn({options.cli, "study", "run-trial", dir, std::to_string(i)},
-                    log_path(dir, spec.trials[i].name))] = i;
+                    log_path(dir, spec.trials[i].name), environment)] = i;
     }
     int status = 0;
     const pid_t pid = waitpid(-1, &status, 0);
@@ -200,7 +232,7 @@ std::string run_slurm(const std::string& dir, const StudySpec& spec, const std::
   StudyProgress progress(indices.size(), options.quiet);
   std::size_t failed = 0, last = static_cast<std::size_t>(-1);
   for (;;) {
-    const bool queued = !run_command("squeue -h -j " + job + " -o %i").empty();
+    const bool queued = job_queued(job);
     const std::size_t done = count_recorded(dir, spec, indices, &failed);
     if (done != last || !queued) progress.draw(done, failed, queued ? indices.size() - done : 0);
     last = done;

@@ -16,8 +16,8 @@ cat > "$work/study.yaml" <<'YAML'
 trials:
   - {name: p1, input: rec/load_1, scene: rec/load_1/scene.yaml, conditions: {normal_N: 1, finger: index}}
   - {name: p2, input: rec/load_2, scene: rec/load_2/scene.yaml, conditions: {normal_N: 2, finger: index}}
-  - {name: p4, input: rec/load_4, scene: rec/load_4/scene.yaml, conditions: {normal_N: 4, finger: middle}}
-  - {name: broken, input: rec/missing, conditions: {normal_N: 3, finger: index}}
+  - {name: p4, input: rec/load_4, scene: rec/load_4/scene.yaml, conditions: {normal_N: 4, finger: index}}
+  - {name: broken, input: rec/missing, conditions: {normal_N: 3, finger: middle}}
 aggregate:
   power_laws:
     - {name: area, normal: normal_N, mu: peak_contact_area_mm2}
@@ -50,14 +50,18 @@ assert abs(law["b"] - 2.0 / 3.0) < 0.1, law["b"]
 assert law["samples"] == 3, law
 table = list(csv.DictReader(open(out + "/aggregate/conditions.csv")))
 by = {r["finger"]: r for r in table}
-assert by["index"]["trials"] == "3" and by["index"]["trials_done"] == "2", by
+assert by["index"]["trials"] == "3" and by["index"]["trials_done"] == "3", by
+assert by["middle"]["trials"] == "1" and by["middle"]["trials_done"] == "0", by
 mean = float(by["index"]["peak_contact_area_mm2_mean"])
-assert abs(mean - (area["p1"] + area["p2"]) / 2) < 1e-6 * mean, (mean, area)
+assert abs(mean - sum(area.values()) / 3) < 1e-6 * mean, (mean, area)
+assert by["index"]["peak_contact_area_mm2_n"] == "3", by
 agg = json.load(open(out + "/aggregate/aggregate.json"))
 assert agg["trials_done"] == 3, agg
 PY
 [ -f "$work/out/aggregate/maps/finger=index/average.h5" ] || fail "no averaged maps for finger=index"
-[ -f "$work/out/aggregate/maps/finger=middle/average.h5" ] || fail "no averaged maps for finger=middle"
+[ ! -e "$work/out/aggregate/maps/finger=middle" ] || fail "maps averaged over no done trial"
+h5dump -a /maps/inputs_and_frames "$work/out/aggregate/maps/finger=index/average.h5" | grep -q "p4/result.h5" ||
+  fail "the finger=index average does not hold p4"
 "$tirstrain" study status "$work/out" > "$work/status.txt"
 grep -q "4 trials" "$work/status.txt" && grep -q "3 done 1 failed" "$work/status.txt" || fail "status: $(cat "$work/status.txt")"
 

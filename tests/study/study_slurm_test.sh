@@ -1,9 +1,10 @@
 #!/bin/bash
 # tirstrain study through a real Slurm: starts munged, slurmctld and slurmd on this machine with a
 # temporary configuration (their own key, socket, ports, state and log folders), runs a three-trial study
-# with --executor slurm, checks that study.csv's results and every result.h5 dataset and attribute (h5diff)
-# equal those of the local executor, and stops the daemons. Exits 77 (skipped) with the reason when Slurm or munge is not
-# installed or the test does not run as root.
+# with --executor slurm (submitted without waiting and followed with study status, then one changed trial
+# resubmitted and waited for), checks that study.csv's results and every result.h5 dataset and attribute
+# (h5diff) equal those of the local executor, and stops the daemons. Exits 77 (skipped) with the reason
+# when Slurm, munge or h5diff is not installed or the test does not run as root.
 set -euo pipefail
 tirstrain=$1
 work=$2
@@ -98,9 +99,24 @@ trials:
 slurm: {partition: studytest, cpus_per_task: 1, mem_MB: 100, time_min: 5}
 YAML
 
-"$tirstrain" study run "$work/study.yaml" --out "$work/slurm" --executor slurm --poll-s 0.5
+# Submitted without waiting: study status follows the job, study aggregate summarises it.
+"$tirstrain" study run "$work/study.yaml" --out "$work/slurm" --executor slurm --no-wait
 grep -q -- "--partition=studytest" "$work/slurm/slurm/job.sh"
 grep -q -- "--array=0,1,2" "$work/slurm/slurm/job.sh"
+for i in $(seq 200); do
+  "$tirstrain" study status "$work/slurm" | grep -q "3 done" && break
+  sleep 0.2
+done
+"$tirstrain" study status "$work/slurm" | grep -q "3 done 0 failed"
+"$tirstrain" study aggregate "$work/slurm"
+[ -f "$work/slurm/aggregate/conditions.csv" ]
+
+# A changed scene: one task submitted, waited for (squeue), then aggregated.
+echo "# edited" >> "$work/rec/load_2/scene.yaml"
+"$tirstrain" study run "$work/study.yaml" --out "$work/slurm" --executor slurm --poll-s 0.5 2> "$work/slurm2.log"
+cat "$work/slurm2.log"
+grep -q "1 of 3 trials to process" "$work/slurm2.log"
+grep -q -- "--array=1$" "$work/slurm/slurm/job.sh"
 "$tirstrain" study run "$work/study.yaml" --out "$work/local" --jobs 2 --quiet
 
 python3 - "$work/slurm" "$work/local" <<'PY'
