@@ -102,13 +102,17 @@ void write_status(const std::string& dir, const TrialStatus& s) {
   write_text_file(status_path(dir, s.name), j.dump(2) + "\n");
 }
 
-// Median of the finite values; NaN when there are none.
-double finite_median(std::vector<double> v) {
-  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
-  if (v.empty()) return std::nan("");
-  std::sort(v.begin(), v.end());
-  const std::size_t m = v.size() / 2;
-  return v.size() % 2 == 1 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+// The fitted μP of the frame with the largest fitted Q among those with a μP estimate: μP is best determined
+// where Q/μP is largest (the slip annulus that carries it is widest), and frames just past the onset give
+// degenerate estimates near 0. NaN when no frame has one.
+double limit_at_largest_load(const std::vector<double>& limit_N, const std::vector<double>& tangential_N) {
+  double best_Q = -1.0, limit = std::nan("");
+  for (std::size_t i = 0; i < std::min(limit_N.size(), tangential_N.size()); ++i)
+    if (std::isfinite(limit_N[i]) && std::isfinite(tangential_N[i]) && tangential_N[i] > best_Q) {
+      best_Q = tangential_N[i];
+      limit = limit_N[i];
+    }
+  return limit;
 }
 
 TrialResults read_key_results(const fs::path& out) {
@@ -128,7 +132,8 @@ TrialResults read_key_results(const fs::path& out) {
   }
   const H5Reader h5((out / "result.h5").string());
   if (r.frames == 0) r.frames = static_cast<std::int64_t>(h5.shape("/frames/t_s")[0]);
-  if (h5.has("/fit/limit_N")) r.mu_P_N = finite_median(h5.read_doubles("/fit/limit_N"));
+  if (h5.has("/fit/limit_N"))
+    r.mu_P_N = limit_at_largest_load(h5.read_doubles("/fit/limit_N"), h5.read_doubles("/fit/tangential_N"));
   return r;
 }
 
