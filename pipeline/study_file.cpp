@@ -170,6 +170,15 @@ void check_consistency(const StudySpec& spec) {
       if (keys.count(k) == 0)
         throw Error("'" + k + "' is not a condition of any trial", {.file = spec.file, .key = key});
   };
+  static const std::set<std::string> results = {
+      "peak_contact_area_mm2", "mu_dynamic", "U_t90_J", "onset_s", "t90_s", "full_slip_s", "mu_P_N"};
+  for (std::size_t i = 0; i < spec.aggregate.power_laws.size(); ++i) {
+    const StudyPowerLaw& p = spec.aggregate.power_laws[i];
+    for (const std::string& column : {p.normal, p.mu})
+      if (keys.count(column) == 0 && results.count(column) == 0)
+        throw Error("'" + column + "' is neither a condition nor a key result column of study.csv",
+                    {.file = spec.file, .key = "aggregate.power_laws[" + std::to_string(i) + "]"});
+  }
   check(spec.aggregate.maps_by, "aggregate.maps.by");
   check(spec.aggregate.table_by, "aggregate.table.by");
 }

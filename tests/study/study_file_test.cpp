@@ -87,6 +87,8 @@ TEST(StudyFile, MistakesNameFileKeyAndLine) {
       {"trials:\n  - {name: a, input: rec/a}\nslurm: {cpus_per_task: 0}\n", "slurm.cpus_per_task", "outside",
        0},
       {"trials:\n  - {name: a, input: rec/a}\nagregate: {}\n", "agregate", "unknown key", 0},
+      {"trials:\n  - {name: a, input: rec/a}\naggregate: {power_laws: [{name: f, mu: mu_dyn}]}\n",
+       "aggregate.power_laws[0]", "neither a condition", 0},
   };
   for (const Case& c : cases) {
     write(dir / "bad.yaml", c.yaml);
