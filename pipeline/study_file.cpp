@@ -3,8 +3,8 @@
 #include <glob.h>
 
 #include <algorithm>
+#include <cctype>
 #include <filesystem>
-#include <regex>
 #include <set>
 
 #include "core/error.hpp"
@@ -21,6 +21,13 @@ const std::set<std::string>& reserved_columns() {
                                               "mu_dynamic",  "U_t90_J", "onset_s", "t90_s",
                                               "full_slip_s", "mu_P_N",  "hash",    "error"};
   return names;
+}
+
+// Letters, digits and '_', not starting with a digit: a study.csv column name.
+bool is_identifier(const std::string& name) {
+  const auto word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '_'; };
+  return !name.empty() && std::isdigit(static_cast<unsigned char>(name[0])) == 0 &&
+         std::all_of(name.begin(), name.end(), word);
 }
 
 // Runs fn(); an Error it throws gains the 1-based line of `node` (list entries have no key of their own).
@@ -54,7 +61,6 @@ std::vector<std::string> text_list(const YAML::Node& node, const std::string& fi
 
 std::map<std::string, std::string> read_conditions(const YAML::Node& node, const std::string& file,
                                                    const std::string& key) {
-  static const std::regex identifier("[A-Za-z_][A-Za-z0-9_]*");
   std::map<std::string, std::string> out;
   if (!node.IsDefined() || node.IsNull()) return out;
   if (!node.IsMap())
@@ -62,7 +68,7 @@ std::map<std::string, std::string> read_conditions(const YAML::Node& node, const
   for (const auto& entry : node) {
     const std::string name = entry.first.as<std::string>();
     const std::string where = key + "." + name;
-    if (!std::regex_match(name, identifier))
+    if (!is_identifier(name))
       throw Error("a condition name is letters, digits and _ (a study.csv column)",
                   {.file = file, .key = where});
     if (reserved_columns().count(name) > 0)
@@ -75,8 +81,11 @@ std::map<std::string, std::string> read_conditions(const YAML::Node& node, const
 }
 
 void check_trial_name(const std::string& name, const std::string& file, const std::string& key) {
-  static const std::regex allowed("[A-Za-z0-9][A-Za-z0-9._-]*");
-  if (!std::regex_match(name, allowed))
+  const auto allowed = [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '.' || c == '_' || c == '-';
+  };
+  if (name.empty() || std::isalnum(static_cast<unsigned char>(name[0])) == 0 ||
+      !std::all_of(name.begin(), name.end(), allowed))
     throw Error(
         "a trial name is letters, digits, '.', '_' and '-', starting with a letter or digit "
         "(it names the folder trials/NAME)",
