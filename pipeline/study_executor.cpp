@@ -1,0 +1,253 @@
+#include "pipeline/study_executor.hpp"
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <sstream>
+#include <thread>
+
+#include "core/atomic_output.hpp"
+#include "core/error.hpp"
+
+extern char** environ;
+
+namespace tirstrain::pipeline {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+// The environment of a trial's child: with several trials at a time, OpenCV's parallel loops get the
+// cores shared out (OPENCV_FOR_THREADS_NUM), because trials in parallel use the cores better than one
+// trial's loops over a few hundred tracks do. A value the user set is kept.
+std::vector<std::string> child_environment(int jobs) {
+  std::vector<std::string> env;
+  for (char** e = environ; *e != nullptr; ++e) env.emplace_back(*e);
+  if (jobs > 1 && std::getenv("OPENCV_FOR_THREADS_NUM") == nullptr) {
+    const long cores = std::max(1L, ::sysconf(_SC_NPROCESSORS_ONLN));
+    env.push_back("OPENCV_FOR_THREADS_NUM=" + std::to_string(std::max(1L, cores / jobs)));
+  }
+  return env;
+}
+
+pid_t spawn(const std::vector<std::string>& argv, const std::string& log,
+            const std::vector<std::string>& environment = {}) {
+  std::vector<char*> env;
+  for (const std::string& e : environment) env.push_back(const_cast<char*>(e.c_str()));
+  env.push_back(nullptr);
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  if (!log.empty()) {
+    posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  }
+  pid_t pid = 0;
+  const int rc =
+      posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environment.empty() ? environ : env.data());
+  posix_spawn_file_actions_destroy(&actions);
+  if (rc != 0) throw Error("cannot start " + argv[0] + ": " + std::strerror(rc));
+  return pid;
+}
+
+int exit_code(int status) {
+  if (WIFEXITED(status)) return WEXITSTATUS(status);
+  return WIFSIGNALED(status) ? 128 + WTERMSIG(status) : 1;
+}
+
+std::string duration_text(double s) {
+  const long t = std::lround(s);
+  if (t >= 3600) return std::to_string(t / 3600) + "h" + std::to_string((t % 3600) / 60) + "m";
+  if (t >= 60) return std::to_string(t / 60) + "m" + std::to_string(t % 60) + "s";
+  return std::to_string(t) + "s";
+}
+
+// "study [#####-----] 3/8 trials (1 failed), 2 running, ~1m20s left": the time left assumes the trials
+// still to finish take as long on average as those finished, `parallel` at a time.
+class StudyProgress {
+ public:
+  StudyProgress(std::size_t total, bool quiet) : total_(total), quiet_(quiet), tty_(isatty(2) != 0) {}
+  void draw(std::size_t finished, std::size_t failed, std::size_t running) {
+    if (quiet_) return;
+    const double elapsed_s = std::chrono::duration<double>(Clock::now() - start_).count();
+    constexpr int kWidth = 24;
+    const int filled = total_ == 0 ? kWidth : static_cast<int>(kWidth * finished / total_);
+    std::ostringstream line;
+    line << "study [" << std::string(filled, '#') << std::string(kWidth - filled, '-') << "] " << finished
+         << "/" << total_ << " trials";
+    if (failed > 0) line << " (" << failed << " failed)";
+    line << ", " << running << " running";
+    if (finished > 0 && finished < total_)
+      line << ", ~"
+           << duration_text(elapsed_s / static_cast<double>(finished) *
+                            static_cast<double>(total_ - finished))
+           << " left";
+    if (finished == total_) line << ", " << duration_text(elapsed_s);
+    std::fprintf(stderr, tty_ ? "\r%-78s" : "%s\n", line.str().c_str());
+    if (tty_ && finished == total_) std::fputc('\n', stderr);
+    std::fflush(stderr);
+  }
+
+ private:
+  std::size_t total_;
+  bool quiet_, tty_;
+  Clock::time_point start_ = Clock::now();
+};
+
+std::string log_path(const std::string& dir, const std::string& name) {
+  return (fs::path(dir) / "logs" / (name + ".log")).string();
+}
+
+// A child that ended without recording its outcome (crashed, killed) is recorded as failed here.
+void check_recorded(const std::string& dir, const StudyTrial& trial, int code) {
+  const TrialStatus s = read_status(dir, trial.name);
+  if (s.status == "done" || s.status == "failed") return;
+  record_failure(dir, trial,
+                 "the trial's process ended with exit code " + std::to_string(code) +
+                     " before recording its outcome (see logs/" + trial.name + ".log)");
+}
+
+std::string slurm_script(const std::string& dir, const StudySpec& spec,
+                         const std::vector<std::size_t>& indices, const std::string& cli) {
+  const StudySlurm& r = spec.slurm;
+  std::string array;
+  for (std::size_t i : indices) array += (array.empty() ? "" : ",") + std::to_string(i);
+  std::ostringstream s;
+  s << "#!/bin/sh\n# Written by tirstrain study run --executor slurm: one array task per trial.\n"
+    << "#SBATCH --job-name=tirstrain-study\n#SBATCH --array=" << array << "\n"
+    << "#SBATCH --cpus-per-task=" << r.cpus_per_task << "\n"
+    << "#SBATCH --output=" << (fs::path(dir) / "logs" / "slurm-%A_%a.log").string() << "\n";
+  if (!r.partition.empty()) s << "#SBATCH --partition=" << r.partition << "\n";
+  if (r.mem_MB > 0) s << "#SBATCH --mem=" << r.mem_MB << "M\n";
+  if (r.time_min > 0) s << "#SBATCH --time=" << r.time_min << "\n";
+  s << "export OPENCV_FOR_THREADS_NUM=\"${OPENCV_FOR_THREADS_NUM:-$SLURM_CPUS_PER_TASK}\"\n";
+  s << "exec '" << cli << "' study run-trial '" << dir << "' \"$SLURM_ARRAY_TASK_ID\"\n";
+  return s.str();
+}
+
+std::size_t count_recorded(const std::string& dir, const StudySpec& spec,
+                           const std::vector<std::size_t>& indices, std::size_t* failed) {
+  std::size_t n = 0;
+  *failed = 0;
+  for (std::size_t i : indices) {
+    const std::string s = read_status(dir, spec.trials[i].name).status;
+    n += s == "done" || s == "failed";
+    *failed += s == "failed";
+  }
+  return n;
+}
+
+// True while the job has tasks pending or running. squeue forgets a finished job after MinJobAge and then
+// says "Invalid job id": that is the job's end too, not an error.
+bool job_queued(const std::string& job) {
+  try {
+    return !run_command("squeue -h -j " + job + " -o %i").empty();
+  } catch (const Error& e) {
+    if (std::string(e.what()).find("Invalid job id") != std::string::npos) return false;
+    throw;
+  }
+}
+
+}  // namespace
+
+int run_child(const std::vector<std::string>& argv, const std::string& log) {
+  const pid_t pid = spawn(argv, log);
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0)
+    if (errno != EINTR) throw Error(std::string("waiting for ") + argv[0] + ": " + std::strerror(errno));
+  return exit_code(status);
+}
+
+std::string run_command(const std::string& command) {
+  std::FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) throw Error("cannot run: " + command);
+  std::string out;
+  char buffer[4096];
+  while (const std::size_t n = std::fread(buffer, 1, sizeof buffer, pipe)) out.append(buffer, n);
+  const int status = ::pclose(pipe);
+  if (status != 0)
+    throw Error("'" + command + "' failed (exit " + std::to_string(exit_code(status)) + "): " + out);
+  return out;
+}
+
+int run_local(const std::string& dir, const StudySpec& spec, const std::vector<std::size_t>& indices,
+              const LocalExecutorOptions& options) {
+  fs::create_directories(fs::path(dir) / "logs");
+  StudyProgress progress(indices.size(), options.quiet);
+  std::map<pid_t, std::size_t> running;  // child -> trial index
+  std::size_t next = 0, finished = 0, failed = 0;
+  const std::vector<std::string> environment = child_environment(options.jobs);
+  progress.draw(0, 0, 0);
+  while (finished < indices.size()) {
+    while (next < indices.size() && running.size() < static_cast<std::size_t>(std::max(1, options.jobs))) {
+      const std::size_t i = indices[next++];
+      std::remove(log_path(dir, spec.trials[i].name).c_str());
+      running[spawn({options.cli, "study", "run-trial", dir, std::to_string(i)},
+                    log_path(dir, spec.trials[i].name), environment)] = i;
+    }
+    int status = 0;
+    const pid_t pid = waitpid(-1, &status, 0);
+    if (pid < 0) {
+      if (errno == EINTR) continue;
+      throw Error(std::string("waiting for the trials: ") + std::strerror(errno));
+    }
+    const auto it = running.find(pid);
+    if (it == running.end()) continue;
+    const int code = exit_code(status);
+    check_recorded(dir, spec.trials[it->second], code);
+    failed += code != 0;
+    running.erase(it);
+    progress.draw(++finished, failed, running.size());
+  }
+  return static_cast<int>(failed);
+}
+
+std::string run_slurm(const std::string& dir, const StudySpec& spec, const std::vector<std::size_t>& indices,
+                      const SlurmExecutorOptions& options) {
+  fs::create_directories(fs::path(dir) / "logs");
+  fs::create_directories(fs::path(dir) / "slurm");
+  const std::string script = (fs::path(dir) / "slurm" / "job.sh").string();
+  // An earlier outcome must not count as this job's: each submitted trial waits as "queued".
+  for (std::size_t i : indices) mark_queued(dir, spec.trials[i]);
+  write_text_file(script, slurm_script(dir, spec, indices, options.cli));
+  std::string job = run_command("sbatch --parsable '" + script + "'");
+  job = job.substr(0, job.find_first_of(";\n"));
+  if (job.empty()) throw Error("sbatch printed no job id", {.file = script});
+  write_text_file((fs::path(dir) / "slurm" / "job_id").string(), job + "\n");
+  if (!options.quiet)
+    std::fprintf(stderr, "submitted Slurm job %s (%zu tasks)\n", job.c_str(), indices.size());
+  if (!options.wait) return job;
+  StudyProgress progress(indices.size(), options.quiet);
+  std::size_t failed = 0, last = static_cast<std::size_t>(-1);
+  for (;;) {
+    const bool queued = job_queued(job);
+    const std::size_t done = count_recorded(dir, spec, indices, &failed);
+    if (done != last || !queued) progress.draw(done, failed, queued ? indices.size() - done : 0);
+    last = done;
+    if (!queued) break;
+    std::this_thread::sleep_for(std::chrono::duration<double>(options.poll_s));
+  }
+  for (std::size_t i : indices) {
+    const std::string s = read_status(dir, spec.trials[i].name).status;
+    if (s != "done" && s != "failed")
+      record_failure(dir, spec.trials[i],
+                     "Slurm job " + job + " task " + std::to_string(i) +
+                         " ended without recording its outcome (see logs/slurm-" + job + "_" +
+                         std::to_string(i) + ".log)");
+  }
+  return job;
+}
+
+}  // namespace tirstrain::pipeline

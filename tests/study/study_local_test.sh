@@ -1,0 +1,82 @@
+#!/bin/sh
+# tirstrain study with the local executor on three tiny synthetic trials and one broken one: results,
+# study.csv, the failure recorded while the study goes on, the power law of contact area against load
+# (Hertz: area ~ P^(2/3)), the averaged maps, and resumption (an unchanged second run processes only the
+# failed trial and leaves the results and aggregate/ as they were). What changes a trial's hash is
+# study_file_test's.
+set -eu
+tirstrain=$1
+work=$2
+here=$(cd "$(dirname "$0")" && pwd)
+rm -rf "$work"
+mkdir -p "$work"
+"$here/make_trials.sh" "$tirstrain" "$work/rec" 1 2 4
+
+cat > "$work/study.yaml" <<'YAML'
+trials:
+  - {name: p1, input: rec/load_1, scene: rec/load_1/scene.yaml, conditions: {normal_N: 1, finger: index}}
+  - {name: p2, input: rec/load_2, scene: rec/load_2/scene.yaml, conditions: {normal_N: 2, finger: index}}
+  - {name: p4, input: rec/load_4, scene: rec/load_4/scene.yaml, conditions: {normal_N: 4, finger: index}}
+  - {name: broken, input: rec/missing, conditions: {normal_N: 3, finger: middle}}
+compute: [fit]
+aggregate:
+  power_laws:
+    - {name: area, normal: normal_N, mu: peak_contact_area_mm2}
+  maps: {by: [finger]}
+  table: {by: [finger]}
+YAML
+
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+# A failing trial makes the run exit 1 after everything else is done and aggregated.
+if "$tirstrain" study run "$work/study.yaml" --out "$work/out" --jobs 2 2> "$work/run1.log"; then
+  fail "a study with a broken trial exited 0"
+fi
+cat "$work/run1.log"
+grep -q "4 of 4 trials to process" "$work/run1.log" || fail "first run did not process all trials"
+python3 - "$work/out" <<'PY'
+import csv, json, math, sys
+out = sys.argv[1]
+rows = {r["name"]: r for r in csv.DictReader(open(out + "/study.csv"))}
+assert list(rows) == ["p1", "p2", "p4", "broken"], list(rows)
+for n in ("p1", "p2", "p4"):
+    assert rows[n]["status"] == "done", rows[n]
+    assert rows[n]["frames"] == "8", rows[n]
+assert rows["broken"]["status"] == "failed" and "missing" in rows["broken"]["error"], rows["broken"]
+# Hertz: a ~ P^(1/3), so the contact area grows as P^(2/3).
+area = {n: float(rows[n]["peak_contact_area_mm2"]) for n in ("p1", "p2", "p4")}
+assert area["p1"] < area["p2"] < area["p4"], area
+# The fitted muP (friction 1 in the synthetic scenes: muP = P) within 20 %: in 8 frames the largest Q
+# reaches 0.9 P at 1 N but 0.3 P at 4 N, where muP is least determined (measured: 3 %, 11 %, 16 % low).
+for n, load in (("p1", 1.0), ("p2", 2.0), ("p4", 4.0)):
+    assert abs(float(rows[n]["mu_P_N"]) - load) < 0.2 * load, (n, rows[n]["mu_P_N"])
+law = json.load(open(out + "/aggregate/power_law_area.json"))
+assert abs(law["b"] - 2.0 / 3.0) < 0.1, law["b"]
+assert law["samples"] == 3, law
+table = list(csv.DictReader(open(out + "/aggregate/conditions.csv")))
+by = {r["finger"]: r for r in table}
+assert by["index"]["trials"] == "3" and by["index"]["trials_done"] == "3", by
+assert by["middle"]["trials"] == "1" and by["middle"]["trials_done"] == "0", by
+mean = float(by["index"]["peak_contact_area_mm2_mean"])
+assert abs(mean - sum(area.values()) / 3) < 1e-6 * mean, (mean, area)
+assert by["index"]["peak_contact_area_mm2_n"] == "3", by
+agg = json.load(open(out + "/aggregate/aggregate.json"))
+assert agg["trials_done"] == 3, agg
+PY
+[ -f "$work/out/aggregate/maps/finger=index/average.h5" ] || fail "no averaged maps for finger=index"
+[ ! -e "$work/out/aggregate/maps/finger=middle" ] || fail "maps averaged over no done trial"
+h5dump -a /maps/inputs_and_frames "$work/out/aggregate/maps/finger=index/average.h5" | grep -q "p4/result.h5" ||
+  fail "the finger=index average does not hold p4"
+"$tirstrain" study status "$work/out" > "$work/status.txt"
+grep -q "4 trials" "$work/status.txt" && grep -q "3 done 1 failed" "$work/status.txt" || fail "status: $(cat "$work/status.txt")"
+
+# Unchanged: nothing but the broken trial runs again, and the results stay the same files.
+aggregate_inode=$(stat -c %i "$work/out/aggregate")
+before=$(stat -c %Y.%i "$work/out/trials/p1/result.h5" "$work/out/trials/p2/result.h5" "$work/out/trials/p4/result.h5")
+"$tirstrain" study run "$work/study.yaml" --out "$work/out" --jobs 2 2> "$work/run2.log" || true
+grep -q "1 of 4 trials to process (3 unchanged" "$work/run2.log" || fail "second run: $(cat "$work/run2.log")"
+after=$(stat -c %Y.%i "$work/out/trials/p1/result.h5" "$work/out/trials/p2/result.h5" "$work/out/trials/p4/result.h5")
+[ "$before" = "$after" ] || fail "an unchanged trial was reprocessed"
+[ "$(stat -c %i "$work/out/aggregate")" = "$aggregate_inode" ] || fail "aggregate/ was rebuilt with nothing changed"
+
+echo "study local: ok"
