@@ -564,4 +564,13 @@ ClockAlignment align_by_cross_correlation(const std::vector<double>& channel_tim
   return out;
 }
 
+std::vector<double> oriented_along_motion(std::vector<double> series) {
+  double largest = 0.0;
+  for (double x : series)
+    if (std::abs(x - series.front()) > std::abs(largest)) largest = x - series.front();
+  if (largest < 0.0)
+    for (double& x : series) x = -x;
+  return series;
+}
+
 }  // namespace tirstrain::signals

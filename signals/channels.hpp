@@ -135,6 +135,11 @@ ClockAlignment align_by_trigger_channel(const std::vector<double>& time_s, const
 // are mean-removed over the compared pairs and their units need not match; a sign flip between them is not
 // undone (orient both along the motion first). Throws Error when fewer than 4 camera samples overlap the
 // channel at every lag or a series is constant.
+// The series turned so that its largest excursion from its first sample is positive: a plate position and
+// an image-measured displacement of the same motion may have opposite signs, which the correlation does not
+// undo.
+std::vector<double> oriented_along_motion(std::vector<double> series);
+
 ClockAlignment align_by_cross_correlation(const std::vector<double>& channel_time_s,
                                           const std::vector<double>& channel_position,
                                           const std::vector<double>& camera_time_s,

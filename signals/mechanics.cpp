@@ -164,6 +164,13 @@ MckFit fit_mass_spring_damper(const std::vector<double>& f,
   return fit;
 }
 
+MckFit fit_mass_spring_damper(const FingerImpedance& finger, const MckFitOptions& options) {
+  std::vector<cplx> dyn(finger.freq_Hz.size());
+  for (std::size_t k = 0; k < dyn.size(); ++k)
+    dyn[k] = cplx(0.0, kTwoPi * finger.freq_Hz[k]) * finger.z_Ns_m[k];
+  return fit_mass_spring_damper(finger.freq_Hz, dyn, finger.coherence, options);
+}
+
 MckFit fit_mass_spring_damper(const std::vector<double>& force_N, const std::vector<double>& accel_m_s2,
                               double sample_rate_Hz, const WelchOptions& welch,
                               const MckFitOptions& options) {

@@ -89,6 +89,8 @@ MckFit fit_mass_spring_damper(const TransferEstimate& force_to_accel, const MckF
 MckFit fit_mass_spring_damper(const std::vector<double>& freq_Hz,
                               const std::vector<std::complex<double>>& dynamic_stiffness_N_m,
                               const std::vector<double>& coherence, const MckFitOptions& options);
+// The same fit on a finger's impedance Z_f (F/X = jω·Z_f), gated by its coherence.
+MckFit fit_mass_spring_damper(const FingerImpedance& finger, const MckFitOptions& options);
 MckFit fit_mass_spring_damper(const std::vector<double>& force_N, const std::vector<double>& accel_m_s2,
                               double sample_rate_Hz, const WelchOptions& welch, const MckFitOptions& options);
 

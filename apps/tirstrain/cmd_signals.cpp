@@ -292,9 +292,6 @@ void add_impedance(CLI::App& signals) {
       out.row({finger.freq_Hz[k], finger.z_Ns_m[k].real(), finger.z_Ns_m[k].imag(), finger.mass_kg[k],
                finger.damping_Ns_m[k], finger.damping_ratio[k], finger.coherence[k]});
     if (!o->fit_out.empty()) {
-      std::vector<std::complex<double>> dyn(finger.freq_Hz.size());
-      for (std::size_t k = 0; k < dyn.size(); ++k)
-        dyn[k] = std::complex<double>(0.0, 2.0 * std::numbers::pi * finger.freq_Hz[k]) * finger.z_Ns_m[k];
       ts::MckFitOptions fo;
       fo.min_coherence = o->min_coherence;
       fo.fixed_stiffness_N_m = o->fix_stiffness_N_m;
@@ -302,9 +299,7 @@ void add_impedance(CLI::App& signals) {
         fo.band_low_Hz = o->band_Hz[0];
         fo.band_high_Hz = o->band_Hz[1];
       }
-      const auto fit = in_context(o->c.input, "", [&] {
-        return ts::fit_mass_spring_damper(finger.freq_Hz, dyn, finger.coherence, fo);
-      });
+      const auto fit = in_context(o->c.input, "", [&] { return ts::fit_mass_spring_damper(finger, fo); });
       write_json(o->fit_out, fit_json(fit));
     }
     out.commit();
@@ -681,18 +676,10 @@ void add_align(CLI::App& signals) {
       const auto camera =
           load(Common{o->camera, "", o->camera_time_column, o->c.rate_tolerance, o->c.group, std::nullopt},
                o->camera, {o->camera_column});
-      const auto oriented = [](std::vector<double> v) {
-        double best = 0.0;
-        for (double x : v)
-          if (std::abs(x - v.front()) > std::abs(best)) best = x - v.front();
-        if (best < 0.0)
-          for (double& x : v) x = -x;
-        return v;
-      };
       a = in_context(o->c.input, o->position, [&] {
-        return ts::align_by_cross_correlation(table.time_s, oriented(table.column(o->position)),
-                                              camera.time_s, oriented(camera.column(o->camera_column)),
-                                              o->max_lag_s);
+        return ts::align_by_cross_correlation(
+            table.time_s, ts::oriented_along_motion(table.column(o->position)), camera.time_s,
+            ts::oriented_along_motion(camera.column(o->camera_column)), o->max_lag_s);
       });
       j["max_lag_s"] = o->max_lag_s;
       j["camera_samples_compared"] = a.samples_compared;

@@ -186,6 +186,55 @@ TEST(SignalsCli, FrictionSpeedAndTextureInteractionWriteTheirContracts) {
   EXPECT_NE(bad.output.find("--speed-mm-s"), std::string::npos) << bad.output;
 }
 
+TEST(SignalsCli, ImpedanceFromVelocityWithAFixedStiffnessAndANarrowBandWarning) {
+  // A mass and a damper (m = 12 g, c = 3.5 N s/m, no spring) driven by a multisine on every analysis bin
+  // from 16 to 480 Hz: F = m a + c v exactly, v and a analytic.
+  const double fs = 4096.0, m = 0.012, c = 3.5;
+  const std::string in = dir() + "/vibrometer.csv";
+  {
+    std::ofstream f(in);
+    f << "t_s,F_N,v_m_s,a_m_s2\n";
+    for (int i = 0; i < 16384; ++i) {
+      const double t = i / fs;
+      double v = 0.0, a = 0.0;
+      for (int n = 2; n <= 60; ++n) {
+        const double w = 2 * std::numbers::pi * 8.0 * n, phase = 0.7 * n * n;
+        v += 0.01 * std::sin(w * t + phase);
+        a += 0.01 * w * std::cos(w * t + phase);
+      }
+      f << tirstrain::format_double(t) << ',' << tirstrain::format_double(m * a + c * v) << ','
+        << tirstrain::format_double(v) << ',' << tirstrain::format_double(a) << '\n';
+    }
+  }
+  const std::string z = dir() + "/z.csv", fit = dir() + "/fit.json";
+  auto r =
+      run("signals impedance " + in + " --force F_N --velocity-column v_m_s --segment 512 --band-Hz 20,450 " +
+          "--fix-stiffness 0 --fit-out " + fit + " --out " + z);
+  ASSERT_EQ(r.code, 0) << r.output;
+  {
+    std::ifstream jf(fit);
+    const auto j = nlohmann::json::parse(jf);
+    EXPECT_NEAR(j["m_kg"].get<double>(), m, 0.01 * m);
+    EXPECT_NEAR(j["c_Ns_m"].get<double>(), c, 0.02 * c);
+    EXPECT_EQ(j["k_N_m"].get<double>(), 0.0);
+    EXPECT_TRUE(j["stiffness_fixed"].get<bool>());
+    EXPECT_TRUE(j["warnings"].empty());
+  }
+  // Acceleration over 200-240 Hz with k free: the band cannot tell k from m, and the JSON says so.
+  r = run("signals impedance " + in +
+          " --force F_N --accel a_m_s2 --segment 512 --band-Hz 200,240 --fit-out " + fit + " --out " + z +
+          " 2>&1");
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream jf(fit);
+  const auto j = nlohmann::json::parse(jf);
+  EXPECT_GT(std::abs(j["m_k_correlation"].get<double>()), 0.95);
+  ASSERT_EQ(j["warnings"].size(), 1u);
+  EXPECT_NE(r.output.find("--fix-stiffness"), std::string::npos) << r.output;
+  r = run("signals impedance " + in + " --force F_N --segment 512 --out " + z);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("--velocity-column"), std::string::npos) << r.output;
+}
+
 TEST(SignalsCli, BadInputIsLocated) {
   const std::string bad = dir() + "/bad.csv";
   std::ofstream(bad) << "t_s,force_N\n0,1\n0.001,2\n0.001,3\n0.003,4\n";
