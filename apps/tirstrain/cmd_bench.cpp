@@ -8,7 +8,6 @@
 
 #include <yaml-cpp/yaml.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <fcntl.h>
@@ -28,6 +27,7 @@
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/median.hpp"
+#include "core/png_file.hpp"
 #include "core/yaml_reader.hpp"
 #include "pipeline/generalisation.hpp"
 #include "samples/generalisation.hpp"
@@ -273,9 +273,7 @@ void write_plot(const std::vector<Row>& rows, const std::vector<std::string>& sc
   }
   cv::putText(image, "filled + orange line: Pareto front (no other point is both faster and more accurate)",
               {10, 34}, cv::FONT_HERSHEY_SIMPLEX, 0.35, {0, 100, 200}, 1, cv::LINE_AA);
-  const std::string partial = path + ".partial.png";
-  if (!cv::imwrite(partial, image)) throw Error("cannot write the plot", {.file = path});
-  fs::rename(partial, path);
+  write_png_file(path, image);
 }
 
 void print_generalisation_header() {
