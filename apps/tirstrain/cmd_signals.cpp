@@ -586,18 +586,83 @@ void add_resample(CLI::App& signals) {
   });
 }
 
+// Options of `signals align`.
+struct AlignOptions {
+  Common c;                              // the channel file, its reading options and the JSON output
+  std::optional<double> offset_s;        // a known offset, s (t_camera = t_channel + offset)
+  std::string trigger, edge = "rising";  // trigger channel and the edge the camera saw
+  std::optional<double> threshold;       // trigger level, channel units (unset: 50 % of its range)
+  std::optional<double> camera_edge_s;   // camera time of the trigger edge, s
+  std::string position, camera, camera_column, camera_time_column = "t_s";  // cross-correlation inputs
+  double max_lag_s = 0.2;                                                   // largest offset searched, s
+  std::string shifted_out;  // the channel file moved to the camera clock (optional)
+};
+
+// The offset by the one method the options name, and that method's own fields for the JSON.
+ts::ClockAlignment compute_alignment(const AlignOptions& o, const ts::ChannelTable& table, json& j) {
+  ts::ClockAlignment a;
+  if (o.offset_s) {
+    a = in_context(o.c.input, "", [&] { return ts::align_explicit(*o.offset_s); });
+  } else if (!o.trigger.empty()) {
+    if (!o.camera_edge_s)
+      throw Error("--trigger needs --camera-edge-s (the camera time of the same edge)",
+                  {.key = "--camera-edge-s"});
+    a = in_context(o.c.input, o.trigger, [&] {
+      return ts::align_by_trigger_channel(table.time_s, table.column(o.trigger), *o.camera_edge_s,
+                                          o.threshold, o.edge == "rising");
+    });
+    j["channel_edge_s"] = a.channel_edge_s;
+    j["camera_edge_s"] = a.camera_edge_s;
+    if (o.threshold) j["threshold"] = *o.threshold;
+  } else {
+    if (o.camera.empty() || o.camera_column.empty())
+      throw Error("--position needs --camera and --camera-column", {.key = "--camera"});
+    const auto camera =
+        load(Common{o.camera, "", o.camera_time_column, o.c.rate_tolerance, o.c.group, std::nullopt},
+             o.camera, {o.camera_column});
+    a = in_context(o.c.input, o.position, [&] {
+      return ts::align_by_cross_correlation(
+          table.time_s, ts::oriented_along_motion(table.column(o.position)), camera.time_s,
+          ts::oriented_along_motion(camera.column(o.camera_column)), o.max_lag_s);
+    });
+    j["max_lag_s"] = o.max_lag_s;
+    j["camera_samples_compared"] = a.samples_compared;
+  }
+  return a;
+}
+
+void run_align(const AlignOptions& o) {
+  const int modes = (o.offset_s ? 1 : 0) + (o.trigger.empty() ? 0 : 1) + (o.position.empty() ? 0 : 1);
+  if (modes != 1)
+    throw Error("give exactly one of --offset-s, --trigger or --position", {.key = "--offset-s"});
+  std::vector<std::string> required;
+  if (!o.trigger.empty()) required.push_back(o.trigger);
+  if (!o.position.empty()) required.push_back(o.position);
+  const auto table = load(o.c, o.c.input, required);
+  json j;
+  const ts::ClockAlignment a = compute_alignment(o, table, j);
+  j["method"] = a.method;
+  j["offset_s"] = a.offset_s;
+  j["correlation"] = a.correlation;
+  j["convention"] = "t_camera = t_channel + offset_s";
+  j["input"] = o.c.input;
+  if (!o.shifted_out.empty()) {
+    std::vector<std::string> names{o.c.time_column};
+    names.insert(names.end(), table.names.begin(), table.names.end());
+    CsvWriter out(o.shifted_out, names);
+    std::vector<double> row(names.size());
+    for (std::size_t i = 0; i < table.samples(); ++i) {
+      row[0] = table.time_s[i] + a.offset_s;
+      for (std::size_t c = 0; c < table.columns.size(); ++c) row[c + 1] = table.columns[c][i];
+      out.row(row);
+    }
+    out.commit();
+  }
+  write_json(o.c.out, j);
+}
+
 void add_align(CLI::App& signals) {
-  struct Opts {
-    Common c;
-    std::optional<double> offset_s;
-    std::string trigger, edge = "rising";
-    std::optional<double> threshold;
-    std::optional<double> camera_edge_s;
-    std::string position, camera, camera_column, camera_time_column = "t_s";
-    double max_lag_s = 0.2;
-    std::string shifted_out;
-  };
-  auto o = std::make_shared<Opts>();
+  auto o = std::make_shared<AlignOptions>();
   CLI::App* sub = add_verb(
       signals, "align",
       "Clock offset between a channel file and the camera (explicit, trigger, cross-correlation)",
@@ -647,62 +712,7 @@ void add_align(CLI::App& signals) {
   sub->add_option("--shifted-out", o->shifted_out, "IN on the camera clock (CSV)");
   offset->excludes(trigger)->excludes(position);
   trigger->excludes(position);
-  sub->callback([o] {
-    const int modes = (o->offset_s ? 1 : 0) + (o->trigger.empty() ? 0 : 1) + (o->position.empty() ? 0 : 1);
-    if (modes != 1)
-      throw Error("give exactly one of --offset-s, --trigger or --position", {.key = "--offset-s"});
-    std::vector<std::string> required;
-    if (!o->trigger.empty()) required.push_back(o->trigger);
-    if (!o->position.empty()) required.push_back(o->position);
-    const auto table = load(o->c, o->c.input, required);
-    ts::ClockAlignment a;
-    json j;
-    if (o->offset_s) {
-      a = in_context(o->c.input, "", [&] { return ts::align_explicit(*o->offset_s); });
-    } else if (!o->trigger.empty()) {
-      if (!o->camera_edge_s)
-        throw Error("--trigger needs --camera-edge-s (the camera time of the same edge)",
-                    {.key = "--camera-edge-s"});
-      a = in_context(o->c.input, o->trigger, [&] {
-        return ts::align_by_trigger_channel(table.time_s, table.column(o->trigger), *o->camera_edge_s,
-                                            o->threshold, o->edge == "rising");
-      });
-      j["channel_edge_s"] = a.channel_edge_s;
-      j["camera_edge_s"] = a.camera_edge_s;
-      if (o->threshold) j["threshold"] = *o->threshold;
-    } else {
-      if (o->camera.empty() || o->camera_column.empty())
-        throw Error("--position needs --camera and --camera-column", {.key = "--camera"});
-      const auto camera =
-          load(Common{o->camera, "", o->camera_time_column, o->c.rate_tolerance, o->c.group, std::nullopt},
-               o->camera, {o->camera_column});
-      a = in_context(o->c.input, o->position, [&] {
-        return ts::align_by_cross_correlation(
-            table.time_s, ts::oriented_along_motion(table.column(o->position)), camera.time_s,
-            ts::oriented_along_motion(camera.column(o->camera_column)), o->max_lag_s);
-      });
-      j["max_lag_s"] = o->max_lag_s;
-      j["camera_samples_compared"] = a.samples_compared;
-    }
-    j["method"] = a.method;
-    j["offset_s"] = a.offset_s;
-    j["correlation"] = a.correlation;
-    j["convention"] = "t_camera = t_channel + offset_s";
-    j["input"] = o->c.input;
-    if (!o->shifted_out.empty()) {
-      std::vector<std::string> names{o->c.time_column};
-      names.insert(names.end(), table.names.begin(), table.names.end());
-      CsvWriter out(o->shifted_out, names);
-      std::vector<double> row(names.size());
-      for (std::size_t i = 0; i < table.samples(); ++i) {
-        row[0] = table.time_s[i] + a.offset_s;
-        for (std::size_t c = 0; c < table.columns.size(); ++c) row[c + 1] = table.columns[c][i];
-        out.row(row);
-      }
-      out.commit();
-    }
-    write_json(o->c.out, j);
-  });
+  sub->callback([o] { run_align(*o); });
 }
 
 }  // namespace
