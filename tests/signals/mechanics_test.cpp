@@ -53,6 +53,11 @@ Response simulate(Force force, double fs, std::size_t n, double m, double c, dou
   return r;
 }
 
+// The simulated finger's impedance Z = F/V = c + j(ωm − k/ω), N·s/m.
+std::complex<double> finger_truth(double omega) {
+  return {kC, omega * kM - kK / omega};
+}
+
 void add_noise(std::vector<double>& v, double fraction, std::mt19937_64& rng) {
   double rms = 0.0;
   for (double x : v) rms += x * x;
@@ -94,7 +99,7 @@ TEST(Mechanics, FingerImpedanceIsLoadedMinusUnloaded) {
     const double fr = finger.freq_Hz[i];
     if (fr < 40.0 || fr > 350.0) continue;
     const double omega = 2 * kPi * fr;
-    const std::complex<double> truth(kC, omega * kM - kK / omega);
+    const std::complex<double> truth = finger_truth(omega);
     EXPECT_NEAR(std::abs(finger.z_Ns_m[i] - truth), 0.0, 0.02 * std::abs(truth)) << fr;
     EXPECT_NEAR(finger.mass_kg[i], kM - kK / (omega * omega), 0.02 * std::abs(truth) / omega);
     EXPECT_NEAR(finger.damping_Ns_m[i], kC, 0.02 * std::abs(truth));
@@ -114,7 +119,7 @@ TEST(Mechanics, VelocityChannelGivesTheSameImpedanceAsAcceleration) {
     const double fr = from_accel.freq_Hz[i];
     if (fr < 40.0 || fr > 350.0) continue;
     const double omega = 2 * kPi * fr;
-    const std::complex<double> truth(kC, omega * kM - kK / omega);
+    const std::complex<double> truth = finger_truth(omega);
     EXPECT_NEAR(std::abs(from_velocity.z_Ns_m[i] - truth), 0.0, 0.02 * std::abs(truth)) << fr;
     EXPECT_NEAR(std::abs(from_velocity.z_Ns_m[i] - from_accel.z_Ns_m[i]), 0.0, 0.02 * std::abs(truth)) << fr;
     ++checked;
