@@ -105,7 +105,7 @@ Recording read_recording(RecordingOptions& o) {
 
 // Library errors name the parameter; add the file and the option the user typed.
 template <typename Fn>
-auto in_context(const RecordingOptions& o, Fn fn) -> decltype(fn()) {
+auto in_recording_context(const RecordingOptions& o, Fn fn) -> decltype(fn()) {
   return with_error_context(fn, [&](ErrorContext& ctx) {
     ctx.file = o.input;
     if (ctx.column.empty()) ctx.column = o.normal;
@@ -194,7 +194,7 @@ void add_signals_phases_verb(CLI::App& signals) {
   sub->add_option("--plot", o->plot, "output PNG of the channels with the phases shaded (default: OUT.png)");
   sub->callback([o] {
     Recording rec = read_recording(o->r);
-    const ts::Phases phases = in_context(o->r, [&] {
+    const ts::Phases phases = in_recording_context(o->r, [&] {
       return ts::detect_phases(rec.table.time_s, rec.normal, rec.tangential, rec.position, o->r.phases);
     });
     const std::string plot = o->plot.empty() ? default_plot_path(o->out) : o->plot;
@@ -246,7 +246,7 @@ void add_signals_friction_verb(CLI::App& signals) {
       ->capture_default_str();
   sub->callback([o] {
     Recording rec = read_recording(o->r);
-    const auto trial = in_context(o->r, [&] {
+    const auto trial = in_recording_context(o->r, [&] {
       return ts::analyse_friction_trial(rec.table.time_s, rec.normal, rec.tangential, rec.position,
                                         {o->r.phases, o->events});
     });
