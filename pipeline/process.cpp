@@ -124,13 +124,12 @@ cv::Mat to_display(const cv::Mat& grey, cv::Size size) {
   return bgr;
 }
 
-// The pattern band's rectangle and where it came from, on the overlay.
-void draw_band(cv::Mat& bgr, const PatternBandChoice& band) {
+// The pattern band's rectangle and where it came from, on the overlay: the label inside the band, at its
+// inner edge.
+void draw_band(cv::Mat& bgr, const PatternBandChoice& band, const OverlayText& overlay) {
   if (!band.roi_px) return;
   const RoiPx& r = *band.roi_px;
-  const double scale = std::max(1.0, bgr.cols / 640.0);
-  const int thick = static_cast<int>(std::lround(scale));
-  cv::rectangle(bgr, cv::Rect(r.x, r.y, r.width, r.height), cv::Scalar(255, 120, 0), thick);
+  cv::rectangle(bgr, cv::Rect(r.x, r.y, r.width, r.height), cv::Scalar(255, 120, 0), overlay.thickness());
   char text[96];
   if (band.confidence) {
     std::snprintf(text, sizeof text, "pattern band (%s, detected, confidence %.2f)", band.edge.c_str(),
@@ -138,11 +137,15 @@ void draw_band(cv::Mat& bgr, const PatternBandChoice& band) {
   } else {
     std::snprintf(text, sizeof text, "pattern band (%s, from the scene)", band.edge.c_str());
   }
-  // Along the image's bottom, clear of the status lines at the top: just above the band when it is there.
-  const int text_y =
-      band.edge == "bottom" ? r.y - static_cast<int>(6 * scale) : bgr.rows - static_cast<int>(8 * scale);
-  cv::putText(bgr, text, cv::Point(static_cast<int>(8 * scale) + (band.edge == "left" ? r.width : 0), text_y),
-              cv::FONT_HERSHEY_SIMPLEX, 0.45 * scale, cv::Scalar(255, 120, 0), thick, cv::LINE_AA);
+  const int inset = overlay.line_height_px();
+  overlay.label(bgr, {r.x + inset / 2, band.edge == "top" ? r.y + r.height - inset / 3 : r.y + inset}, text,
+                cv::Scalar(255, 170, 60));
+}
+
+// Where the status lines must not go: the pattern band, when there is one.
+std::optional<cv::Rect> band_rect(const PatternBandChoice& band) {
+  if (!band.roi_px) return std::nullopt;
+  return cv::Rect(band.roi_px->x, band.roi_px->y, band.roi_px->width, band.roi_px->height);
 }
 
 // A trial folder carries its own scene (`tirstrain synth` writes DIR/scene.yaml next to DIR/frames/):
@@ -155,6 +158,19 @@ std::optional<std::string> scene_path_for(const ProcessOptions& options) {
   const fs::path beside = fs::path(options.input) / "scene.yaml";
   if (fs::is_directory(options.input, ec) && fs::is_regular_file(beside, ec)) return beside.string();
   return std::nullopt;
+}
+
+// A compute list or --compute that asks for the channels of a scene without a channels: section reads the
+// channel file beside the frames, as a run without a compute list does (docs/formats.md); without such a
+// file the channels stage itself names what is missing.
+void use_default_channels_when_asked(Scene& scene, const std::string& input, std::string& stages_reason) {
+  const bool asked = std::find(scene.compute.begin(), scene.compute.end(), "channels") != scene.compute.end();
+  if (!asked || (scene.channels && !scene.channels.IsNull())) return;
+  const std::string file = default_channel_file(input);
+  YAML::Node section = default_channels_section(file);
+  if (!section || section.IsNull()) return;
+  scene.channels = section;
+  stages_reason += "; channels from " + file + " (no channels section in the scene)";
 }
 
 // The scene's compute list, or (without one) every stage whose inputs exist, then --compute's additions.
@@ -174,6 +190,7 @@ Scene scene_with_overrides(const ProcessOptions& options, const std::optional<st
     if (std::find(scene.compute.begin(), scene.compute.end(), name) == scene.compute.end())
       scene.compute.push_back(name);
   }
+  use_default_channels_when_asked(scene, options.input, stages_reason);
   // The scene's module sections are YAML nodes shared by reference: give the overrides fresh maps.
   const auto with_key = [](const YAML::Node& section, const std::string& key, const std::string& value) {
     YAML::Node copy = section && section.IsMap() ? YAML::Clone(section) : YAML::Node(YAML::NodeType::Map);
@@ -448,14 +465,13 @@ class ProcessRun {
 
   void draw_overlay(const capture::Frame& frame, const FrameContext& context) {
     cv::Mat bgr = to_display(context.usable ? frame.image : cv::Mat(), display_size_);
-    draw_band(bgr, band_);
-    for (const auto& stage : plan_.stages) stage->draw(bgr, context);
-    const double scale = std::max(1.0, bgr.cols / 640.0);
+    const OverlayText overlay(bgr.size(), band_rect(band_));
+    draw_band(bgr, band_, overlay);
+    for (const auto& stage : plan_.stages) stage->draw(bgr, context, overlay);
     char text[160];
     std::snprintf(text, sizeof text, "frame %lld  t = %.4f s  %s", static_cast<long long>(frame.index),
                   frame.device_time_s, context.usable ? "" : "(corrupt: skipped)");
-    cv::putText(bgr, text, cv::Point(8, static_cast<int>(20 * scale)), cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale,
-                cv::Scalar(255, 255, 255), static_cast<int>(std::lround(scale)), cv::LINE_AA);
+    overlay.status_line(bgr, 0, text);
     overlay_->write(bgr);
   }
 
