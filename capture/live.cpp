@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "core/error.hpp"
+#include "core/overlay_text.hpp"
 
 namespace tirstrain::capture {
 namespace {
@@ -245,9 +246,8 @@ LiveReport run_live(FrameSource& source, const LiveOptions& options) {
             "%.1f fps  shown %.1f fps  lost %lld  incomplete %lld  latency %.1f ms", status.receive_rate_hz,
             status.show_rate_hz, static_cast<long long>(status.frames_lost),
             static_cast<long long>(status.frames_incomplete), status.latency_ms);
-        const double scale = std::max(0.5, canvas.cols / 1280.0);
-        cv::putText(canvas, text, {10, static_cast<int>(30 * scale)}, cv::FONT_HERSHEY_SIMPLEX, 0.8 * scale,
-                    {0, 255, 0}, static_cast<int>(std::max(1.0, 2 * scale)));
+        // The first status line (the stages of the analysis use the others), sized to the canvas.
+        OverlayText(canvas.size()).status_line(canvas, 0, text, {0, 255, 0});
       }
       // The overlay is ready to show: what the user sees lags the camera by at least this much.
       const double ready_s = steady_now_s();

@@ -18,8 +18,12 @@ struct HeatmapOptions {
   std::string title;
   std::string unit;           // shown beside the colour bar
   bool diverging = true;      // blue-white-red, symmetric about zero; otherwise a sequential map
-  std::optional<double> min;  // colour range; defaults from the data
+  std::optional<double> min;  // colour range; defaults from the data (range_percentile)
   std::optional<double> max;
+  // Default range: this percentile of |value| (diverging, symmetric) or of value and its complement
+  // (sequential); below 100 a few outliers saturate, marked "<" / ">" on the colour bar, instead of
+  // washing out the rest.
+  double range_percentile = 100.0;
   // Data extent of the grid: column 0 is at x_min, the last column at x_max; row 0 at y_min (drawn at top).
   double x_min = 0.0, x_max = 1.0, y_min = 0.0, y_max = 1.0;
   std::string axis_unit;  // e.g. "mm"

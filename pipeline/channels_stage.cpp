@@ -426,7 +426,7 @@ class ChannelsStage final : public Stage {
     if (config_.mode == Mode::kExplicit) early_offset_s_ = config_.offset_s;
   }
 
-  void draw(cv::Mat& bgr, const FrameContext& context) const override {
+  void draw(cv::Mat& bgr, const FrameContext& context, const OverlayText& overlay) const override {
     // The offset is known while frames are drawn only when it is given explicitly.
     if (!early_offset_s_ || table_.samples() < 2) return;
     const double t = context.frame->device_time_s - *early_offset_s_;
@@ -438,9 +438,7 @@ class ChannelsStage final : public Stage {
       const double v = ts::resample_linear(table_.time_s, s.values, {t}).front();
       text += "  " + s.name + " " + fmt(v);
     }
-    const double scale = std::max(1.0, bgr.cols / 640.0);
-    cv::putText(bgr, text, cv::Point(8, static_cast<int>(116 * scale)), cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale,
-                cv::Scalar(255, 255, 0), static_cast<int>(std::lround(scale)), cv::LINE_AA);
+    overlay.status_line(bgr, 4, text, cv::Scalar(255, 255, 0));
   }
 
   std::vector<std::string> csv_header() const override {

@@ -74,7 +74,7 @@ class ContactStage final : public Stage {
     context.contact = std::move(result);
   }
 
-  void draw(cv::Mat& bgr, const FrameContext& context) const override {
+  void draw(cv::Mat& bgr, const FrameContext& context, const OverlayText& overlay) const override {
     if (!context.contact) return;
     const contact::ContactResult& r = *context.contact;
     const double thickness_scale = std::max(1.0, bgr.cols / 640.0);
@@ -112,8 +112,7 @@ class ContactStage final : public Stage {
     char text[160];
     std::snprintf(text, sizeof text, "contact: %s  area %.2f mm2",
                   contact::contact_status_text(r.status).c_str(), r.area_mm2);
-    cv::putText(bgr, text, cv::Point(8, static_cast<int>(44 * thickness_scale)), cv::FONT_HERSHEY_SIMPLEX,
-                0.5 * thickness_scale, cv::Scalar(255, 255, 255), thick, cv::LINE_AA);
+    overlay.status_line(bgr, 1, text);
   }
 
   std::vector<std::string> csv_header() const override {

@@ -18,6 +18,7 @@
 #include "capture/frame_source.hpp"
 #include "contact/segmenter.hpp"
 #include "core/h5_stream.hpp"
+#include "core/overlay_text.hpp"
 #include "core/scene.hpp"
 #include "core/tensor2.hpp"
 #include "flow/tracker.hpp"
@@ -73,8 +74,9 @@ class Stage {
   virtual void start(const TrialInfo& info) = 0;
   // Every frame, in order, usable or not, so per-frame datasets stay aligned with /frames.
   virtual void process(FrameContext& context) = 0;
-  // Draws this stage's result for people to look at (BGR 8-bit frame).
-  virtual void draw(cv::Mat& /*bgr*/, const FrameContext& /*context*/) const {}
+  // Draws this stage's result for people to look at (BGR 8-bit frame); its status line goes through `text`
+  // (sized to the frame, on a backdrop, away from the pattern band).
+  virtual void draw(cv::Mat& /*bgr*/, const FrameContext& /*context*/, const OverlayText& /*text*/) const {}
   // Per-frame columns appended to frames.csv, and the row for frame `row` (0-based, in processing order).
   virtual std::vector<std::string> csv_header() const { return {}; }
   virtual void csv_row(std::size_t /*row*/, std::vector<std::string>& /*cells*/) const {}

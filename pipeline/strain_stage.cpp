@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <map>
 
 #include "core/csv.hpp"
 #include "core/heatmap.hpp"
@@ -113,7 +114,7 @@ class StrainStage final : public Stage {
     keep(std::move(record));
   }
 
-  void draw(cv::Mat& bgr, const FrameContext& context) const override {
+  void draw(cv::Mat& bgr, const FrameContext& context, const OverlayText& overlay) const override {
     if (!context.tracking || frames_.empty() || !frames_.back().computed) return;
     const StrainFrame& f = frames_.back();
     const bool energy = settings_.overlay == "energy";
@@ -136,14 +137,12 @@ class StrainStage final : public Stage {
       cv::fillConvexPoly(layer, pts, 3, cv::Scalar(c[0], c[1], c[2]), cv::LINE_8, kShift);
     }
     cv::addWeighted(bgr, 0.45, layer, 0.55, 0.0, bgr);
-    draw_colour_bar(bgr, energy);
-    const double scale = std::max(1.0, bgr.cols / 640.0);
+    draw_colour_bar(bgr, energy, overlay);
     char text[200];
     std::snprintf(text, sizeof text, "strain (%s): %d triangles, %d excluded  U = %.3g uJ  stick %.2f",
                   strain::to_string(settings_.mode), f.counts.valid, f.counts.excluded(), f.energy_J * 1e6,
                   f.stick_ratio);
-    cv::putText(bgr, text, cv::Point(8, static_cast<int>(92 * scale)), cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale,
-                cv::Scalar(255, 255, 255), static_cast<int>(std::lround(scale)), cv::LINE_AA);
+    overlay.status_line(bgr, 3, text);
   }
 
   std::vector<std::string> csv_header() const override {
@@ -464,6 +463,15 @@ class StrainStage final : public Stage {
     return f.computed && reference_has_ellipse_ ? f.stick_zone.radius_px / settings_.strain.px_per_mm : kNaN;
   }
 
+  // The colour bar's title: the quantity drawn and its unit.
+  std::string overlay_label(bool energy) const {
+    if (energy) return "energy density (J/m3)";
+    static const std::map<std::string, std::string> names = {
+        {"exx", "E_xx"}, {"eyy", "E_yy"}, {"exy", "E_xy"}, {"e1", "e1"}, {"e2", "e2"}};
+    const auto it = names.find(settings_.overlay);
+    return (it == names.end() ? settings_.overlay : it->second) + " (strain, -)";
+  }
+
   double overlay_value(const double* v) const {
     const std::string& c = settings_.overlay;
     if (c == "exx") return v[kExx];
@@ -475,11 +483,16 @@ class StrainStage final : public Stage {
     return c == "e2" ? p.e2 : p.e1;
   }
 
-  void draw_colour_bar(cv::Mat& bgr, bool energy) const {
+  // The colour bar at the right edge, below (or above) the status block, labelled with the component and
+  // its unit and with the ends of its scale.
+  void draw_colour_bar(cv::Mat& bgr, bool energy, const OverlayText& overlay) const {
     const double scale = std::max(1.0, bgr.cols / 640.0);
     const int height = static_cast<int>(150 * scale), width = static_cast<int>(12 * scale);
-    const int x0 = bgr.cols - width - static_cast<int>(60 * scale), y0 = static_cast<int>(30 * scale);
-    if (x0 < 0 || y0 + height >= bgr.rows) return;
+    const int x0 = bgr.cols - width - static_cast<int>(70 * scale);
+    const cv::Rect block = overlay.status_block(6);
+    const int y0 = block.y == 0 ? block.height + overlay.line_height_px()
+                                : block.y - height - overlay.line_height_px() / 2;
+    if (x0 < 0 || y0 < 0 || y0 + height >= bgr.rows) return;
     for (int y = 0; y < height; ++y) {
       const double t = 1.0 - static_cast<double>(y) / (height - 1);
       const cv::Vec3b c = energy ? sequential_colour(t) : diverging_colour(t);
@@ -489,15 +502,10 @@ class StrainStage final : public Stage {
     char top[32], bottom[32];
     std::snprintf(top, sizeof top, "%+.3g", range);
     std::snprintf(bottom, sizeof bottom, "%+.3g", energy ? 0.0 : -range);
-    const cv::Scalar white(255, 255, 255);
-    const double font = 0.4 * scale;
-    cv::putText(bgr, top, {x0 + width + 3, y0 + static_cast<int>(8 * scale)}, cv::FONT_HERSHEY_SIMPLEX, font,
-                white, 1, cv::LINE_AA);
-    cv::putText(bgr, bottom, {x0 + width + 3, y0 + height}, cv::FONT_HERSHEY_SIMPLEX, font, white, 1,
-                cv::LINE_AA);
-    const std::string label = energy ? "W (J/m3)" : settings_.overlay;
-    cv::putText(bgr, label, {x0 - static_cast<int>(10 * scale), y0 - static_cast<int>(8 * scale)},
-                cv::FONT_HERSHEY_SIMPLEX, font, white, 1, cv::LINE_AA);
+    overlay.label(bgr, {x0 + width + 4, y0 + static_cast<int>(10 * scale)}, top);
+    overlay.label(bgr, {x0 + width + 4, y0 + height}, bottom);
+    overlay.label(bgr, {x0 - static_cast<int>(60 * scale), y0 - static_cast<int>(6 * scale)},
+                  overlay_label(energy));
   }
 
   // Maps on the standard ellipse of the reference frame: /maps/strain_total [N,G,G,3], its predicted SD

@@ -143,7 +143,7 @@ class TrackingStage final : public Stage {
     context.plate_displacement_px = f.plate_px;
   }
 
-  void draw(cv::Mat& bgr, const FrameContext& context) const override {
+  void draw(cv::Mat& bgr, const FrameContext& context, const OverlayText& overlay) const override {
     if (!context.tracking) return;
     const double scale = std::max(1.0, bgr.cols / 640.0);
     const int thick = static_cast<int>(std::lround(scale));
@@ -173,12 +173,9 @@ class TrackingStage final : public Stage {
                     f.born, f.retired, f.plate_px->x, f.plate_px->y, plate_how);
     else
       std::snprintf(text, sizeof text, "tracks: %d alive (+%d, -%d)", f.alive, f.born, f.retired);
-    cv::putText(bgr, text, cv::Point(8, static_cast<int>(68 * scale)), cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale,
-                cv::Scalar(255, 255, 255), thick, cv::LINE_AA);
+    overlay.status_line(bgr, 2, text);
     // The video shows each frame as tracked; the result files hold the tracks smoothed afterwards.
-    if (will_smooth())
-      cv::putText(bgr, "as tracked; result.h5 smoothed in time", cv::Point(8, static_cast<int>(140 * scale)),
-                  cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale, cv::Scalar(255, 255, 255), thick, cv::LINE_AA);
+    if (will_smooth()) overlay.status_line(bgr, 5, "as tracked; result.h5 smoothed in time");
   }
 
   std::vector<std::string> csv_header() const override {

@@ -179,6 +179,7 @@ std::vector<std::string> write_side_by_side_maps(const ValidateOptions& options,
     o.x_min = o.y_min = -1.0;
     o.x_max = o.y_max = 1.0;
     o.axis_unit = "normalised";
+    o.unit = "strain (dimensionless)";
     o.min = -range;
     o.max = range;
     char title[128];

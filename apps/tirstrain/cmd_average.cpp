@@ -181,11 +181,14 @@ void add_average_command(CLI::App& app) {
       h5.attribute("/maps", "cells", static_cast<double>(g));
       h5.commit();
     }
+    // Strain maps on a scale robust to the few border cells that a single trial covers (98th percentile).
     const auto png = [&](const std::string& name, const cv::Mat& values, const std::string& title,
                          bool diverging) {
       HeatmapOptions o;
       o.title = title;
       o.diverging = diverging;
+      o.unit = diverging ? "strain (dimensionless)" : "trials";
+      o.range_percentile = diverging ? 98.0 : 100.0;
       o.x_min = o.y_min = -1.0;
       o.x_max = o.y_max = 1.0;
       o.axis_unit = "normalised";

@@ -11,6 +11,7 @@
 #include "capture/frame_source.hpp"
 #include "capture/live.hpp"
 #include "core/error.hpp"
+#include "core/overlay_text.hpp"
 #include "core/scene.hpp"
 #include "pipeline/process_defaults.hpp"
 #include "pipeline/stage.hpp"
@@ -46,7 +47,10 @@ class LiveAnalysis {
     }
     if (context.usable && frame.image.size() != info_.frame_size) return;  // a camera reconfigured mid-run
     for (auto& stage : plan_.stages) stage->process(context);
-    for (const auto& stage : plan_.stages) stage->draw(canvas, context);
+    std::optional<cv::Rect> band;
+    if (const auto& r = scene_.reference_pattern_roi) band = cv::Rect(r->x, r->y, r->width, r->height);
+    const OverlayText overlay(canvas.size(), band);
+    for (const auto& stage : plan_.stages) stage->draw(canvas, context, overlay);
     ++analysed_;
   }
 

@@ -18,14 +18,29 @@ TEST(Heatmap, DivergingMapIsBlueForNegativeRedForPositiveGreyForNaN) {
   HeatmapOptions options;
   options.pixels_per_cell = 10;
   const cv::Mat image = render_heatmap(values, options);
-  // Map origin at (70, 40) in the canvas; sample cell centres.
-  const auto at = [&](int r, int c) { return image.at<cv::Vec3b>(40 + 10 * r + 5, 70 + 10 * c + 5); };
+  // Map origin at (70, 58) in the canvas; sample cell centres.
+  const auto at = [&](int r, int c) { return image.at<cv::Vec3b>(58 + 10 * r + 5, 70 + 10 * c + 5); };
   EXPECT_GT(at(0, 0)[0], 200);  // blue channel high
   EXPECT_LT(at(0, 0)[2], 60);
   EXPECT_GT(at(0, 2)[2], 200);  // red channel high
   EXPECT_LT(at(0, 2)[0], 60);
   EXPECT_EQ(at(0, 1), cv::Vec3b(255, 255, 255));  // zero is white
   EXPECT_EQ(at(1, 0), cv::Vec3b(200, 200, 200));  // NaN is grey
+}
+
+// One border cell a hundred times larger than the rest: on the full range the interior is white; on the
+// 98th percentile it takes the end colour and the one outlier saturates.
+TEST(Heatmap, PercentileRangeKeepsTheInteriorVisibleBesideAnOutlier) {
+  cv::Mat values(10, 10, CV_64F, cv::Scalar(0.01));
+  values.at<double>(0, 0) = 1.0;
+  HeatmapOptions options;
+  options.pixels_per_cell = 10;
+  const auto centre = [](const cv::Mat& image) { return image.at<cv::Vec3b>(58 + 55, 70 + 55); };
+  const cv::Vec3b full = centre(render_heatmap(values, options));
+  EXPECT_GT(full[0], 245) << "0.01 against a range of ±1 is near white";
+  options.range_percentile = 98.0;
+  const cv::Vec3b robust = centre(render_heatmap(values, options));
+  EXPECT_EQ(robust, diverging_colour(1.0)) << "0.01 is the top of a ±0.01 range";
 }
 
 }  // namespace
