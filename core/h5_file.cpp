@@ -214,6 +214,32 @@ std::vector<double> H5Reader::read_doubles(const std::string& name, H5Shape* sha
   return data;
 }
 
+std::vector<double> H5Reader::read_row_doubles(const std::string& name, std::size_t row,
+                                               H5Shape* shape_out) const {
+  const H5Shape dims = shape(name);
+  if (dims.empty() || row >= dims[0])
+    throw Error("row " + std::to_string(row) + " is outside the dataset's " +
+                    (dims.empty() ? std::string("0") : std::to_string(dims[0])) + " rows",
+                {.file = path_, .column = name});
+  const H5Shape row_dims(dims.begin() + 1, dims.end());
+  std::vector<double> data(element_count(row_dims));
+  try {
+    const H5::DataSet set = file_.openDataSet(name);
+    H5::DataSpace space = set.getSpace();
+    std::vector<hsize_t> start(dims.size(), 0), count(dims.begin(), dims.end());
+    start[0] = row;
+    count[0] = 1;
+    space.selectHyperslab(H5S_SELECT_SET, count.data(), start.data());
+    const H5::DataSpace memory(static_cast<int>(count.size()), count.data());
+    set.read(data.data(), H5::PredType::NATIVE_DOUBLE, memory, space);
+  } catch (const H5::Exception& e) {
+    throw Error("cannot read a row of the dataset as numbers: " + e.getDetailMsg(),
+                {.file = path_, .column = name});
+  }
+  if (shape_out) *shape_out = row_dims;
+  return data;
+}
+
 std::vector<std::int64_t> H5Reader::read_integers(const std::string& name, H5Shape* shape_out) const {
   const H5Shape dims = shape(name);
   std::vector<std::int64_t> data(element_count(dims));

@@ -59,6 +59,10 @@ class H5Reader {
   H5Shape shape(const std::string& name) const;
   std::vector<double> read_doubles(const std::string& name, H5Shape* shape = nullptr) const;
   std::vector<std::int64_t> read_integers(const std::string& name, H5Shape* shape = nullptr) const;
+  // One row along the first axis (one frame of an [N, ...] dataset), without reading the others; `shape`
+  // gets the row's own shape (the dataset's without its first axis).
+  std::vector<double> read_row_doubles(const std::string& name, std::size_t row,
+                                       H5Shape* shape = nullptr) const;
   std::string attribute_text(const std::string& object, const std::string& name) const;
   double attribute_number(const std::string& object, const std::string& name) const;
   // Names of the members of a group.

@@ -166,10 +166,29 @@ void averaged_maps(const fs::path& out, const std::string& dir, const StudySpec&
   }
 }
 
-// The hook for the study report: once a `tirstrain report` command exists, it is run here on the staged
-// aggregate folder (aggregate/report/). Until then the absence is recorded, not hidden.
-std::string study_report_hook(const fs::path& /*out*/, const std::string& /*cli*/) {
-  return "not written: this tirstrain has no report command";
+// The study report: every done trial's result on one page (`tirstrain report`), time series overlaid. Beyond
+// kReportMapTrials trials the per-trial strain maps are left out (the page would grow by about 1 MB a trial);
+// the maps averaged per condition are in aggregate/maps/.
+constexpr std::size_t kReportMapTrials = 8;
+
+std::string study_report(const fs::path& out, const std::string& dir, const std::vector<Row>& rows,
+                         const std::string& cli, const std::string& log, std::vector<std::string>* problems) {
+  if (rows.empty()) return "not written: no trial is done";
+  std::vector<std::string> argv = {cli, "report"};
+  for (const Row& r : rows) argv.push_back((fs::path(dir) / "trials" / r.trial->name).string());
+  argv.insert(argv.end(), {"--out", (out / "report.html").string(), "--title",
+                           "tirstrain study: " + fs::path(dir).filename().string(), "--quiet"});
+  const bool maps = rows.size() <= kReportMapTrials;
+  if (!maps) argv.push_back("--no-maps");
+  const int code = run_child(argv, log);
+  if (code != 0) {
+    problems->push_back("report.html: tirstrain report failed (exit " + std::to_string(code) +
+                        ", see logs/aggregate.log)");
+    return "not written: tirstrain report failed";
+  }
+  return maps ? "report.html"
+              : "report.html (without per-trial strain maps: more than " + std::to_string(kReportMapTrials) +
+                    " trials)";
 }
 
 // The problems recorded by an aggregate/ built from the same plan and outcomes, if there is one.
@@ -201,7 +220,7 @@ std::vector<std::string> aggregate_study(const std::string& dir, const StudySpec
   write_condition_table(out, spec, rows);
   for (const StudyPowerLaw& law : spec.aggregate.power_laws) power_law(out, law, rows, cli, log, &problems);
   averaged_maps(out, dir, spec, rows, cli, log, &problems);
-  const std::string report = study_report_hook(out, cli);
+  const std::string report = study_report(out, dir, rows, cli, log, &problems);
   const nlohmann::json summary = {{"trials", spec.trials.size()},
                                   {"trials_done", rows.size()},
                                   {"problems", problems},

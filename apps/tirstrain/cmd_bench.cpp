@@ -8,7 +8,6 @@
 
 #include <yaml-cpp/yaml.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include <fcntl.h>
 #include <algorithm>
@@ -27,9 +26,9 @@
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/median.hpp"
-#include "core/png_file.hpp"
 #include "core/yaml_reader.hpp"
 #include "pipeline/generalisation.hpp"
+#include "report/speed_error_page.hpp"
 #include "samples/generalisation.hpp"
 #include "tirstrain/commands.hpp"
 
@@ -201,79 +200,13 @@ std::string write_config_scene(const fs::path& trial, const Config& config, cons
   return out.string();
 }
 
-void write_plot(const std::vector<Row>& rows, const std::vector<std::string>& scenes,
-                const std::string& path) {
-  const int panel_w = 540, panel_h = 400, margin_l = 100, margin_b = 50, margin_t = 40, margin_r = 20;
-  cv::Mat image(panel_h, panel_w * static_cast<int>(scenes.size()), CV_8UC3, cv::Scalar(255, 255, 255));
-  for (std::size_t s = 0; s < scenes.size(); ++s) {
-    std::vector<const Row*> points;
-    for (const Row& r : rows)
-      if (r.scene == scenes[s] && std::isfinite(r.frames_per_s) && std::isfinite(r.strain_rms_all))
-        points.push_back(&r);
-    const int x0 = static_cast<int>(s) * panel_w;
-    cv::putText(image, scenes[s], {x0 + margin_l, 18}, cv::FONT_HERSHEY_SIMPLEX, 0.55, {0, 0, 0}, 1,
-                cv::LINE_AA);
-    if (points.empty()) continue;
-    double fmin = 1e300, fmax = 0, emin = 1e300, emax = 0;
-    for (const Row* r : points) {
-      fmin = std::min(fmin, r->frames_per_s);
-      fmax = std::max(fmax, r->frames_per_s);
-      emin = std::min(emin, r->strain_rms_all);
-      emax = std::max(emax, r->strain_rms_all);
-    }
-    // Log axes: speed and error both span decades across configurations.
-    const double lf0 = std::log10(fmin) - 0.1, lf1 = std::log10(fmax) + 0.1;
-    const double le0 = std::log10(emin) - 0.1, le1 = std::log10(emax) + 0.1;
-    const auto px = [&](double f, double e) {
-      const double u = (std::log10(f) - lf0) / (lf1 - lf0), v = (std::log10(e) - le0) / (le1 - le0);
-      return cv::Point(x0 + margin_l + static_cast<int>(u * (panel_w - margin_l - margin_r)),
-                       panel_h - margin_b - static_cast<int>(v * (panel_h - margin_b - margin_t)));
-    };
-    cv::rectangle(image, {x0 + margin_l, margin_t}, {x0 + panel_w - margin_r, panel_h - margin_b}, {0, 0, 0});
-    char text[64];
-    // The box's edges are the padded log range: label them with their own values.
-    std::snprintf(text, sizeof text, "%.3g", std::pow(10.0, lf0));
-    cv::putText(image, text, {x0 + margin_l, panel_h - margin_b + 16}, cv::FONT_HERSHEY_SIMPLEX, 0.4,
-                {0, 0, 0});
-    std::snprintf(text, sizeof text, "%.3g", std::pow(10.0, lf1));
-    cv::putText(image, text, {x0 + panel_w - margin_r - 40, panel_h - margin_b + 16},
-                cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
-    cv::putText(image, "frames/s (log)", {x0 + panel_w / 2 - 40, panel_h - 12}, cv::FONT_HERSHEY_SIMPLEX,
-                0.45, {0, 0, 0});
-    std::snprintf(text, sizeof text, "%.3g", std::pow(10.0, le1));
-    cv::putText(image, text, {x0 + 8, margin_t + 10}, cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
-    std::snprintf(text, sizeof text, "%.3g", std::pow(10.0, le0));
-    cv::putText(image, text, {x0 + 8, panel_h - margin_b}, cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
-    cv::putText(image, "strain RMS (log)", {x0 + 2, panel_h / 2}, cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0});
-    // Pareto front: no other configuration is both faster and more accurate.
-    std::vector<const Row*> front;
-    for (const Row* a : points) {
-      bool dominated = false;
-      for (const Row* b : points)
-        if (b != a && b->frames_per_s >= a->frames_per_s && b->strain_rms_all <= a->strain_rms_all &&
-            (b->frames_per_s > a->frames_per_s || b->strain_rms_all < a->strain_rms_all))
-          dominated = true;
-      if (!dominated) front.push_back(a);
-    }
-    std::sort(front.begin(), front.end(),
-              [](const Row* a, const Row* b) { return a->frames_per_s < b->frames_per_s; });
-    for (std::size_t i = 1; i < front.size(); ++i)
-      cv::line(image, px(front[i - 1]->frames_per_s, front[i - 1]->strain_rms_all),
-               px(front[i]->frames_per_s, front[i]->strain_rms_all), {0, 140, 255}, 2, cv::LINE_AA);
-    for (const Row* r : points) {
-      const bool on_front = std::find(front.begin(), front.end(), r) != front.end();
-      const cv::Scalar colour = r->config == "delhaye2016" ? cv::Scalar(200, 0, 0)
-                                : r->config == "default"   ? cv::Scalar(0, 150, 0)
-                                                           : cv::Scalar(90, 90, 90);
-      const cv::Point p = px(r->frames_per_s, r->strain_rms_all);
-      cv::circle(image, p, on_front ? 6 : 4, colour, on_front ? cv::FILLED : 1, cv::LINE_AA);
-      cv::putText(image, r->config, p + cv::Point(7, -4), cv::FONT_HERSHEY_SIMPLEX, 0.35, colour, 1,
-                  cv::LINE_AA);
-    }
-  }
-  cv::putText(image, "filled + orange line: Pareto front (no other point is both faster and more accurate)",
-              {10, 34}, cv::FONT_HERSHEY_SIMPLEX, 0.35, {0, 100, 200}, 1, cv::LINE_AA);
-  write_png_file(path, image);
+// The speed-against-error plot as an HTML page (Vega-Lite, report/speed_error_page.hpp).
+void write_plot(const std::vector<Row>& rows, const std::string& path) {
+  std::vector<report::SpeedErrorPoint> points;
+  for (const Row& r : rows) points.push_back({r.scene, r.config, r.frames_per_s, r.strain_rms_all});
+  AtomicFile out(path);
+  out.append(report::speed_error_page(points, ""));
+  out.commit();
 }
 
 void print_generalisation_header() {
@@ -393,7 +326,8 @@ void run_generalisation_bench(const fs::path& out, bool quick, const std::vector
 // The files and folders a bench run writes into its output folder.
 const std::vector<std::string>& bench_output_names() {
   static const std::vector<std::string> names = {"bench.csv",
-                                                 "bench.png",
+                                                 "bench.html",
+                                                 "bench.png",  // written by earlier versions: replaceable
                                                  "runs",
                                                  "trials",
                                                  "generalisation.csv",
@@ -616,8 +550,8 @@ void run_pipeline_bench(const BenchArgs& args, const fs::path& out, const Staged
   }
   print_rows(rows);
   write_bench_csv(rows, out / "bench.csv");
-  write_plot(rows, scenes, (out / "bench.png").string());
-  std::cerr << "bench: wrote bench.csv and bench.png\n";
+  write_plot(rows, (out / "bench.html").string());
+  std::cerr << "bench: wrote bench.csv and bench.html\n";
 }
 
 }  // namespace
@@ -638,7 +572,7 @@ void add_bench_command(CLI::App& app) {
       "strain RMS error per component in the contact interior (exact mode, against the exact strain at "
       "triangle\n"
       "centroids), and the total strain energy error U (% RMS over frames with >= 10 % of the peak energy).\n"
-      "Writes OUT/bench.csv and OUT/bench.png (strain error against frames/s, Pareto front marked).\n"
+      "Writes OUT/bench.csv and OUT/bench.html (strain error against frames/s, Pareto front marked).\n"
       "Configurations: delhaye2016 (the paper's preset), default (automatic), and one-setting sweeps of the\n"
       "automatic preset (window, pyramid levels, grid spacing, feature cap, shape function, subset radius,\n"
       "full-resolution segmentation, the balanced and fast segmentation presets).\n"

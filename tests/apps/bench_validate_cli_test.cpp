@@ -41,7 +41,11 @@ TEST(BenchCli, QuickRunWritesTheTableAndThePlot) {
   const auto run = run_cli("bench --quick --configs default --out " + out);
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_NE(run.output.find("frames/s"), std::string::npos) << run.output;
-  ASSERT_TRUE(fs::exists(fs::path(out) / "bench.png"));
+  // The plot: an HTML page whose data holds this run's one point, tagged with the front it alone forms.
+  const std::string page = read_text(out + "/bench.html");
+  EXPECT_NE(page.find("<figure id=\"speed-error\""), std::string::npos);
+  EXPECT_NE(page.find("\"config\":\"default\""), std::string::npos);
+  EXPECT_NE(page.find("\"front\":true"), std::string::npos);
   std::ifstream csv(out + "/bench.csv");
   std::string header_line, row_line, extra;
   std::getline(csv, header_line);

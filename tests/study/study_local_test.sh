@@ -62,6 +62,12 @@ assert abs(mean - sum(area.values()) / 3) < 1e-6 * mean, (mean, area)
 assert by["index"]["peak_contact_area_mm2_n"] == "3", by
 agg = json.load(open(out + "/aggregate/aggregate.json"))
 assert agg["trials_done"] == 3, agg
+assert agg["report"] == "report.html", agg
+page = open(out + "/aggregate/report.html").read()
+# The three done trials in one page, the broken one not among them.
+for name in ("p1", "p2", "p4"):
+    assert '"result":"%s"' % name in page, name
+assert '"result":"broken"' not in page
 PY
 [ -f "$work/out/aggregate/maps/finger=index/average.h5" ] || fail "no averaged maps for finger=index"
 [ ! -e "$work/out/aggregate/maps/finger=middle" ] || fail "maps averaged over no done trial"

@@ -1,0 +1,29 @@
+#pragma once
+// A self-contained HTML page: the vendored plotting scripts, the figures' specifications and the styles are
+// inlined, so the file opens offline and can be mailed or archived as one file. Each figure is a <figure>
+// with a <figcaption>; a small script renders every specification with vega-embed and marks the page
+// `data-rendered` (the figure count) when all are drawn, or `data-render-error` with the reason.
+#include <string>
+#include <vector>
+
+#include "report/figures.hpp"
+
+namespace tirstrain::report {
+
+// A part of the page that is text rather than a plot (settings, versions); `html` is already escaped.
+struct PageSection {
+  std::string id;
+  std::string title;
+  std::string html;
+};
+
+struct Page {
+  std::string title;       // <title> and the heading
+  std::string intro_html;  // paragraph(s) under the heading, already escaped
+  std::vector<Figure> figures;
+  std::vector<PageSection> sections;  // after the figures
+};
+
+std::string render_page(const Page& page);
+
+}  // namespace tirstrain::report
