@@ -95,7 +95,7 @@ TEST(Tracker, JumpOf25PxIsTrackedNotAliased) {
   // The second frame jumps by 25 px, more than one ridge period: the phase correlation of the contact
   // supplies the prediction; plain LK (delhaye2016) locks onto a neighbouring ridge.
   const BothRuns r = run_both(rigid_scene(2, 25.0, 0.0, 0.0), false, false);
-  // Measured: auto 0.024 px RMS, max 0.09 px on 51 tracks (session 9: 0.045 / 0.20 px on 57).
+  // Measured: auto 0.024 px RMS, max 0.09 px on 51 tracks.
   EXPECT_EQ(r.automatic.wrong, 0);
   EXPECT_LT(r.automatic.rms_px, 0.1);
   EXPECT_GE(r.automatic.frame_alive.back(), 30);
@@ -113,9 +113,7 @@ TEST(Tracker, MotionBlurFrameDoesNotBreakTracks) {
 
 TEST(Tracker, CattaneoMindlinAndPlate) {
   const BothRuns r = run_both(with_plate(cm_scene(200, 220, 12, 50.0), 40), false, true);
-  // Measured: auto 0.045 px RMS, max 0.62 px (0.047 / 0.58 px before the resampled rounds, session 10;
-  // 0.052 / 0.72 px while a border track's shape fit fell back to affine), delhaye2016 0.59 px; plate
-  // 0.0049 px RMS.
+  // Measured: auto 0.045 px RMS, max 0.62 px, delhaye2016 0.59 px; plate 0.0049 px RMS.
   EXPECT_LT(r.automatic.rms_px, 0.05);  // the target
   EXPECT_LT(r.automatic.max_px, 0.65);  // regression bound
   EXPECT_EQ(r.automatic.wrong, 0);
@@ -175,10 +173,8 @@ TEST(Tracker, LargeContactSeedsTheResampledRoundsWithACheapMatch) {
   print("auto (affine seed, resampled rounds)", cheap);
   print("second-order seed, resampled rounds", second_order);
   print("second-order seed, rounds subset by subset", before);
-  // Measured: 0.0127 px RMS (max 0.10 px; 0.0126 px before the main match every 4th frame; session 14, rounds
-  // on every pixel: 0.0131 px, max 0.11 px; seed on
-  // every 2nd pixel: 0.0129 px, max 0.12 px) against 0.0166 px with
-  // the second-order seed and 0.0209 px with the rounds subset by subset (max 0.35 px); none > 1 px.
+  // Measured: 0.0127 px RMS (max 0.10 px) against 0.0166 px with the second-order seed and 0.0209 px with
+  // the rounds subset by subset (max 0.35 px); none > 1 px.
   EXPECT_EQ(cheap.wrong, 0);
   EXPECT_LT(cheap.rms_px, 0.05);
   EXPECT_LT(cheap.rms_px, 1.05 * second_order.rms_px);
@@ -394,7 +390,7 @@ TEST(Tracker, AnchorIsAveragedWhileTheSkinRests) {
 
 TEST(Tracker, RotationOf4Degrees) {
   const BothRuns r = run_both(rigid_scene(6, 0.0, 0.0, 4.0), false, false);
-  // Measured: auto 0.0051 px RMS, max 0.021 px (session 9: 0.0071 / 0.035 px); delhaye2016 1.48 px.
+  // Measured: auto 0.0051 px RMS, max 0.021 px; delhaye2016 1.48 px.
   EXPECT_EQ(r.automatic.wrong, 0);
   EXPECT_LT(r.automatic.rms_px, 0.05);
 }
@@ -407,8 +403,7 @@ TEST(Tracker, RotationOf4Degrees) {
 // of 0.25). Low contrast with noise: one track-frame of 1066. Regression bounds on the measured values.
 TEST(Tracker, StretchOf50PercentIsTrackedOrRetiredNeverWrongByAPixel) {
   // The skin stretches by 50 % over 10 frames and carries tracks through the border band into the border.
-  // Measured: auto 0.068 px RMS, max 0.71 px with the resampled rounds (session 10; before: 0.093 px RMS,
-  // max 0.98 px), none > 1 px (tracks retired once less than 60 % of their
+  // Measured: auto 0.068 px RMS, max 0.71 px, none > 1 px (tracks retired once less than 60 % of their
   // subset is inside the contact; at 50 %: 0.150 px RMS, 4 of 725 track-frames 1.0-1.4 px off). The
   // fixed-shape rounds before the last stop at a 0.1 px step: with every round converged to 0.01 px, 0.091
   // px and max 0.95 px; with the last round loose too, one track 1.007 px off. delhaye2016 4.9 px RMS.
@@ -430,8 +425,8 @@ TEST(TrackerKnownLimits, LowContrastStaysWithinItsMeasuredBounds) {
   noisy["synthesis"]["fingerprint"]["ridge_contrast"] = 0.25;
   noisy["synthesis"]["image"]["bit_depth"] = 8;
   const BothRuns low_contrast = run_both(noisy, true, false);
-  // Measured: auto 0.155 px RMS, max 1.50 px, 3 of 1041 > 1 px, 91 of 94 tracks alive (session 9: 0.147
-  // px, max 1.32 px, 1 > 1 px); delhaye2016 0.63 px.
+  // Measured: auto 0.155 px RMS, max 1.50 px, 3 of 1041 > 1 px, 91 of 94 tracks alive; delhaye2016
+  // 0.63 px.
   EXPECT_LT(low_contrast.automatic.rms_px, 0.2);
   EXPECT_LE(low_contrast.automatic.wrong, 4);
   EXPECT_LT(low_contrast.automatic.rms_px, low_contrast.paper.rms_px);

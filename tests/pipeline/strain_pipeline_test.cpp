@@ -464,7 +464,7 @@ TEST(StrainPipeline, EnergyTruthOnAnEllipticalContactIsConsistent) {
 // on the tracking side (flow/), not on the strain or truth side: tracks within 0.4 mm of the border (the
 // ridge contrast fades there and the fade envelope does not move with the skin) lag by 0.2-0.5 px RMS
 // against 0.03 px inside, and the Cattaneo–Mindlin strain energy is concentrated towards the border, so at
-// low strain those errors dominate U. Measured (session 4): ellipse U 10.0 % RMS, strain gain ≈ 1.0;
+// low strain those errors dominate U. Measured: ellipse U 10.0 % RMS, strain gain ≈ 1.0;
 // circle U 73.9 %, strain gain 1.12. When the border band is fixed, tighten these to 5 % and 1 ± 0.02.
 TEST(StrainPipelineKnownLimits, EnergyAtLowStrainStaysWithinItsMeasuredBounds) {
   const std::pair<const char*, double> cases[] = {
