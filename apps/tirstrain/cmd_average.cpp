@@ -62,9 +62,9 @@ std::vector<cv::Mat> frame_maps(const H5Reader& h5, const std::string& name, std
                                 std::size_t* cells) {
   if (!h5.has(name))
     throw Error("no " + name + " (processed without the strain stage?)", {.file = h5.path()});
-  H5Shape shape;
-  const std::vector<double> all = h5.read_doubles(name, &shape);
-  const std::size_t g = shape[1], c = shape.size() > 3 ? shape[3] : 1;
+  H5Shape shape;  // the row's: [G, G, C] or [G, G]
+  const std::vector<double> row = h5.read_row_doubles(name, frame, &shape);
+  const std::size_t g = shape[0], c = shape.size() > 2 ? shape[2] : 1;
   if (*cells != 0 && g != *cells)
     throw Error("map grid " + std::to_string(g) + " differs from the first result's " +
                     std::to_string(*cells) + " (strain.map_cells must be equal)",
@@ -75,10 +75,104 @@ std::vector<cv::Mat> frame_maps(const H5Reader& h5, const std::string& name, std
     cv::Mat m(static_cast<int>(g), static_cast<int>(g), CV_64F);
     for (std::size_t r = 0; r < g; ++r)
       for (std::size_t col = 0; col < g; ++col)
-        m.at<double>(static_cast<int>(r), static_cast<int>(col)) = all[((frame * g + r) * g + col) * c + k];
+        m.at<double>(static_cast<int>(r), static_cast<int>(col)) = row[(r * g + col) * c + k];
     out.push_back(m);
   }
   return out;
+}
+
+// The maps of every trial at its chosen frame, component by component, and which frame each gave.
+struct TrialMaps {
+  std::size_t cells = 0;
+  std::vector<cv::Mat> exx, eyy, exy, e1, e2, energy;
+  std::string used;  // "file@frame;..."
+};
+
+TrialMaps read_trial_maps(const std::vector<std::string>& inputs, const Selection& selection) {
+  TrialMaps t;
+  for (std::string input : inputs) {
+    if (fs::is_directory(input)) input = (fs::path(input) / "result.h5").string();
+    if (!fs::exists(input)) throw Error("no such result", {.file = input});
+    const H5Reader h5(input);
+    if (h5.has("/maps") && h5.attribute_number("/maps", "reference_has_ellipse") <= 0.0)
+      throw Error("the reference frame had no contact ellipse, so the result has no normalised maps",
+                  {.file = input});
+    const std::size_t frame = pick_frame(h5, selection);
+    const auto strain = frame_maps(h5, "/maps/strain_total", frame, &t.cells);
+    const auto principal = frame_maps(h5, "/maps/principal", frame, &t.cells);
+    const auto density = frame_maps(h5, "/maps/energy_density_J_m3", frame, &t.cells);
+    t.exx.push_back(strain[0]);
+    t.eyy.push_back(strain[1]);
+    t.exy.push_back(strain[2]);
+    t.e1.push_back(principal[0]);
+    t.e2.push_back(principal[1]);
+    t.energy.push_back(density[0]);
+    t.used += (t.used.empty() ? "" : ";") + input + "@" + std::to_string(frame);
+  }
+  return t;
+}
+
+// Cell-by-cell means over the trials that cover each cell.
+struct MeanMaps {
+  cv::Mat exx, eyy, exy, e1, e2, energy, count;
+};
+
+MeanMaps mean_maps(const TrialMaps& t) {
+  MeanMaps m;
+  m.exx = strain::nan_mean(t.exx, &m.count);
+  m.eyy = strain::nan_mean(t.eyy);
+  m.exy = strain::nan_mean(t.exy);
+  m.e1 = strain::nan_mean(t.e1);
+  m.e2 = strain::nan_mean(t.e2);
+  m.energy = strain::nan_mean(t.energy);
+  return m;
+}
+
+void write_average_h5(const fs::path& path, const MeanMaps& m, std::size_t g, const std::string& used,
+                      const std::string& selection) {
+  std::vector<double> total(g * g * 3), principal(g * g * 2), density(g * g), counts(g * g);
+  for (std::size_t r = 0; r < g; ++r)
+    for (std::size_t c = 0; c < g; ++c) {
+      const int ri = static_cast<int>(r), ci = static_cast<int>(c);
+      const std::size_t k = r * g + c;
+      total[3 * k] = m.exx.at<double>(ri, ci);
+      total[3 * k + 1] = m.eyy.at<double>(ri, ci);
+      total[3 * k + 2] = m.exy.at<double>(ri, ci);
+      principal[2 * k] = m.e1.at<double>(ri, ci);
+      principal[2 * k + 1] = m.e2.at<double>(ri, ci);
+      density[k] = m.energy.at<double>(ri, ci);
+      counts[k] = m.count.at<double>(ri, ci);
+    }
+  H5Writer h5(path.string());
+  h5.write("/maps/strain_total", std::span<const double>(total), {g, g, 3});
+  h5.write("/maps/principal", std::span<const double>(principal), {g, g, 2});
+  h5.write("/maps/energy_density_J_m3", std::span<const double>(density), {g, g});
+  h5.write("/maps/count", std::span<const double>(counts), {g, g});
+  h5.attribute("/maps", "inputs_and_frames", used);
+  h5.attribute("/maps", "selection", selection);
+  h5.attribute("/maps", "cells", static_cast<double>(g));
+  h5.commit();
+}
+
+// Strain maps on a scale robust to the few border cells that a single trial covers (98th percentile).
+void write_average_pictures(const fs::path& out, const MeanMaps& m, std::size_t trials) {
+  const auto png = [&](const std::string& name, const cv::Mat& values, const std::string& title,
+                       bool diverging) {
+    HeatmapOptions o;
+    o.title = title;
+    o.diverging = diverging;
+    o.unit = diverging ? "strain (dimensionless)" : "trials";
+    o.range_percentile = diverging ? 98.0 : 100.0;
+    o.x_min = o.y_min = -1.0;
+    o.x_max = o.y_max = 1.0;
+    o.axis_unit = "normalised";
+    write_heatmap_png((out / name).string(), values, o);
+  };
+  const std::string n = std::to_string(trials);
+  png("average_E_xx.png", m.exx, "E_xx, mean of " + n + " trials", true);
+  png("average_E_yy.png", m.eyy, "E_yy, mean of " + n + " trials", true);
+  png("average_E_xy.png", m.exy, "E_xy, mean of " + n + " trials", true);
+  png("average_count.png", m.count, "trials covering each cell", false);
 }
 
 }  // namespace
@@ -122,86 +216,20 @@ void add_average_command(CLI::App& app) {
       selection.how = "time";
       selection.time_s = args->time_s;
     }
-    std::size_t cells = 0;
-    std::vector<cv::Mat> exx, eyy, exy, e1, e2, energy;
-    std::string used;
-    for (std::string input : args->inputs) {
-      if (fs::is_directory(input)) input = (fs::path(input) / "result.h5").string();
-      if (!fs::exists(input)) throw Error("no such result", {.file = input});
-      const H5Reader h5(input);
-      if (h5.has("/maps") && h5.attribute_number("/maps", "reference_has_ellipse") <= 0.0)
-        throw Error("the reference frame had no contact ellipse, so the result has no normalised maps",
-                    {.file = input});
-      const std::size_t frame = pick_frame(h5, selection);
-      const auto strain = frame_maps(h5, "/maps/strain_total", frame, &cells);
-      const auto principal = frame_maps(h5, "/maps/principal", frame, &cells);
-      const auto density = frame_maps(h5, "/maps/energy_density_J_m3", frame, &cells);
-      exx.push_back(strain[0]);
-      eyy.push_back(strain[1]);
-      exy.push_back(strain[2]);
-      e1.push_back(principal[0]);
-      e2.push_back(principal[1]);
-      energy.push_back(density[0]);
-      used += (used.empty() ? "" : ";") + input + "@" + std::to_string(frame);
-    }
+    const TrialMaps trials = read_trial_maps(args->inputs, selection);
     // Built in "<out>.partial" and swapped in whole: a failed run leaves the earlier output as it was.
     check_replaceable_output(
         args->out,
         {"average.h5", "average_E_xx.png", "average_E_yy.png", "average_E_xy.png", "average_count.png"},
         "average");
     StagingDirectory staging(args->out);
-    const fs::path out(staging.path());
-    cv::Mat count;
-    const cv::Mat m_exx = strain::nan_mean(exx, &count), m_eyy = strain::nan_mean(eyy),
-                  m_exy = strain::nan_mean(exy);
-    const cv::Mat m_e1 = strain::nan_mean(e1), m_e2 = strain::nan_mean(e2),
-                  m_energy = strain::nan_mean(energy);
-    const std::size_t g = cells;
-    std::vector<double> total(g * g * 3), principal(g * g * 2), density(g * g), counts(g * g);
-    for (std::size_t r = 0; r < g; ++r)
-      for (std::size_t c = 0; c < g; ++c) {
-        const int ri = static_cast<int>(r), ci = static_cast<int>(c);
-        const std::size_t k = r * g + c;
-        total[3 * k] = m_exx.at<double>(ri, ci);
-        total[3 * k + 1] = m_eyy.at<double>(ri, ci);
-        total[3 * k + 2] = m_exy.at<double>(ri, ci);
-        principal[2 * k] = m_e1.at<double>(ri, ci);
-        principal[2 * k + 1] = m_e2.at<double>(ri, ci);
-        density[k] = m_energy.at<double>(ri, ci);
-        counts[k] = count.at<double>(ri, ci);
-      }
-    {
-      H5Writer h5((out / "average.h5").string());
-      h5.write("/maps/strain_total", std::span<const double>(total), {g, g, 3});
-      h5.write("/maps/principal", std::span<const double>(principal), {g, g, 2});
-      h5.write("/maps/energy_density_J_m3", std::span<const double>(density), {g, g});
-      h5.write("/maps/count", std::span<const double>(counts), {g, g});
-      h5.attribute("/maps", "inputs_and_frames", used);
-      h5.attribute("/maps", "selection", selection.how);
-      h5.attribute("/maps", "cells", static_cast<double>(g));
-      h5.commit();
-    }
-    // Strain maps on a scale robust to the few border cells that a single trial covers (98th percentile).
-    const auto png = [&](const std::string& name, const cv::Mat& values, const std::string& title,
-                         bool diverging) {
-      HeatmapOptions o;
-      o.title = title;
-      o.diverging = diverging;
-      o.unit = diverging ? "strain (dimensionless)" : "trials";
-      o.range_percentile = diverging ? 98.0 : 100.0;
-      o.x_min = o.y_min = -1.0;
-      o.x_max = o.y_max = 1.0;
-      o.axis_unit = "normalised";
-      write_heatmap_png((out / name).string(), values, o);
-    };
-    const std::string n = std::to_string(args->inputs.size());
-    png("average_E_xx.png", m_exx, "E_xx, mean of " + n + " trials", true);
-    png("average_E_yy.png", m_eyy, "E_yy, mean of " + n + " trials", true);
-    png("average_E_xy.png", m_exy, "E_xy, mean of " + n + " trials", true);
-    png("average_count.png", count, "trials covering each cell", false);
+    const MeanMaps means = mean_maps(trials);
+    write_average_h5(fs::path(staging.path()) / "average.h5", means, trials.cells, trials.used,
+                     selection.how);
+    write_average_pictures(staging.path(), means, args->inputs.size());
     staging.commit();
-    std::cerr << "averaged " << args->inputs.size() << " trials (" << g << "x" << g << " cells) -> "
-              << (fs::path(args->out) / "average.h5").string() << "\n";
+    std::cerr << "averaged " << args->inputs.size() << " trials (" << trials.cells << "x" << trials.cells
+              << " cells) -> " << (fs::path(args->out) / "average.h5").string() << "\n";
   });
 }
 
