@@ -9,12 +9,6 @@ namespace {
 
 using nlohmann::json;
 
-// One named series of a result, drawn against the result's frame times.
-struct Series {
-  std::string name;
-  const std::vector<double>* values;
-};
-
 bool any_finite(const std::vector<double>& values) {
   for (double v : values)
     if (std::isfinite(v)) return true;
@@ -71,46 +65,33 @@ json vertical(std::vector<json> panels) {
           {"resolve", {{"scale", {{"color", "independent"}, {"strokeDash", "independent"}}}}}};
 }
 
-Figure contact_figure(const std::vector<ResultData>& results, const FigureOptions& o) {
-  const bool several = results.size() > 1;
-  Figure f{"contact", "Contact against time", "", json(), "svg", ""};
-  f.caption =
-      "Top: contact area inside the contact's convex hull, mm². Bottom: semi-major and semi-minor axes of "
-      "the ellipse fitted to the hull, mm (no point where no ellipse was fitted).";
-  f.spec = vertical({line_panel(series_rows(results, {{"area", &ResultData::area_mm2}}), "area (mm²)",
-                                several, o, "zoom_area"),
-                     line_panel(series_rows(results, {{"semi-major axis", &ResultData::semi_major_mm},
-                                                      {"semi-minor axis", &ResultData::semi_minor_mm}}),
-                                "semi-axis (mm)", several, o, "zoom_axes")});
-  return f;
+// A figure of time series: panels stacked, each a set of a result's per-frame series in one unit.
+using Series = std::vector<double> ResultData::*;
+struct Panel {
+  std::vector<std::pair<std::string, Series>> series;  // legend name, the series
+  std::string y_title;                                 // quantity and unit
+};
+struct TimeFigure {
+  std::string id, title, caption;
+  std::vector<Panel> panels;
+};
+
+bool panel_has_data(const std::vector<ResultData>& results, const Panel& panel) {
+  for (const auto& [name, member] : panel.series)
+    if (any_result_has(results, member)) return true;
+  return false;
 }
 
-Figure tracks_figure(const std::vector<ResultData>& results, const FigureOptions& o) {
-  const bool several = results.size() > 1;
-  Figure f{"tracks", "Tracks against time", "", json(), "svg", ""};
-  f.caption =
-      "Top: tracks alive in each frame. Bottom: tracks born (the reference frame's seeding included) and "
-      "retired in each frame (counts).";
-  f.spec = vertical({line_panel(series_rows(results, {{"alive", &ResultData::tracks_alive}}), "tracks alive",
-                                several, o, "zoom_alive"),
-                     line_panel(series_rows(results, {{"born", &ResultData::tracks_born},
-                                                      {"retired", &ResultData::tracks_retired}}),
-                                "tracks per frame", several, o, "zoom_born")});
-  return f;
-}
-
-Figure forces_figure(const std::vector<ResultData>& results, const FigureOptions& o) {
-  const bool several = results.size() > 1;
-  Figure f{"forces", "Forces and friction against time", "", json(), "svg", ""};
-  f.caption =
-      "Top: normal force W and tangential force along the stroke F_t, N, from the force channels at the "
-      "frame times (aligned to the camera clock). Bottom: friction coefficient μ = F_t / W on the tared "
-      "channels (dimensionless; no point where W is below the channels' minimum normal force).";
-  f.spec = vertical({line_panel(series_rows(results, {{"normal W", &ResultData::normal_N},
-                                                      {"tangential F_t", &ResultData::tangential_N}}),
-                                "force (N)", several, o, "zoom_force"),
-                     line_panel(series_rows(results, {{"μ", &ResultData::mu}}), "μ (dimensionless)", several,
-                                o, "zoom_mu")});
+// The figure, its panels without data left out; null spec when none has any.
+Figure time_figure(const std::vector<ResultData>& results, const TimeFigure& t, const FigureOptions& o) {
+  Figure f{t.id, t.title, t.caption, json(), "svg", ""};
+  std::vector<json> panels;
+  for (const Panel& p : t.panels)
+    if (panel_has_data(results, p))
+      panels.push_back(line_panel(series_rows(results, p.series), p.y_title, results.size() > 1, o,
+                                  "zoom_" + t.id + "_" + std::to_string(panels.size())));
+  if (panels.size() == 1) f.spec = std::move(panels.front());
+  if (panels.size() > 1) f.spec = vertical(std::move(panels));
   return f;
 }
 
@@ -118,56 +99,61 @@ std::string ratio_at_t90_text(const std::vector<ResultData>& results) {
   std::string text;
   for (const ResultData& r : results) {
     if (!std::isfinite(r.energy_ratio_at_t90)) continue;
-    char buffer[96];
-    std::snprintf(buffer, sizeof buffer, "%s%s: %.3g", text.empty() ? "" : "; ", r.label.c_str(),
-                  r.energy_ratio_at_t90);
-    text += buffer;
+    char buffer[32];
+    std::snprintf(buffer, sizeof buffer, "%.3g", r.energy_ratio_at_t90);
+    text += (text.empty() ? "" : "; ") + r.label + ": " + buffer;
   }
   return text.empty() ? "" : " U/U_ext at t90 (/work/energy_ratio): " + text + ".";
 }
 
-Figure energy_figure(const std::vector<ResultData>& results, const FigureOptions& o) {
-  const bool several = results.size() > 1;
-  Figure f{"energy", "Strain energy against time", "", json(), "svg", ""};
-  f.caption =
-      "Top: strain energy U of the measured strain field (plane-strain St Venant–Kirchhoff, scene's E, ν and "
-      "depth), J. Bottom: U over the external work U_ext = ∫F_t dx accumulated since the onset "
-      "(dimensionless), where U_ext is at least 1 % of its largest value." +
-      ratio_at_t90_text(results);
-  std::vector<json> panels{
-      line_panel(series_rows(results, {{"U", &ResultData::energy_J}}), "U (J)", several, o, "zoom_u")};
-  if (any_result_has(results, &ResultData::energy_ratio))
-    panels.push_back(line_panel(series_rows(results, {{"U/U_ext", &ResultData::energy_ratio}}),
-                                "U/U_ext (dimensionless)", several, o, "zoom_ratio"));
-  f.spec = vertical(std::move(panels));
-  return f;
-}
-
-Figure stick_figure(const std::vector<ResultData>& results, const FigureOptions& o) {
-  const bool several = results.size() > 1;
-  Figure f{"stick", "Stick ratio against time", "", json(), "svg", ""};
-  f.caption =
-      "Stuck fraction of the meshed area (a triangle is stuck when its centroid moves with the plate within "
-      "the stick tolerance) and the stick radius over the contact radius c/a from the Cattaneo–Mindlin slip "
-      "profile fitted to the tracks (dimensionless).";
-  f.spec = line_panel(series_rows(results, {{"stick ratio", &ResultData::stick_ratio},
-                                            {"c/a (stick fit)", &ResultData::stick_radius_ratio}}),
-                      "fraction (dimensionless)", several, o, "zoom_stick");
-  return f;
-}
-
-Figure fit_figure(const std::vector<ResultData>& results, const FigureOptions& o) {
-  const bool several = results.size() > 1;
-  Figure f{"fit", "Model fit against time", "", json(), "svg", ""};
-  f.caption =
-      "The Hertz + Cattaneo–Mindlin field fitted to the tracked displacements frame by frame (/fit): top, "
-      "the fitted stick radius over contact radius c/a (dimensionless); bottom, the tangential load Q it "
-      "implies with the scene's tissue, N. The field of each frame is the one chosen by BIC.";
-  f.spec = vertical({line_panel(series_rows(results, {{"c/a (fit)", &ResultData::fit_c_of_a}}),
-                                "c/a (dimensionless)", several, o, "zoom_fit_c"),
-                     line_panel(series_rows(results, {{"Q (fit)", &ResultData::fit_tangential_N}}), "Q (N)",
-                                several, o, "zoom_fit_q")});
-  return f;
+// Every time-series figure of the report, in reading order.
+std::vector<TimeFigure> time_figures(const std::vector<ResultData>& results) {
+  using R = ResultData;
+  return {
+      {"contact",
+       "Contact against time",
+       "Top: contact area inside the contact's convex hull, mm². Bottom: semi-major and semi-minor axes of "
+       "the "
+       "ellipse fitted to the hull, mm (no point where no ellipse was fitted).",
+       {{{{"area", &R::area_mm2}}, "area (mm²)"},
+        {{{"semi-major axis", &R::semi_major_mm}, {"semi-minor axis", &R::semi_minor_mm}},
+         "semi-axis (mm)"}}},
+      {"tracks",
+       "Tracks against time",
+       "Top: tracks alive in each frame. Bottom: tracks born (the reference frame's seeding included) and "
+       "retired in each frame (counts).",
+       {{{{"alive", &R::tracks_alive}}, "tracks alive"},
+        {{{"born", &R::tracks_born}, {"retired", &R::tracks_retired}}, "tracks per frame"}}},
+      {"forces",
+       "Forces and friction against time",
+       "Top: normal force W and tangential force along the stroke F_t, N, from the force channels at the "
+       "frame times (aligned to the camera clock). Bottom: friction coefficient μ = F_t / W on the tared "
+       "channels (dimensionless; no point where W is below the channels' minimum normal force).",
+       {{{{"normal W", &R::normal_N}, {"tangential F_t", &R::tangential_N}}, "force (N)"},
+        {{{"μ", &R::mu}}, "μ (dimensionless)"}}},
+      {"energy",
+       "Strain energy against time",
+       "Top: strain energy U of the measured strain field (plane-strain St Venant–Kirchhoff, scene's E, ν "
+       "and "
+       "depth), J. Bottom: U over the external work U_ext = ∫F_t dx accumulated since the onset "
+       "(dimensionless), where U_ext is at least 1 % of its largest value." +
+           ratio_at_t90_text(results),
+       {{{{"U", &R::energy_J}}, "U (J)"}, {{{"U/U_ext", &R::energy_ratio}}, "U/U_ext (dimensionless)"}}},
+      {"stick",
+       "Stick ratio against time",
+       "Stuck fraction of the meshed area (a triangle is stuck when its centroid moves with the plate within "
+       "the stick tolerance) and the stick radius over the contact radius c/a from the Cattaneo–Mindlin slip "
+       "profile fitted to the tracks (dimensionless).",
+       {{{{"stick ratio", &R::stick_ratio}, {"c/a (stick fit)", &R::stick_radius_ratio}},
+         "fraction (dimensionless)"}}},
+      {"fit",
+       "Model fit against time",
+       "The Hertz + Cattaneo–Mindlin field fitted to the tracked displacements frame by frame (/fit): top, "
+       "the fitted stick radius over contact radius c/a (dimensionless); bottom, the tangential load Q it "
+       "implies with the scene's tissue, N. The field of each frame is the one chosen by BIC.",
+       {{{{"c/a (fit)", &R::fit_c_of_a}}, "c/a (dimensionless)"},
+        {{{"Q (fit)", &R::fit_tangential_N}}, "Q (N)"}}},
+  };
 }
 
 // Axial angles binned over 0–180° and drawn over the full circle (each direction θ also as θ + 180°),
@@ -264,19 +250,12 @@ std::string html_escape(const std::string& text) {
 
 std::vector<Figure> result_figures(const std::vector<ResultData>& results, const FigureOptions& options) {
   std::vector<Figure> figures;
-  if (any_result_has(results, &ResultData::area_mm2)) figures.push_back(contact_figure(results, options));
-  if (any_result_has(results, &ResultData::tracks_alive)) figures.push_back(tracks_figure(results, options));
-  if (any_result_has(results, &ResultData::normal_N) || any_result_has(results, &ResultData::tangential_N))
-    figures.push_back(forces_figure(results, options));
-  if (options.maps)
-    for (Figure& f : map_figures(results, options)) figures.push_back(std::move(f));
-  if (any_result_has(results, &ResultData::energy_J)) figures.push_back(energy_figure(results, options));
-  if (any_result_has(results, &ResultData::stick_ratio) ||
-      any_result_has(results, &ResultData::stick_radius_ratio))
-    figures.push_back(stick_figure(results, options));
-  if (any_result_has(results, &ResultData::fit_c_of_a) ||
-      any_result_has(results, &ResultData::fit_tangential_N))
-    figures.push_back(fit_figure(results, options));
+  for (const TimeFigure& t : time_figures(results)) {
+    if (t.id == "energy" && options.maps)  // the key instants' maps between the forces and the energy
+      for (Figure& f : map_figures(results, options)) figures.push_back(std::move(f));
+    Figure f = time_figure(results, t, options);
+    if (!f.spec.is_null()) figures.push_back(std::move(f));
+  }
   Figure principal = polar_figure(
       results, &ResultData::principal_directions, "principal-directions", "Principal strain directions",
       "Polar histogram of the direction of the larger principal strain e1 over the meshed triangles "

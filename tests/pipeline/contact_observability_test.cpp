@@ -46,14 +46,12 @@ TEST(ContactObservability, CoreUnderTheContactLeavesTheCentreOpen) {
   EXPECT_GT(at_2_sigma.half_range_px, 1.2);
   EXPECT_LT(at_2_sigma.half_range_px, 2.0);
   // Seeing fainter ridge flanks narrows the range (measured 0.21 px at 0.2 sigma, what integrating along a
-  // ridge over ~100 pixels would see); seeing only crests widens it (4.82 px at 8 sigma).
+  // ridge over ~100 pixels would see). Seeing only crests widens it (4.82 px at 8 sigma:
+  // contact_observability_bench --k-sigma 8).
   ObservabilityOptions options;
   options.k_sigma = 0.2;
   const double faint = contact_centre_bound(trial, 0, options).half_range_px;
-  options.k_sigma = 8.0;
-  const double crests = contact_centre_bound(trial, 0, options).half_range_px;
   EXPECT_LT(faint, 0.4);
-  EXPECT_GT(crests, 3.5);
 }
 
 TEST(ContactObservability, TruthEllipseOfARasterisedEllipse) {
