@@ -144,23 +144,50 @@ void parse_reading(YamlSection& top, const std::string& scene_file, ts::ChannelR
   calibration.finish();
 }
 
-Config parse_config(const Scene& scene) {
-  Config c;
-  c.scene_file = scene.file;
-  if (!scene.channels || scene.channels.IsNull())
-    throw Error("the channels stage needs a 'channels:' section naming the channel file and its columns",
-                {.file = scene.file, .key = "channels"});
-  YamlSection top(scene.channels, scene.file, "channels");
+// The channel file (relative to the scene's folder) and how it is read.
+void parse_file(YamlSection& top, const std::string& scene_file, Config& c) {
   const std::string file = top.required_text("file");
-  if (file.empty()) throw Error("empty channel file name", {.file = scene.file, .key = "channels.file"});
+  if (file.empty()) throw Error("empty channel file name", {.file = scene_file, .key = "channels.file"});
   fs::path path(file);
-  if (path.is_relative() && !scene.file.empty()) path = fs::path(scene.file).parent_path() / path;
+  if (path.is_relative() && !scene_file.empty()) path = fs::path(scene_file).parent_path() / path;
   c.file = path.lexically_normal().string();
   c.read.time_column = top.text("time_column", "t_s");
   c.read.hdf5_group = top.text("hdf5_group", "/");
   c.read.rate_tolerance = top.number("rate_tolerance", 0.01, 0.0, 1.0);
-  parse_reading(top, scene.file, c.read);
+  parse_reading(top, scene_file, c.read);
+}
 
+// A mapped column's unit: given under channels.units, else read from the column name's suffix (the
+// longest that matches, so "_mm" is not read as "_m").
+Unit unit_of_column(const RoleSpec& spec, const Mapped& m, YamlSection& columns, YamlSection& units,
+                    const std::string& scene_file) {
+  const std::string role = spec.role;
+  const auto options = units_of(spec.kind);
+  std::optional<Unit> unit;
+  if (units.has(role)) {
+    const std::string name = units.text(role, "");
+    for (const Unit& u : options)
+      if (name == u.name) unit = u;
+    if (!unit)
+      throw Error("unknown unit '" + name + "' (use one of " + unit_list(spec.kind) + ")",
+                  {.file = scene_file, .key = units.path_of(role)});
+    return *unit;
+  }
+  std::size_t best = 0;
+  for (const Unit& u : options)
+    if (ends_with(m.column, std::string("_") + u.name) && std::string(u.name).size() > best) {
+      unit = u;
+      best = std::string(u.name).size();
+    }
+  if (!unit)
+    throw Error("cannot tell the unit of column '" + m.column + "' from its name (expected a suffix _" +
+                    unit_list(spec.kind) + "); give it under channels.units." + role,
+                {.file = scene_file, .key = columns.path_of(role)});
+  return *unit;
+}
+
+// channels.columns (role: column) and channels.units, every known role in turn.
+void parse_columns(YamlSection& top, const std::string& scene_file, Config& c) {
   YamlSection columns = top.section("columns");
   YamlSection units = top.section("units");
   for (const RoleSpec& spec : kRoles) {
@@ -168,7 +195,7 @@ Config parse_config(const Scene& scene) {
     if (!columns.has(role)) {
       if (units.has(role))
         throw Error("a unit is given for role '" + role + "' but channels.columns does not map it",
-                    {.file = scene.file, .key = units.path_of(role)});
+                    {.file = scene_file, .key = units.path_of(role)});
       continue;
     }
     Mapped m;
@@ -176,32 +203,11 @@ Config parse_config(const Scene& scene) {
     m.kind = spec.kind;
     m.column = columns.required_text(role);
     if (m.column.empty())
-      throw Error("empty column name", {.file = scene.file, .key = columns.path_of(role)});
+      throw Error("empty column name", {.file = scene_file, .key = columns.path_of(role)});
     if (spec.kind != Kind::kTrigger) {
-      const auto options = units_of(spec.kind);
-      std::optional<Unit> unit;
-      if (units.has(role)) {
-        const std::string name = units.text(role, "");
-        for (const Unit& u : options)
-          if (name == u.name) unit = u;
-        if (!unit)
-          throw Error("unknown unit '" + name + "' (use one of " + unit_list(spec.kind) + ")",
-                      {.file = scene.file, .key = units.path_of(role)});
-      } else {
-        // Longest suffix first, so "_mm" is not read as "_m".
-        std::size_t best = 0;
-        for (const Unit& u : options)
-          if (ends_with(m.column, std::string("_") + u.name) && std::string(u.name).size() > best) {
-            unit = u;
-            best = std::string(u.name).size();
-          }
-        if (!unit)
-          throw Error("cannot tell the unit of column '" + m.column + "' from its name (expected a suffix _" +
-                          unit_list(spec.kind) + "); give it under channels.units." + role,
-                      {.file = scene.file, .key = columns.path_of(role)});
-      }
-      m.unit = unit->name;
-      m.to_si = unit->to_si;
+      const Unit unit = unit_of_column(spec, m, columns, units, scene_file);
+      m.unit = unit.name;
+      m.to_si = unit.to_si;
     }
     c.mapped.push_back(m);
   }
@@ -211,51 +217,58 @@ Config parse_config(const Scene& scene) {
     throw Error(
         "channels.columns maps no role (known: normal_force, tangential_force[_x/_y], "
         "plate_position[_x/_y], accelerometer, accelerometer_nail, accelerometer_side, trigger)",
-        {.file = scene.file, .key = "channels.columns"});
+        {.file = scene_file, .key = "channels.columns"});
+}
+
+// A one-axis role or both axes of it, never a mix; and no column mapped twice or to the time column.
+void check_mapping(const std::string& scene_file, const Config& c) {
   for (const char* base : {"tangential_force", "plate_position"}) {
     const std::string b = base;
     const bool one = c.find(b) != nullptr, x = c.find(b + "_x") != nullptr, y = c.find(b + "_y") != nullptr;
     if (one && (x || y))
       throw Error("map either " + b + " or " + b + "_x and " + b + "_y, not both",
-                  {.file = scene.file, .key = "channels.columns." + b});
+                  {.file = scene_file, .key = "channels.columns." + b});
     if (x != y)
       throw Error(b + "_x and " + b + "_y go together (one is missing)",
-                  {.file = scene.file, .key = "channels.columns." + b + (x ? "_y" : "_x")});
+                  {.file = scene_file, .key = "channels.columns." + b + (x ? "_y" : "_x")});
   }
-  {
-    std::vector<std::string> mapped_columns;
-    for (const auto& m : c.mapped) {
-      if (m.column == c.read.time_column)
-        throw Error("role '" + m.role + "' is mapped to the time column",
-                    {.file = scene.file, .key = "channels.columns." + m.role});
-      if (std::find(mapped_columns.begin(), mapped_columns.end(), m.column) != mapped_columns.end())
-        throw Error("column '" + m.column + "' is mapped to two roles",
-                    {.file = scene.file, .key = "channels.columns." + m.role});
-      mapped_columns.push_back(m.column);
-    }
+  std::vector<std::string> mapped_columns;
+  for (const auto& m : c.mapped) {
+    if (m.column == c.read.time_column)
+      throw Error("role '" + m.role + "' is mapped to the time column",
+                  {.file = scene_file, .key = "channels.columns." + m.role});
+    if (std::find(mapped_columns.begin(), mapped_columns.end(), m.column) != mapped_columns.end())
+      throw Error("column '" + m.column + "' is mapped to two roles",
+                  {.file = scene_file, .key = "channels.columns." + m.role});
+    mapped_columns.push_back(m.column);
   }
-  if (top.has("invert")) {
-    const YAML::Node list = top.raw("invert");
-    if (!list.IsSequence())
-      throw Error("expected a list of roles whose sign is flipped",
-                  {.file = scene.file, .key = "channels.invert"});
-    for (const auto& item : list) {
-      const std::string role = item.as<std::string>();
-      auto it =
-          std::find_if(c.mapped.begin(), c.mapped.end(), [&](const Mapped& m) { return m.role == role; });
-      if (it == c.mapped.end())
-        throw Error("role '" + role + "' is not mapped under channels.columns",
-                    {.file = scene.file, .key = "channels.invert"});
-      it->invert = true;
-    }
-  }
+}
 
+// channels.invert: the roles whose sign is flipped.
+void parse_invert(YamlSection& top, const std::string& scene_file, Config& c) {
+  if (!top.has("invert")) return;
+  const YAML::Node list = top.raw("invert");
+  if (!list.IsSequence())
+    throw Error("expected a list of roles whose sign is flipped",
+                {.file = scene_file, .key = "channels.invert"});
+  for (const auto& item : list) {
+    const std::string role = item.as<std::string>();
+    auto it = std::find_if(c.mapped.begin(), c.mapped.end(), [&](const Mapped& m) { return m.role == role; });
+    if (it == c.mapped.end())
+      throw Error("role '" + role + "' is not mapped under channels.columns",
+                  {.file = scene_file, .key = "channels.invert"});
+    it->invert = true;
+  }
+}
+
+// channels.alignment: the mode and the keys that belong to it (a key of another mode is an error).
+void parse_alignment(YamlSection& top, const std::string& scene_file, Config& c) {
   YamlSection align = top.section("alignment");
   const std::string mode = align.choice("mode", "explicit", {"explicit", "trigger", "cross_correlation"});
   const auto only_for = [&](const char* key, const char* for_mode) {
     if (align.has(key) && mode != for_mode)
       throw Error(std::string("applies to alignment mode '") + for_mode + "' only (mode is '" + mode + "')",
-                  {.file = scene.file, .key = align.path_of(key)});
+                  {.file = scene_file, .key = align.path_of(key)});
   };
   only_for("offset_s", "explicit");
   for (const char* key : {"threshold", "edge", "camera_edge_s"}) only_for(key, "trigger");
@@ -267,7 +280,7 @@ Config parse_config(const Scene& scene) {
     c.mode = Mode::kTrigger;
     if (!c.find("trigger"))
       throw Error("alignment mode 'trigger' needs channels.columns.trigger",
-                  {.file = scene.file, .key = align.path_of("mode")});
+                  {.file = scene_file, .key = align.path_of("mode")});
     if (align.has("threshold")) c.threshold = align.number("threshold", 0.0);
     c.rising = align.choice("edge", "rising", {"rising", "falling"}) == "rising";
     if (align.has("camera_edge_s")) c.camera_edge_s = align.number("camera_edge_s", 0.0, -1e9, 1e9);
@@ -275,11 +288,14 @@ Config parse_config(const Scene& scene) {
     c.mode = Mode::kCrossCorrelation;
     if (!c.find("plate_position") && !c.find("plate_position_x"))
       throw Error("alignment mode 'cross_correlation' needs channels.columns.plate_position (or _x and _y)",
-                  {.file = scene.file, .key = align.path_of("mode")});
+                  {.file = scene_file, .key = align.path_of("mode")});
     c.max_lag_s = align.number("max_lag_s", 0.2, 0.0, 1e3);
   }
   align.finish();
+}
 
+// channels.friction: as `tirstrain signals friction`.
+void parse_friction(YamlSection& top, Config& c) {
   YamlSection friction = top.section("friction");
   c.min_normal_N = friction.number("min_normal_N", 0.05, 0.0, 1e6);
   c.events.plateau.window_s = friction.number("plateau_window_s", 0.1, 1e-6, 1e6);
@@ -288,6 +304,22 @@ Config parse_config(const Scene& scene) {
   c.events.baseline_s = friction.number("baseline_s", 0.1, 1e-6, 1e6);
   c.events.plateau_fraction = friction.number("fraction", 0.9, 1e-3, 1.0);
   friction.finish();
+}
+
+// The scene's channels: section, checked strictly: every error names the scene file and the key.
+Config parse_config(const Scene& scene) {
+  if (!scene.channels || scene.channels.IsNull())
+    throw Error("the channels stage needs a 'channels:' section naming the channel file and its columns",
+                {.file = scene.file, .key = "channels"});
+  Config c;
+  c.scene_file = scene.file;
+  YamlSection top(scene.channels, scene.file, "channels");
+  parse_file(top, scene.file, c);
+  parse_columns(top, scene.file, c);
+  check_mapping(scene.file, c);
+  parse_invert(top, scene.file, c);
+  parse_alignment(top, scene.file, c);
+  parse_friction(top, c);
   top.finish();
   return c;
 }
