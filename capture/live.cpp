@@ -159,142 +159,191 @@ cv::Mat display_canvas(const cv::Mat& image) {
   return canvas;
 }
 
-LiveReport run_live(FrameSource& source, const LiveOptions& options) {
-  const std::string window = "tirstrain live";
-  if (options.window) {
+namespace {
+
+// One live session: a capture thread (the source, or the recorder around it) feeds a mailbox; this thread
+// takes the newest frame, analyses and shows it, and keeps the rates and latencies.
+class LiveSession {
+ public:
+  LiveSession(FrameSource& source, const LiveOptions& options) : source_(source), options_(options) {}
+
+  LiveReport run() {
+    open_window();
+    std::thread capture([this] { capture_loop(); });
+    CaptureThreadGuard capture_guard(capture, stop_capture_);
+    start_s_ = interval_start_s_ = steady_now_s();
+    for (;;) {
+      if (options_.stop != nullptr && options_.stop->load()) stop_capture_.store(true);
+      std::optional<Frame> frame = mailbox_.take(0.05);
+      if (!frame && mailbox_.done()) break;
+      if (frame) show(*frame);
+      poll_keys();
+      update_rates();
+    }
+    // The capture thread ends by itself (limit, end of stream, stop); a stop asked for is already set.
+    if (capture.joinable()) capture.join();
+    return finish();
+  }
+
+ private:
+  static constexpr const char* kWindow = "tirstrain live";
+
+  void open_window() const {
+    if (!options_.window) return;
     // Before the camera thread starts, so a missing display is a plain error and not a dangling thread.
     check_display();
     try {
-      cv::namedWindow(window, cv::WINDOW_NORMAL);
+      cv::namedWindow(kWindow, cv::WINDOW_NORMAL);
     } catch (const cv::Exception& e) {
       throw Error(std::string("cannot open a window (no display?); use --no-window on headless machines: ") +
                       e.what(),
                   {.key = "--no-window"});
     }
   }
-  LiveReport report;
-  Mailbox mailbox;
-  Counters counters;
-  std::atomic<bool> stop_capture{false};
-  std::string capture_error;
-  const bool recording = !options.record_dir.empty();
+
+  void on_frame(const Frame& frame) {
+    counters_.received.fetch_add(1);
+    if (frame.status == FrameStatus::kIncomplete) counters_.incomplete.fetch_add(1);
+    counters_.lost.fetch_add(frame.frames_lost_before);
+    mailbox_.put(frame);
+  }
 
   // The capture thread owns the source; with --record it is the recorder's capture thread itself.
-  std::thread capture([&] {
-    auto on_frame = [&](const Frame& frame) {
-      counters.received.fetch_add(1);
-      if (frame.status == FrameStatus::kIncomplete) counters.incomplete.fetch_add(1);
-      counters.lost.fetch_add(frame.frames_lost_before);
-      mailbox.put(frame);
-    };
+  void capture_loop() {
     try {
-      if (recording) {
-        RecordOptions record = options.record;
-        record.out_dir = options.record_dir;
-        record.max_frames = options.max_frames;
-        record.max_seconds = options.max_seconds;
-        record.stop = &stop_capture;
-        record.on_frame = on_frame;
-        report.record = tirstrain::capture::record(source, record);
-        report.recorded = true;
-        if (!report.record.error.empty()) capture_error = report.record.error;
-      } else {
-        const double start_s = steady_now_s();
-        Frame frame;
-        while (!stop_capture.load()) {
-          if (options.max_frames >= 0 && counters.received.load() >= options.max_frames) break;
-          if (options.max_seconds >= 0 && steady_now_s() - start_s >= options.max_seconds) break;
-          const FrameSource::Poll result = source.poll(frame, 0.1);
-          if (result == FrameSource::Poll::kEnd) break;
-          if (result == FrameSource::Poll::kFrame) on_frame(frame);
-        }
-      }
-    } catch (const Error& e) {
-      capture_error = e.what();
+      if (!options_.record_dir.empty())
+        record_frames();
+      else
+        poll_frames();
     } catch (const std::exception& e) {
-      capture_error = e.what();
+      capture_error_ = e.what();
     }
-    mailbox.finish();
-  });
-  CaptureThreadGuard capture_guard(capture, stop_capture);
+    mailbox_.finish();
+  }
 
-  const double start_s = steady_now_s();
-  double interval_start_s = start_s;
-  std::int64_t received_at_interval = 0;
-  std::int64_t shown_at_interval = 0;
-  double latency_sum_s = 0.0;
-  std::int64_t latency_count = 0;
-  LatencyHistogram receive_to_ready, receive_to_shown, device_to_ready;
-  std::optional<bool> device_clock_is_host_clock;  // decided at the first frame shown
-  LiveStatus& status = report.status;
-  auto fill_counts = [&] {
-    status.frames_received = counters.received.load();
-    status.frames_incomplete = counters.incomplete.load();
-    status.frames_lost = counters.lost.load();
-    status.elapsed_s = steady_now_s() - start_s;
-  };
-  for (;;) {
-    if (options.stop != nullptr && options.stop->load()) stop_capture.store(true);
-    std::optional<Frame> frame = mailbox.take(0.05);
-    if (!frame && mailbox.done()) break;
-    if (frame) {
-      cv::Mat canvas = display_canvas(frame->image);
-      if (options.overlay && report.analysis_error.empty()) run_analysis(options, *frame, canvas, report);
-      fill_counts();
-      if (options.window) {
-        const std::string text = cv::format(
-            "%.1f fps  shown %.1f fps  lost %lld  incomplete %lld  latency %.1f ms", status.receive_rate_hz,
-            status.show_rate_hz, static_cast<long long>(status.frames_lost),
-            static_cast<long long>(status.frames_incomplete), status.latency_ms);
-        // The first status line (the stages of the analysis use the others), sized to the canvas.
-        OverlayText(canvas.size()).status_line(canvas, 0, text, {0, 255, 0});
-      }
-      // The overlay is ready to show: what the user sees lags the camera by at least this much.
-      const double ready_s = steady_now_s();
-      const double ready_realtime_s = realtime_now_s();
-      receive_to_ready.add(ready_s - frame->host_time_s);
-      latency_sum_s += ready_s - frame->host_time_s;
-      ++latency_count;
-      if (!device_clock_is_host_clock)
-        device_clock_is_host_clock = std::abs(ready_realtime_s - frame->device_time_s) < 1.0;
-      if (*device_clock_is_host_clock) device_to_ready.add(ready_realtime_s - frame->device_time_s);
-      if (options.window) {
-        cv::imshow(window, canvas);
-        receive_to_shown.add(steady_now_s() - frame->host_time_s);
-      }
-      ++status.frames_shown;
-    }
-    if (options.window) {
-      const int key = cv::waitKey(1);
-      if (key == 'q' || key == 27) stop_capture.store(true);
-    }
-    const double now_s = steady_now_s();
-    if (now_s - interval_start_s >= 1.0) {
-      fill_counts();
-      status.receive_rate_hz =
-          static_cast<double>(status.frames_received - received_at_interval) / (now_s - interval_start_s);
-      status.show_rate_hz =
-          static_cast<double>(status.frames_shown - shown_at_interval) / (now_s - interval_start_s);
-      status.latency_ms = latency_count > 0 ? 1e3 * latency_sum_s / static_cast<double>(latency_count) : 0.0;
-      received_at_interval = status.frames_received;
-      shown_at_interval = status.frames_shown;
-      latency_sum_s = 0.0;
-      latency_count = 0;
-      interval_start_s = now_s;
-      if (options.on_status) options.on_status(status);
+  void record_frames() {
+    RecordOptions record = options_.record;
+    record.out_dir = options_.record_dir;
+    record.max_frames = options_.max_frames;
+    record.max_seconds = options_.max_seconds;
+    record.stop = &stop_capture_;
+    record.on_frame = [this](const Frame& frame) { on_frame(frame); };
+    report_.record = tirstrain::capture::record(source_, record);
+    report_.recorded = true;
+    if (!report_.record.error.empty()) capture_error_ = report_.record.error;
+  }
+
+  void poll_frames() {
+    const double start_s = steady_now_s();
+    Frame frame;
+    while (!stop_capture_.load()) {
+      if (options_.max_frames >= 0 && counters_.received.load() >= options_.max_frames) break;
+      if (options_.max_seconds >= 0 && steady_now_s() - start_s >= options_.max_seconds) break;
+      const FrameSource::Poll result = source_.poll(frame, 0.1);
+      if (result == FrameSource::Poll::kEnd) break;
+      if (result == FrameSource::Poll::kFrame) on_frame(frame);
     }
   }
-  // The capture thread ends by itself (limit, end of stream, stop); a stop asked for is already set.
-  if (capture.joinable()) capture.join();
-  if (options.window) cv::destroyWindow(window);
-  fill_counts();
-  if (report.recorded)
-    status.frames_lost = report.record.counts.frames_lost_device + report.record.counts.frames_dropped_host;
-  report.error = capture_error;
-  report.receive_to_ready = summarize(receive_to_ready);
-  report.receive_to_shown = summarize(receive_to_shown);
-  report.device_to_ready = summarize(device_to_ready);
-  return report;
+
+  void fill_counts() {
+    LiveStatus& status = report_.status;
+    status.frames_received = counters_.received.load();
+    status.frames_incomplete = counters_.incomplete.load();
+    status.frames_lost = counters_.lost.load();
+    status.elapsed_s = steady_now_s() - start_s_;
+  }
+
+  // Analysis and status line on the frame, then its latencies, then the window.
+  void show(const Frame& frame) {
+    cv::Mat canvas = display_canvas(frame.image);
+    if (options_.overlay && report_.analysis_error.empty()) run_analysis(options_, frame, canvas, report_);
+    fill_counts();
+    const LiveStatus& status = report_.status;
+    if (options_.window) {
+      const std::string text =
+          cv::format("%.1f fps  shown %.1f fps  lost %lld  incomplete %lld  latency %.1f ms",
+                     status.receive_rate_hz, status.show_rate_hz, static_cast<long long>(status.frames_lost),
+                     static_cast<long long>(status.frames_incomplete), status.latency_ms);
+      // The first status line (the stages of the analysis use the others), sized to the canvas.
+      OverlayText(canvas.size()).status_line(canvas, 0, text, {0, 255, 0});
+    }
+    record_latency(frame);
+    if (options_.window) {
+      cv::imshow(kWindow, canvas);
+      receive_to_shown_.add(steady_now_s() - frame.host_time_s);
+    }
+    ++report_.status.frames_shown;
+  }
+
+  // The overlay is ready to show: what the user sees lags the camera by at least this much.
+  void record_latency(const Frame& frame) {
+    const double ready_s = steady_now_s();
+    const double ready_realtime_s = realtime_now_s();
+    receive_to_ready_.add(ready_s - frame.host_time_s);
+    latency_sum_s_ += ready_s - frame.host_time_s;
+    ++latency_count_;
+    if (!device_clock_is_host_clock_)
+      device_clock_is_host_clock_ = std::abs(ready_realtime_s - frame.device_time_s) < 1.0;
+    if (*device_clock_is_host_clock_) device_to_ready_.add(ready_realtime_s - frame.device_time_s);
+  }
+
+  void poll_keys() {
+    if (!options_.window) return;
+    const int key = cv::waitKey(1);
+    if (key == 'q' || key == 27) stop_capture_.store(true);
+  }
+
+  // Once a second: the receive and show rates and the mean latency over the last second.
+  void update_rates() {
+    const double now_s = steady_now_s();
+    if (now_s - interval_start_s_ < 1.0) return;
+    fill_counts();
+    LiveStatus& status = report_.status;
+    status.receive_rate_hz =
+        static_cast<double>(status.frames_received - received_at_interval_) / (now_s - interval_start_s_);
+    status.show_rate_hz =
+        static_cast<double>(status.frames_shown - shown_at_interval_) / (now_s - interval_start_s_);
+    status.latency_ms = latency_count_ > 0 ? 1e3 * latency_sum_s_ / static_cast<double>(latency_count_) : 0.0;
+    received_at_interval_ = status.frames_received;
+    shown_at_interval_ = status.frames_shown;
+    latency_sum_s_ = 0.0;
+    latency_count_ = 0;
+    interval_start_s_ = now_s;
+    if (options_.on_status) options_.on_status(status);
+  }
+
+  LiveReport finish() {
+    if (options_.window) cv::destroyWindow(kWindow);
+    fill_counts();
+    if (report_.recorded)
+      report_.status.frames_lost =
+          report_.record.counts.frames_lost_device + report_.record.counts.frames_dropped_host;
+    report_.error = capture_error_;
+    report_.receive_to_ready = summarize(receive_to_ready_);
+    report_.receive_to_shown = summarize(receive_to_shown_);
+    report_.device_to_ready = summarize(device_to_ready_);
+    return report_;
+  }
+
+  FrameSource& source_;
+  const LiveOptions& options_;
+  LiveReport report_;
+  Mailbox mailbox_;
+  Counters counters_;
+  std::atomic<bool> stop_capture_{false};
+  std::string capture_error_;  // written by the capture thread, read after it is joined
+  double start_s_ = 0.0, interval_start_s_ = 0.0;
+  std::int64_t received_at_interval_ = 0, shown_at_interval_ = 0;
+  double latency_sum_s_ = 0.0;
+  std::int64_t latency_count_ = 0;
+  LatencyHistogram receive_to_ready_, receive_to_shown_, device_to_ready_;
+  std::optional<bool> device_clock_is_host_clock_;  // decided at the first frame shown
+};
+
+}  // namespace
+
+LiveReport run_live(FrameSource& source, const LiveOptions& options) {
+  return LiveSession(source, options).run();
 }
 
 }  // namespace tirstrain::capture
