@@ -76,62 +76,76 @@ void run_points(const ModelOptions& options, const model::CattaneoMindlin& cm) {
   std::cout << "wrote " << xs.size() << " points to " << options.out << '\n';
 }
 
-void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
-  // Built in "<out>.partial" and swapped in whole: a failed run leaves the earlier output as it was.
-  check_replaceable_output(options.out,
-                           {"model.h5", "strain_Exx.png", "strain_Eyy.png", "strain_Exy.png",
-                            "energy_density.png", "summary.json"},
-                           "model");
-  StagingDirectory staging(options.out);
-  const std::string& dir = staging.path();
-  const std::size_t n = static_cast<std::size_t>(options.grid);
-  const double a = cm.hertz().contact_radius_m;
-  const double half = options.extent_a * a;
-  std::vector<double> axis(n);
-  for (std::size_t i = 0; i < n; ++i)
-    axis[i] = n == 1 ? 0.0 : -half + 2.0 * half * static_cast<double>(i) / (n - 1);
-
-  std::vector<double> displacement(n * n * 2), gradient(n * n * 4), strain(n * n * 3), principal(n * n * 3),
-      energy(n * n);
-  cv::Mat exx(static_cast<int>(n), static_cast<int>(n), CV_64F), eyy = exx.clone(), exy = exx.clone(),
-                                                                 w = exx.clone();
+// The field sampled on an n × n grid over ±half (m), with its peaks.
+struct ModelGrid {
+  std::size_t n = 0;
+  double half_m = 0.0;
+  std::vector<double> axis;  // x and y of the grid's columns and rows, m
+  std::vector<double> displacement, gradient, strain, principal, energy;
+  cv::Mat exx, eyy, exy, w;  // the pictures' values
   double peak_abs[3] = {0, 0, 0};
   double e1_max = -INFINITY, e2_min = INFINITY, energy_max = 0.0;
-  for (std::size_t r = 0; r < n; ++r) {
+};
+
+void store_sample(ModelGrid& g, std::size_t r, std::size_t c, const model::FieldSample& s) {
+  const std::size_t k = r * g.n + c;
+  g.displacement[2 * k] = s.displacement_m.x, g.displacement[2 * k + 1] = s.displacement_m.y;
+  g.gradient[4 * k] = s.gradient.xx, g.gradient[4 * k + 1] = s.gradient.xy;
+  g.gradient[4 * k + 2] = s.gradient.yx, g.gradient[4 * k + 3] = s.gradient.yy;
+  g.strain[3 * k] = s.strain.xx, g.strain[3 * k + 1] = s.strain.yy, g.strain[3 * k + 2] = s.strain.xy;
+  g.principal[3 * k] = s.principal.e1, g.principal[3 * k + 1] = s.principal.e2,
+                  g.principal[3 * k + 2] = s.principal.angle_rad;
+  g.energy[k] = s.energy_density_J_m3;
+  const int ri = static_cast<int>(r), ci = static_cast<int>(c);
+  g.exx.at<double>(ri, ci) = s.strain.xx;
+  g.eyy.at<double>(ri, ci) = s.strain.yy;
+  g.exy.at<double>(ri, ci) = s.strain.xy;
+  g.w.at<double>(ri, ci) = s.energy_density_J_m3;
+  g.peak_abs[0] = std::max(g.peak_abs[0], std::abs(s.strain.xx));
+  g.peak_abs[1] = std::max(g.peak_abs[1], std::abs(s.strain.yy));
+  g.peak_abs[2] = std::max(g.peak_abs[2], std::abs(s.strain.xy));
+  g.e1_max = std::max(g.e1_max, s.principal.e1);
+  g.e2_min = std::min(g.e2_min, s.principal.e2);
+  g.energy_max = std::max(g.energy_max, s.energy_density_J_m3);
+}
+
+ModelGrid sample_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
+  ModelGrid g;
+  g.n = static_cast<std::size_t>(options.grid);
+  const std::size_t n = g.n;
+  g.half_m = options.extent_a * cm.hertz().contact_radius_m;
+  g.axis.resize(n);
+  for (std::size_t i = 0; i < n; ++i)
+    g.axis[i] = n == 1 ? 0.0 : -g.half_m + 2.0 * g.half_m * static_cast<double>(i) / (n - 1);
+  g.displacement.resize(n * n * 2);
+  g.gradient.resize(n * n * 4);
+  g.strain.resize(n * n * 3);
+  g.principal.resize(n * n * 3);
+  g.energy.resize(n * n);
+  g.exx = cv::Mat(static_cast<int>(n), static_cast<int>(n), CV_64F);
+  g.eyy = g.exx.clone();
+  g.exy = g.exx.clone();
+  g.w = g.exx.clone();
+  for (std::size_t r = 0; r < n; ++r)
     for (std::size_t c = 0; c < n; ++c) {
-      const double x = axis[c], y = axis[r];
+      const double x = g.axis[c], y = g.axis[r];
       const model::FieldSample s = cm.evaluate(x, y);
       check_finite(s, x, y);
-      const std::size_t k = r * n + c;
-      displacement[2 * k] = s.displacement_m.x, displacement[2 * k + 1] = s.displacement_m.y;
-      gradient[4 * k] = s.gradient.xx, gradient[4 * k + 1] = s.gradient.xy;
-      gradient[4 * k + 2] = s.gradient.yx, gradient[4 * k + 3] = s.gradient.yy;
-      strain[3 * k] = s.strain.xx, strain[3 * k + 1] = s.strain.yy, strain[3 * k + 2] = s.strain.xy;
-      principal[3 * k] = s.principal.e1, principal[3 * k + 1] = s.principal.e2,
-                    principal[3 * k + 2] = s.principal.angle_rad;
-      energy[k] = s.energy_density_J_m3;
-      exx.at<double>(static_cast<int>(r), static_cast<int>(c)) = s.strain.xx;
-      eyy.at<double>(static_cast<int>(r), static_cast<int>(c)) = s.strain.yy;
-      exy.at<double>(static_cast<int>(r), static_cast<int>(c)) = s.strain.xy;
-      w.at<double>(static_cast<int>(r), static_cast<int>(c)) = s.energy_density_J_m3;
-      peak_abs[0] = std::max(peak_abs[0], std::abs(s.strain.xx));
-      peak_abs[1] = std::max(peak_abs[1], std::abs(s.strain.yy));
-      peak_abs[2] = std::max(peak_abs[2], std::abs(s.strain.xy));
-      e1_max = std::max(e1_max, s.principal.e1);
-      e2_min = std::min(e2_min, s.principal.e2);
-      energy_max = std::max(energy_max, s.energy_density_J_m3);
+      store_sample(g, r, c, s);
     }
-  }
+  return g;
+}
 
-  const std::string h5_path = dir + "/model.h5";
-  H5Writer h5(h5_path);
-  h5.write("/grid/x_m", std::span<const double>(axis), {n});
-  h5.write("/grid/y_m", std::span<const double>(axis), {n});
-  h5.write("/displacement_m", std::span<const double>(displacement), {n, n, 2});
-  h5.write("/gradient", std::span<const double>(gradient), {n, n, 4});
-  h5.write("/strain", std::span<const double>(strain), {n, n, 3});
-  h5.write("/principal", std::span<const double>(principal), {n, n, 3});
-  h5.write("/energy_density_J_m3", std::span<const double>(energy), {n, n});
+void write_model_h5(const std::string& path, const ModelGrid& g, const model::CattaneoMindlin& cm) {
+  const std::size_t n = g.n;
+  H5Writer h5(path);
+  h5.write("/grid/x_m", std::span<const double>(g.axis), {n});
+  h5.write("/grid/y_m", std::span<const double>(g.axis), {n});
+  h5.write("/displacement_m", std::span<const double>(g.displacement), {n, n, 2});
+  h5.write("/gradient", std::span<const double>(g.gradient), {n, n, 4});
+  h5.write("/strain", std::span<const double>(g.strain), {n, n, 3});
+  h5.write("/principal", std::span<const double>(g.principal), {n, n, 3});
+  h5.write("/energy_density_J_m3", std::span<const double>(g.energy), {n, n});
   const auto& p = cm.params();
   h5.attribute("/", "software", std::string("tirstrain ") + kVersion);
   h5.attribute("/", "model", "Hertz + Cattaneo-Mindlin partial slip, sphere on rigid flat");
@@ -143,7 +157,7 @@ void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
   h5.attribute("/", "friction", p.friction);
   h5.attribute("/", "direction_rad", p.direction_rad);
   h5.attribute("/", "hertz_radial", p.hertz_radial ? 1.0 : 0.0);
-  h5.attribute("/", "contact_radius_m", a);
+  h5.attribute("/", "contact_radius_m", cm.hertz().contact_radius_m);
   h5.attribute("/", "stick_radius_m", cm.stick_radius_m());
   h5.attribute("/", "rigid_shift_m", cm.rigid_shift_m());
   h5.attribute("/gradient", "components", "Hxx, Hxy, Hyx, Hyy (H_ij = du_i/dx_j)");
@@ -151,13 +165,14 @@ void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
   h5.attribute("/principal", "components", "e1, e2, angle_rad (e1 >= e2, angle of e1 from +x)");
   h5.attribute("/displacement_m", "layout", "[row = y index, column = x index, (ux, uy)]");
   h5.commit();
+}
 
-  const double a_mm = a * 1e3;
+void write_model_pictures(const std::string& dir, const ModelGrid& g, const model::CattaneoMindlin& cm) {
   HeatmapOptions map;
-  map.x_min = map.y_min = -half * 1e3;
-  map.x_max = map.y_max = half * 1e3;
+  map.x_min = map.y_min = -g.half_m * 1e3;
+  map.x_max = map.y_max = g.half_m * 1e3;
   map.axis_unit = "mm";
-  map.circles = {{0.0, 0.0, a_mm, "a"}};
+  map.circles = {{0.0, 0.0, cm.hertz().contact_radius_m * 1e3, "a"}};
   if (cm.stick_radius_m() > 0) map.circles.push_back({0.0, 0.0, cm.stick_radius_m() * 1e3, "c"});
   const struct {
     const cv::Mat* values;
@@ -165,17 +180,21 @@ void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
     const char* title;
     const char* unit;
     bool diverging;
-  } maps[] = {{&exx, "strain_Exx.png", "Green-Lagrange E_xx", "strain", true},
-              {&eyy, "strain_Eyy.png", "Green-Lagrange E_yy", "strain", true},
-              {&exy, "strain_Exy.png", "Green-Lagrange E_xy", "strain", true},
-              {&w, "energy_density.png", "Plane-strain energy density", "J/m^3", false}};
+  } maps[] = {{&g.exx, "strain_Exx.png", "Green-Lagrange E_xx", "strain", true},
+              {&g.eyy, "strain_Eyy.png", "Green-Lagrange E_yy", "strain", true},
+              {&g.exy, "strain_Exy.png", "Green-Lagrange E_xy", "strain", true},
+              {&g.w, "energy_density.png", "Plane-strain energy density", "J/m^3", false}};
   for (const auto& m : maps) {
     map.title = m.title;
     map.unit = m.unit;
     map.diverging = m.diverging;
     write_heatmap_png(dir + "/" + m.file, *m.values, map);
   }
+}
 
+void write_model_summary(const std::string& path, const ModelGrid& g, const ModelOptions& options,
+                         const model::CattaneoMindlin& cm) {
+  const auto& p = cm.params();
   nlohmann::ordered_json summary;
   summary["software"] = std::string("tirstrain ") + kVersion;
   summary["inputs"] = {{"normal_N", p.normal_N},
@@ -186,19 +205,34 @@ void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
                        {"friction", p.friction},
                        {"direction_deg", options.direction_deg},
                        {"hertz_radial", p.hertz_radial}};
-  summary["contact_radius_m"] = a;
+  summary["contact_radius_m"] = cm.hertz().contact_radius_m;
   summary["peak_pressure_Pa"] = cm.hertz().peak_pressure_Pa;
   summary["approach_m"] = cm.hertz().approach_m;
   summary["stick_radius_m"] = cm.stick_radius_m();
   summary["rigid_shift_m"] = cm.rigid_shift_m();
-  summary["grid"] = {{"points_per_side", n}, {"half_extent_m", half}};
-  summary["peak_abs_strain"] = {{"Exx", peak_abs[0]}, {"Eyy", peak_abs[1]}, {"Exy", peak_abs[2]}};
-  summary["max_e1"] = e1_max;
-  summary["min_e2"] = e2_min;
-  summary["max_energy_density_J_m3"] = energy_max;
-  write_text_file(dir + "/summary.json", summary.dump(2) + "\n");
+  summary["grid"] = {{"points_per_side", g.n}, {"half_extent_m", g.half_m}};
+  summary["peak_abs_strain"] = {{"Exx", g.peak_abs[0]}, {"Eyy", g.peak_abs[1]}, {"Exy", g.peak_abs[2]}};
+  summary["max_e1"] = g.e1_max;
+  summary["min_e2"] = g.e2_min;
+  summary["max_energy_density_J_m3"] = g.energy_max;
+  write_text_file(path, summary.dump(2) + "\n");
+}
+
+void run_grid(const ModelOptions& options, const model::CattaneoMindlin& cm) {
+  // Built in "<out>.partial" and swapped in whole: a failed run leaves the earlier output as it was.
+  check_replaceable_output(options.out,
+                           {"model.h5", "strain_Exx.png", "strain_Eyy.png", "strain_Exy.png",
+                            "energy_density.png", "summary.json"},
+                           "model");
+  StagingDirectory staging(options.out);
+  const std::string& dir = staging.path();
+  const ModelGrid grid = sample_grid(options, cm);
+  write_model_h5(dir + "/model.h5", grid, cm);
+  write_model_pictures(dir, grid, cm);
+  write_model_summary(dir + "/summary.json", grid, options, cm);
   staging.commit();
-  std::cout << "contact radius a = " << a_mm << " mm, stick radius c = " << cm.stick_radius_m() * 1e3
+  std::cout << "contact radius a = " << cm.hertz().contact_radius_m * 1e3
+            << " mm, stick radius c = " << cm.stick_radius_m() * 1e3
             << " mm, rigid shift = " << cm.rigid_shift_m() * 1e6 << " um\n"
             << "wrote model.h5, strain_Exx.png, strain_Eyy.png, strain_Exy.png, energy_density.png and "
             << "summary.json in " << options.out << '\n';
