@@ -14,8 +14,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The page replaces only a file of its own kind: never a folder, an input, or a file inside an input
-// folder that is not an earlier report.
+// The page goes beside the results, never into one: `process` replaces its folder as a whole and refuses a
+// folder holding files it does not write, so a report inside would block the next run there.
 void check_output(const ReportOptions& o) {
   if (o.out_path.empty()) throw Error("an output file is required", {.key = "--out"});
   const fs::path out = fs::absolute(o.out_path).lexically_normal();
@@ -23,9 +23,10 @@ void check_output(const ReportOptions& o) {
     throw Error("is a folder: give the HTML file to write", {.file = o.out_path, .key = "--out"});
   for (const std::string& input : o.results) {
     const fs::path in = fs::absolute(input).lexically_normal();
-    const bool inside = fs::is_directory(in) && out.parent_path() == in;
-    if (out == in || (inside && fs::exists(out) && out.extension() != ".html"))
-      throw Error("would overwrite an input's file", {.file = o.out_path, .key = "--out"});
+    const fs::path folder = fs::is_directory(in) ? in : in.parent_path();
+    if (out == in || out.parent_path() == folder)
+      throw Error("is inside the result folder " + input + ": write the report beside it",
+                  {.file = o.out_path, .key = "--out"});
   }
   if (!o.validations.empty() && o.validations.size() != o.results.size())
     throw Error("give one --validation folder per result, in the results' order (" +

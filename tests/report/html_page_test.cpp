@@ -77,6 +77,8 @@ TEST(ReportPage, WriteReportRefusesToOverwriteAnInputOrAFolder) {
   o.out_path = dir.string();
   EXPECT_THROW((void)write_report(o), std::exception);
   o.out_path = (dir / "report.html").string();
+  EXPECT_THROW((void)write_report(o), std::exception) << "inside the result folder";
+  o.out_path = (dir.parent_path() / "report_refusals.html").string();
   o.validations = {"a", "b"};
   try {
     (void)write_report(o);
@@ -90,6 +92,7 @@ TEST(ReportPage, WriteReportRefusesToOverwriteAnInputOrAFolder) {
   std::getline(in, kept);
   EXPECT_EQ(kept, "not touched");
   EXPECT_FALSE(fs::exists(dir / "report.html"));
+  EXPECT_FALSE(fs::exists(dir.parent_path() / "report_refusals.html"));
 }
 
 }  // namespace
