@@ -229,9 +229,8 @@ void print_frame_times(const std::vector<double>& frame_seconds) {
               1e3 * later.back());
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+// The command line.
+struct Args {
   int frames = 30, width = 640, height = 512, threads = -1;
   bool frames_given = false;
   std::string only, scene_file;
@@ -239,6 +238,18 @@ int main(int argc, char** argv) {
   bool frame_times = false;               // print the per-frame time breakdown under each row
   bool crb = false;                       // print the Cramér–Rao bound of the tracker's subsets instead
   std::vector<std::string> mesh_configs;  // "element_px,smoothness,brightness,sigma_px,inset_px"
+};
+
+void usage_and_exit() {
+  std::fprintf(stderr,
+               "usage: flow_bench [--frames N] [--width W --height H | --scene FILE] [--only NAME] "
+               "[--threads T] [--yaml TRACKING]... [--mesh E,S,B,SIGMA,INSET,UPDATE,CONV]... [--crb] "
+               "[--frame-times]\n");
+  std::exit(2);
+}
+
+Args parse_args(int argc, char** argv) {
+  Args args;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const auto next = [&] {
@@ -249,55 +260,36 @@ int main(int argc, char** argv) {
       return std::string(argv[++i]);
     };
     if (a == "--frames") {
-      frames = std::stoi(next());
-      frames_given = true;
+      args.frames = std::stoi(next());
+      args.frames_given = true;
     } else if (a == "--width")
-      width = std::stoi(next());
+      args.width = std::stoi(next());
     else if (a == "--height")
-      height = std::stoi(next());
+      args.height = std::stoi(next());
     else if (a == "--only")
-      only = next();
+      args.only = next();
     else if (a == "--threads")
-      threads = std::stoi(next());
+      args.threads = std::stoi(next());
     else if (a == "--yaml")
-      custom.push_back(next());
+      args.custom.push_back(next());
     else if (a == "--scene")
-      scene_file = next();
+      args.scene_file = next();
     else if (a == "--crb")
-      crb = true;
+      args.crb = true;
     else if (a == "--frame-times")
-      frame_times = true;
+      args.frame_times = true;
     else if (a == "--mesh")
-      mesh_configs.push_back(next());
-    else {
-      std::fprintf(stderr,
-                   "usage: flow_bench [--frames N] [--width W --height H | --scene FILE] [--only NAME] "
-                   "[--threads T] [--yaml TRACKING]... [--mesh E,S,B,SIGMA,INSET,UPDATE,CONV]... [--crb] "
-                   "[--frame-times]\n");
-      return 2;
-    }
+      args.mesh_configs.push_back(next());
+    else
+      usage_and_exit();
   }
-  if (threads >= 0) cv::setNumThreads(threads);
-  using namespace tirstrain;
-  const Scene scene = scene_file.empty() ? parse_scene(bench_scene(width, height, frames), "flow-bench.yaml")
-                                         : load_scene(scene_file);
-  samples::SynthConfig config = samples::parse_synth_config(scene);
-  if (frames_given) config.timing.frames = frames;
-  const samples::Trial trial(config);
-  frames = trial.frames();
-  std::fprintf(stderr, "rendering %d frames of %dx%d...\n", frames, trial.width(), trial.height());
-  const flow::testing::RenderedTrial rendered = flow::testing::render(trial, true);
-  if (std::getenv("FLOW_BENCH_DUMP")) cv::imwrite(std::getenv("FLOW_BENCH_DUMP"), rendered.frames.back());
+  return args;
+}
 
-  if (crb) {
-    const flow::TrackerSettings a = flow::preset_settings("auto", flow::hints_from_scene(scene));
-    run_crb(trial, a.grid_step_px, a.border_exclusion_px + 2.0,
-            {a.subset_radius_px, a.fixed_shape_radius_px, 30}, a.rest_average_frames);
-    run_crb(trial, a.grid_step_px, 0.0, {a.fixed_shape_radius_px}, a.rest_average_frames);
-    return 0;
-  }
+void run_mesh_configs(const std::vector<std::string>& mesh_configs, const tirstrain::samples::Trial& trial,
+                      const tirstrain::flow::testing::RenderedTrial& rendered) {
   for (const std::string& m : mesh_configs) {
-    flow::MeshCorrelationOptions o;
+    tirstrain::flow::MeshCorrelationOptions o;
     int brightness = 1, inset = 3, update = 0;
     double sigma = 1.0;
     std::sscanf(m.c_str(), "%d,%lf,%d,%lf,%d,%d,%lf", &o.element_px, &o.smoothness, &brightness, &sigma,
@@ -306,10 +298,10 @@ int main(int argc, char** argv) {
     o.brightness = brightness != 0;
     run_mesh(trial, rendered, o, sigma, inset, 9.0);
   }
-  if (!mesh_configs.empty() && only.empty()) return 0;
-  const flow::SceneHints hints = flow::hints_from_scene(scene);
-  const TrackerSettings automatic = flow::preset_settings("auto", hints);
-  const TrackerSettings paper = flow::preset_settings("delhaye2016", hints);
+}
+
+// The configurations compared by default: the paper's preset, the automatic one, and one change at a time.
+std::vector<Config> standard_configs(const TrackerSettings& automatic, const TrackerSettings& paper) {
   std::vector<Config> configs = {{"delhaye2016", paper}, {"auto", automatic}};
   const auto variant = [&](const std::string& name, auto change) {
     TrackerSettings s = automatic;
@@ -355,29 +347,69 @@ int main(int argc, char** argv) {
     s.refine = false;
     s.neighbour_check = false;
   });
+  return configs;
+}
 
-  // Given extra configurations, run only those (and the ones named by --only).
-  if (!custom.empty()) std::erase_if(configs, [&](const Config& c) { return c.name != only; });
-  for (const std::string& y : custom) {
-    Scene with_tracking = scene;
+// Given extra configurations, only those run (and the one named by --only).
+void use_custom_configs(const Args& args, const tirstrain::Scene& scene, std::vector<Config>& configs) {
+  if (!args.custom.empty()) std::erase_if(configs, [&](const Config& c) { return c.name != args.only; });
+  for (const std::string& y : args.custom) {
+    tirstrain::Scene with_tracking = scene;
     with_tracking.tracking = YAML::Load(y);
-    configs.push_back({y, flow::parse_tracking_settings(with_tracking)});
+    configs.push_back({y, tirstrain::flow::parse_tracking_settings(with_tracking)});
   }
-  // matched: the share of track-frames that took LK and the main match (main_match_period_frames).
+}
+
+// One row per configuration: speed next to error. matched: the share of track-frames that took LK and the
+// main match (main_match_period_frames).
+void print_table(const Args& args, const std::vector<Config>& configs, const tirstrain::samples::Trial& trial,
+                 const tirstrain::flow::testing::RenderedTrial& rendered) {
   std::printf("%-24s %7s %8s %10s %8s %9s %9s %7s %7s %8s %7s\n", "config", "tracks", "alive_end", "points/s",
               "frames/s", "rms_px", "max_px", ">1px", "born", "plate_px", "matched");
   for (const Config& c : configs) {
-    if (custom.empty() && !only.empty() && c.name != only) continue;
-    const flow::testing::Score s = flow::testing::run_and_score(trial, rendered, c.settings, true);
+    if (args.custom.empty() && !args.only.empty() && c.name != args.only) continue;
+    const tirstrain::flow::testing::Score s =
+        tirstrain::flow::testing::run_and_score(trial, rendered, c.settings, true);
     long tracked = 0;
     for (std::size_t f = 1; f < s.frame_alive.size(); ++f) tracked += s.frame_alive[f];
-    const double fps = (frames - 1) / s.seconds;  // frame 0 (seeding) is included in the time
+    const double fps = (trial.frames() - 1) / s.seconds;  // frame 0 (seeding) is included in the time
     const double matched = s.entering > 0 ? static_cast<double>(s.main_matched) / s.entering : 0.0;
     std::printf("%-24s %7d %8d %10.0f %8.2f %9.4f %9.3f %7ld %7d %8.4f %7.2f\n", c.name.c_str(),
                 s.tracks_started, s.frame_alive.back(), tracked / s.seconds, fps, s.rms_px, s.max_px, s.wrong,
                 s.born, s.plate_rms_px, matched);
-    if (frame_times && s.frame_seconds.size() > 2) print_frame_times(s.frame_seconds);
+    if (args.frame_times && s.frame_seconds.size() > 2) print_frame_times(s.frame_seconds);
     std::fflush(stdout);
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace tirstrain;
+  const Args args = parse_args(argc, argv);
+  if (args.threads >= 0) cv::setNumThreads(args.threads);
+  const Scene scene = args.scene_file.empty()
+                          ? parse_scene(bench_scene(args.width, args.height, args.frames), "flow-bench.yaml")
+                          : load_scene(args.scene_file);
+  samples::SynthConfig config = samples::parse_synth_config(scene);
+  if (args.frames_given) config.timing.frames = args.frames;
+  const samples::Trial trial(config);
+  std::fprintf(stderr, "rendering %d frames of %dx%d...\n", trial.frames(), trial.width(), trial.height());
+  const flow::testing::RenderedTrial rendered = flow::testing::render(trial, true);
+  if (std::getenv("FLOW_BENCH_DUMP")) cv::imwrite(std::getenv("FLOW_BENCH_DUMP"), rendered.frames.back());
+  const flow::SceneHints hints = flow::hints_from_scene(scene);
+  const TrackerSettings automatic = flow::preset_settings("auto", hints);
+  if (args.crb) {
+    run_crb(trial, automatic.grid_step_px, automatic.border_exclusion_px + 2.0,
+            {automatic.subset_radius_px, automatic.fixed_shape_radius_px, 30}, automatic.rest_average_frames);
+    run_crb(trial, automatic.grid_step_px, 0.0, {automatic.fixed_shape_radius_px},
+            automatic.rest_average_frames);
+    return 0;
+  }
+  run_mesh_configs(args.mesh_configs, trial, rendered);
+  if (!args.mesh_configs.empty() && args.only.empty()) return 0;
+  std::vector<Config> configs = standard_configs(automatic, flow::preset_settings("delhaye2016", hints));
+  use_custom_configs(args, scene, configs);
+  print_table(args, configs, trial, rendered);
   return 0;
 }
