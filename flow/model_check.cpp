@@ -87,6 +87,8 @@ const char* to_string(TrackModel model) {
       return "rest_fit";
     case TrackModel::kSmoothedInTime:
       return "smoothed_in_time";
+    case TrackModel::kLocalFit:
+      return "local_fit";
   }
   return "?";
 }

@@ -131,6 +131,7 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
   s.match.min_valid_fraction = 0.6;
   s.adapt_to_texture = true;
   s.rest_average_frames = 16;
+  s.local_fit = true;
   s.smooth_in_time = "auto";
   return s;
 }
@@ -220,6 +221,9 @@ TrackerSettings parse_tracking_settings(const Scene& scene, const std::string& p
   s.rest_max_correlation_z = t.number("rest_max_correlation_z", s.rest_max_correlation_z, 0.0, 100.0);
   s.rest_tolerance_px = t.number("rest_tolerance_px", s.rest_tolerance_px, 0.0, 10.0);
   s.rest_max_motion_chi2 = t.number("rest_max_motion_chi2", s.rest_max_motion_chi2, 0.0, 1e6);
+  s.local_fit = t.boolean("local_fit", s.local_fit);
+  s.local_fit_max_radius_px = t.number("local_fit_max_radius_px", s.local_fit_max_radius_px, 0.0, 10000.0);
+  s.local_fit_agreement_chi2 = t.number("local_fit_agreement_chi2", s.local_fit_agreement_chi2, 0.1, 1e6);
   s.smooth_in_time = t.choice("smooth_in_time", s.smooth_in_time, {"auto", "on", "off"});
   s.smooth_in_time_gamma = t.number("smooth_in_time_gamma", s.smooth_in_time_gamma, 0.1, 100.0);
   s.plate_subset_radius_px =

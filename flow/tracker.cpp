@@ -411,6 +411,7 @@ const FrameStats& FeatureTracker::track(const cv::Mat& image, const cv::Mat& con
   m.retire_lost();
   m.finish_frame();
   m.follow_rest();
+  m.report_local_fits();
   if (!m.points_mode && m.settings.births && m.frame % m.settings.birth_interval_frames == 0) m.births();
   if (m.plate) m.plate->track(m.current_f, m.current_u8, t_s);
   m.end_frame();

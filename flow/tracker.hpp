@@ -69,6 +69,8 @@ struct Track {
   // the model's position from the own match, in the match's predicted noise (NaN for the own match).
   TrackModel model = TrackModel::kOwnMatch;
   double model_mahalanobis2 = std::numeric_limits<double>::quiet_NaN();
+  // For a local fit (TrackModel::kLocalFit), the radius of the window it was fitted over, px; NaN otherwise.
+  double model_window_px = std::numeric_limits<double>::quiet_NaN();
   // The own match's predicted covariance this frame, px² (xx, xy, yy; flow/model_check.hpp); NaN where the
   // track was not matched by a subset (unrefined tracking, a frame whose match failed).
   std::array<double, 3> covariance_px2{std::numeric_limits<double>::quiet_NaN(),
@@ -96,6 +98,7 @@ struct FrameStats {
   int on_rest_fit = 0;                                               // tracks reporting the rest fit
   int fused = 0;            // tracks reporting the neighbour fusion's position
   int fusion_declined = 0;  // tracks whose fused position lay outside their own match's noise: own match
+  int local_fit = 0;        // tracks reporting a local fit of their neighbours' matches (flow/local_fit.hpp)
 };
 
 class PlateTracker;

@@ -45,6 +45,7 @@ struct TrackRow {
   // What each position is (flow::TrackModel) and the statistic that let a model stand in for the match.
   std::vector<std::uint8_t> model;
   std::vector<float> model_mahalanobis2;
+  std::vector<float> model_window_px;  // a local fit's window radius, px (NaN for other positions)
   std::vector<float> inside_fraction;  // share of the match's subset inside the contact
   std::vector<float> covariance_px2;   // K x 3: the own match's, xx xy yy
 };
@@ -53,7 +54,7 @@ struct TrackRow {
 struct TrackColumn {
   std::vector<double> position_px;     // N x 2
   std::vector<double> covariance_px2;  // N x 3
-  std::vector<double> model, model_mahalanobis2;
+  std::vector<double> model, model_mahalanobis2, model_window_px;
 };
 
 class TrackingStage final : public Stage {
@@ -228,7 +229,8 @@ class TrackingStage final : public Stage {
     s["track_frames_by_model"] = {{"own_match", model_track_frames_[0]},
                                   {"fused", model_track_frames_[1]},
                                   {"rest_fit", model_track_frames_[2]},
-                                  {"smoothed_in_time", model_track_frames_[3]}};
+                                  {"smoothed_in_time", model_track_frames_[3]},
+                                  {"local_fit", model_track_frames_[4]}};
     s["fusion_declined_track_frames"] = fusion_declined_;
     s["smoothing_declined_track_frames"] = smoothing_declined_;
     s["tracks_total"] = tracker_ ? tracker_->tracks().size() : 0;
@@ -327,6 +329,7 @@ class TrackingStage final : public Stage {
     row.status.assign(k_count, kAbsent);
     row.model.assign(k_count, 0);
     row.model_mahalanobis2.assign(k_count, kNaNf);
+    row.model_window_px.assign(k_count, kNaNf);
     row.inside_fraction.assign(k_count, kNaNf);
     row.covariance_px2.assign(k_count * 3, kNaNf);
     for (std::size_t k = 0; k < k_count; ++k) {
@@ -337,6 +340,7 @@ class TrackingStage final : public Stage {
         row.status[k] = static_cast<std::int8_t>(t.status);
         row.model[k] = static_cast<std::uint8_t>(t.model);
         row.model_mahalanobis2[k] = static_cast<float>(t.model_mahalanobis2);
+        row.model_window_px[k] = static_cast<float>(t.model_window_px);
         row.inside_fraction[k] = static_cast<float>(t.subset_inside_fraction);
         for (std::size_t c = 0; c < 3; ++c)
           row.covariance_px2[3 * k + c] = static_cast<float>(t.covariance_px2[c]);
@@ -362,6 +366,7 @@ class TrackingStage final : public Stage {
     out.write_row("/tracks/model", r, std::span<const std::uint8_t>(row.model), {k}, std::uint8_t{0});
     out.write_row("/tracks/model_mahalanobis2", r, std::span<const float>(row.model_mahalanobis2), {k},
                   kNaNf);
+    out.write_row("/tracks/model_window_px", r, std::span<const float>(row.model_window_px), {k}, kNaNf);
     out.write_row("/tracks/covariance_px2", r, std::span<const float>(row.covariance_px2), {k, 3}, kNaNf);
     out.write_row("/tracks/subset_inside_fraction", r, std::span<const float>(row.inside_fraction), {k},
                   kNaNf);
@@ -423,6 +428,7 @@ class TrackingStage final : public Stage {
     column.model[row] = static_cast<double>(flow::TrackModel::kSmoothedInTime);
     // Stored as float, as the tracker's own statistic is.
     column.model_mahalanobis2[row] = static_cast<double>(static_cast<float>(d2));
+    column.model_window_px[row] = std::numeric_limits<double>::quiet_NaN();
     return true;
   }
 
@@ -435,6 +441,7 @@ class TrackingStage final : public Stage {
     c.covariance_px2 = out_->read_block("/tracks/covariance_px2", {0, k, 0}, {n, 1, 3});
     c.model = out_->read_block("/tracks/model", {0, k}, {n, 1});
     c.model_mahalanobis2 = out_->read_block("/tracks/model_mahalanobis2", {0, k}, {n, 1});
+    c.model_window_px = out_->read_block("/tracks/model_window_px", {0, k}, {n, 1});
     return c;
   }
 
@@ -443,6 +450,7 @@ class TrackingStage final : public Stage {
     out_->write_block("/tracks/position_px", {0, k, 0}, {n, 1, 2}, c.position_px);
     out_->write_block("/tracks/model", {0, k}, {n, 1}, c.model);
     out_->write_block("/tracks/model_mahalanobis2", {0, k}, {n, 1}, c.model_mahalanobis2);
+    out_->write_block("/tracks/model_window_px", {0, k}, {n, 1}, c.model_window_px);
   }
 
   // Each track's runs of consecutive alive rows, x and y apart, smoothed with their own noise level; the
@@ -526,7 +534,7 @@ class TrackingStage final : public Stage {
   std::array<std::int64_t, 2> plate_frames_not_matched_{};  // predicted, LK only (/plate/status 1, 2)
   std::int64_t rest_frames_averaged_ = 0;
   std::int64_t rest_frames_on_fit_ = 0;
-  std::array<std::int64_t, 4> model_track_frames_{};
+  std::array<std::int64_t, 5> model_track_frames_{};
   std::int64_t fusion_declined_ = 0, smoothing_declined_ = 0;
   bool smoothed_ = false;
   std::int64_t smoothed_track_frames_ = 0;

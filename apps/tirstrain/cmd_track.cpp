@@ -118,7 +118,8 @@ nlohmann::json frame_json(const flow::FrameStats& s) {
                       {"fusion_declined", s.fusion_declined},
                       {"rest_tested", s.rest_tested},
                       {"at_rest", s.at_rest},
-                      {"on_rest_fit", s.on_rest_fit}};
+                      {"on_rest_fit", s.on_rest_fit},
+                      {"local_fit", s.local_fit}};
   if (s.rest_tested) {
     f["rest_chi2_per_dof"] =
         std::isfinite(s.rest_chi2_per_dof) ? nlohmann::json(s.rest_chi2_per_dof) : nullptr;
@@ -133,7 +134,8 @@ nlohmann::json frame_json(const flow::FrameStats& s) {
 class TrackRun {
  public:
   explicit TrackRun(const TrackOptions& o)
-      : o_(o), out_(o.out, {"frame", "id", "X_px", "Y_px", "x_px", "y_px", "status", "model"}) {}
+      : o_(o),
+        out_(o.out, {"frame", "id", "X_px", "Y_px", "x_px", "y_px", "status", "model", "model_window_px"}) {}
 
   void run() {
     open_input();
@@ -197,7 +199,8 @@ class TrackRun {
       out_.row_text({std::to_string(frame), std::to_string(t.id), format_double(t.reference_px.x),
                      format_double(t.reference_px.y), format_double(t.position_px.x),
                      format_double(t.position_px.y), std::to_string(static_cast<int>(t.status)),
-                     std::to_string(static_cast<int>(t.model))});
+                     std::to_string(static_cast<int>(t.model)),
+                     t.model == flow::TrackModel::kLocalFit ? format_double(t.model_window_px) : "0"});
       if (flow::is_alive(t.status)) ++by_model_[static_cast<std::size_t>(t.model)];
     }
     frames_json_.push_back(frame_json(tracker_->stats()));
@@ -215,7 +218,8 @@ class TrackRun {
                                     {{"own_match", by_model_[0]},
                                      {"fused", by_model_[1]},
                                      {"rest_fit", by_model_[2]},
-                                     {"smoothed_in_time", by_model_[3]}}},
+                                     {"smoothed_in_time", by_model_[3]},
+                                     {"local_fit", by_model_[4]}}},
                                    {"per_frame", frames_json_}};
     AtomicFile json(settings_path(o_.out));
     json.append(report.dump(2) + "\n");
@@ -234,9 +238,10 @@ class TrackRun {
               << json_path << '\n';
     std::cout << "texture: " << pipeline::texture_note(*tracker_) << '\n';
     std::cout << "positions: " << by_model_[0] << " own matches, " << by_model_[1] << " neighbour-fused, "
-              << by_model_[2]
-              << " on the rest fit (track-frames; column model, and the rest test per frame in " << json_path
-              << ")\n";
+              << by_model_[2] << " on the rest fit, " << by_model_[4]
+              << " on a local fit of their neighbours (track-frames; columns model and model_window_px, and "
+                 "the tests per frame in "
+              << json_path << ")\n";
   }
 
   const TrackOptions& o_;
@@ -246,7 +251,7 @@ class TrackRun {
   cv::Mat mask_;
   CsvWriter out_;
   nlohmann::json frames_json_ = nlohmann::json::array();
-  std::array<long, 4> by_model_{};
+  std::array<long, 5> by_model_{};
   int frames_ = 0;
 };
 
@@ -262,9 +267,10 @@ void add_track_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "track",
       "Track points (or a grid) through an image sequence: pyramidal Lucas-Kanade between frames, refined\n"
-      "against the first frame by subset correlation. Writes frame,id,X_px,Y_px,x_px,y_px,status,model\n"
-      "(model: 0 own match, 1 neighbour-fused, 2 rest fit; each only where a test on that frame accepted "
-      "it)\n"
+      "against the first frame by subset correlation. Writes frame,id,X_px,Y_px,x_px,y_px,status,model,\n"
+      "model_window_px (model: 0 own match, 1 neighbour-fused, 2 rest fit, 4 local affine fit of the\n"
+      "neighbours' matches over a window of model_window_px radius, else 0; each only where\n"
+      "a test on that frame accepted it)\n"
       "and, beside the CSV, a JSON of the settings in effect, the texture and the per-frame tests.\n"
       "Example: tirstrain track frames/ --grid 10 --out tracks.csv   (writes tracks.csv and tracks.json)");
   cmd->add_option("input", o->input,

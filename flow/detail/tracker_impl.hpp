@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "flow/local_fit.hpp"
 #include "flow/phase_correlation.hpp"
 #include "flow/plate.hpp"
 #include "flow/shape_field.hpp"
@@ -245,6 +246,8 @@ struct FeatureTracker::Impl {
   void decline_fusion_beyond_noise();
   RestTestOptions rest_test_options() const;
   void follow_rest();
+  LocalFitOptions local_fit_options() const;
+  void report_local_fits();
   double ridge_reach_px() const { return 0.25 * settings.window_px; }
   // The global shift's images are reduced by 2 or 4 while the ridges stay at least 5 px apart there.
   int high_pass_factor() const {

@@ -66,8 +66,16 @@ TEST(TrackCli, SubPixelShiftOfSpeckle) {
   std::printf("speckle: %d points, worst error %.4f px\n", n, worst);
 
   // Two frames: no rest test runs (the texture is noise-free), no model stands in for a match beyond the
-  // fusion, and the JSON beside the CSV says the texture has no ridges and which settings ran.
-  for (std::size_t i = 0; i < t.rows(); ++i) EXPECT_LE(t.column("model")[i], 1.0);
+  // fusion and the local fit (each with the window it was fitted over), and the JSON beside the CSV says
+  // the texture has no ridges and which settings ran.
+  for (std::size_t i = 0; i < t.rows(); ++i) {
+    const double model = t.column("model")[i];
+    EXPECT_TRUE(model == 0.0 || model == 1.0 || model == 4.0) << model;
+    if (model == 4.0)
+      EXPECT_GE(t.column("model_window_px")[i], 10.0);
+    else
+      EXPECT_EQ(t.column("model_window_px")[i], 0.0);
+  }
   std::ifstream json_file(dir / "tracks.json");
   ASSERT_TRUE(json_file.good());
   const nlohmann::json j = nlohmann::json::parse(json_file);
@@ -81,7 +89,9 @@ TEST(TrackCli, SubPixelShiftOfSpeckle) {
   EXPECT_EQ(by_model["rest_fit"].get<long>(), 0);
   long alive_rows = 0;
   for (std::size_t i = 0; i < t.rows(); ++i) alive_rows += t.column("status")[i] < 10 ? 1 : 0;
-  EXPECT_EQ(by_model["own_match"].get<long>() + by_model["fused"].get<long>(), alive_rows);
+  EXPECT_EQ(
+      by_model["own_match"].get<long>() + by_model["fused"].get<long>() + by_model["local_fit"].get<long>(),
+      alive_rows);
 
   // Tracks written into the frames' folder would change the input: refused, and the folder stays as it was.
   EXPECT_EQ(run("track " + (dir / "frames").string() + " --grid 16 --out " +

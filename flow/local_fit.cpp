@@ -1,0 +1,301 @@
+#include "flow/local_fit.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <opencv2/core/utility.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+namespace tirstrain::flow {
+namespace {
+
+// A floor on a match's predicted noise (px): the correlation of noise-free frames says nothing finer.
+constexpr double kNoiseFloorPx = 1e-3;
+
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+// One match as the fits read it: its displacement and its weight (inverse covariance).
+struct Sample {
+  Vec2 reference_px;
+  Eigen::Vector2d displacement_px = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d covariance_px2 = Eigen::Matrix2d::Identity();
+  Eigen::Matrix2d weight = Eigen::Matrix2d::Zero();
+  bool usable = false;
+};
+
+std::vector<Sample> samples_of(const std::vector<OwnMatch>& matches) {
+  std::vector<Sample> samples(matches.size());
+  for (std::size_t i = 0; i < matches.size(); ++i) {
+    const OwnMatch& m = matches[i];
+    Sample& s = samples[i];
+    s.reference_px = m.reference_px;
+    s.displacement_px = {m.position_px.x - m.reference_px.x, m.position_px.y - m.reference_px.y};
+    s.covariance_px2 = m.covariance_px2 + kNoiseFloorPx * kNoiseFloorPx * Eigen::Matrix2d::Identity();
+    const Eigen::LLT<Eigen::Matrix2d> llt(s.covariance_px2);
+    s.usable = s.covariance_px2.allFinite() && s.displacement_px.allFinite() && llt.info() == Eigen::Success;
+    if (s.usable) s.weight = llt.solve(Eigen::Matrix2d::Identity());
+  }
+  return samples;
+}
+
+// Matches by cell of side `cell_px` over their reference positions, for the neighbours within one cell.
+class CellIndex {
+ public:
+  CellIndex(const std::vector<Sample>& samples, double cell_px) : cell_(cell_px) {
+    if (samples.empty()) return;
+    min_x_ = max_x_ = samples[0].reference_px.x;
+    min_y_ = max_y_ = samples[0].reference_px.y;
+    for (const Sample& s : samples) {
+      min_x_ = std::min(min_x_, s.reference_px.x);
+      min_y_ = std::min(min_y_, s.reference_px.y);
+      max_x_ = std::max(max_x_, s.reference_px.x);
+      max_y_ = std::max(max_y_, s.reference_px.y);
+    }
+    cols_ = static_cast<int>((max_x_ - min_x_) / cell_) + 1;
+    rows_ = static_cast<int>((max_y_ - min_y_) / cell_) + 1;
+    cells_.resize(static_cast<std::size_t>(cols_) * static_cast<std::size_t>(rows_));
+    for (std::size_t i = 0; i < samples.size(); ++i)
+      if (samples[i].usable) cells_[cell_of(samples[i].reference_px)].push_back(static_cast<int>(i));
+  }
+
+  // (squared distance, index) of every usable match within `radius_px` of `p`, nearest first.
+  void within(const std::vector<Sample>& samples, Vec2 p, double radius_px,
+              std::vector<std::pair<double, int>>& out) const {
+    out.clear();
+    const int cx = static_cast<int>((p.x - min_x_) / cell_), cy = static_cast<int>((p.y - min_y_) / cell_);
+    const double r2 = radius_px * radius_px;
+    for (int y = std::max(0, cy - 1); y <= std::min(rows_ - 1, cy + 1); ++y)
+      for (int x = std::max(0, cx - 1); x <= std::min(cols_ - 1, cx + 1); ++x)
+        for (int j : cells_[static_cast<std::size_t>(y * cols_ + x)]) {
+          const Vec2 q = samples[static_cast<std::size_t>(j)].reference_px;
+          const double d2 = (q.x - p.x) * (q.x - p.x) + (q.y - p.y) * (q.y - p.y);
+          if (d2 <= r2) out.emplace_back(d2, j);
+        }
+    std::sort(out.begin(), out.end());
+  }
+
+ private:
+  std::size_t cell_of(Vec2 p) const {
+    const int x = static_cast<int>((p.x - min_x_) / cell_), y = static_cast<int>((p.y - min_y_) / cell_);
+    return static_cast<std::size_t>(y * cols_ + x);
+  }
+  double cell_ = 1.0, min_x_ = 0.0, min_y_ = 0.0, max_x_ = 0.0, max_y_ = 0.0;
+  int cols_ = 0, rows_ = 0;
+  std::vector<std::vector<int>> cells_;
+};
+
+// The weighted least-squares normal equations of the affine field d(X) = c + B (X − X_i) / scale, built
+// up one match at a time (the window grows by adding the next nearest matches).
+class AffineAccumulator {
+ public:
+  AffineAccumulator(Vec2 centre, double scale_px, double correlation_side_px)
+      : centre_(centre), scale_(scale_px), side_(correlation_side_px) {}
+
+  void add(const Sample& s) {
+    const double dx = s.reference_px.x - centre_.x, dy = s.reference_px.y - centre_.y;
+    const double a[3] = {1.0, dx / scale_, dy / scale_};
+    const Eigen::Vector2d wd = s.weight * s.displacement_px;
+    for (int p = 0; p < 3; ++p) {
+      for (int q = 0; q < 3; ++q) normal_.block<2, 2>(2 * p, 2 * q) += a[p] * a[q] * s.weight;
+      rhs_.segment<2>(2 * p) += a[p] * wd;
+    }
+    energy_ += s.displacement_px.dot(wd);
+    ++count_;
+    // Overlapping subsets share noise in proportion to their overlap.
+    correlation_ += std::max(0.0, 1.0 - std::abs(dx) / side_) * std::max(0.0, 1.0 - std::abs(dy) / side_);
+  }
+
+  int count() const { return count_; }
+  // Σ_j of the overlap of match j's subset with the centre's: how many matches' worth of noise it shares.
+  double shared_noise() const { return correlation_; }
+
+  // The solved fit: parameters and the inverse normal matrix (the parameters' covariance for independent
+  // matches), and the residual χ².
+  struct Solution {
+    Vec6 theta;
+    Mat6 inverse;
+    double rss = 0.0;
+    int dof = 0;
+  };
+  bool solve_all(Solution& out) const {
+    const Eigen::LDLT<Mat6> ldlt(normal_);
+    if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-10)) return false;
+    out.theta = ldlt.solve(rhs_);
+    out.inverse = ldlt.solve(Mat6::Identity());
+    out.rss = std::max(0.0, energy_ - out.theta.dot(rhs_));
+    out.dof = 2 * count_ - 6;
+    return out.theta.allFinite() && out.inverse.allFinite();
+  }
+
+ private:
+  Vec2 centre_;
+  double scale_, side_;
+  Mat6 normal_ = Mat6::Zero();
+  Vec6 rhs_ = Vec6::Zero();
+  double energy_ = 0.0, correlation_ = 0.0;
+  int count_ = 0;
+};
+
+// Whether residuals with χ² `rss` over `dof` degrees of freedom are the matches' noise: below the upper
+// quantile (z standard deviations, Wilson–Hilferty) of χ²_ν / ν, with ν the independent share of the
+// degrees of freedom when each match shares its noise with `shared` others.
+bool residuals_are_noise(double rss, int dof, double shared, double z, double& chi2_per_dof) {
+  chi2_per_dof = dof > 0 ? rss / dof : 0.0;
+  if (dof <= 0) return true;
+  const double nu = std::max(1.0, dof / shared);
+  const double h = 2.0 / (9.0 * nu);
+  return chi2_per_dof <= std::pow(1.0 - h + z * std::sqrt(h), 3);
+}
+
+// The affine fit of every match in the frame: the widest window of all, tried where the local windows
+// reached their largest radius.
+struct FrameFit {
+  bool valid = false;
+  Vec2 centre;
+  double scale_px = 1.0;
+  int count = 0;
+  double min_x = 0.0, min_y = 0.0, max_x = 0.0, max_y = 0.0;  // the matches' bounding box
+  AffineAccumulator::Solution solution;
+
+  FrameFit(const std::vector<Sample>& samples, double correlation_side_px) {
+    double sx = 0.0, sy = 0.0, extent = 1.0;
+    for (const Sample& s : samples)
+      if (s.usable) {
+        sx += s.reference_px.x;
+        sy += s.reference_px.y;
+        ++count;
+      }
+    if (count < 3) return;
+    centre = {sx / count, sy / count};
+    min_x = max_x = centre.x;
+    min_y = max_y = centre.y;
+    for (const Sample& s : samples)
+      if (s.usable) {
+        extent =
+            std::max({extent, std::abs(s.reference_px.x - centre.x), std::abs(s.reference_px.y - centre.y)});
+        min_x = std::min(min_x, s.reference_px.x);
+        max_x = std::max(max_x, s.reference_px.x);
+        min_y = std::min(min_y, s.reference_px.y);
+        max_y = std::max(max_y, s.reference_px.y);
+      }
+    scale_px = extent;
+    AffineAccumulator all(centre, scale_px, correlation_side_px);
+    for (const Sample& s : samples)
+      if (s.usable) all.add(s);
+    valid = all.solve_all(solution);
+  }
+
+  // How far from X the frame's matches reach: the window the frame's fit covers, seen from X.
+  double reach_px(Vec2 X) const {
+    const double dx = std::max(X.x - min_x, max_x - X.x), dy = std::max(X.y - min_y, max_y - X.y);
+    return std::hypot(dx, dy);
+  }
+
+  // The fit at X and its covariance for independent matches.
+  void at(Vec2 X, Eigen::Vector2d& value, Eigen::Matrix2d& covariance) const {
+    Eigen::Matrix<double, 2, 6> a;
+    a << Eigen::Matrix2d::Identity(), (X.x - centre.x) / scale_px * Eigen::Matrix2d::Identity(),
+        (X.y - centre.y) / scale_px * Eigen::Matrix2d::Identity();
+    value = a * solution.theta;
+    covariance = a * solution.inverse * a.transpose();
+  }
+};
+
+double mahalanobis2_of(const Eigen::Vector2d& difference, const Eigen::Matrix2d& covariance) {
+  const Eigen::LLT<Eigen::Matrix2d> llt(covariance);
+  if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+  return difference.dot(llt.solve(difference));
+}
+
+// An estimate a wider window must agree with.
+struct Estimate {
+  Eigen::Vector2d value;
+  Eigen::Matrix2d covariance;
+};
+
+// The widest window that agrees with every finer estimate and whose residuals are noise, for match i.
+LocalFit fit_one(const std::vector<Sample>& samples, std::size_t i, const CellIndex& index,
+                 const FrameFit* frame, const LocalFitOptions& options,
+                 std::vector<std::pair<double, int>>& near) {
+  const Sample& own = samples[i];
+  LocalFit out;
+  out.displacement_px = {own.displacement_px.x(), own.displacement_px.y()};
+  out.covariance_px2 = own.covariance_px2;
+  if (!own.usable || options.radii_px.empty()) return out;
+  index.within(samples, own.reference_px, options.radii_px.back(), near);
+  AffineAccumulator accumulator(own.reference_px, options.radii_px.back(), options.correlation_side_px);
+  std::vector<Estimate> finer{{own.displacement_px, own.covariance_px2}};
+  std::size_t next = 0;
+  // A wider estimate is kept when it agrees with every finer one (the own match included).
+  const auto agrees = [&](const Estimate& fit, double& worst) {
+    worst = 0.0;
+    for (const Estimate& e : finer)
+      worst = std::max(worst, mahalanobis2_of(fit.value - e.value, e.covariance));
+    return worst <= options.agreement_chi2;
+  };
+  const auto take = [&](const Estimate& fit, int window, double radius_px, int tracks, double worst,
+                        double chi2) {
+    out.window = window;
+    out.radius_px = radius_px;
+    out.tracks = tracks;
+    out.displacement_px = {fit.value.x(), fit.value.y()};
+    out.covariance_px2 = fit.covariance;
+    out.agreement_chi2 = worst;
+    out.residual_chi2_per_dof = chi2;
+    finer.push_back(fit);
+  };
+  const int windows = static_cast<int>(options.radii_px.size());
+  for (int w = 0; w < windows; ++w) {
+    const double r2 =
+        options.radii_px[static_cast<std::size_t>(w)] * options.radii_px[static_cast<std::size_t>(w)];
+    while (next < near.size() && near[next].first <= r2)
+      accumulator.add(samples[static_cast<std::size_t>(near[next++].second)]);
+    AffineAccumulator::Solution solution;
+    if (accumulator.count() < options.min_tracks || !accumulator.solve_all(solution)) continue;
+    // A mean over n matches that share noise is quieter than n independent ones by the overlap it counts.
+    const double shared =
+        std::clamp(accumulator.shared_noise(), 1.0, static_cast<double>(accumulator.count()));
+    const Estimate fit{solution.theta.head<2>(), shared * solution.inverse.topLeftCorner<2, 2>()};
+    double chi2 = 0.0, worst = 0.0;
+    if (!residuals_are_noise(solution.rss, solution.dof, shared, options.residual_quantile_z, chi2))
+      return out;
+    if (!agrees(fit, worst)) return out;
+    take(fit, w, options.radii_px[static_cast<std::size_t>(w)], accumulator.count(), worst, chi2);
+  }
+  if (out.window != windows - 1 || frame == nullptr || !frame->valid) return out;
+  const double shared = std::clamp(accumulator.shared_noise(), 1.0, static_cast<double>(frame->count));
+  Estimate fit;
+  frame->at(own.reference_px, fit.value, fit.covariance);
+  fit.covariance *= shared;
+  double chi2 = 0.0, worst = 0.0;
+  if (!residuals_are_noise(frame->solution.rss, frame->solution.dof, shared, options.residual_quantile_z,
+                           chi2))
+    return out;
+  if (!agrees(fit, worst)) return out;
+  take(fit, windows, frame->reach_px(own.reference_px), frame->count, worst, chi2);
+  return out;
+}
+
+}  // namespace
+
+std::vector<LocalFit> choose_local_fits(const std::vector<OwnMatch>& matches,
+                                        const LocalFitOptions& options) {
+  const std::vector<Sample> samples = samples_of(matches);
+  std::vector<LocalFit> fits(matches.size());
+  if (matches.empty()) return fits;
+  const double reach = options.radii_px.empty() ? 1.0 : options.radii_px.back();
+  const CellIndex index(samples, std::max(1.0, reach));
+  const FrameFit frame(samples, options.correlation_side_px);
+  cv::parallel_for_(cv::Range(0, static_cast<int>(matches.size())), [&](const cv::Range& range) {
+    std::vector<std::pair<double, int>> near;
+    for (int i = range.start; i < range.end; ++i)
+      fits[static_cast<std::size_t>(i)] = fit_one(samples, static_cast<std::size_t>(i), index,
+                                                  options.whole_frame ? &frame : nullptr, options, near);
+  });
+  return fits;
+}
+
+}  // namespace tirstrain::flow

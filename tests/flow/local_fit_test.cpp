@@ -1,0 +1,151 @@
+// The spatially adaptive local fit (flow/local_fit.hpp) on synthetic matches with known truth: it averages
+// where the field is affine, keeps the detail where it is not, and never moves a match beyond its noise.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <numbers>
+#include <random>
+#include <vector>
+
+#include "flow/local_fit.hpp"
+
+namespace {
+
+using tirstrain::Vec2;
+using tirstrain::flow::choose_local_fits;
+using tirstrain::flow::LocalFit;
+using tirstrain::flow::LocalFitOptions;
+using tirstrain::flow::OwnMatch;
+
+struct Field {
+  std::vector<OwnMatch> matches;
+  std::vector<Vec2> truth;  // the true displacement at each match
+};
+
+// Matches on a 10 px grid of cols × rows points, each off its true displacement by independent noise σ.
+Field grid_field(int cols, int rows, double sigma_px, const std::function<Vec2(Vec2)>& u, unsigned seed = 7) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, sigma_px);
+  Field f;
+  for (int j = 0; j < rows; ++j)
+    for (int i = 0; i < cols; ++i) {
+      const Vec2 X{10.0 * i, 10.0 * j};
+      const Vec2 d = u(X);
+      OwnMatch m;
+      m.reference_px = X;
+      m.position_px = {X.x + d.x + noise(rng), X.y + d.y + noise(rng)};
+      m.covariance_px2 = sigma_px * sigma_px * Eigen::Matrix2d::Identity();
+      f.matches.push_back(m);
+      f.truth.push_back(d);
+    }
+  return f;
+}
+
+LocalFitOptions options_without_shared_noise() {
+  LocalFitOptions o;
+  o.radii_px = {15.0, 21.2, 30.0, 42.4, 60.0, 80.0};
+  o.correlation_side_px = 1.0;  // the matches above share no noise
+  return o;
+}
+
+double rms_error(const Field& f, const std::vector<LocalFit>& fits) {
+  double sum = 0.0;
+  for (std::size_t i = 0; i < fits.size(); ++i)
+    sum += std::pow(fits[i].displacement_px.x - f.truth[i].x, 2) +
+           std::pow(fits[i].displacement_px.y - f.truth[i].y, 2);
+  return std::sqrt(sum / (2.0 * static_cast<double>(fits.size())));
+}
+
+TEST(LocalFit, RigidShiftIsAveragedOverTheWholeFrame) {
+  const double sigma = 0.02;
+  const Field f = grid_field(30, 20, sigma, [](Vec2) { return Vec2{0.3, -0.2}; });
+  const std::vector<LocalFit> fits = choose_local_fits(f.matches, options_without_shared_noise());
+  int whole_frame = 0;
+  for (const LocalFit& fit : fits) {
+    whole_frame += fit.window == 6 ? 1 : 0;
+    EXPECT_GE(fit.window, 0);
+    EXPECT_LE(fit.agreement_chi2, 2.0);
+  }
+  // 600 matches: the frame's fit is within a few σ/√600 ≈ 0.0008 px; most tracks reach it.
+  EXPECT_GT(whole_frame, 500);
+  EXPECT_LT(rms_error(f, fits), 0.004);
+  // Its predicted noise says so too (the frame fit's σ at the centre ≈ σ/√600, larger at the corners).
+  EXPECT_LT(std::sqrt(fits[310].covariance_px2(0, 0)), 0.003);
+}
+
+TEST(LocalFit, ShortWaveKeepsItsAmplitude) {
+  // 0.1 px at a 40 px wavelength (4 grid steps) with 0.01 px of noise: any window wider than a quarter wave
+  // would flatten it, and the scales disagree long before that.
+  const double sigma = 0.01, wavelength = 40.0;
+  const Field f = grid_field(30, 20, sigma, [&](Vec2 X) {
+    return Vec2{0.1 * std::sin(2.0 * std::numbers::pi * X.x / wavelength), 0.0};
+  });
+  const std::vector<LocalFit> fits = choose_local_fits(f.matches, options_without_shared_noise());
+  // The in-phase gain of what is reported, by least squares against the true sine.
+  double num = 0.0, den = 0.0;
+  for (std::size_t i = 0; i < fits.size(); ++i) {
+    num += fits[i].displacement_px.x * f.truth[i].x;
+    den += f.truth[i].x * f.truth[i].x;
+  }
+  EXPECT_GT(num / den, 0.9);
+  EXPECT_LT(rms_error(f, fits), 1.2 * sigma);
+}
+
+TEST(LocalFit, LongWaveIsAveragedAndFollowed) {
+  // 0.1 px over a 400 px wavelength: nearly affine over 40-60 px windows, so the noise falls well below the
+  // matches' own while the wave stays.
+  const double sigma = 0.02, wavelength = 400.0;
+  const Field f = grid_field(40, 20, sigma, [&](Vec2 X) {
+    return Vec2{0.1 * std::sin(2.0 * std::numbers::pi * X.x / wavelength), 0.0};
+  });
+  const std::vector<LocalFit> fits = choose_local_fits(f.matches, options_without_shared_noise());
+  EXPECT_LT(rms_error(f, fits), 0.5 * sigma);
+}
+
+TEST(LocalFit, StepIsNotSmearedAcrossItsEdge) {
+  // Two rigid halves 0.3 px apart across y = 95: the tracks near the edge keep windows that do not reach
+  // across it (or their own match); none is pulled beyond its noise.
+  const double sigma = 0.01;
+  const Field f = grid_field(30, 20, sigma, [](Vec2 X) { return Vec2{X.y < 95.0 ? 0.0 : 0.3, 0.0}; });
+  const std::vector<LocalFit> fits = choose_local_fits(f.matches, options_without_shared_noise());
+  double worst = 0.0;
+  for (std::size_t i = 0; i < fits.size(); ++i)
+    worst = std::max(worst, std::abs(fits[i].displacement_px.x - f.truth[i].x));
+  EXPECT_LT(worst, 4.5 * sigma);
+  EXPECT_LT(rms_error(f, fits), sigma);
+}
+
+TEST(LocalFit, AnOutlierKeepsItsOwnMatchAndDoesNotPullItsNeighbours) {
+  const double sigma = 0.01;
+  Field f = grid_field(20, 20, sigma, [](Vec2) { return Vec2{0.1, 0.1}; });
+  const std::size_t odd = 210;
+  f.matches[odd].position_px.x += 0.5;  // a match 50 σ off: not the field
+  const std::vector<LocalFit> fits = choose_local_fits(f.matches, options_without_shared_noise());
+  EXPECT_EQ(fits[odd].window, -1);
+  EXPECT_DOUBLE_EQ(fits[odd].displacement_px.x, f.matches[odd].position_px.x - f.matches[odd].reference_px.x);
+  for (std::size_t i = 0; i < fits.size(); ++i)
+    if (i != odd) EXPECT_LT(std::abs(fits[i].displacement_px.x - 0.1), 4.0 * sigma) << i;
+}
+
+TEST(LocalFit, SharedNoiseIsCountedOnce) {
+  // The same matches declared to share their noise with every neighbour within 41 px predict a wider
+  // uncertainty for the same fit: overlapping subsets are not independent evidence.
+  const Field f = grid_field(30, 20, 0.02, [](Vec2) { return Vec2{0.0, 0.0}; });
+  LocalFitOptions shared = options_without_shared_noise();
+  shared.correlation_side_px = 41.0;
+  const LocalFit alone = choose_local_fits(f.matches, options_without_shared_noise())[310];
+  const LocalFit together = choose_local_fits(f.matches, shared)[310];
+  ASSERT_EQ(alone.window, together.window);
+  EXPECT_GT(together.covariance_px2(0, 0), 8.0 * alone.covariance_px2(0, 0));
+}
+
+TEST(LocalFit, MatchWithoutCovarianceKeepsItsOwn) {
+  Field f = grid_field(10, 10, 0.01, [](Vec2) { return Vec2{0.2, 0.0}; });
+  f.matches[44].covariance_px2(0, 0) = std::numeric_limits<double>::quiet_NaN();
+  const std::vector<LocalFit> fits = choose_local_fits(f.matches, options_without_shared_noise());
+  EXPECT_EQ(fits[44].window, -1);
+  EXPECT_GE(fits[45].window, 0);
+}
+
+}  // namespace
