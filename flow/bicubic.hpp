@@ -1,6 +1,7 @@
 #pragma once
-// Keys bicubic interpolation kernel shared by the subset matcher, the resampled shape pass and the mesh
-// correlation (internal to flow/).
+// Cubic interpolation kernels shared by the subset matcher, the resampled shape pass and the mesh
+// correlation (internal to flow/): Keys' cubic convolution of pixel values, and the cubic B-spline of an
+// image's spline coefficients (flow/bspline.hpp).
 #include <opencv2/core.hpp>
 
 #include <algorithm>
@@ -9,6 +10,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <vector>
+
+#include "flow/bspline.hpp"
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -28,8 +31,21 @@ inline __m128 keys_weights(float t) {
   return _mm_add_ps(_mm_mul_ps(w, vt), _mm_setr_ps(0.0f, 1.0f, 0.0f, 0.0f));
 }
 
-inline float interpolate_keys(const float* row, std::size_t step, float tx, float ty) {
-  const __m128 wx = keys_weights(tx), wy = keys_weights(ty);
+// The cubic B-spline's four weights, (1 − t)³/6, (3t³ − 6t² + 4)/6, (−3t³ + 3t² + 3t + 1)/6, t³/6, in the
+// same Horner form.
+inline __m128 bspline_weights(float t) {
+  const __m128 vt = _mm_set1_ps(t);
+  __m128 w = _mm_add_ps(_mm_mul_ps(_mm_setr_ps(-1.0f / 6.0f, 0.5f, -0.5f, 1.0f / 6.0f), vt),
+                        _mm_setr_ps(0.5f, -1.0f, 0.5f, 0.0f));
+  w = _mm_add_ps(_mm_mul_ps(w, vt), _mm_setr_ps(-0.5f, 0.0f, 0.5f, 0.0f));
+  return _mm_add_ps(_mm_mul_ps(w, vt), _mm_setr_ps(1.0f / 6.0f, 2.0f / 3.0f, 1.0f / 6.0f, 0.0f));
+}
+
+inline __m128 kernel_weights(Interpolation kernel, float t) {
+  return kernel == Interpolation::kCubicBSpline ? bspline_weights(t) : keys_weights(t);
+}
+
+inline float interpolate_with(const __m128 wx, const __m128 wy, const float* row, std::size_t step) {
   __m128 acc = _mm_mul_ps(_mm_loadu_ps(row), _mm_shuffle_ps(wy, wy, 0x00));
   acc = _mm_add_ps(acc, _mm_mul_ps(_mm_loadu_ps(row + step), _mm_shuffle_ps(wy, wy, 0x55)));
   acc = _mm_add_ps(acc, _mm_mul_ps(_mm_loadu_ps(row + 2 * step), _mm_shuffle_ps(wy, wy, 0xAA)));
@@ -40,6 +56,15 @@ inline float interpolate_keys(const float* row, std::size_t step, float tx, floa
   swapped = _mm_movehl_ps(swapped, pairs);
   return _mm_cvtss_f32(_mm_add_ss(pairs, swapped));
 }
+
+inline float interpolate_keys(const float* row, std::size_t step, float tx, float ty) {
+  return interpolate_with(keys_weights(tx), keys_weights(ty), row, step);
+}
+
+// The 4×4 neighbourhood under `kernel`: pixel values for Keys, spline coefficients for the B-spline.
+inline float interpolate(Interpolation kernel, const float* row, std::size_t step, float tx, float ty) {
+  return interpolate_with(kernel_weights(kernel, tx), kernel_weights(kernel, ty), row, step);
+}
 #else
 inline void keys_weights(float t, float w[4]) {
   w[0] = ((-0.5f * t + 1.0f) * t - 0.5f) * t;
@@ -48,23 +73,49 @@ inline void keys_weights(float t, float w[4]) {
   w[3] = ((0.5f * t - 0.5f) * t) * t;
 }
 
-inline float interpolate_keys(const float* row, std::size_t step, float tx, float ty) {
-  float wx[4], wy[4];
-  keys_weights(tx, wx);
-  keys_weights(ty, wy);
+inline void bspline_weights(float t, float w[4]) {
+  const float s = 1.0f - t;
+  w[0] = s * s * s / 6.0f;
+  w[1] = ((0.5f * t - 1.0f) * t) * t + 2.0f / 3.0f;
+  w[2] = ((-0.5f * t + 0.5f) * t + 0.5f) * t + 1.0f / 6.0f;
+  w[3] = t * t * t / 6.0f;
+}
+
+inline void kernel_weights(Interpolation kernel, float t, float w[4]) {
+  if (kernel == Interpolation::kCubicBSpline)
+    bspline_weights(t, w);
+  else
+    keys_weights(t, w);
+}
+
+inline float interpolate_with(const float wx[4], const float wy[4], const float* row, std::size_t step) {
   float sum = 0.0f;
   for (int k = 0; k < 4; ++k, row += step)
     sum += wy[k] * (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3]);
   return sum;
 }
+
+inline float interpolate_keys(const float* row, std::size_t step, float tx, float ty) {
+  float wx[4], wy[4];
+  keys_weights(tx, wx);
+  keys_weights(ty, wy);
+  return interpolate_with(wx, wy, row, step);
+}
+
+inline float interpolate(Interpolation kernel, const float* row, std::size_t step, float tx, float ty) {
+  float wx[4], wy[4];
+  kernel_weights(kernel, tx, wx);
+  kernel_weights(kernel, ty, wy);
+  return interpolate_with(wx, wy, row, step);
+}
 #endif
 
-// The four Keys weights at fraction t, as the interpolation above computes them.
-inline void keys_weights_of(float t, float w[4]) {
+// The kernel's four weights at fraction t, as the interpolation above computes them.
+inline void weights_of(Interpolation kernel, float t, float w[4]) {
 #if defined(__SSE2__)
-  _mm_storeu_ps(w, keys_weights(t));
+  _mm_storeu_ps(w, kernel_weights(kernel, t));
 #else
-  keys_weights(t, w);
+  kernel_weights(kernel, t, w);
 #endif
 }
 
@@ -79,7 +130,8 @@ class TranslatedSampler {
   // Offset (0, 0) lands at (x0, y0); offsets dx lie in [dx_min, dx_max]. Refuses (ok() false) a shift
   // that is not finite or is far outside the image.
   // Keeps raw pointers (as Sampler does), not the matrices: a temporary empty mask may be passed.
-  TranslatedSampler(const cv::Mat& image, const cv::Mat& mask, double x0, double y0, int dx_min, int dx_max)
+  TranslatedSampler(const cv::Mat& image, const cv::Mat& mask, double x0, double y0, int dx_min, int dx_max,
+                    Interpolation kernel = Interpolation::kKeys)
       : data_(image.ptr<float>()),
         step_(image.step1()),
         cols_(image.cols),
@@ -95,8 +147,8 @@ class TranslatedSampler {
     ix0_ = static_cast<int>(std::floor(x0));
     iy0_ = static_cast<int>(std::floor(y0));
     const double fx = x0 - ix0_, fy = y0 - iy0_;
-    keys_weights_of(static_cast<float>(fx), wx_);
-    keys_weights_of(static_cast<float>(fy), wy_);
+    weights_of(kernel, static_cast<float>(fx), wx_);
+    weights_of(kernel, static_cast<float>(fy), wy_);
     mask_dx_ = fx + 0.5 >= 1.0 ? 1 : 0;
     mask_dy_ = fy + 0.5 >= 1.0 ? 1 : 0;
     vertical_.resize(static_cast<std::size_t>(dx_max - dx_min + 4));
@@ -152,8 +204,10 @@ class TranslatedSampler {
 // iteration, and going through cv::Mat accessors there cost a fifth of the tracker's time.
 class Sampler {
  public:
-  Sampler(const cv::Mat& image, const cv::Mat& mask)
-      : data_(image.ptr<float>()),
+  // `image`: the pixel values for Keys, the spline coefficients for the B-spline.
+  Sampler(const cv::Mat& image, const cv::Mat& mask, Interpolation kernel = Interpolation::kKeys)
+      : kernel_(kernel),
+        data_(image.ptr<float>()),
         step_(image.step1()),
         cols_(image.cols),
         rows_(image.rows),
@@ -163,7 +217,9 @@ class Sampler {
               (mask.empty() || (mask.type() == CV_8U && mask.size() == image.size())));
   }
 
-  // Keys bicubic value at (x, y), if its 4×4 support is inside the image and the nearest pixel inside the
+  Interpolation kernel() const { return kernel_; }
+
+  // The interpolated value at (x, y), if its 4×4 support is inside the image and the nearest pixel inside the
   // mask. Written for x, y ≥ 1, where truncation is the floor and x + 0.5 truncated the nearest pixel.
   bool sample(double x, double y, float& value) const {
     // Bounds checked on the doubles: a runaway warp's 1e12 must not reach the int conversion (undefined;
@@ -173,12 +229,13 @@ class Sampler {
     if (mask_ && mask_[static_cast<std::size_t>(static_cast<int>(y + 0.5)) * mask_step_ +
                        static_cast<std::size_t>(static_cast<int>(x + 0.5))] == 0)
       return false;
-    value = detail::interpolate_keys(data_ + static_cast<std::size_t>(iy - 1) * step_ + (ix - 1), step_,
-                                     static_cast<float>(x - ix), static_cast<float>(y - iy));
+    value = detail::interpolate(kernel_, data_ + static_cast<std::size_t>(iy - 1) * step_ + (ix - 1), step_,
+                                static_cast<float>(x - ix), static_cast<float>(y - iy));
     return true;
   }
 
  private:
+  Interpolation kernel_;
   const float* data_;
   std::size_t step_;
   int cols_, rows_;

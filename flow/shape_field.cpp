@@ -473,13 +473,13 @@ void ShapeField::displacement_row(int y, int x_begin, int x_end, Vec2* u, std::u
 
 void resample_through(const cv::Mat& current, const cv::Mat& current_mask, const ShapeField& field,
                       const cv::Mat& anchor_mask, cv::Rect region, cv::Mat& out, cv::Mat& valid,
-                      const PixelClasses& classes) {
+                      const PixelClasses& classes, Interpolation kernel) {
   CV_Assert(current.type() == CV_32F && anchor_mask.type() == CV_8U && anchor_mask.size() == current.size());
   out.create(current.size(), CV_32F);
   valid.create(current.size(), CV_8U);
   valid.setTo(cv::Scalar(0));
   region &= cv::Rect(0, 0, current.cols, current.rows);
-  const detail::Sampler image(current, current_mask);
+  const detail::Sampler image(current, current_mask, kernel);
   cv::parallel_for_(cv::Range(region.y, region.y + region.height), [&](const cv::Range& range) {
     std::vector<Vec2> u(static_cast<std::size_t>(region.width));
     std::vector<std::uint8_t> defined(static_cast<std::size_t>(region.width));

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/tensor2.hpp"
+#include "flow/bspline.hpp"
 #include "flow/pixel_classes.hpp"
 
 namespace tirstrain::flow {
@@ -90,11 +91,13 @@ class ShapeField {
 };
 
 // `out` (CV_32F) and `valid` (CV_8U), the size of `current`: at every anchor pixel X of `region` where
-// `anchor_mask` is set, the Keys bicubic value of `current` at X + u(X), valid where the field is defined
-// there, the 4×4 support lies in the image and the nearest pixel in `current_mask` (if not empty). Pixels
-// outside `region` or `anchor_mask`, or not in `classes`, are left invalid.
+// `anchor_mask` is set, the value of `current` at X + u(X) interpolated by `kernel` (`current` holds the
+// spline coefficients for the B-spline), valid where the field is defined there, the 4×4 support lies in
+// the image and the nearest pixel in `current_mask` (if not empty). Pixels outside `region` or
+// `anchor_mask`, or not in `classes`, are left invalid.
 void resample_through(const cv::Mat& current, const cv::Mat& current_mask, const ShapeField& field,
                       const cv::Mat& anchor_mask, cv::Rect region, cv::Mat& out, cv::Mat& valid,
-                      const PixelClasses& classes = PixelClasses());
+                      const PixelClasses& classes = PixelClasses(),
+                      Interpolation kernel = Interpolation::kKeys);
 
 }  // namespace tirstrain::flow

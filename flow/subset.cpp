@@ -297,10 +297,11 @@ bool Subset::build(const AnchorImage& anchor, cv::Point centre, int radius_px, i
   return ok;
 }
 
-double Subset::correlation(const cv::Mat& current, const cv::Mat& current_mask, const Warp& warp) const {
+double Subset::correlation(const cv::Mat& current, const cv::Mat& current_mask, const Warp& warp,
+                           Interpolation kernel) const {
   double sf = 0, sff = 0, sg = 0, sgg = 0, sfg = 0;
   long count = 0;
-  const detail::Sampler image(current, current_mask);
+  const detail::Sampler image(current, current_mask, kernel);
   for (const Pixel& p : points_) {
     const Vec2 u = warp.displacement_px(p.dx, p.dy);
     const double x = centre_.x + p.dx + u.x, y = centre_.y + p.dy + u.y;
@@ -331,7 +332,7 @@ MatchResult Subset::match(const cv::Mat& current, const cv::Mat& current_mask, W
   // The parameters solved for: all of the shape function's, or the translation alone.
   const int n = options.translation_only ? 2 : n_shape;
   const double total = static_cast<double>(points_.size());
-  const detail::Sampler image(current, current_mask);
+  const detail::Sampler image(current, current_mask, options.interpolation);
   IterationSums sums;
   for (int iter = 1; iter <= options.max_iterations; ++iter) {
     result.iterations = iter;
@@ -447,7 +448,7 @@ void Subset::accumulate(const detail::Sampler& image, const cv::Mat& current, co
     // The plate's subsets: the same shift for every pixel (TranslatedSampler).
     if (pure_translation) {
       detail::TranslatedSampler shifted(current, current_mask, centre_.x + q[0], centre_.y + q[1], first_.x,
-                                        radius_px_);
+                                        radius_px_, image.kernel());
       if (shifted.ok()) {
         for (const Pixel& p : points_) {
           float g = 0.0f;

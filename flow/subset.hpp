@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/tensor2.hpp"
+#include "flow/bspline.hpp"
 #include "flow/pixel_classes.hpp"
 
 namespace tirstrain::flow {
@@ -132,6 +133,9 @@ struct MatchOptions {
   // from the neighbours) fixed: the shape terms are correlated with the along-ridge translation, so with
   // them free the noise of both frames moves a subset along its ridges several times further.
   bool translation_only = false;
+  // How the current frame is read between pixels; for the B-spline the caller passes the frame's spline
+  // coefficients (cubic_bspline_coefficients) as `current`.
+  Interpolation interpolation = Interpolation::kKeys;
 };
 
 struct MatchResult {
@@ -196,7 +200,8 @@ class Subset {
   MatchResult translation_step(const WindowSums& sums, const AnchorImage& anchor, const cv::Mat& resampled,
                                const cv::Mat& valid, double min_valid_fraction, Vec2& step_px) const;
   // ZNCC of the subset against `current` at `warp`, without iterating.
-  double correlation(const cv::Mat& current, const cv::Mat& current_mask, const Warp& warp) const;
+  double correlation(const cv::Mat& current, const cv::Mat& current_mask, const Warp& warp,
+                     Interpolation kernel = Interpolation::kKeys) const;
 
  private:
   struct Pixel {

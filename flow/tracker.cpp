@@ -211,13 +211,15 @@ void FeatureTracker::Impl::prepare_matching() {
   if (!settings.refine) return;
   if (settings.prefilter_sigma_px <= 0.0) {
     match_f = current_f;
-    return;
+  } else {
+    // Zeros outside the region: anchors copy (and differentiate) the whole frame.
+    if (match_f.size() != current_f.size() || match_f.data == current_f.data)
+      match_f = cv::Mat::zeros(current_f.size(), CV_32F);
+    cv::GaussianBlur(current_f(roi), match_f(roi), cv::Size(), settings.prefilter_sigma_px,
+                     settings.prefilter_sigma_px, cv::BORDER_REPLICATE);
   }
-  // Zeros outside the region: anchors copy (and differentiate) the whole frame.
-  if (match_f.size() != current_f.size() || match_f.data == current_f.data)
-    match_f = cv::Mat::zeros(current_f.size(), CV_32F);
-  cv::GaussianBlur(current_f(roi), match_f(roi), cv::Size(), settings.prefilter_sigma_px,
-                   settings.prefilter_sigma_px, cv::BORDER_REPLICATE);
+  if (settings.match.interpolation == Interpolation::kCubicBSpline)
+    cubic_bspline_coefficients(match_f, roi, match_spline);
 }
 
 void FeatureTracker::Impl::update_roi(bool rebuild_previous) {

@@ -34,7 +34,7 @@ void FeatureTracker::Impl::match_track(int index, Vec2 guess, const Warp* initia
                               {guess.x - c.x - st.offset.x, guess.y - c.y - st.offset.y});
   st.guess = guess;
   st.fixed_shape = false;
-  st.match = st.subset.match(match_f, match_mask, st.warp, settings.match);
+  st.match = st.subset.match(match_source(), match_mask, st.warp, settings.match);
   const Vec2 u = st.warp.displacement_px(st.offset.x, st.offset.y);
   st.candidate = {c.x + st.offset.x + u.x, c.y + st.offset.y + u.y};
   st.matched = st.match.converged && st.match.zncc >= settings.min_zncc;

@@ -139,7 +139,7 @@ void FeatureTracker::Impl::match_fixed_shapes(bool last) {
           st.wide = std::move(wide);
       }
       const Subset& subset = st.wide.empty() ? st.subset : st.wide;
-      const MatchResult m = subset.match(match_f, match_mask, w, options);
+      const MatchResult m = subset.match(match_source(), match_mask, w, options);
       if (!m.converged || m.zncc < settings.min_zncc) continue;
       const cv::Point c = st.subset.centre();
       const Vec2 u = w.displacement_px(st.offset.x, st.offset.y);
@@ -246,8 +246,8 @@ void FeatureTracker::Impl::resampled_round(const cv::Rect& region, const PixelCl
   }
   shape_field.fit(field_anchor, field_displacement, region, resampled_node_step_px(),
                   settings.fixed_shape_sigma_grid * settings.grid_step_px);
-  resample_through(match_f, match_mask, shape_field, keys[0]->anchor.mask(), region, resampled,
-                   resampled_valid, lattices);
+  resample_through(match_source(), match_mask, shape_field, keys[0]->anchor.mask(), region, resampled,
+                   resampled_valid, lattices, settings.match.interpolation);
   window_sums.build(keys[0]->anchor, resampled, resampled_valid, region, settings.fixed_shape_stride,
                     lattices);
   cv::parallel_for_(cv::Range(0, static_cast<int>(eligible.size())), [&](const cv::Range& range) {

@@ -29,6 +29,10 @@ nlohmann::json tracking_settings_json(const flow::TrackerSettings& s) {
           {"rest_tolerance_px", s.rest_tolerance_px},
           {"rest_max_motion_chi2", s.rest_max_motion_chi2},
           {"smooth_in_time", s.smooth_in_time},
+          {"interpolation",
+           s.match.interpolation == flow::Interpolation::kCubicBSpline ? "cubic_bspline" : "keys"},
+          {"local_fit", s.local_fit},
+          {"local_fit_agreement_chi2", s.local_fit_agreement_chi2},
           {"ridge_period_px", s.ridge_period_px},
           {"adapt_to_texture", s.adapt_to_texture}};
 }

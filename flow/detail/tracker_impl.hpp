@@ -113,7 +113,12 @@ struct FeatureTracker::Impl {
   double full_scale = 0.0;  // code of full scale of the sequence's frames, set by the first frame
   cv::Mat current_f, current_u8, previous_u8, mask, match_mask, birth_mask, eigen, eigen_scratch;
   cv::Mat erosion_scratch;
-  cv::Mat match_f;  // what subsets are matched in: current_f, smoothed by prefilter_sigma_px
+  cv::Mat match_f;       // what subsets are matched in: current_f, smoothed by prefilter_sigma_px
+  cv::Mat match_spline;  // match_f's cubic B-spline coefficients over the ROI (B-spline interpolation)
+  // What the subsets read the current frame from: match_f's pixels (Keys) or its spline coefficients.
+  const cv::Mat& match_source() const {
+    return settings.match.interpolation == Interpolation::kCubicBSpline ? match_spline : match_f;
+  }
   TextureQuality texture;
   bool low_snr = false;
   cv::Rect roi;
