@@ -244,6 +244,7 @@ LocalFit fit_one(const std::vector<Sample>& samples, std::size_t i, const CellIn
     out.displacement_px = {fit.value.x(), fit.value.y()};
     out.covariance_px2 = fit.covariance;
     out.agreement_chi2 = worst;
+    out.own_mahalanobis2 = mahalanobis2_of(fit.value - own.displacement_px, own.covariance_px2);
     out.residual_chi2_per_dof = chi2;
     finer.push_back(fit);
   };

@@ -24,8 +24,8 @@ struct LocalFitOptions {
   // Window radii tried, px, smallest first (reference coordinates).
   std::vector<double> radii_px;
   // Two estimates agree when their difference, in the finer one's predicted covariance, is within this χ²
-  // with 2 degrees of freedom (2.0: one standard deviation per component).
-  double agreement_chi2 = 2.0;
+  // with 2 degrees of freedom (9.21: 99 %).
+  double agreement_chi2 = 9.21;
   // The residuals of the matches inside a window must stay below this quantile of their χ² distribution
   // (0.999), counting overlapping subsets' shared noise (`correlation_side_px`).
   double residual_quantile_z = 3.09;
@@ -50,6 +50,9 @@ struct LocalFit {
   // The largest squared Mahalanobis distance between the chosen fit and a finer estimate (the own match
   // included), in that estimate's covariance; NaN for the own match.
   double agreement_chi2 = std::numeric_limits<double>::quiet_NaN();
+  // The chosen fit's squared Mahalanobis distance from the own match, in the own match's covariance (with
+  // its 0.001 px floor), as the agreement test took it (NaN for the own match).
+  double own_mahalanobis2 = std::numeric_limits<double>::quiet_NaN();
   // The chosen window's residual χ² per degree of freedom (NaN for the own match).
   double residual_chi2_per_dof = std::numeric_limits<double>::quiet_NaN();
 };

@@ -134,7 +134,6 @@ TrackerSettings preset_settings(const std::string& name, const SceneHints& hints
   s.match.min_valid_fraction = 0.6;
   s.adapt_to_texture = true;
   s.rest_average_frames = 16;
-  s.local_fit = true;
   s.smooth_in_time = "auto";
   return s;
 }

@@ -53,8 +53,7 @@ void FeatureTracker::Impl::report_local_fits() {
     if (t.model == TrackModel::kFused) --stats.fused;
     t.position_px = position;
     t.model = TrackModel::kLocalFit;
-    t.model_mahalanobis2 =
-        mahalanobis2({position.x - own.position_px.x, position.y - own.position_px.y}, own.covariance_px2);
+    t.model_mahalanobis2 = fit.own_mahalanobis2;
     t.model_window_px = fit.radius_px;
     ++stats.local_fit;
   }

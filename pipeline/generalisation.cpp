@@ -122,20 +122,20 @@ bool fit_window(const samples::GeneralisationCase& sequence, const std::vector<V
 }  // namespace
 
 const std::vector<std::string>& generalisation_presets() {
-  static const std::vector<std::string> names = {"auto", "delhaye2016", "auto_no_rest", "auto_no_local_fit"};
+  static const std::vector<std::string> names = {"auto", "delhaye2016", "auto_no_rest", "auto_local_fit"};
   return names;
 }
 
 flow::TrackerSettings generalisation_settings(const std::string& preset) {
-  const bool no_rest = preset == "auto_no_rest", no_local_fit = preset == "auto_no_local_fit";
-  if (!no_rest && !no_local_fit && preset != "auto" && preset != "delhaye2016")
+  const bool no_rest = preset == "auto_no_rest", local_fit = preset == "auto_local_fit";
+  if (!no_rest && !local_fit && preset != "auto" && preset != "delhaye2016")
     throw Error("unknown generalisation configuration '" + preset +
-                "' (known: auto, delhaye2016, auto_no_rest, auto_no_local_fit)");
+                "' (known: auto, delhaye2016, auto_no_rest, auto_local_fit)");
   flow::TrackerSettings settings =
-      flow::parse_tracking_settings(Scene{}, no_rest || no_local_fit ? "auto" : preset);
+      flow::parse_tracking_settings(Scene{}, no_rest || local_fit ? "auto" : preset);
   settings.births = false;
   if (no_rest) settings.rest_average_frames = 1;
-  if (no_local_fit) settings.local_fit = false;
+  if (local_fit) settings.local_fit = true;
   return settings;
 }
 

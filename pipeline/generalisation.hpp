@@ -78,8 +78,9 @@ struct GeneralisationResult {
 
 // What `tirstrain track` runs without a scene: the preset from the default hints, births off. Besides the
 // presets, "auto_no_rest" is the automatic preset without its rest handling (rest_average_frames 1: no
-// averaged anchor, no affine fit reported on frames found at rest), to show what that handling costs.
-// Throws Error for another name.
+// averaged anchor, no affine fit reported on frames found at rest), to show what that handling costs, and
+// "auto_local_fit" the automatic preset with the local fit on (flow/local_fit.hpp). Throws Error for another
+// name.
 flow::TrackerSettings generalisation_settings(const std::string& preset);
 const std::vector<std::string>& generalisation_presets();
 
