@@ -293,18 +293,85 @@ Fits solve_loaded_fields(const Samples& s, const Normaliser& n, const Start& g, 
   return f;
 }
 
-void set_criteria(FrameFit& out, FieldModel m, double cost, int params, std::size_t residuals) {
+// Residuals that neighbours share are not independent evidence: with each track sharing its residual with
+// `shared` tracks' worth of neighbours, the likelihood holds n / shared independent residuals.
+void set_criteria(FrameFit& out, FieldModel m, double cost, int params, std::size_t residuals,
+                  double shared) {
   const double n = static_cast<double>(residuals);
-  const double fit_term = n * std::log(std::max(2.0 * cost / n, 1e-300));
+  const double independent = n / shared;
+  const double fit_term = independent * std::log(std::max(2.0 * cost / n, 1e-300));
   out.aic[static_cast<int>(m)] = fit_term + 2.0 * params;
-  out.bic[static_cast<int>(m)] = fit_term + params * std::log(n);
+  out.bic[static_cast<int>(m)] = fit_term + params * std::log(independent);
 }
 
-FieldModel choose_model(const FrameFit& out) {
-  int best = 0;
-  for (int m = 1; m < kFieldModels; ++m)
-    if (out.bic[m] < out.bic[best]) best = m;
-  return static_cast<FieldModel>(best);
+// The residual correlation between tracks at distance d, in rings of `ring_px` out to `reach_px`, summed
+// over each track's neighbours: 1 + Σ_rings ρ(ring) × (neighbours per track in the ring). The first ring
+// whose correlation is not significant (below 2/√pairs) or not positive ends the sum; rings of fewer than
+// 10 pairs are skipped. Clamped to [1, n / 20].
+double shared_residuals(const std::vector<Vec2>& X, const std::vector<Vec2>& r, double ring_px,
+                        double reach_px) {
+  const std::size_t n = X.size();
+  const int rings = static_cast<int>(std::ceil(reach_px / ring_px));
+  std::vector<double> dot(static_cast<std::size_t>(rings), 0.0), energy(static_cast<std::size_t>(rings), 0.0);
+  std::vector<double> pairs(static_cast<std::size_t>(rings), 0.0);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = i + 1; j < n; ++j) {
+      const double d = std::hypot(X[i].x - X[j].x, X[i].y - X[j].y);
+      if (!(d < reach_px)) continue;
+      const std::size_t b = static_cast<std::size_t>(d / ring_px);
+      dot[b] += r[i].x * r[j].x + r[i].y * r[j].y;
+      energy[b] += 0.5 * (r[i].x * r[i].x + r[i].y * r[i].y + r[j].x * r[j].x + r[j].y * r[j].y);
+      pairs[b] += 1.0;
+    }
+  double shared = 1.0;
+  for (std::size_t b = 0; b < dot.size(); ++b) {
+    if (pairs[b] < 10.0 || !(energy[b] > 0.0)) continue;  // a ring closer than the spacing holds no pairs
+    const double rho = dot[b] / energy[b];
+    if (!(rho > 2.0 / std::sqrt(2.0 * pairs[b]))) break;
+    shared += rho * 2.0 * pairs[b] / static_cast<double>(n);
+  }
+  return std::clamp(shared, 1.0, std::max(1.0, static_cast<double>(n) / 20.0));
+}
+
+// The partial-slip fit's residuals (the most general loaded field) at the tracks used.
+double shared_residuals_of(const FrameObservations& obs, const Samples& s, const Normaliser& n, double nu,
+                           const Solved& partial) {
+  std::vector<Vec2> X, r;
+  for (std::size_t i = 0; i < s.q.size(); ++i) {
+    double res[2];
+    TrackResidual<FieldModel::partial_slip>{s.q[i].x, s.q[i].y, s.u[i].x, s.u[i].y, n, nu}(partial.p.data(),
+                                                                                           res);
+    if (!(std::isfinite(res[0]) && std::isfinite(res[1]))) continue;
+    X.push_back(obs.reference_px[s.index[i]]);
+    r.push_back({res[0], res[1]});
+  }
+  // Rings of the tracks' own spacing (the median nearest-neighbour distance), out to a tenth of the contact's
+  // diameter: far enough for overlapping subsets and local averaging, short of the field's own scale.
+  std::vector<double> nearest(X.size(), std::numeric_limits<double>::infinity());
+  for (std::size_t i = 0; i < X.size(); ++i)
+    for (std::size_t j = 0; j < X.size(); ++j)
+      if (i != j) nearest[i] = std::min(nearest[i], std::hypot(X[i].x - X[j].x, X[i].y - X[j].y));
+  if (X.size() < 3) return 1.0;
+  std::nth_element(nearest.begin(), nearest.begin() + static_cast<std::ptrdiff_t>(nearest.size() / 2),
+                   nearest.end());
+  const double spacing = nearest[nearest.size() / 2];
+  if (!(spacing > 0.0) || !std::isfinite(spacing)) return 1.0;
+  return shared_residuals(X, r, spacing, std::max(2.0 * spacing, 0.2 * s.a_seg_px));
+}
+
+// Rest against any load is decided on the independent share of the residuals (`rest_bic`: the criteria
+// with the residuals' measured sharing): at rest the residuals are the tracks' noise, which neighbours
+// share, and counted as independent they make any loaded field's few parameters look worth their cost.
+// Among the loaded fields the criteria count every residual: there the residuals' spatial correlation is
+// mostly the fields' own misfit, and discounting it would discard the slip annulus' evidence.
+FieldModel choose_model(const FrameFit& out, const std::array<double, kFieldModels>& rest_bic) {
+  int loaded = static_cast<int>(FieldModel::full_stick);
+  for (int m = loaded + 1; m < kFieldModels; ++m)
+    if (out.bic[m] < out.bic[loaded]) loaded = m;
+  const int rest = static_cast<int>(FieldModel::rest);
+  for (int m = rest + 1; m < kFieldModels; ++m)
+    if (!(rest_bic[rest] < rest_bic[m])) return static_cast<FieldModel>(loaded);
+  return FieldModel::rest;
 }
 
 // SD of g(p) by the delta method: sqrt(gradᵀ Σ grad).
@@ -477,11 +544,19 @@ FrameFit fit_frame(const FrameObservations& obs, const FitOptions& options) {
   out.tracks_used = static_cast<int>(s.q.size());
   out.residual_px.assign(tracks, {kNaN, kNaN});
   const std::size_t residuals = 2 * s.q.size();
-  set_criteria(out, FieldModel::rest, rest_cost(s, options.loss_scale_px), 0, residuals);
-  set_criteria(out, FieldModel::full_stick, f.stick.cost, kStickParams, residuals);
-  set_criteria(out, FieldModel::partial_slip, f.partial.cost, kPartialParams, residuals);
-  set_criteria(out, FieldModel::full_slip, f.slip.cost, kSlipParams, residuals);
-  out.model = choose_model(out);
+  out.shared_residuals = shared_residuals_of(obs, s, n, nu, f.partial);
+  const std::array<double, kFieldModels> costs = {rest_cost(s, options.loss_scale_px), f.stick.cost,
+                                                  f.partial.cost, f.slip.cost};
+  const std::array<int, kFieldModels> params = {0, kStickParams, kPartialParams, kSlipParams};
+  FrameFit shared;
+  for (int m = 0; m < kFieldModels; ++m) {
+    const auto model = static_cast<FieldModel>(m);
+    set_criteria(out, model, costs[static_cast<std::size_t>(m)], params[static_cast<std::size_t>(m)],
+                 residuals, 1.0);
+    set_criteria(shared, model, costs[static_cast<std::size_t>(m)], params[static_cast<std::size_t>(m)],
+                 residuals, out.shared_residuals);
+  }
+  out.model = choose_model(out, shared.bic);
   const Units u{1e-3 / obs.px_per_mm, obs.young_Pa / (2.0 * (1.0 + obs.poisson))};
   report_chosen(out, f, s, n, nu, u, options);
   return out;

@@ -60,7 +60,7 @@ struct Estimate {
 
 struct FrameFit {
   FitStatus status = FitStatus::ok;
-  FieldModel model = FieldModel::rest;  // the field chosen (lowest BIC)
+  FieldModel model = FieldModel::rest;  // the field chosen (lowest BIC; rest: see shared_residuals)
   int tracks_used = 0;
   Estimate centre_x_px, centre_y_px;
   Estimate direction_deg;        // tangential traction on the skin, from +x towards +y, in (−180, 180]
@@ -69,6 +69,11 @@ struct FrameFit {
   Estimate tangential_N;         // Q; 0 for rest
   Estimate limit_N;              // μP; partial and full slip only
   double residual_rms_px = 0.0;  // RMS of |measured − model| over the tracks used
+  // How many tracks' worth of residual each track shares with its neighbours (≥ 1), measured from the
+  // partial-slip fit's residuals (overlapping subsets and any spatial averaging make neighbours' errors
+  // alike). Rest against any load is decided by BIC over 2 × tracks_used / shared_residuals independent
+  // residuals; among the loaded fields by `bic` (every residual counted).
+  double shared_residuals = 1.0;
   std::array<double, kFieldModels> aic{}, bic{};  // by FieldModel value
   std::vector<Vec2> residual_px;  // measured − model per input track; NaN for tracks not used
 };

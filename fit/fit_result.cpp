@@ -140,7 +140,7 @@ void write_per_frame(H5Writer& h5, const ResultForFit& r, const std::vector<Fram
   const std::size_t n = fits.size();
   std::vector<std::int64_t> frame(n);
   std::vector<std::int32_t> status(n), model(n), tracks(n);
-  std::vector<double> rms(n), aic(n), bic(n), aic_all, bic_all;
+  std::vector<double> rms(n), shared(n), aic(n), bic(n), aic_all, bic_all;
   for (std::size_t i = 0; i < n; ++i) {
     const FrameFit& f = fits[i];
     const int m = static_cast<int>(f.model);
@@ -149,6 +149,7 @@ void write_per_frame(H5Writer& h5, const ResultForFit& r, const std::vector<Fram
     model[i] = fitted(f) ? m : -1;
     tracks[i] = f.tracks_used;
     rms[i] = f.residual_rms_px;
+    shared[i] = fitted(f) ? f.shared_residuals : kNaN;
     aic[i] = fitted(f) ? f.aic[m] : kNaN;
     bic[i] = fitted(f) ? f.bic[m] : kNaN;
     aic_all.insert(aic_all.end(), f.aic.begin(), f.aic.end());
@@ -160,6 +161,7 @@ void write_per_frame(H5Writer& h5, const ResultForFit& r, const std::vector<Fram
   h5.write("/fit/model", model, {n});
   h5.write("/fit/tracks", tracks, {n});
   h5.write("/fit/residual_rms_px", rms, {n});
+  h5.write("/fit/shared_residuals", shared, {n});
   h5.write("/fit/aic", aic, {n});
   h5.write("/fit/bic", bic, {n});
   h5.write("/fit/aic_by_model", aic_all, {n, kFieldModels});

@@ -166,6 +166,8 @@ class FitStage final : public Stage {
     const double scalars[3] = {ok ? f.residual_rms_px : kNaN, ok ? f.aic[static_cast<std::size_t>(m)] : kNaN,
                                ok ? f.bic[static_cast<std::size_t>(m)] : kNaN};
     out.write_row("/fit/residual_rms_px", r, std::span<const double>(scalars, 1), {}, kNaN);
+    const double shared = ok ? f.shared_residuals : kNaN;
+    out.write_row("/fit/shared_residuals", r, std::span<const double>(&shared, 1), {}, kNaN);
     out.write_row("/fit/aic", r, std::span<const double>(scalars + 1, 1), {}, kNaN);
     out.write_row("/fit/bic", r, std::span<const double>(scalars + 2, 1), {}, kNaN);
     std::array<double, fit::kFieldModels> aic{}, bic{};

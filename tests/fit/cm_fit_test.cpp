@@ -203,6 +203,42 @@ TEST(CmFit, RestFrameIsNoLoad) {
   EXPECT_LT(f.bic[0], f.bic[1]);
 }
 
+TEST(CmFit, RestWithNeighboursSharingTheirNoiseIsNoLoad) {
+  // Overlapping subsets make neighbouring tracks' errors alike: each track's noise here is the mean of the
+  // white noise of every grid point within 2.5 spacings (~20 of them), and the frame's tracks share a
+  // 0.006 px offset (an anchor's rest average carries one of that size). Counted as independent, these
+  // residuals make a loaded field's few parameters look worth their cost (the plain BIC picks a load); the
+  // fit measures how much the residuals are shared and decides rest against load on the independent share.
+  Scenario sc;
+  sc.q_over_limit = 0.0;
+  Synthetic t = synthesise(sc);
+  const std::size_t n = t.obs.reference_px.size();
+  std::mt19937 rng(11);
+  std::normal_distribution<double> white(0.0, 0.1);
+  std::vector<Vec2> w(n);
+  for (Vec2& v : w) v = {white(rng), white(rng)};
+  for (std::size_t i = 0; i < n; ++i) {
+    Vec2 sum{0.0, 0.0};
+    int count = 0;
+    for (std::size_t j = 0; j < n; ++j) {
+      const Vec2 d{t.obs.reference_px[i].x - t.obs.reference_px[j].x,
+                   t.obs.reference_px[i].y - t.obs.reference_px[j].y};
+      if (std::hypot(d.x, d.y) > 2.5 * sc.grid_px) continue;
+      sum = {sum.x + w[j].x, sum.y + w[j].y};
+      ++count;
+    }
+    t.obs.displacement_px[i] = {0.005 + sum.x / count, -0.003 + sum.y / count};
+  }
+  const FrameFit f = fit_frame(t.obs, FitOptions{});
+  ASSERT_EQ(f.status, FitStatus::ok);
+  std::printf("shared residuals %.1f; plain BIC rest %.1f, stick %.1f, partial %.1f, slip %.1f\n",
+              f.shared_residuals, f.bic[0], f.bic[1], f.bic[2], f.bic[3]);
+  EXPECT_GT(f.shared_residuals, 5.0);  // ~20 neighbours share each track's noise, by ~1/2 on average
+  EXPECT_LT(std::min({f.bic[1], f.bic[2], f.bic[3]}), f.bic[0]);  // every residual counted: a load
+  EXPECT_EQ(f.model, FieldModel::rest);
+  EXPECT_EQ(f.tangential_N.value, 0.0);
+}
+
 TEST(CmFit, TooFewTracksAndNoContactAreStatuses) {
   Scenario sc;
   sc.grid_px = 70.0;  // ~12 tracks
