@@ -133,7 +133,9 @@ TEST(LocalFit, AnOutlierKeepsItsOwnMatchAndDoesNotPullItsNeighbours) {
   EXPECT_EQ(fits[odd].window, -1);
   EXPECT_DOUBLE_EQ(fits[odd].displacement_px.x, f.matches[odd].position_px.x - f.matches[odd].reference_px.x);
   for (std::size_t i = 0; i < fits.size(); ++i)
-    if (i != odd) EXPECT_LT(std::abs(fits[i].displacement_px.x - 0.1), 4.0 * sigma) << i;
+    if (i != odd) {
+      EXPECT_LT(std::abs(fits[i].displacement_px.x - 0.1), 4.0 * sigma) << i;
+    }
 }
 
 TEST(LocalFit, SharedNoiseIsCountedOnce) {
