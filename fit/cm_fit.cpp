@@ -183,7 +183,7 @@ Solved solve_field(const Samples& s, const Normaliser& n, double nu, std::vector
 // (a parameter the data do not determine, e.g. c/a at c = a) is a status, not a log line.
 template <FieldModel F, int P>
 void compute_covariance(Solved& fit, const Samples& s, const Normaliser& n, double nu,
-                        const FitOptions& options) {
+                        const FitOptions& options, double shared) {
   ceres::Problem problem;
   std::vector<double> p = fit.p;
   add_residuals<F, P>(problem, s, n, nu, p.data(), options);
@@ -206,8 +206,10 @@ void compute_covariance(Solved& fit, const Samples& s, const Normaliser& n, doub
   const Eigen::Matrix<double, P, P> inv =
       d.asDiagonal() *
       (eig.eigenvectors() * ev.cwiseInverse().asDiagonal() * eig.eigenvectors().transpose()) * d.asDiagonal();
+  // Residuals that neighbours share average out only over the independent share: the scatter counts
+  // `shared` times in the parameters' variance (as in the local fit's window covariance, flow/local_fit.hpp).
   const double dof = std::max(1.0, 2.0 * static_cast<double>(s.q.size()) - P);
-  const double variance = 2.0 * fit.cost / dof;
+  const double variance = shared * 2.0 * fit.cost / dof;
   fit.cov.assign(P * P, 0.0);
   for (int r = 0; r < P; ++r)
     for (int c = 0; c < P; ++c) fit.cov[r * P + c] = inv(r, c) * variance;
@@ -491,19 +493,21 @@ void report_chosen(FrameFit& out, Fits& f, const Samples& s, const Normaliser& n
       fill_residuals<FieldModel::rest>(out, s, n, nu, f.stick);
       return;
     case FieldModel::full_stick:
-      compute_covariance<FieldModel::full_stick, kStickParams>(f.stick, s, n, nu, options);
+      compute_covariance<FieldModel::full_stick, kStickParams>(f.stick, s, n, nu, options,
+                                                               out.shared_residuals);
       report_stick(out, f.stick, u);
       fill_residuals<FieldModel::full_stick>(out, s, n, nu, f.stick);
       chosen = &f.stick;
       break;
     case FieldModel::partial_slip:
-      compute_covariance<FieldModel::partial_slip, kPartialParams>(f.partial, s, n, nu, options);
+      compute_covariance<FieldModel::partial_slip, kPartialParams>(f.partial, s, n, nu, options,
+                                                                   out.shared_residuals);
       report_slip(out, f.partial, u, true);
       fill_residuals<FieldModel::partial_slip>(out, s, n, nu, f.partial);
       chosen = &f.partial;
       break;
     case FieldModel::full_slip:
-      compute_covariance<FieldModel::full_slip, kSlipParams>(f.slip, s, n, nu, options);
+      compute_covariance<FieldModel::full_slip, kSlipParams>(f.slip, s, n, nu, options, out.shared_residuals);
       report_slip(out, f.slip, u, false);
       fill_residuals<FieldModel::full_slip>(out, s, n, nu, f.slip);
       chosen = &f.slip;

@@ -203,6 +203,29 @@ TEST(CmFit, RestFrameIsNoLoad) {
   EXPECT_LT(f.bic[0], f.bic[1]);
 }
 
+// Noise that neighbours share, as overlapping subsets make it: each track's is the mean of the white noise
+// (σ per component) of every grid point within 2.5 spacings (~20 of them).
+std::vector<Vec2> shared_noise(const FrameObservations& obs, double grid_px, double sigma, unsigned seed) {
+  const std::size_t n = obs.reference_px.size();
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> white(0.0, sigma);
+  std::vector<Vec2> w(n), out(n);
+  for (Vec2& v : w) v = {white(rng), white(rng)};
+  for (std::size_t i = 0; i < n; ++i) {
+    Vec2 sum{0.0, 0.0};
+    int count = 0;
+    for (std::size_t j = 0; j < n; ++j) {
+      const Vec2 d{obs.reference_px[i].x - obs.reference_px[j].x,
+                   obs.reference_px[i].y - obs.reference_px[j].y};
+      if (std::hypot(d.x, d.y) > 2.5 * grid_px) continue;
+      sum = {sum.x + w[j].x, sum.y + w[j].y};
+      ++count;
+    }
+    out[i] = {sum.x / count, sum.y / count};
+  }
+  return out;
+}
+
 TEST(CmFit, RestWithNeighboursSharingTheirNoiseIsNoLoad) {
   // Overlapping subsets make neighbouring tracks' errors alike: each track's noise here is the mean of the
   // white noise of every grid point within 2.5 spacings (~20 of them), and the frame's tracks share a
@@ -212,23 +235,9 @@ TEST(CmFit, RestWithNeighboursSharingTheirNoiseIsNoLoad) {
   Scenario sc;
   sc.q_over_limit = 0.0;
   Synthetic t = synthesise(sc);
-  const std::size_t n = t.obs.reference_px.size();
-  std::mt19937 rng(11);
-  std::normal_distribution<double> white(0.0, 0.1);
-  std::vector<Vec2> w(n);
-  for (Vec2& v : w) v = {white(rng), white(rng)};
-  for (std::size_t i = 0; i < n; ++i) {
-    Vec2 sum{0.0, 0.0};
-    int count = 0;
-    for (std::size_t j = 0; j < n; ++j) {
-      const Vec2 d{t.obs.reference_px[i].x - t.obs.reference_px[j].x,
-                   t.obs.reference_px[i].y - t.obs.reference_px[j].y};
-      if (std::hypot(d.x, d.y) > 2.5 * sc.grid_px) continue;
-      sum = {sum.x + w[j].x, sum.y + w[j].y};
-      ++count;
-    }
-    t.obs.displacement_px[i] = {0.005 + sum.x / count, -0.003 + sum.y / count};
-  }
+  const std::vector<Vec2> noise = shared_noise(t.obs, sc.grid_px, 0.1, 11);
+  for (std::size_t i = 0; i < noise.size(); ++i)
+    t.obs.displacement_px[i] = {0.005 + noise[i].x, -0.003 + noise[i].y};
   const FrameFit f = fit_frame(t.obs, FitOptions{});
   ASSERT_EQ(f.status, FitStatus::ok);
   std::printf("shared residuals %.1f; plain BIC rest %.1f, stick %.1f, partial %.1f, slip %.1f\n",
@@ -237,6 +246,32 @@ TEST(CmFit, RestWithNeighboursSharingTheirNoiseIsNoLoad) {
   EXPECT_LT(std::min({f.bic[1], f.bic[2], f.bic[3]}), f.bic[0]);  // every residual counted: a load
   EXPECT_EQ(f.model, FieldModel::rest);
   EXPECT_EQ(f.tangential_N.value, 0.0);
+}
+
+TEST(CmFit, StandardDeviationsCountSharedNoiseOnce) {
+  // Partial slip at half the friction limit under noise that neighbours share: over 12 noise draws, Q's
+  // error in units of its reported SD has an RMS near 1 (counted as independent, the residuals would make
+  // the SD √(shared) ≈ 2.5× too small).
+  Scenario sc;
+  sc.q_over_limit = 0.5;
+  double sum = 0.0;
+  int n = 0;
+  for (unsigned seed = 1; seed <= 12; ++seed) {
+    Synthetic t = synthesise(sc);
+    const std::vector<Vec2> noise = shared_noise(t.obs, sc.grid_px, 0.1, seed);
+    for (std::size_t i = 0; i < noise.size(); ++i)
+      t.obs.displacement_px[i] = {t.obs.displacement_px[i].x + noise[i].x,
+                                  t.obs.displacement_px[i].y + noise[i].y};
+    const FrameFit f = fit_frame(t.obs, FitOptions{});
+    ASSERT_EQ(f.status, FitStatus::ok);
+    const double z = (f.tangential_N.value - t.q_N) / f.tangential_N.sd;
+    sum += z * z;
+    ++n;
+  }
+  const double rms_z = std::sqrt(sum / n);
+  std::printf("Q error over its SD, RMS over %d draws: %.2f\n", n, rms_z);
+  EXPECT_GT(rms_z, 0.4);
+  EXPECT_LT(rms_z, 1.8);
 }
 
 TEST(CmFit, TooFewTracksAndNoContactAreStatuses) {
