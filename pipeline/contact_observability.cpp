@@ -16,6 +16,9 @@ namespace {
 constexpr int kModes = 5;  // radial modes 0..5: scale, shift, ellipse, three irregularity modes
 constexpr int kUnknowns = 2 * kModes + 1;  // a0, a1, b1, ..., a5, b5
 constexpr int kBoundarySamples = 720;
+// Half a degree: the modes (up to 5 cycles round) turn by under 2.5 degrees of phase within a bin, and the
+// bounds equal those from every pixel to 1e-4 px on the shipped tiny contact.
+constexpr int kDirectionBins = 720;
 using Vector = Eigen::Matrix<double, kUnknowns, 1>;
 using Matrix = Eigen::Matrix<double, kUnknowns, kUnknowns>;
 
@@ -44,6 +47,37 @@ struct PolarBorder {
     }
     return 0.5 * (inside + outside);
   }
+};
+
+// The pixels that bound the border, per direction bin: only the outermost pixel that shows a ridge inside
+// and the innermost one that would show it outside can touch the feasible border there; the pixels behind
+// them repeat a looser form of the same constraint and only slow the solver.
+class BorderPixels {
+ public:
+  explicit BorderPixels(int bins) : inside_(static_cast<std::size_t>(bins)), outside_(inside_.size()) {}
+  // `beyond_px`: how far past the truth's border the pixel lies along `phi` (< 0 inside).
+  void add(double phi, double beyond_px, bool inside) {
+    const double turns = phi / (2.0 * std::numbers::pi) + 0.5;
+    const auto bin =
+        std::min(inside_.size() - 1, static_cast<std::size_t>(std::max(0.0, turns) * inside_.size()));
+    Pixel& kept = inside ? inside_[bin] : outside_[bin];
+    if (!kept.used || (inside ? beyond_px > kept.beyond_px : beyond_px < kept.beyond_px))
+      kept = {phi, beyond_px, true};
+  }
+  template <typename Visit>
+  void for_each(Visit visit) const {
+    for (const Pixel& p : inside_)
+      if (p.used) visit(p.phi, p.beyond_px, true);
+    for (const Pixel& p : outside_)
+      if (p.used) visit(p.phi, p.beyond_px, false);
+  }
+
+ private:
+  struct Pixel {
+    double phi = 0.0, beyond_px = 0.0;
+    bool used = false;
+  };
+  std::vector<Pixel> inside_, outside_;
 };
 
 // Linear constraints G x + h >= 0 on the mode amplitudes x.
@@ -153,6 +187,7 @@ CentreBound contact_centre_bound(const samples::Trial& trial, int frame,
   // A pixel constrains the border when its ridge shows: inside, with the contrast it has there; outside, with
   // the contrast it would have right at the border (the fade's floor, a full edge weight).
   Constraints constraints;
+  BorderPixels pixels(kDirectionBins);
   constexpr double kTolerance_px = 0.02;  // keeps the truth strictly feasible for pixels on its border
   const samples::FrameField field = trial.field(frame);
   for (int y = 0; y < trial.height(); ++y)
@@ -167,15 +202,15 @@ CentreBound contact_centre_bound(const samples::Trial& trial, int frame,
         continue;
       }
       const double phi = std::atan2(p.y - centre.y, p.x - centre.x);
-      const double beyond_px = std::hypot(p.x - centre.x, p.y - centre.y) - border.radius(phi);
-      if (s <= 0.0) {  // r_pixel <= r_border + modes
-        constraints.add(modes_at(phi), kTolerance_px - beyond_px);
-        ++bound.inside_pixels;
-      } else {  // r_pixel > r_border + modes
-        constraints.add(-modes_at(phi), kTolerance_px + beyond_px);
-        ++bound.outside_pixels;
-      }
+      pixels.add(phi, std::hypot(p.x - centre.x, p.y - centre.y) - border.radius(phi), s <= 0.0);
+      ++(s <= 0.0 ? bound.inside_pixels : bound.outside_pixels);
     }
+  pixels.for_each([&](double phi, double beyond_px, bool inside) {
+    if (inside)  // r_pixel <= r_border + modes
+      constraints.add(modes_at(phi), kTolerance_px - beyond_px);
+    else  // r_pixel > r_border + modes
+      constraints.add(-modes_at(phi), kTolerance_px + beyond_px);
+  });
   if (bound.inside_pixels == 0)
     throw Error("contact observability: frame " + std::to_string(frame) + " shows no ridge in contact");
   // Alternatives stay within the band that was looked at (an unconstrained side would run away otherwise).
