@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include <opencv2/core/utility.hpp>
+
 #include "core/error.hpp"
 #include "core/version.hpp"
 #include "tirstrain/commands.hpp"
@@ -93,6 +95,17 @@ int main(int argc, char** argv) {
       "message says what and where; earlier complete outputs are left as they were); 2 the command line is\n"
       "wrong (unknown command or option, bad or missing value); 128+N killed by signal N.");
   app.fallthrough(false);
+  // OpenCV's TBB backend sizes its pool from the cores and ignores OPENCV_FOR_THREADS_NUM, so the thread
+  // count is set here, before any command runs: trials side by side, a Slurm task's CPUs or a shared machine
+  // want fewer than every core.
+  int threads = 0;
+  app.add_option("--threads", threads,
+                 "Threads of the image-processing loops: 0 every core (default), 1 serial. Example: "
+                 "tirstrain --threads 1 process REC --out R")
+      ->check(CLI::Range(0, 4096));
+  app.parse_complete_callback([&threads] {
+    if (threads > 0) cv::setNumThreads(threads);
+  });
 #define TIRSTRAIN_COMMAND(name) tirstrain::cli::add_##name##_command(app);
 #include "command_list.inc"
 #undef TIRSTRAIN_COMMAND

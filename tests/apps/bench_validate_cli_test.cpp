@@ -267,6 +267,37 @@ TEST(ValidateCli, NoisyAndLowContrastScenesMeetTheDisplacementTarget) {
   }
 }
 
+// `--threads` sets how many threads the image loops use (trials side by side in a study run one each); the
+// result is the same to the last bit whatever the count: each track's work is done by one thread.
+TEST(ProcessCli, ThreadCountChangesNothingButTheTime) {
+  const std::string dir = fresh_dir("process_threads");
+  fs::create_directories(dir);
+  std::string scene = read_text(std::string(TIRSTRAIN_SOURCE_SCENES_DIR) + "/default.yaml");
+  const std::size_t at = scene.find("frames: 60");
+  ASSERT_NE(at, std::string::npos);
+  scene.replace(at, 10, "frames: 8");
+  std::ofstream(dir + "/scene.yaml") << scene;
+  ASSERT_EQ(run_cli("synth --scene " + dir + "/scene.yaml --out " + dir + "/trial --quiet").exit_code, 0);
+  for (const char* threads : {"1", "2"}) {
+    const auto run = run_cli(std::string("--threads ") + threads + " process " + dir + "/trial --out " + dir +
+                             "/result_" + threads + " --overlay none --quiet");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+  }
+  const H5Reader one(dir + "/result_1/result.h5"), two(dir + "/result_2/result.h5");
+  for (const char* name :
+       {"/tracks/position_px", "/strain/total", "/contact/ellipse", "/plate/displacement_px"}) {
+    const std::vector<double> a = one.read_doubles(name), b = two.read_doubles(name);
+    ASSERT_EQ(a.size(), b.size()) << name;
+    ASSERT_GT(a.size(), 8u) << name;
+    int differing = 0;
+    for (std::size_t i = 0; i < a.size(); ++i)
+      differing += !(a[i] == b[i] || (std::isnan(a[i]) && std::isnan(b[i])));
+    EXPECT_EQ(differing, 0) << name;
+  }
+  EXPECT_EQ(run_cli("--threads -1 process " + dir + "/trial --out " + dir + "/bad").exit_code, 2);
+  EXPECT_FALSE(fs::exists(dir + "/bad"));
+}
+
 // `process` with the fit stage on the default trial cut to 12 frames (five at rest, then partial slip): the
 // fitted tangential force against the trial's true load, and the same fit as `tirstrain fit` on the result.
 TEST(ProcessCli, FitStageRecoversTheLoadAndMatchesTheFitCommand) {
