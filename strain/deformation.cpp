@@ -43,8 +43,10 @@ Gradient2 incremental_gradient(const Gradient2& current, const Gradient2& previo
   return {d11 * i11 + d12 * i21, d11 * i12 + d12 * i22, d21 * i11 + d22 * i21, d21 * i12 + d22 * i22};
 }
 
-FrameStrain compute_frame_strain(const FrameInput& input, const StrainSettings& settings) {
-  const std::size_t count = input.triangles.size();
+namespace {
+
+// Every per-triangle output NaN (or "not labelled"), every triangle valid until checked.
+FrameStrain empty_frame_strain(std::size_t count) {
   FrameStrain out;
   out.status.assign(count, TriangleStatus::kValid);
   out.gradient.assign(count, {kNaN, kNaN, kNaN, kNaN});
@@ -58,48 +60,82 @@ FrameStrain compute_frame_strain(const FrameInput& input, const StrainSettings& 
   out.increment.assign(count, {kNaN, kNaN, kNaN});
   out.rate_per_s.assign(count, {kNaN, kNaN, kNaN});
   out.stuck.assign(count, -1);
+  return out;
+}
 
+std::array<Vec2, 3> corners(std::span<const Vec2> points_px, const Triangle& tri) {
+  return {points_px[tri[0]], points_px[tri[1]], points_px[tri[2]]};
+}
+
+// Whether a triangle's strain can be measured: every vertex tracked, a well-shaped reference, not turned
+// inside out; `h` receives its displacement gradient when it is valid.
+TriangleStatus triangle_status(const std::array<Vec2, 3>& ref, const std::array<Vec2, 3>& cur,
+                               const QualityCriteria& quality, Gradient2& h) {
+  for (int k = 0; k < 3; ++k)
+    if (!finite(cur[k]) || !finite(ref[k])) return TriangleStatus::kMissingVertex;
+  const TriangleStatus shape = check_reference_shape(ref[0], ref[1], ref[2], quality);
+  if (shape != TriangleStatus::kValid) return shape;
+  h = displacement_gradient(ref, cur);
+  return area_ratio(h) > 0.0 ? TriangleStatus::kValid : TriangleStatus::kInverted;
+}
+
+void count_status(TriangleStatus status, TriangleCounts& counts) {
+  switch (status) {
+    case TriangleStatus::kValid:
+      ++counts.valid;
+      break;
+    case TriangleStatus::kMissingVertex:
+      ++counts.missing_vertex;
+      break;
+    case TriangleStatus::kSmallArea:
+      ++counts.small_area;
+      break;
+    case TriangleStatus::kSmallAngle:
+      ++counts.small_angle;
+      break;
+    case TriangleStatus::kHighAspect:
+      ++counts.high_aspect;
+      break;
+    case TriangleStatus::kInverted:
+      ++counts.inverted;
+      break;
+  }
+}
+
+// The strain since the previous frame and its rate, where the previous frame tracked every vertex.
+void fill_increment(const FrameInput& input, const Triangle& tri, const std::array<Vec2, 3>& ref,
+                    const Gradient2& h, std::size_t t, FrameStrain& out) {
+  const std::array<Vec2, 3> prev = corners(input.previous_px, tri);
+  if (!finite(prev[0]) || !finite(prev[1]) || !finite(prev[2])) return;
+  const Gradient2 h_prev = displacement_gradient(ref, prev);
+  if (!(area_ratio(h_prev) > 0.0)) return;
+  const Strain2 inc = green_lagrange(incremental_gradient(h, h_prev));
+  out.increment[t] = inc;
+  if (input.dt_s > 0.0) out.rate_per_s[t] = {inc.xx / input.dt_s, inc.yy / input.dt_s, inc.xy / input.dt_s};
+}
+
+// Stuck: the triangle's mean displacement within the tolerance of the plate's.
+bool moves_with_plate(const FrameInput& input, const std::array<Vec2, 3>& ref, const std::array<Vec2, 3>& cur,
+                      double tolerance_px) {
+  const double ux = (cur[0].x + cur[1].x + cur[2].x - ref[0].x - ref[1].x - ref[2].x) / 3.0;
+  const double uy = (cur[0].y + cur[1].y + cur[2].y - ref[0].y - ref[1].y - ref[2].y) / 3.0;
+  return std::hypot(ux - input.plate_displacement_px.x, uy - input.plate_displacement_px.y) <= tolerance_px;
+}
+
+}  // namespace
+
+FrameStrain compute_frame_strain(const FrameInput& input, const StrainSettings& settings) {
+  const std::size_t count = input.triangles.size();
+  FrameStrain out = empty_frame_strain(count);
   const double m_per_px = 1.0e-3 / settings.px_per_mm;
-  const bool have_previous = !input.previous_px.empty();
   double energy_J = 0.0, valid_area = 0.0, stuck_area = 0.0;
   for (std::size_t t = 0; t < count; ++t) {
     const Triangle& tri = input.triangles[t];
-    const std::array<Vec2, 3> ref = {input.reference_px[tri[0]], input.reference_px[tri[1]],
-                                     input.reference_px[tri[2]]};
-    const std::array<Vec2, 3> cur = {input.current_px[tri[0]], input.current_px[tri[1]],
-                                     input.current_px[tri[2]]};
-    TriangleStatus status = TriangleStatus::kValid;
-    if (!finite(cur[0]) || !finite(cur[1]) || !finite(cur[2]) || !finite(ref[0]) || !finite(ref[1]) ||
-        !finite(ref[2]))
-      status = TriangleStatus::kMissingVertex;
-    if (status == TriangleStatus::kValid)
-      status = check_reference_shape(ref[0], ref[1], ref[2], settings.quality);
+    const std::array<Vec2, 3> ref = corners(input.reference_px, tri), cur = corners(input.current_px, tri);
     Gradient2 h;
-    if (status == TriangleStatus::kValid) {
-      h = displacement_gradient(ref, cur);
-      if (!(area_ratio(h) > 0.0)) status = TriangleStatus::kInverted;
-    }
+    const TriangleStatus status = triangle_status(ref, cur, settings.quality, h);
     out.status[t] = status;
-    switch (status) {
-      case TriangleStatus::kValid:
-        ++out.counts.valid;
-        break;
-      case TriangleStatus::kMissingVertex:
-        ++out.counts.missing_vertex;
-        break;
-      case TriangleStatus::kSmallArea:
-        ++out.counts.small_area;
-        break;
-      case TriangleStatus::kSmallAngle:
-        ++out.counts.small_angle;
-        break;
-      case TriangleStatus::kHighAspect:
-        ++out.counts.high_aspect;
-        break;
-      case TriangleStatus::kInverted:
-        ++out.counts.inverted;
-        break;
-    }
+    count_status(status, out.counts);
     if (status != TriangleStatus::kValid) continue;
 
     const Strain2 e = green_lagrange(h);
@@ -115,25 +151,9 @@ FrameStrain compute_frame_strain(const FrameInput& input, const StrainSettings& 
     out.reference_area_m2[t] = area_m2;
     energy_J += w * area_m2;
     valid_area += area_m2;
-
-    if (have_previous) {
-      const std::array<Vec2, 3> prev = {input.previous_px[tri[0]], input.previous_px[tri[1]],
-                                        input.previous_px[tri[2]]};
-      if (finite(prev[0]) && finite(prev[1]) && finite(prev[2])) {
-        const Gradient2 h_prev = displacement_gradient(ref, prev);
-        if (area_ratio(h_prev) > 0.0) {
-          const Strain2 inc = green_lagrange(incremental_gradient(h, h_prev));
-          out.increment[t] = inc;
-          if (input.dt_s > 0.0)
-            out.rate_per_s[t] = {inc.xx / input.dt_s, inc.yy / input.dt_s, inc.xy / input.dt_s};
-        }
-      }
-    }
+    if (!input.previous_px.empty()) fill_increment(input, tri, ref, h, t, out);
     if (input.plate_known) {
-      const double ux = (cur[0].x + cur[1].x + cur[2].x - ref[0].x - ref[1].x - ref[2].x) / 3.0;
-      const double uy = (cur[0].y + cur[1].y + cur[2].y - ref[0].y - ref[1].y - ref[2].y) / 3.0;
-      const bool stuck = std::hypot(ux - input.plate_displacement_px.x, uy - input.plate_displacement_px.y) <=
-                         settings.stick_tolerance_px;
+      const bool stuck = moves_with_plate(input, ref, cur, settings.stick_tolerance_px);
       out.stuck[t] = stuck ? 1 : 0;
       if (stuck) stuck_area += area_m2;
     }
