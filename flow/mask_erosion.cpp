@@ -4,22 +4,18 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace tirstrain::flow {
 
-void erode_ellipse(const cv::Mat& mask, int radius_px, cv::Mat& out) {
-  CV_Assert(mask.type() == CV_8U && radius_px >= 0 && radius_px <= 250);
-  out.create(mask.size(), CV_8U);
-  CV_Assert(out.data != mask.data);
-  if (radius_px == 0) {
-    mask.copyTo(out);
-    return;
-  }
-  const int r = radius_px, rows = mask.rows, cols = mask.cols;
-  // The element's row half-widths, read off OpenCV's own element so that the two agree exactly.
+namespace {
+
+// The elliptic element's row half-widths, read off OpenCV's own element so that the two agree exactly; −1
+// for an empty element row.
+std::vector<int> element_half_widths(int r) {
   const cv::Mat element = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * r + 1, 2 * r + 1));
-  std::vector<int> half(static_cast<std::size_t>(2 * r + 1), -1);  // −1: an empty element row
+  std::vector<int> half(static_cast<std::size_t>(2 * r + 1), -1);
   for (int i = 0; i <= 2 * r; ++i) {
     const std::uint8_t* e = element.ptr<std::uint8_t>(i);
     int first = -1, last = -1;
@@ -33,17 +29,25 @@ void erode_ellipse(const cv::Mat& mask, int radius_px, cv::Mat& out) {
       half[static_cast<std::size_t>(i)] = r - first;
     }
   }
-  // reach(y, x) = min(L, R), L and R the runs of set pixels in row y from x leftwards and rightwards (x
-  // included; 0 where x is unset), capped at r + 2: the row's pixels [x − w, x + w] are all set iff
-  // reach ≥ w + 1.
-  const int cap = r + 1;
-  cv::Mat reach(rows, cols, CV_8U);
-  // Per row: the extent of its set pixels [first, last], and one run of pixels whose reach is full (≥ cap,
-  // i.e. at least r + 1 set pixels on both sides) as [deep_first, deep_last]: the longest such run, so that
-  // an interior pixel of a convex contact is known to survive without testing it.
-  std::vector<int> first(static_cast<std::size_t>(rows)), last(static_cast<std::size_t>(rows));
-  std::vector<int> deep_first(static_cast<std::size_t>(rows)), deep_last(static_cast<std::size_t>(rows));
-  const int top = cap + 1;
+  return half;
+}
+
+// Per row: the extent of its set pixels [first, last], and one run of pixels whose reach is full (at least
+// r + 1 set pixels on both sides) as [deep_first, deep_last]: the longest such run, so that an interior pixel
+// of a convex contact is known to survive without testing it.
+struct RowExtents {
+  std::vector<int> first, last, deep_first, deep_last;
+};
+
+// reach(y, x) = min(L, R), L and R the runs of set pixels in row y from x leftwards and rightwards (x
+// included; 0 where x is unset), capped at r + 2: the row's pixels [x − w, x + w] are all set iff
+// reach ≥ w + 1.
+RowExtents row_reach(const cv::Mat& mask, int r, cv::Mat& reach) {
+  const int rows = mask.rows, cols = mask.cols, cap = r + 1, top = cap + 1;
+  reach.create(rows, cols, CV_8U);
+  RowExtents extents;
+  for (std::vector<int>* v : {&extents.first, &extents.last, &extents.deep_first, &extents.deep_last})
+    v->resize(static_cast<std::size_t>(rows));
   for (int y = 0; y < rows; ++y) {
     const std::uint8_t* m = mask.ptr<std::uint8_t>(y);
     std::uint8_t* out_row = reach.ptr<std::uint8_t>(y);
@@ -72,8 +76,55 @@ void erode_ellipse(const cv::Mat& mask, int radius_px, cv::Mat& out) {
         best_first = deep_s, best_last = deep_e;
     }
     const auto k = static_cast<std::size_t>(y);
-    first[k] = f, last[k] = l, deep_first[k] = best_first, deep_last[k] = best_last;
+    extents.first[k] = f, extents.last[k] = l, extents.deep_first[k] = best_first,
+    extents.deep_last[k] = best_last;
   }
+  return extents;
+}
+
+// The columns of output row y the element can fit in at all, [lo, hi] (hi < lo: none), and those where it
+// fits without a test, [deep_lo, deep_hi], from every element row's extents.
+struct RowSpan {
+  int lo, hi, deep_lo, deep_hi;
+};
+std::optional<RowSpan> candidate_span(const RowExtents& extents, const std::vector<int>& half, int y,
+                                      int rows, int cols) {
+  const int r = static_cast<int>(half.size() / 2);
+  RowSpan span{0, cols - 1, 0, cols - 1};
+  for (int i = 0; i <= 2 * r; ++i) {
+    if (half[static_cast<std::size_t>(i)] < 0) continue;
+    const int yy = y + i - r;
+    if (yy < 0 || yy >= rows) return std::nullopt;  // the border is 0
+    const auto k = static_cast<std::size_t>(yy);
+    span.lo = std::max(span.lo, extents.first[k]);
+    span.hi = std::min(span.hi, extents.last[k]);
+    span.deep_lo = std::max(span.deep_lo, extents.deep_first[k]);
+    span.deep_hi = std::min(span.deep_hi, extents.deep_last[k]);
+  }
+  if (span.hi < span.lo) return std::nullopt;
+  if (span.deep_hi < span.deep_lo) {
+    span.deep_lo = span.hi + 1;
+    span.deep_hi = span.hi;
+  }
+  span.deep_lo = std::max(span.deep_lo, span.lo);
+  span.deep_hi = std::min(span.deep_hi, span.hi);
+  return span;
+}
+
+}  // namespace
+
+void erode_ellipse(const cv::Mat& mask, int radius_px, cv::Mat& out) {
+  CV_Assert(mask.type() == CV_8U && radius_px >= 0 && radius_px <= 250);
+  out.create(mask.size(), CV_8U);
+  CV_Assert(out.data != mask.data);
+  if (radius_px == 0) {
+    mask.copyTo(out);
+    return;
+  }
+  const int r = radius_px, rows = mask.rows, cols = mask.cols;
+  const std::vector<int> half = element_half_widths(r);
+  cv::Mat reach;
+  const RowExtents extents = row_reach(mask, r, reach);
   std::vector<std::uint8_t> keep(static_cast<std::size_t>(cols));
   // keep[x] for x in [x0, x1]: every element row's reach covers its half-width.
   const auto test = [&](int y, int x0, int x1) {
@@ -92,34 +143,13 @@ void erode_ellipse(const cv::Mat& mask, int radius_px, cv::Mat& out) {
     const std::uint8_t* m = mask.ptr<std::uint8_t>(y);
     std::uint8_t* o = out.ptr<std::uint8_t>(y);
     std::fill(o, o + cols, std::uint8_t{0});
-    // A pixel survives only where every element row's reach is at least 1: inside every row's extent.
-    int lo = 0, hi = cols - 1, deep_lo = 0, deep_hi = cols - 1;
-    bool inside = true;
-    for (int i = 0; i <= 2 * r && inside; ++i) {
-      if (half[static_cast<std::size_t>(i)] < 0) continue;
-      const int yy = y + i - r;
-      if (yy < 0 || yy >= rows) {  // the border is 0
-        inside = false;
-        break;
-      }
-      const auto k = static_cast<std::size_t>(yy);
-      lo = std::max(lo, first[k]);
-      hi = std::min(hi, last[k]);
-      deep_lo = std::max(deep_lo, deep_first[k]);
-      deep_hi = std::min(deep_hi, deep_last[k]);
-    }
-    if (!inside || hi < lo) continue;
+    const std::optional<RowSpan> span = candidate_span(extents, half, y, rows, cols);
+    if (!span) continue;
     // Within every row's full-reach run the element fits at once; the rest of [lo, hi] is tested.
-    if (deep_hi < deep_lo) {
-      deep_lo = hi + 1;
-      deep_hi = hi;
-    }
-    deep_lo = std::max(deep_lo, lo);
-    deep_hi = std::min(deep_hi, hi);
-    test(y, lo, deep_lo - 1);
-    test(y, deep_hi + 1, hi);
-    for (int x = lo; x <= hi; ++x) {
-      const bool survives = (x >= deep_lo && x <= deep_hi) || keep[static_cast<std::size_t>(x)];
+    test(y, span->lo, span->deep_lo - 1);
+    test(y, span->deep_hi + 1, span->hi);
+    for (int x = span->lo; x <= span->hi; ++x) {
+      const bool survives = (x >= span->deep_lo && x <= span->deep_hi) || keep[static_cast<std::size_t>(x)];
       o[x] = survives ? m[x] : std::uint8_t{0};
     }
   }
