@@ -218,6 +218,114 @@ void check_superblock(const std::string& path) {
           {.file = path});
 }
 
+// The MATLAB class a v7.3 file gives a dataset ("" for other HDF5 writers).
+std::string matlab_class_of(const H5::DataSet& ds) {
+  std::string matlab_class;
+  if (!ds.attrExists("MATLAB_class")) return matlab_class;
+  H5::Attribute attr = ds.openAttribute("MATLAB_class");
+  attr.read(attr.getStrType(), matlab_class);
+  // Fixed-length HDF5 strings may carry trailing NULs.
+  if (const auto nul = matlab_class.find('\0'); nul != std::string::npos) matlab_class.resize(nul);
+  return matlab_class;
+}
+
+// Why a dataset is not a channel ("" when it is one: numeric, a vector, not empty, plausibly sized);
+// `length` receives its number of samples.
+std::string why_not_a_channel(const H5::DataSet& ds, std::uintmax_t file_bytes, std::size_t& length) {
+  const std::string matlab_class = matlab_class_of(ds);
+  const H5T_class_t type_class = ds.getTypeClass();
+  // A damaged header can claim elements gigabytes wide, which HDF5 would allocate for the conversion.
+  const std::size_t element_bytes = ds.getDataType().getSize();
+  const bool numeric =
+      (type_class == H5T_INTEGER || type_class == H5T_FLOAT) && element_bytes >= 1 && element_bytes <= 16;
+  if (matlab_class == "char") return "is a MATLAB char array (text stored as uint16), not a numeric channel";
+  if (matlab_class == "cell" || matlab_class == "struct")
+    return "is a MATLAB " + matlab_class + ", not a numeric channel";
+  if (ds.attrExists("MATLAB_empty")) return "is an empty MATLAB array";
+  if (!numeric) return "is not a numeric dataset";
+  H5::DataSpace space = ds.getSpace();
+  const int rank = space.getSimpleExtentNdims();
+  std::vector<hsize_t> dims(static_cast<std::size_t>(std::max(rank, 0)));
+  if (rank > 0) space.getSimpleExtentDims(dims.data());
+  length = 1;
+  int non_singleton = 0;
+  for (hsize_t d : dims) {
+    length *= static_cast<std::size_t>(d);
+    non_singleton += d != 1;
+  }
+  if (rank > 2 || non_singleton > 1) {
+    std::string shape;
+    for (hsize_t d : dims) shape += (shape.empty() ? "" : "x") + std::to_string(d);
+    return "has shape " + shape + "; a channel must be a vector (one non-singleton dimension)";
+  }
+  if (length == 0) return "is empty";
+  return implausible_length(ds, length, element_bytes, file_bytes);
+}
+
+std::vector<double> read_finite_samples(const H5::DataSet& ds, std::size_t length, const std::string& path,
+                                        const std::string& name) {
+  std::vector<double> values(length);
+  ds.read(values.data(), H5::PredType::NATIVE_DOUBLE);
+  for (std::size_t k = 0; k < values.size(); ++k)
+    if (!std::isfinite(values[k]))
+      throw Error("sample " + std::to_string(k) + " (0-based) is not a finite number",
+                  {.file = path, .column = name});
+  return values;
+}
+
+// Every numeric vector dataset of the group into `table` (the time dataset as its time axis); returns
+// whether the time dataset was there. A requested dataset (or any, when the columns are expected ones) that
+// is not a channel is an error naming it; others are skipped.
+bool read_group_channels(const H5::Group& group, const std::string& path, std::uintmax_t file_bytes,
+                         const ChannelReadOptions& options, ChannelTable& table) {
+  std::vector<std::string> wanted = options.required;
+  wanted.push_back(options.time_column);
+  bool have_time = false;
+  for (hsize_t i = 0; i < group.getNumObjs(); ++i) {
+    const std::string name = group.getObjnameByIdx(i);
+    const bool requested = std::find(wanted.begin(), wanted.end(), name) != wanted.end();
+    // MATLAB keeps cell/struct payloads in "#refs#" and "#subsystem#"; they are not channels.
+    if (!name.empty() && name[0] == '#') continue;
+    if (group.childObjType(name) != H5O_TYPE_DATASET) {
+      if (requested)
+        throw Error("is a group, not a numeric dataset (a MATLAB struct?)", {.file = path, .column = name});
+      continue;
+    }
+    const H5::DataSet ds = group.openDataSet(name);
+    std::size_t length = 0;
+    if (const std::string why_not = why_not_a_channel(ds, file_bytes, length); !why_not.empty()) {
+      if (requested || !options.expected.empty()) throw Error(why_not, {.file = path, .column = name});
+      continue;
+    }
+    std::vector<double> values = read_finite_samples(ds, length, path, name);
+    if (name == options.time_column) {
+      table.time_s = std::move(values);
+      have_time = true;
+    } else {
+      table.names.push_back(name);
+      table.columns.push_back(std::move(values));
+    }
+  }
+  return have_time;
+}
+
+// The time axis from --rate-Hz when the file has no time dataset; an error when it has neither or both.
+void settle_time_axis(bool have_time, const std::string& path, const ChannelReadOptions& options,
+                      ChannelTable& table) {
+  if (have_time && options.rate_Hz)
+    throw Error(rate_conflict(), {.file = path, .column = options.time_column, .key = "--rate-Hz"});
+  if (have_time) return;
+  if (options.rate_Hz && !table.columns.empty()) {
+    table.time_s = times_from_rate(table.columns.front().size(), *options.rate_Hz, path);
+    return;
+  }
+  std::string present;
+  for (const auto& n : table.names) present += (present.empty() ? "" : ", ") + n;
+  throw Error("no time dataset in group '" + options.hdf5_group + "' (numeric datasets present: " + present +
+                  "); name it with --time-column, or give the sample rate with --rate-Hz",
+              {.file = path, .column = options.time_column});
+}
+
 }  // namespace
 
 ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOptions& options) {
@@ -231,89 +339,9 @@ ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOption
     H5::H5File file(path, H5F_ACC_RDONLY);
     std::error_code size_error;
     const std::uintmax_t file_bytes = std::filesystem::file_size(path, size_error);
-    H5::Group group = file.openGroup(options.hdf5_group);
-    std::vector<std::string> wanted = options.required;
-    wanted.push_back(options.time_column);
-    bool have_time = false;
-    for (hsize_t i = 0; i < group.getNumObjs(); ++i) {
-      const std::string name = group.getObjnameByIdx(i);
-      const bool requested = std::find(wanted.begin(), wanted.end(), name) != wanted.end();
-      // MATLAB keeps cell/struct payloads in "#refs#" and "#subsystem#"; they are not channels.
-      if (!name.empty() && name[0] == '#') continue;
-      const H5O_type_t kind = group.childObjType(name);
-      if (kind != H5O_TYPE_DATASET) {
-        if (requested)
-          throw Error("is a group, not a numeric dataset (a MATLAB struct?)", {.file = path, .column = name});
-        continue;
-      }
-      H5::DataSet ds = group.openDataSet(name);
-      std::string matlab_class;
-      if (ds.attrExists("MATLAB_class")) {
-        H5::Attribute attr = ds.openAttribute("MATLAB_class");
-        attr.read(attr.getStrType(), matlab_class);
-        // Fixed-length HDF5 strings may carry trailing NULs.
-        if (const auto nul = matlab_class.find('\0'); nul != std::string::npos) matlab_class.resize(nul);
-      }
-      const H5T_class_t type_class = ds.getTypeClass();
-      // A damaged header can claim elements gigabytes wide, which HDF5 would allocate for the conversion.
-      const std::size_t element_bytes = ds.getDataType().getSize();
-      const bool numeric =
-          (type_class == H5T_INTEGER || type_class == H5T_FLOAT) && element_bytes >= 1 && element_bytes <= 16;
-      std::string why_not;
-      if (matlab_class == "char")
-        why_not = "is a MATLAB char array (text stored as uint16), not a numeric channel";
-      else if (matlab_class == "cell" || matlab_class == "struct")
-        why_not = "is a MATLAB " + matlab_class + ", not a numeric channel";
-      else if (ds.attrExists("MATLAB_empty"))
-        why_not = "is an empty MATLAB array";
-      else if (!numeric)
-        why_not = "is not a numeric dataset";
-      H5::DataSpace space = ds.getSpace();
-      const int rank = space.getSimpleExtentNdims();
-      std::vector<hsize_t> dims(static_cast<std::size_t>(std::max(rank, 0)));
-      if (rank > 0) space.getSimpleExtentDims(dims.data());
-      std::size_t length = 1;
-      int non_singleton = 0;
-      for (hsize_t d : dims) {
-        length *= static_cast<std::size_t>(d);
-        non_singleton += d != 1;
-      }
-      if (why_not.empty() && (rank > 2 || non_singleton > 1)) {
-        std::string shape;
-        for (hsize_t d : dims) shape += (shape.empty() ? "" : "x") + std::to_string(d);
-        why_not = "has shape " + shape + "; a channel must be a vector (one non-singleton dimension)";
-      }
-      if (why_not.empty() && length == 0) why_not = "is empty";
-      if (why_not.empty()) why_not = implausible_length(ds, length, element_bytes, file_bytes);
-      if (!why_not.empty()) {
-        if (requested || !options.expected.empty()) throw Error(why_not, {.file = path, .column = name});
-        continue;
-      }
-      std::vector<double> values(length);
-      ds.read(values.data(), H5::PredType::NATIVE_DOUBLE);
-      for (std::size_t k = 0; k < values.size(); ++k)
-        if (!std::isfinite(values[k]))
-          throw Error("sample " + std::to_string(k) + " (0-based) is not a finite number",
-                      {.file = path, .column = name});
-      if (name == options.time_column) {
-        table.time_s = std::move(values);
-        have_time = true;
-      } else {
-        table.names.push_back(name);
-        table.columns.push_back(std::move(values));
-      }
-    }
-    if (have_time && options.rate_Hz)
-      throw Error(rate_conflict(), {.file = path, .column = options.time_column, .key = "--rate-Hz"});
-    if (!have_time && options.rate_Hz && !table.columns.empty()) {
-      table.time_s = times_from_rate(table.columns.front().size(), *options.rate_Hz, path);
-    } else if (!have_time) {
-      std::string present;
-      for (const auto& n : table.names) present += (present.empty() ? "" : ", ") + n;
-      throw Error("no time dataset in group '" + options.hdf5_group + "' (numeric datasets present: " +
-                      present + "); name it with --time-column, or give the sample rate with --rate-Hz",
-                  {.file = path, .column = options.time_column});
-    }
+    const bool have_time =
+        read_group_channels(file.openGroup(options.hdf5_group), path, file_bytes, options, table);
+    settle_time_axis(have_time, path, options, table);
   } catch (const H5::Exception& e) {
     throw Error("cannot read HDF5 file: " + std::string(e.getCDetailMsg()), {.file = path});
   }
