@@ -69,17 +69,96 @@ class LiveAnalysis {
   std::int64_t analysed_ = 0;
 };
 
+struct LiveArgs {
+  std::string uri, scene, record, format = "tiff";
+  std::optional<double> frame_rate_Hz;
+  std::int64_t frames = -1;
+  double seconds = -1;
+  bool no_window = false, quiet = false, overwrite = false;
+};
+
+void print_status(const capture::LiveStatus& s) {
+  std::fprintf(stderr,
+               "live: %6.1f s  %lld frames  %.1f fps received  %.1f fps shown  lost %lld  incomplete %lld  "
+               "latency %.1f ms\n",
+               s.elapsed_s, static_cast<long long>(s.frames_received), s.receive_rate_hz, s.show_rate_hz,
+               static_cast<long long>(s.frames_lost), static_cast<long long>(s.frames_incomplete),
+               s.latency_ms);
+}
+
+capture::LiveOptions live_options(const LiveArgs& args, const std::shared_ptr<LiveAnalysis>& analysis) {
+  capture::LiveOptions options;
+  options.window = !args.no_window;
+  options.record_dir = args.record;
+  options.record.format = capture::parse_image_format(args.format, "--format");
+  options.record.overwrite = args.overwrite;
+  options.max_frames = args.frames;
+  options.max_seconds = args.seconds;
+  if (analysis) {
+    options.overlay = [analysis](const capture::Frame& frame, cv::Mat& canvas) {
+      analysis->run(frame, canvas);
+    };
+    options.on_analysis_error = [](const std::string& message) {
+      std::fprintf(stderr, "live: analysis stopped: %s; capture and recording go on\n", message.c_str());
+    };
+  }
+  install_interrupt_handler();
+  options.stop = &interrupt_flag();
+  if (!args.quiet) options.on_status = print_status;
+  return options;
+}
+
+// What was received, shown, lost and saved, and one line with the capture -> display latency of the whole
+// run (median / p95 / max, ms).
+void print_summary(const capture::LiveReport& report, const LiveArgs& args, const LiveAnalysis* analysis) {
+  const capture::LiveStatus& s = report.status;
+  std::cerr << "live: " << s.frames_received << " frames received, " << s.frames_shown << " shown, "
+            << s.frames_lost << " lost, " << s.frames_incomplete << " incomplete";
+  if (report.recorded) std::cerr << "; " << report.record.counts.frames_saved << " saved to " << args.record;
+  std::cerr << "\n";
+  auto latency = [](const char* name, const capture::LatencySummary& l) {
+    return cv::format("%s %.2f / %.2f / %.2f ms (%lld frames)", name, l.median_ms, l.p95_ms, l.max_ms,
+                      static_cast<long long>(l.frames));
+  };
+  std::string line = "live: latency median / p95 / max: " +
+                     latency("host receive -> overlay ready", report.receive_to_ready);
+  if (report.receive_to_shown.frames > 0)
+    line += "; " + latency("host receive -> imshow returned", report.receive_to_shown);
+  if (report.device_to_ready.frames > 0)
+    line += "; " + latency("device timestamp -> overlay ready", report.device_to_ready);
+  std::cerr << line << "\n";
+  if (analysis)
+    std::cerr << "live: analysis stages: " << analysis->describe() << " (" << analysis->analysed()
+              << " frames analysed)\n";
+}
+
+void run_live_command(const LiveArgs& args, const CameraArgs& camera) {
+  // Loaded (and its stages built) now, so a bad scene fails before the camera starts.
+  std::shared_ptr<LiveAnalysis> analysis;
+  std::optional<Scene> scene;
+  if (!args.scene.empty()) {
+    scene = load_scene(args.scene);
+    analysis = std::make_shared<LiveAnalysis>(*scene);
+  }
+  if (!args.no_window) capture::check_display();  // before the camera starts
+  const capture::CameraSettings settings = camera_settings(camera, scene ? &*scene : nullptr);
+  capture::LiveOptions options = live_options(args, analysis);
+  std::unique_ptr<capture::FrameSource> source = capture::open_source(
+      args.uri, settings, capture::FileSourceOptions{.frame_rate_Hz = args.frame_rate_Hz});
+  if (source->is_live()) options.record.requested_settings = capture::describe_requested(settings);
+  if (!args.quiet) std::cerr << "live: " << source->describe() << "\n";
+  const capture::LiveReport report = capture::run_live(*source, options);
+  print_summary(report, args, analysis.get());
+  if (!report.error.empty()) throw Error("live view stopped: " + report.error);
+  if (!report.analysis_error.empty())
+    throw Error("the analysis stopped: " + report.analysis_error +
+                (report.recorded ? " (the recording in " + args.record + " is complete)" : std::string()));
+}
+
 }  // namespace
 
 void add_live_command(CLI::App& app) {
-  struct Args {
-    std::string uri, scene, record, format = "tiff";
-    std::optional<double> frame_rate_Hz;
-    std::int64_t frames = -1;
-    double seconds = -1;
-    bool no_window = false, quiet = false, overwrite = false;
-  };
-  auto args = std::make_shared<Args>();
+  auto args = std::make_shared<LiveArgs>();
   auto camera = std::make_shared<CameraArgs>();
   CLI::App* sub = app.add_subcommand(
       "live",
@@ -110,73 +189,7 @@ void add_live_command(CLI::App& app) {
   sub->add_flag("--no-window", args->no_window, "No display: print status lines (headless machines)");
   sub->add_flag("--quiet", args->quiet, "No status lines");
   add_camera_options(sub, camera);
-  sub->callback([args, camera] {
-    // Loaded (and its stages built) now, so a bad scene fails before the camera starts.
-    std::shared_ptr<LiveAnalysis> analysis;
-    std::optional<Scene> scene;
-    if (!args->scene.empty()) {
-      scene = load_scene(args->scene);
-      analysis = std::make_shared<LiveAnalysis>(*scene);
-    }
-    if (!args->no_window) capture::check_display();  // before the camera starts
-    const capture::CameraSettings settings = camera_settings(*camera, scene ? &*scene : nullptr);
-    capture::LiveOptions options;
-    options.window = !args->no_window;
-    options.record_dir = args->record;
-    options.record.format = capture::parse_image_format(args->format, "--format");
-    options.record.overwrite = args->overwrite;
-    options.max_frames = args->frames;
-    options.max_seconds = args->seconds;
-    if (analysis) {
-      options.overlay = [analysis](const capture::Frame& frame, cv::Mat& canvas) {
-        analysis->run(frame, canvas);
-      };
-      options.on_analysis_error = [](const std::string& message) {
-        std::fprintf(stderr, "live: analysis stopped: %s; capture and recording go on\n", message.c_str());
-      };
-    }
-    install_interrupt_handler();
-    options.stop = &interrupt_flag();
-    if (!args->quiet)
-      options.on_status = [](const capture::LiveStatus& s) {
-        std::fprintf(
-            stderr,
-            "live: %6.1f s  %lld frames  %.1f fps received  %.1f fps shown  lost %lld  incomplete %lld  "
-            "latency %.1f ms\n",
-            s.elapsed_s, static_cast<long long>(s.frames_received), s.receive_rate_hz, s.show_rate_hz,
-            static_cast<long long>(s.frames_lost), static_cast<long long>(s.frames_incomplete), s.latency_ms);
-      };
-    std::unique_ptr<capture::FrameSource> source = capture::open_source(
-        args->uri, settings, capture::FileSourceOptions{.frame_rate_Hz = args->frame_rate_Hz});
-    if (source->is_live()) options.record.requested_settings = capture::describe_requested(settings);
-    if (!args->quiet) std::cerr << "live: " << source->describe() << "\n";
-    const capture::LiveReport report = capture::run_live(*source, options);
-    const capture::LiveStatus& s = report.status;
-    std::cerr << "live: " << s.frames_received << " frames received, " << s.frames_shown << " shown, "
-              << s.frames_lost << " lost, " << s.frames_incomplete << " incomplete";
-    if (report.recorded)
-      std::cerr << "; " << report.record.counts.frames_saved << " saved to " << args->record;
-    std::cerr << "\n";
-    // One line with the capture -> display latency of the whole run (median / p95 / max, ms).
-    auto latency = [](const char* name, const capture::LatencySummary& l) {
-      return cv::format("%s %.2f / %.2f / %.2f ms (%lld frames)", name, l.median_ms, l.p95_ms, l.max_ms,
-                        static_cast<long long>(l.frames));
-    };
-    std::string line = "live: latency median / p95 / max: " +
-                       latency("host receive -> overlay ready", report.receive_to_ready);
-    if (report.receive_to_shown.frames > 0)
-      line += "; " + latency("host receive -> imshow returned", report.receive_to_shown);
-    if (report.device_to_ready.frames > 0)
-      line += "; " + latency("device timestamp -> overlay ready", report.device_to_ready);
-    std::cerr << line << "\n";
-    if (analysis)
-      std::cerr << "live: analysis stages: " << analysis->describe() << " (" << analysis->analysed()
-                << " frames analysed)\n";
-    if (!report.error.empty()) throw Error("live view stopped: " + report.error);
-    if (!report.analysis_error.empty())
-      throw Error("the analysis stopped: " + report.analysis_error +
-                  (report.recorded ? " (the recording in " + args->record + " is complete)" : std::string()));
-  });
+  sub->callback([args, camera] { run_live_command(*args, *camera); });
 }
 
 }  // namespace tirstrain::cli
