@@ -9,32 +9,65 @@
 #include "tirstrain/commands.hpp"
 
 namespace tirstrain::cli {
+namespace {
+
+struct ProcessArgs {
+  std::string input, scene, out, overlay = "mp4", preset, segmentation, strain_mode;
+  std::optional<double> frame_rate_Hz;
+  std::vector<std::string> compute;
+  bool quiet = false, strict = false, no_scene = false;
+};
+
+const char* const kProcessHelp =
+    "Measure contact, tracks, strain and channels from a recording: the stages the scene's compute list\n"
+    "asks for, or without one every stage whose inputs exist (channels: a channels: section, or\n"
+    "channels.csv beside the frames with tirstrain synth's column names). The model fit (fit) runs only\n"
+    "when the scene or --compute asks for it.\n"
+    "INPUT: a folder of frames (DIR/frames/*.png + DIR/frames.csv, or images directly in DIR), a printf "
+    "or\n"
+    "glob pattern ('run/img_%05d.tif', 'run/*.png'), or a video file. Time comes from frames.csv "
+    "(index,t_s)\n"
+    "or the video's timestamps. Without --scene: INPUT/scene.yaml if INPUT is a folder holding one (as\n"
+    "tirstrain synth writes), else 52 px/mm, E = 1 MPa, nu = 0.4, depth 2 mm (each default is said on\n"
+    "the console and in summary.json), and ridge period, polarity, contact and the glass's printed\n"
+    "pattern band (along any image edge, or none) found from the images.\n"
+    "Writes DIR/result.h5, DIR/frames.csv, DIR/summary.json and DIR/overlay.mp4 (see docs/formats.md),\n"
+    "built in DIR.partial and swapped in for DIR only when complete: an earlier result stays whole until\n"
+    "then. DIR must not be, or hold, INPUT or the scene, nor hold files process does not write.";
+
+pipeline::ProcessOptions process_options(const ProcessArgs& args) {
+  pipeline::ProcessOptions options;
+  options.input = args.input;
+  options.frame_rate_Hz = args.frame_rate_Hz;
+  if (!args.scene.empty()) options.scene_path = args.scene;
+  options.folder_scene = !args.no_scene;
+  options.out_dir = args.out;
+  options.quiet = args.quiet;
+  options.strict = args.strict;
+  static const std::map<std::string, pipeline::OverlayMode> modes = {{"mp4", pipeline::OverlayMode::kMp4},
+                                                                     {"png", pipeline::OverlayMode::kPng},
+                                                                     {"none", pipeline::OverlayMode::kNone}};
+  options.overlay = modes.at(args.overlay);
+  options.compute = args.compute;
+  options.tracking_preset = args.preset;
+  options.segmentation_preset = args.segmentation;
+  options.strain_mode = args.strain_mode;
+  return options;
+}
+
+void run_process_command(const ProcessArgs& args) {
+  const pipeline::ProcessReport report = pipeline::run_process(process_options(args));
+  if (args.quiet) return;
+  std::cerr << "processed " << report.frames << " frames (" << report.frames_with_contact << " with contact";
+  if (report.frames_skipped > 0) std::cerr << ", " << report.frames_skipped << " skipped";
+  std::cerr << ") -> " << args.out << "\n";
+}
+
+}  // namespace
 
 void add_process_command(CLI::App& app) {
-  struct Args {
-    std::string input, scene, out, overlay = "mp4", preset, segmentation, strain_mode;
-    std::optional<double> frame_rate_Hz;
-    std::vector<std::string> compute;
-    bool quiet = false, strict = false, no_scene = false;
-  };
-  auto args = std::make_shared<Args>();
-  CLI::App* sub = app.add_subcommand(
-      "process",
-      "Measure contact, tracks, strain and channels from a recording: the stages the scene's compute list\n"
-      "asks for, or without one every stage whose inputs exist (channels: a channels: section, or\n"
-      "channels.csv beside the frames with tirstrain synth's column names). The model fit (fit) runs only\n"
-      "when the scene or --compute asks for it.\n"
-      "INPUT: a folder of frames (DIR/frames/*.png + DIR/frames.csv, or images directly in DIR), a printf "
-      "or\n"
-      "glob pattern ('run/img_%05d.tif', 'run/*.png'), or a video file. Time comes from frames.csv "
-      "(index,t_s)\n"
-      "or the video's timestamps. Without --scene: INPUT/scene.yaml if INPUT is a folder holding one (as\n"
-      "tirstrain synth writes), else 52 px/mm, E = 1 MPa, nu = 0.4, depth 2 mm (each default is said on\n"
-      "the console and in summary.json), and ridge period, polarity, contact and the glass's printed\n"
-      "pattern band (along any image edge, or none) found from the images.\n"
-      "Writes DIR/result.h5, DIR/frames.csv, DIR/summary.json and DIR/overlay.mp4 (see docs/formats.md),\n"
-      "built in DIR.partial and swapped in for DIR only when complete: an earlier result stays whole until\n"
-      "then. DIR must not be, or hold, INPUT or the scene, nor hold files process does not write.");
+  auto args = std::make_shared<ProcessArgs>();
+  CLI::App* sub = app.add_subcommand("process", kProcessHelp);
   sub->add_option("INPUT", args->input,
                   "Frames folder, image pattern, multi-page TIFF, .cine, .mraw/.cih or video file "
                   "(docs/formats.md)")
@@ -72,32 +105,7 @@ void add_process_command(CLI::App& app) {
       "Stop at a corrupt frame, a missing stage or missing timestamps instead of skipping/assuming");
   sub->add_option("--overlay", args->overlay, "Overlay for viewing: mp4 (default), png (DIR/overlay/), none")
       ->check(CLI::IsMember({"mp4", "png", "none"}));
-  sub->callback([args] {
-    pipeline::ProcessOptions options;
-    options.input = args->input;
-    options.frame_rate_Hz = args->frame_rate_Hz;
-    if (!args->scene.empty()) options.scene_path = args->scene;
-    options.folder_scene = !args->no_scene;
-    options.out_dir = args->out;
-    options.quiet = args->quiet;
-    options.strict = args->strict;
-    static const std::map<std::string, pipeline::OverlayMode> modes = {
-        {"mp4", pipeline::OverlayMode::kMp4},
-        {"png", pipeline::OverlayMode::kPng},
-        {"none", pipeline::OverlayMode::kNone}};
-    options.overlay = modes.at(args->overlay);
-    options.compute = args->compute;
-    options.tracking_preset = args->preset;
-    options.segmentation_preset = args->segmentation;
-    options.strain_mode = args->strain_mode;
-    const pipeline::ProcessReport report = pipeline::run_process(options);
-    if (!args->quiet) {
-      std::cerr << "processed " << report.frames << " frames (" << report.frames_with_contact
-                << " with contact";
-      if (report.frames_skipped > 0) std::cerr << ", " << report.frames_skipped << " skipped";
-      std::cerr << ") -> " << args->out << "\n";
-    }
-  });
+  sub->callback([args] { run_process_command(*args); });
 }
 
 }  // namespace tirstrain::cli
