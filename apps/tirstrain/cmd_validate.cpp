@@ -29,38 +29,71 @@ void print_table(const pipeline::ValidationReport& report) {
   }
 }
 
+struct ValidateArgs {
+  std::string scene, trial, result, out, preset, segmentation, strain_mode, process_scene, staged_in;
+  double border_mm = 0.3;
+  int map_frame = -1;
+  bool quiet = false, no_maps = false, process_defaults = false;
+};
+
+const char* const kValidateFooter =
+    "With --scene the trial is synthesised into OUT/trial; with --trial an existing `tirstrain synth` "
+    "folder\n"
+    "is used. The trial is processed (contact, tracking, strain) into OUT/result unless --result names an\n"
+    "existing result of it. Errors are measured in the contact interior: triangles whose reference and "
+    "true\n"
+    "current centroids lie more than --border-mm inside the contact border. Strain references: 'point' is\n"
+    "the exact Green-Lagrange strain at the triangle's reference centroid; 'triangle' the strain of the\n"
+    "triangle with its vertices moved by the exact field (tracking error only). Both strain modes (exact\n"
+    "and incremental) are reported. U: % error of the total strain energy against the truth on the same\n"
+    "triangles, over frames with >= 10 % of the largest energy (none if that is below a uniform 1e-4\n"
+    "strain's, as in a rigid motion). c: stick radius from the stuck triangles'\n"
+    "area against the Cattaneo-Mindlin model's, in partial slip. Contact, every frame: 1 - IoU of the "
+    "hull\n"
+    "against the truth mask, and the ellipse's centre (px) and semi-axes (%) against the same direct fit\n"
+    "of the truth mask's outline.\n"
+    "Writes OUT/validation.csv (one row per quantity), OUT/validation_frames.csv (per frame) and\n"
+    "OUT/maps_E_xx.png, maps_E_yy.png, maps_E_xy.png (measured | truth | difference on the standard "
+    "ellipse).";
+
+pipeline::ValidateOptions validate_options(const ValidateArgs& args) {
+  pipeline::ValidateOptions o;
+  if (!args.scene.empty()) o.scene_path = args.scene;
+  if (!args.trial.empty()) o.trial_dir = args.trial;
+  if (!args.result.empty()) o.result_dir = args.result;
+  o.out_dir = args.out;
+  if (const std::size_t eq = args.staged_in.find('='); eq != std::string::npos)
+    o.staged_folders.push_back({args.staged_in.substr(0, eq), args.staged_in.substr(eq + 1)});
+  if (!args.process_scene.empty()) o.process_scene_path = args.process_scene;
+  o.process_defaults = args.process_defaults;
+  o.tracking_preset = args.preset;
+  o.segmentation_preset = args.segmentation;
+  o.strain_mode = args.strain_mode;
+  o.border_exclusion_mm = args.border_mm;
+  o.map_frame = args.map_frame;
+  o.write_maps = !args.no_maps;
+  o.quiet = args.quiet;
+  return o;
+}
+
+void run_validate_command(const ValidateArgs& args) {
+  const pipeline::ValidationReport report = pipeline::run_validate(validate_options(args));
+  print_table(report);
+  if (args.quiet) return;
+  std::cerr << "validated " << report.frames << " frames";
+  if (report.process_wall_s > 0.0) std::cerr << " (processing took " << report.process_wall_s << " s)";
+  std::cerr << "\n";
+  for (const auto& path : report.outputs) std::cerr << "  " << path << "\n";
+}
+
 }  // namespace
 
 void add_validate_command(CLI::App& app) {
-  struct Args {
-    std::string scene, trial, result, out, preset, segmentation, strain_mode, process_scene, staged_in;
-    double border_mm = 0.3;
-    int map_frame = -1;
-    bool quiet = false, no_maps = false, process_defaults = false;
-  };
-  auto args = std::make_shared<Args>();
+  auto args = std::make_shared<ValidateArgs>();
   CLI::App* sub = app.add_subcommand("validate",
                                      "Compare a processed synthetic trial with its exact truth (contact, "
                                      "tracks, strain, energy, stick zone)");
-  sub->footer(
-      "With --scene the trial is synthesised into OUT/trial; with --trial an existing `tirstrain synth` "
-      "folder\n"
-      "is used. The trial is processed (contact, tracking, strain) into OUT/result unless --result names an\n"
-      "existing result of it. Errors are measured in the contact interior: triangles whose reference and "
-      "true\n"
-      "current centroids lie more than --border-mm inside the contact border. Strain references: 'point' is\n"
-      "the exact Green-Lagrange strain at the triangle's reference centroid; 'triangle' the strain of the\n"
-      "triangle with its vertices moved by the exact field (tracking error only). Both strain modes (exact\n"
-      "and incremental) are reported. U: % error of the total strain energy against the truth on the same\n"
-      "triangles, over frames with >= 10 % of the largest energy (none if that is below a uniform 1e-4\n"
-      "strain's, as in a rigid motion). c: stick radius from the stuck triangles'\n"
-      "area against the Cattaneo-Mindlin model's, in partial slip. Contact, every frame: 1 - IoU of the "
-      "hull\n"
-      "against the truth mask, and the ellipse's centre (px) and semi-axes (%) against the same direct fit\n"
-      "of the truth mask's outline.\n"
-      "Writes OUT/validation.csv (one row per quantity), OUT/validation_frames.csv (per frame) and\n"
-      "OUT/maps_E_xx.png, maps_E_yy.png, maps_E_xy.png (measured | truth | difference on the standard "
-      "ellipse).");
+  sub->footer(kValidateFooter);
   sub->add_option("--scene", args->scene, "Scene file with a synthesis: section (synthesised first)")
       ->check(CLI::ExistingFile);
   sub->add_option("--trial", args->trial, "An existing synthesised trial folder")
@@ -93,32 +126,7 @@ void add_validate_command(CLI::App& app) {
   sub->add_flag("--quiet", args->quiet, "No progress on stderr");
   // For `bench`, which runs validate inside its own staging folder: STAGING=FINAL.
   sub->add_option("--staged-in", args->staged_in)->group("");
-  sub->callback([args] {
-    pipeline::ValidateOptions o;
-    if (!args->scene.empty()) o.scene_path = args->scene;
-    if (!args->trial.empty()) o.trial_dir = args->trial;
-    if (!args->result.empty()) o.result_dir = args->result;
-    o.out_dir = args->out;
-    if (const std::size_t eq = args->staged_in.find('='); eq != std::string::npos)
-      o.staged_folders.push_back({args->staged_in.substr(0, eq), args->staged_in.substr(eq + 1)});
-    if (!args->process_scene.empty()) o.process_scene_path = args->process_scene;
-    o.process_defaults = args->process_defaults;
-    o.tracking_preset = args->preset;
-    o.segmentation_preset = args->segmentation;
-    o.strain_mode = args->strain_mode;
-    o.border_exclusion_mm = args->border_mm;
-    o.map_frame = args->map_frame;
-    o.write_maps = !args->no_maps;
-    o.quiet = args->quiet;
-    const pipeline::ValidationReport report = pipeline::run_validate(o);
-    print_table(report);
-    if (!args->quiet) {
-      std::cerr << "validated " << report.frames << " frames";
-      if (report.process_wall_s > 0.0) std::cerr << " (processing took " << report.process_wall_s << " s)";
-      std::cerr << "\n";
-      for (const auto& path : report.outputs) std::cerr << "  " << path << "\n";
-    }
-  });
+  sub->callback([args] { run_validate_command(*args); });
 }
 
 }  // namespace tirstrain::cli
