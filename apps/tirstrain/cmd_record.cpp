@@ -26,18 +26,69 @@ void print_progress(const capture::RecordProgress& p) {
       p.frames_dropped_host > 0 ? "  WARNING: the disk cannot keep up, frames are being dropped" : "");
 }
 
+struct RecordArgs {
+  std::string uri, out, scene, format = "tiff";
+  std::int64_t frames = -1;
+  double seconds = -1;
+  int png_level = 1, writers = 2;
+  std::size_t queue_MiB = 512;
+  bool overwrite = false, quiet = false;
+};
+
+capture::RecordOptions record_options(const RecordArgs& args) {
+  capture::RecordOptions options;
+  options.out_dir = args.out;
+  options.max_frames = args.frames;
+  options.max_seconds = args.seconds;
+  options.format = capture::parse_image_format(args.format, "--format");
+  options.png_level = args.png_level;
+  options.writer_threads = args.writers;
+  options.queue_bytes = args.queue_MiB * 1024u * 1024u;
+  options.overwrite = args.overwrite;
+  install_interrupt_handler();
+  options.stop = &interrupt_flag();
+  if (!args.quiet) options.on_progress = print_progress;
+  return options;
+}
+
+// What was saved, received and lost, a warning per kind of loss, and an error when the recording stopped
+// early (what was saved before it stays).
+void report_recording(const capture::RecordReport& report, const std::string& out) {
+  const capture::RecordProgress& c = report.counts;
+  std::cerr << "record: " << c.frames_saved << " frames saved to " << out << " in " << report.elapsed_s
+            << " s (" << c.frames_received << " received, " << c.frames_incomplete << " incomplete, "
+            << c.frames_lost_device << " lost by the camera/network, " << c.frames_dropped_host
+            << " dropped because the disk could not keep up); stopped: " << report.stop_reason << "\n";
+  if (c.frames_dropped_host > 0)
+    std::cerr
+        << "record: WARNING: " << c.frames_dropped_host
+        << " frames were dropped because writing could not keep up; try --format pgm, more --writers or "
+           "a faster disk\n";
+  if (c.frames_incomplete > 0 || c.frames_lost_device > 0)
+    std::cerr << "record: WARNING: " << c.frames_incomplete
+              << " incomplete frames (listed in frames.csv with "
+              << "status 1, no image) and " << c.frames_lost_device << " frames never received\n";
+  if (!report.ok())
+    throw Error("recording stopped early: " + report.error + " -- the " + std::to_string(c.frames_saved) +
+                " frames before it are saved in " + out);
+}
+
+void run_record_command(const RecordArgs& args, const CameraArgs& camera) {
+  std::optional<Scene> scene;
+  if (!args.scene.empty()) scene = load_scene(args.scene);
+  const capture::CameraSettings settings = camera_settings(camera, scene ? &*scene : nullptr);
+  capture::RecordOptions options = record_options(args);
+  std::unique_ptr<capture::FrameSource> source = capture::open_source(args.uri, settings);
+  // File sources ignore a scene's camera: section (it describes the camera that made them).
+  if (source->is_live()) options.requested_settings = capture::describe_requested(settings);
+  if (!args.quiet) std::cerr << "record: " << source->describe() << "\n";
+  report_recording(capture::record(*source, options), args.out);
+}
+
 }  // namespace
 
 void add_record_command(CLI::App& app) {
-  struct Args {
-    std::string uri, out, scene, format = "tiff";
-    std::int64_t frames = -1;
-    double seconds = -1;
-    int png_level = 1, writers = 2;
-    std::size_t queue_MiB = 512;
-    bool overwrite = false, quiet = false;
-  };
-  auto args = std::make_shared<Args>();
+  auto args = std::make_shared<RecordArgs>();
   auto camera = std::make_shared<CameraArgs>();
   CLI::App* sub = app.add_subcommand(
       "record",
@@ -68,46 +119,7 @@ void add_record_command(CLI::App& app) {
   sub->add_flag("--overwrite", args->overwrite, "Replace a recording already in DIR");
   sub->add_flag("--quiet", args->quiet, "Only errors and the final summary");
   add_camera_options(sub, camera);
-  sub->callback([args, camera] {
-    std::optional<Scene> scene;
-    if (!args->scene.empty()) scene = load_scene(args->scene);
-    const capture::CameraSettings settings = camera_settings(*camera, scene ? &*scene : nullptr);
-    capture::RecordOptions options;
-    options.out_dir = args->out;
-    options.max_frames = args->frames;
-    options.max_seconds = args->seconds;
-    options.format = capture::parse_image_format(args->format, "--format");
-    options.png_level = args->png_level;
-    options.writer_threads = args->writers;
-    options.queue_bytes = args->queue_MiB * 1024u * 1024u;
-    options.overwrite = args->overwrite;
-    install_interrupt_handler();
-    options.stop = &interrupt_flag();
-    if (!args->quiet) options.on_progress = print_progress;
-    std::unique_ptr<capture::FrameSource> source = capture::open_source(args->uri, settings);
-    // File sources ignore a scene's camera: section (it describes the camera that made them).
-    if (source->is_live()) options.requested_settings = capture::describe_requested(settings);
-    if (!args->quiet) std::cerr << "record: " << source->describe() << "\n";
-    const capture::RecordReport report = capture::record(*source, options);
-    const capture::RecordProgress& c = report.counts;
-    std::cerr << "record: " << c.frames_saved << " frames saved to " << args->out << " in "
-              << report.elapsed_s << " s (" << c.frames_received << " received, " << c.frames_incomplete
-              << " incomplete, " << c.frames_lost_device << " lost by the camera/network, "
-              << c.frames_dropped_host
-              << " dropped because the disk could not keep up); stopped: " << report.stop_reason << "\n";
-    if (c.frames_dropped_host > 0)
-      std::cerr
-          << "record: WARNING: " << c.frames_dropped_host
-          << " frames were dropped because writing could not keep up; try --format pgm, more --writers or "
-             "a faster disk\n";
-    if (c.frames_incomplete > 0 || c.frames_lost_device > 0)
-      std::cerr << "record: WARNING: " << c.frames_incomplete
-                << " incomplete frames (listed in frames.csv with "
-                << "status 1, no image) and " << c.frames_lost_device << " frames never received\n";
-    if (!report.ok())
-      throw Error("recording stopped early: " + report.error + " -- the " + std::to_string(c.frames_saved) +
-                  " frames before it are saved in " + args->out);
-  });
+  sub->callback([args, camera] { run_record_command(*args, *camera); });
 }
 
 }  // namespace tirstrain::cli
