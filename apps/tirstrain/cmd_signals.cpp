@@ -214,17 +214,72 @@ json fit_json(const ts::MckFit& fit) {
   return j;
 }
 
-void add_impedance(CLI::App& signals) {
-  struct Opts {
-    Common c;
-    std::string force, accel, velocity, unloaded;
-    std::optional<double> fix_stiffness_N_m;
-    long segment = 0, overlap = -1;
-    std::vector<double> band_Hz;
-    double min_coherence = 0.9;
-    std::string fit_out;
+struct ImpedanceOpts {
+  Common c;
+  std::string force, accel, velocity, unloaded;
+  std::optional<double> fix_stiffness_N_m;
+  long segment = 0, overlap = -1;
+  std::vector<double> band_Hz;
+  double min_coherence = 0.9;
+  std::string fit_out;
+};
+
+// The finger's impedance: the loaded recording's, less the unloaded plate's when one is given.
+ts::FingerImpedance finger_impedance_of(const ImpedanceOpts& o) {
+  const auto w = welch_options(o.segment, o.overlap);
+  const std::string motion = o.accel.empty() ? o.velocity : o.accel;
+  const auto kind = o.accel.empty() ? ts::MotionKind::velocity_m_s : ts::MotionKind::acceleration_m_s2;
+  auto impedance_of = [&](const std::string& path) {
+    const auto table = load(o.c, path, {o.force, motion});
+    return std::make_pair(in_context(path, o.force,
+                                     [&] {
+                                       return ts::mechanical_impedance(table.column(o.force),
+                                                                       table.column(motion),
+                                                                       table.sample_rate_Hz, w, kind);
+                                     }),
+                          table.sample_rate_Hz);
   };
-  auto o = std::make_shared<Opts>();
+  const auto [loaded, fs] = impedance_of(o.c.input);
+  std::optional<ts::ImpedanceSpectrum> unloaded;
+  if (!o.unloaded.empty()) {
+    const auto [u, fs_u] = impedance_of(o.unloaded);
+    if (std::abs(fs_u - fs) > 1e-6 * fs)
+      throw Error("sample rate " + std::to_string(fs_u) + " Hz differs from the loaded recording's " +
+                      std::to_string(fs) + " Hz",
+                  {.file = o.unloaded});
+    unloaded = u;
+  }
+  return in_context(o.c.input, "",
+                    [&] { return ts::finger_impedance(loaded, unloaded ? &*unloaded : nullptr); });
+}
+
+void run_impedance(const ImpedanceOpts& o) {
+  if (!o.band_Hz.empty() && o.band_Hz.size() != 2)
+    throw Error("expects LOW,HIGH in Hz", {.key = "--band-Hz"});
+  if (o.accel.empty() == o.velocity.empty())
+    throw Error("give exactly one motion channel: --accel or --velocity-column", {.key = "--accel"});
+  const ts::FingerImpedance finger = finger_impedance_of(o);
+  CsvWriter out(o.c.out, {"freq_Hz", "z_real_Ns_m", "z_imag_Ns_m", "mass_kg", "damping_Ns_m", "damping_ratio",
+                          "coherence"});
+  for (std::size_t k = 0; k < finger.freq_Hz.size(); ++k)
+    out.row({finger.freq_Hz[k], finger.z_Ns_m[k].real(), finger.z_Ns_m[k].imag(), finger.mass_kg[k],
+             finger.damping_Ns_m[k], finger.damping_ratio[k], finger.coherence[k]});
+  if (!o.fit_out.empty()) {
+    ts::MckFitOptions fo;
+    fo.min_coherence = o.min_coherence;
+    fo.fixed_stiffness_N_m = o.fix_stiffness_N_m;
+    if (o.band_Hz.size() == 2) {
+      fo.band_low_Hz = o.band_Hz[0];
+      fo.band_high_Hz = o.band_Hz[1];
+    }
+    const auto fit = in_context(o.c.input, "", [&] { return ts::fit_mass_spring_damper(finger, fo); });
+    write_json(o.fit_out, fit_json(fit));
+  }
+  out.commit();
+}
+
+void add_impedance(CLI::App& signals) {
+  auto o = std::make_shared<ImpedanceOpts>();
   CLI::App* sub = add_verb(
       signals, "impedance", "Mechanical impedance of a finger on a vibrating plate; spring-mass-damper fit",
       std::string(
@@ -256,54 +311,7 @@ void add_impedance(CLI::App& signals) {
   sub->add_option("--band-Hz", o->band_Hz, "fit band LOW,HIGH in Hz (default: all bins)")->delimiter(',');
   sub->add_option("--min-coherence", o->min_coherence, "bins below are not fitted")->capture_default_str();
   sub->add_option("--fit-out", o->fit_out, "spring-mass-damper fit, JSON");
-  sub->callback([o] {
-    if (!o->band_Hz.empty() && o->band_Hz.size() != 2)
-      throw Error("expects LOW,HIGH in Hz", {.key = "--band-Hz"});
-    if (o->accel.empty() == o->velocity.empty())
-      throw Error("give exactly one motion channel: --accel or --velocity-column", {.key = "--accel"});
-    const auto w = welch_options(o->segment, o->overlap);
-    const std::string motion = o->accel.empty() ? o->velocity : o->accel;
-    const auto kind = o->accel.empty() ? ts::MotionKind::velocity_m_s : ts::MotionKind::acceleration_m_s2;
-    auto impedance_of = [&](const std::string& path) {
-      const auto table = load(o->c, path, {o->force, motion});
-      return std::make_pair(in_context(path, o->force,
-                                       [&] {
-                                         return ts::mechanical_impedance(table.column(o->force),
-                                                                         table.column(motion),
-                                                                         table.sample_rate_Hz, w, kind);
-                                       }),
-                            table.sample_rate_Hz);
-    };
-    const auto [loaded, fs] = impedance_of(o->c.input);
-    std::optional<ts::ImpedanceSpectrum> unloaded;
-    if (!o->unloaded.empty()) {
-      const auto [u, fs_u] = impedance_of(o->unloaded);
-      if (std::abs(fs_u - fs) > 1e-6 * fs)
-        throw Error("sample rate " + std::to_string(fs_u) + " Hz differs from the loaded recording's " +
-                        std::to_string(fs) + " Hz",
-                    {.file = o->unloaded});
-      unloaded = u;
-    }
-    const auto finger = in_context(
-        o->c.input, "", [&] { return ts::finger_impedance(loaded, unloaded ? &*unloaded : nullptr); });
-    CsvWriter out(o->c.out, {"freq_Hz", "z_real_Ns_m", "z_imag_Ns_m", "mass_kg", "damping_Ns_m",
-                             "damping_ratio", "coherence"});
-    for (std::size_t k = 0; k < finger.freq_Hz.size(); ++k)
-      out.row({finger.freq_Hz[k], finger.z_Ns_m[k].real(), finger.z_Ns_m[k].imag(), finger.mass_kg[k],
-               finger.damping_Ns_m[k], finger.damping_ratio[k], finger.coherence[k]});
-    if (!o->fit_out.empty()) {
-      ts::MckFitOptions fo;
-      fo.min_coherence = o->min_coherence;
-      fo.fixed_stiffness_N_m = o->fix_stiffness_N_m;
-      if (o->band_Hz.size() == 2) {
-        fo.band_low_Hz = o->band_Hz[0];
-        fo.band_high_Hz = o->band_Hz[1];
-      }
-      const auto fit = in_context(o->c.input, "", [&] { return ts::fit_mass_spring_damper(finger, fo); });
-      write_json(o->fit_out, fit_json(fit));
-    }
-    out.commit();
-  });
+  sub->callback([o] { run_impedance(*o); });
 }
 
 json power_law_json(const ts::PowerLawFit& fit) {
