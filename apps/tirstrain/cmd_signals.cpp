@@ -463,15 +463,85 @@ void add_spatial(CLI::App& signals) {
   });
 }
 
+struct PadDeformationOpts {
+  Common c;
+  std::string calibration, cal_pad, cal_side, side, force, bands_out;
+  long segment = 0, overlap = -1;
+  double min_coherence = 0.9, m_kg = 0.0, c_Ns_m = 0.0, k_N_m = 0.0;
+  std::vector<double> bands_Hz;
+};
+
+// The pad displacement PSD from the side accelerometer through the calibrated G1, and from the force
+// through G2 when a force channel is given.
+struct PadDisplacement {
+  ts::PadTransfer calibration;
+  std::vector<double> psd_side_m2_Hz, psd_force_m2_Hz;
+};
+
+PadDisplacement pad_displacement(const PadDeformationOpts& o) {
+  const bool with_force = !o.force.empty();
+  const auto w = welch_options(o.segment, o.overlap);
+  const auto cal_table = load(o.c, o.calibration, {o.cal_pad, o.cal_side});
+  std::vector<std::string> required{o.side};
+  if (with_force) required.push_back(o.force);
+  const auto table = load(o.c, o.c.input, required);
+  if (std::abs(cal_table.sample_rate_Hz - table.sample_rate_Hz) > 1e-6 * table.sample_rate_Hz)
+    throw Error("calibration sample rate " + std::to_string(cal_table.sample_rate_Hz) + " Hz differs from " +
+                    std::to_string(table.sample_rate_Hz) + " Hz of the trial",
+                {.file = o.calibration});
+  PadDisplacement out;
+  out.calibration = in_context(o.calibration, o.cal_side, [&] {
+    return ts::calibrate_pad_transfer(cal_table.column(o.cal_pad), cal_table.column(o.cal_side),
+                                      cal_table.sample_rate_Hz, w, o.min_coherence);
+  });
+  const auto side_psd =
+      in_context(o.c.input, o.side, [&] { return ts::welch(table.column(o.side), table.sample_rate_Hz, w); });
+  out.psd_side_m2_Hz = ts::pad_displacement_psd_from_side(out.calibration, side_psd.psd);
+  if (with_force) {
+    const auto fp = in_context(o.c.input, o.force,
+                               [&] { return ts::welch(table.column(o.force), table.sample_rate_Hz, w); });
+    out.psd_force_m2_Hz = ts::pad_displacement_psd_from_force(
+        fp.freq_Hz, fp.psd, ts::MassSpringDamper{o.m_kg, o.c_Ns_m, o.k_N_m});
+  }
+  return out;
+}
+
+void write_pad_bands(const PadDeformationOpts& o, const PadDisplacement& xp) {
+  if (o.bands_Hz.size() < 2)
+    throw Error("--bands-out needs at least two edges in --bands-Hz", {.key = "--bands-Hz"});
+  const std::vector<double>& freq_Hz = xp.calibration.freq_Hz;
+  CsvWriter bands(o.bands_out, {"low_Hz", "high_Hz", "rms_side_m", "rms_force_m", "ratio"});
+  for (std::size_t b = 0; b + 1 < o.bands_Hz.size(); ++b) {
+    const double lo = o.bands_Hz[b], hi = o.bands_Hz[b + 1];
+    const double rs = ts::band_rms(freq_Hz, xp.psd_side_m2_Hz, lo, hi);
+    const double rf = xp.psd_force_m2_Hz.empty() ? 0.0 : ts::band_rms(freq_Hz, xp.psd_force_m2_Hz, lo, hi);
+    bands.row({lo, hi, rs, rf, rf > 0.0 ? rs / rf : 0.0});
+  }
+  bands.commit();
+}
+
+void run_pad_deformation(const PadDeformationOpts& o) {
+  const bool with_force = !o.force.empty();
+  if (with_force && !(o.m_kg > 0.0 && o.k_N_m > 0.0 && o.c_Ns_m >= 0.0))
+    throw Error("--force needs --m-kg > 0, --c-Ns-m >= 0 and --k-N-m > 0", {.key = "--force"});
+  const PadDisplacement xp = pad_displacement(o);
+  const ts::PadTransfer& cal = xp.calibration;
+  std::vector<std::string> names{"freq_Hz", "g1_gain",          "g1_phase_rad", "calibration_coherence",
+                                 "valid",   "xp_psd_side_m2_Hz"};
+  if (with_force) names.push_back("xp_psd_force_m2_Hz");
+  CsvWriter out(o.c.out, names);
+  for (std::size_t k = 0; k < cal.freq_Hz.size(); ++k) {
+    std::vector<double> row{cal.freq_Hz[k],   std::abs(cal.g1[k]),      std::arg(cal.g1[k]),
+                            cal.coherence[k], cal.valid[k] ? 1.0 : 0.0, xp.psd_side_m2_Hz[k]};
+    if (with_force) row.push_back(xp.psd_force_m2_Hz[k]);
+    out.row(row);
+  }
+  if (!o.bands_out.empty()) write_pad_bands(o, xp);
+  out.commit();
+}
+
 void add_pad_deformation(CLI::App& signals) {
-  struct Opts {
-    Common c;
-    std::string calibration, cal_pad, cal_side, side, force, bands_out;
-    long segment = 0, overlap = -1;
-    double min_coherence = 0.9, m_kg = 0.0, c_Ns_m = 0.0, k_N_m = 0.0;
-    std::vector<double> bands_Hz;
-  };
-  auto o = std::make_shared<Opts>();
+  auto o = std::make_shared<PadDeformationOpts>();
   CLI::App* sub = add_verb(
       signals, "pad-deformation",
       "Pad displacement from a finger-side accelerometer (and from force through G2)",
@@ -504,57 +574,7 @@ void add_pad_deformation(CLI::App& signals) {
       ->capture_default_str();
   sub->add_option("--bands-Hz", o->bands_Hz, "band edges F0,F1,...,Fn in Hz")->delimiter(',');
   sub->add_option("--bands-out", o->bands_out, "per-band RMS comparison CSV");
-  sub->callback([o] {
-    const bool with_force = !o->force.empty();
-    if (with_force && !(o->m_kg > 0.0 && o->k_N_m > 0.0 && o->c_Ns_m >= 0.0))
-      throw Error("--force needs --m-kg > 0, --c-Ns-m >= 0 and --k-N-m > 0", {.key = "--force"});
-    const auto w = welch_options(o->segment, o->overlap);
-    const auto cal_table = load(o->c, o->calibration, {o->cal_pad, o->cal_side});
-    std::vector<std::string> required{o->side};
-    if (with_force) required.push_back(o->force);
-    const auto table = load(o->c, o->c.input, required);
-    if (std::abs(cal_table.sample_rate_Hz - table.sample_rate_Hz) > 1e-6 * table.sample_rate_Hz)
-      throw Error("calibration sample rate " + std::to_string(cal_table.sample_rate_Hz) +
-                      " Hz differs from " + std::to_string(table.sample_rate_Hz) + " Hz of the trial",
-                  {.file = o->calibration});
-    const auto cal = in_context(o->calibration, o->cal_side, [&] {
-      return ts::calibrate_pad_transfer(cal_table.column(o->cal_pad), cal_table.column(o->cal_side),
-                                        cal_table.sample_rate_Hz, w, o->min_coherence);
-    });
-    const auto side_psd = in_context(
-        o->c.input, o->side, [&] { return ts::welch(table.column(o->side), table.sample_rate_Hz, w); });
-    const auto xp_side = ts::pad_displacement_psd_from_side(cal, side_psd.psd);
-    std::vector<double> xp_force;
-    const ts::MassSpringDamper mck{o->m_kg, o->c_Ns_m, o->k_N_m};
-    if (with_force) {
-      const auto fp = in_context(o->c.input, o->force,
-                                 [&] { return ts::welch(table.column(o->force), table.sample_rate_Hz, w); });
-      xp_force = ts::pad_displacement_psd_from_force(fp.freq_Hz, fp.psd, mck);
-    }
-    std::vector<std::string> names{"freq_Hz", "g1_gain",          "g1_phase_rad", "calibration_coherence",
-                                   "valid",   "xp_psd_side_m2_Hz"};
-    if (with_force) names.push_back("xp_psd_force_m2_Hz");
-    CsvWriter out(o->c.out, names);
-    for (std::size_t k = 0; k < cal.freq_Hz.size(); ++k) {
-      std::vector<double> row{cal.freq_Hz[k],   std::abs(cal.g1[k]),      std::arg(cal.g1[k]),
-                              cal.coherence[k], cal.valid[k] ? 1.0 : 0.0, xp_side[k]};
-      if (with_force) row.push_back(xp_force[k]);
-      out.row(row);
-    }
-    if (!o->bands_out.empty()) {
-      if (o->bands_Hz.size() < 2)
-        throw Error("--bands-out needs at least two edges in --bands-Hz", {.key = "--bands-Hz"});
-      CsvWriter bands(o->bands_out, {"low_Hz", "high_Hz", "rms_side_m", "rms_force_m", "ratio"});
-      for (std::size_t b = 0; b + 1 < o->bands_Hz.size(); ++b) {
-        const double lo = o->bands_Hz[b], hi = o->bands_Hz[b + 1];
-        const double rs = ts::band_rms(cal.freq_Hz, xp_side, lo, hi);
-        const double rf = with_force ? ts::band_rms(cal.freq_Hz, xp_force, lo, hi) : 0.0;
-        bands.row({lo, hi, rs, rf, rf > 0.0 ? rs / rf : 0.0});
-      }
-      bands.commit();
-    }
-    out.commit();
-  });
+  sub->callback([o] { run_pad_deformation(*o); });
 }
 
 void add_resample(CLI::App& signals) {

@@ -235,6 +235,55 @@ TEST(SignalsCli, ImpedanceFromVelocityWithAFixedStiffnessAndANarrowBandWarning) 
   EXPECT_NE(r.output.find("--velocity-column"), std::string::npos) << r.output;
 }
 
+// A side accelerometer reading half the pad's acceleration at every frequency (G1 = 0.5), a 10 µm pad
+// vibration at 50 Hz, and the force a known spring-mass-damper needs for it: both routes give the pad's
+// displacement back, 10 µm / sqrt(2) RMS in the band around 50 Hz.
+TEST(SignalsCli, PadDeformationRecoversTheDisplacementByBothRoutes) {
+  const double fs = 1000.0, x_m = 1e-5, w = 2 * std::numbers::pi * 50.0;
+  const double m = 0.01, c = 1.0, k = 5000.0;
+  const std::string calibration = dir() + "/pad_calibration.csv", trial = dir() + "/pad_trial.csv";
+  {
+    std::ofstream cal(calibration), tr(trial);
+    cal << "t_s,pad_m_s2,side_m_s2\n";
+    tr << "t_s,side_m_s2,F_N\n";
+    for (int i = 0; i < 8000; ++i) {
+      const double t = i / fs;
+      double pad = 0.0;
+      for (int n = 1; n <= 45; ++n) pad += std::sin(2 * std::numbers::pi * 10.0 * n * t + 0.7 * n * n);
+      cal << tirstrain::format_double(t) << ',' << tirstrain::format_double(pad) << ','
+          << tirstrain::format_double(0.5 * pad) << '\n';
+      const double pad_accel = -w * w * x_m * std::sin(w * t);
+      const double force = (k - m * w * w) * x_m * std::sin(w * t) + c * w * x_m * std::cos(w * t);
+      tr << tirstrain::format_double(t) << ',' << tirstrain::format_double(0.5 * pad_accel) << ','
+         << tirstrain::format_double(force) << '\n';
+    }
+  }
+  const std::string out = dir() + "/pad.csv", bands = dir() + "/pad_bands.csv";
+  const auto r = run("signals pad-deformation " + trial + " --calibration " + calibration +
+                     " --cal-pad pad_m_s2 --cal-side side_m_s2 --side side_m_s2 --force F_N --m-kg 0.01 "
+                     "--c-Ns-m 1 --k-N-m 5000 --segment 1000 --bands-Hz 40,60 --bands-out " +
+                     bands + " --out " + out);
+  ASSERT_EQ(r.code, 0) << r.output;
+  const auto spectrum = tirstrain::read_numeric_csv(out);
+  const auto& gain = spectrum.column("g1_gain");
+  const auto& freq = spectrum.column("freq_Hz");
+  for (std::size_t i = 0; i < freq.size(); ++i)
+    if (std::abs(std::fmod(freq[i] + 5.0, 10.0) - 5.0) < 0.5 && freq[i] > 5.0 && freq[i] < 455.0)
+      EXPECT_NEAR(gain[i], 0.5, 1e-6) << freq[i] << " Hz";  // a calibration tone's bin
+  const auto band = tirstrain::read_numeric_csv(bands);
+  ASSERT_EQ(band.column("rms_side_m").size(), 1u);
+  EXPECT_NEAR(band.column("rms_side_m")[0], x_m / std::sqrt(2.0), 0.03 * x_m / std::sqrt(2.0));
+  EXPECT_NEAR(band.column("rms_force_m")[0], x_m / std::sqrt(2.0), 0.03 * x_m / std::sqrt(2.0));
+  EXPECT_NEAR(band.column("ratio")[0], 1.0, 0.03);
+  const auto refused =
+      run("signals pad-deformation " + trial + " --calibration " + calibration +
+          " --cal-pad pad_m_s2 --cal-side side_m_s2 --side side_m_s2 --force F_N --segment 1000 "
+          "--out " +
+          out);
+  EXPECT_EQ(refused.code, 1);
+  EXPECT_NE(refused.output.find("--m-kg"), std::string::npos) << refused.output;
+}
+
 TEST(SignalsCli, BadInputIsLocated) {
   const std::string bad = dir() + "/bad.csv";
   std::ofstream(bad) << "t_s,force_N\n0,1\n0.001,2\n0.001,3\n0.003,4\n";
