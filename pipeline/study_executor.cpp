@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <sstream>
 #include <thread>
@@ -119,6 +120,11 @@ void check_recorded(const std::string& dir, const StudyTrial& trial, int code) {
                      " before recording its outcome (see logs/" + trial.name + ".log)");
 }
 
+// Where each array task writes "ARRAY_JOB_ID TASK_JOB_ID" as it starts (file named by the trial index).
+fs::path task_ids_dir(const std::string& dir) {
+  return fs::path(dir) / "slurm" / "tasks";
+}
+
 std::string slurm_script(const std::string& dir, const StudySpec& spec,
                          const std::vector<std::size_t>& indices, const std::string& cli) {
   const StudySlurm& r = spec.slurm;
@@ -133,6 +139,9 @@ std::string slurm_script(const std::string& dir, const StudySpec& spec,
   if (r.mem_MB > 0) s << "#SBATCH --mem=" << r.mem_MB << "M\n";
   if (r.time_min > 0) s << "#SBATCH --time=" << r.time_min << "\n";
   s << "export OPENCV_FOR_THREADS_NUM=\"${OPENCV_FOR_THREADS_NUM:-$SLURM_CPUS_PER_TASK}\"\n";
+  // Each task's own job id, for sacct --completion, which names tasks by it alone.
+  s << "echo \"$SLURM_ARRAY_JOB_ID $SLURM_JOB_ID\" > '" << task_ids_dir(dir).string()
+    << "'/\"$SLURM_ARRAY_TASK_ID\"\n";
   s << "exec '" << cli << "' study run-trial '" << dir << "' \"$SLURM_ARRAY_TASK_ID\"\n";
   return s.str();
 }
@@ -158,6 +167,102 @@ bool job_queued(const std::string& job) {
     if (std::string(e.what()).find("Invalid job id") != std::string::npos) return false;
     throw;
   }
+}
+
+struct TaskEnd {
+  std::string state;      // Slurm's job state (TIMEOUT, CANCELLED, …)
+  std::string exit_code;  // "exit:signal"
+};
+
+// sacct -P rows "ID|STATE|EXIT" as id -> end; other lines (sacct's warnings, which run_command merges into
+// its output) are skipped.
+std::map<std::string, TaskEnd> sacct_rows(const std::string& out) {
+  std::map<std::string, TaskEnd> rows;
+  std::istringstream lines(out);
+  for (std::string line; std::getline(lines, line);) {
+    const std::size_t a = line.find('|'), b = line.find('|', a + 1);
+    if (a == std::string::npos || b == std::string::npos || line.find('|', b + 1) != std::string::npos)
+      continue;
+    std::string state = line.substr(a + 1, b - a - 1);
+    state = state.substr(0, state.find(' '));  // "CANCELLED by 0" -> CANCELLED
+    rows[line.substr(0, a)] = {state, line.substr(b + 1)};
+  }
+  return rows;
+}
+
+// Why sacct failed: the last non-empty line it printed (run_command's message is "'COMMAND' failed (exit
+// N): OUTPUT"), or the whole message when it printed nothing.
+std::string sacct_reason(const Error& e) {
+  const std::string text = e.what();
+  const std::size_t output = text.find("): ");
+  std::istringstream lines(output == std::string::npos ? text : text.substr(output + 3));
+  std::string last;
+  for (std::string line; std::getline(lines, line);)
+    if (line.find_first_not_of(" \t\r") != std::string::npos) last = line;
+  return last.empty() ? text : last;
+}
+
+// How the tasks `indices` of `job` ended, by trial index, from sacct. With accounting storage (slurmdbd)
+// sacct names array tasks JOB_INDEX; without it, a cluster that logs job completions (JobCompType, e.g.
+// jobcomp/filetxt) still answers sacct --completion, which names each task by its own job id only, so the
+// ids the tasks wrote as they started map them back. Tasks that never started, or that sacct does not know,
+// are absent. Sets `why` when neither form answers.
+std::map<std::size_t, TaskEnd> task_ends(const std::string& dir, const std::string& job,
+                                         const std::vector<std::size_t>& indices, std::string* why) {
+  std::map<std::size_t, TaskEnd> ends;
+  const std::string format = " -n -P -X --format=JobID,State,ExitCode";
+  try {
+    for (const auto& [id, end] : sacct_rows(run_command("sacct -j " + job + format)))
+      for (std::size_t i : indices)
+        if (id == job + "_" + std::to_string(i)) ends[i] = end;
+    return ends;
+  } catch (const Error& e) {
+    *why = "sacct: " + sacct_reason(e);
+  }
+  std::map<std::string, std::size_t> index_of;  // task's own job id -> trial index
+  std::string ids;
+  for (std::size_t i : indices) {
+    std::ifstream in(task_ids_dir(dir) / std::to_string(i));
+    std::string array_job, task_job;
+    if (in >> array_job >> task_job && array_job == job) {
+      index_of[task_job] = i;
+      ids += (ids.empty() ? "" : ",") + task_job;
+    }
+  }
+  if (ids.empty()) {
+    *why += "; sacct --completion: no job id to ask about (none of these tasks started)";
+    return ends;
+  }
+  try {
+    for (const auto& [id, end] : sacct_rows(run_command("sacct --completion -j " + ids + format)))
+      if (index_of.count(id)) ends[index_of.at(id)] = end;
+    why->clear();
+  } catch (const Error& e) {
+    *why += "; sacct --completion: " + sacct_reason(e);
+  }
+  return ends;
+}
+
+// A task's final Slurm state for the trial's error: "CANCELLED (cancelled by scancel or by the cluster;
+// exit code:signal 0:15)".
+std::string state_meaning(const TaskEnd& end) {
+  const std::string& s = end.state;
+  const std::string code = "exit code:signal " + end.exit_code;
+  if (s == "TIMEOUT") return s + " (its time limit reached: the study file's slurm: time_min; " + code + ")";
+  if (s == "OUT_OF_MEMORY") return s + " (out of memory: the study file's slurm: mem_MB; " + code + ")";
+  if (s == "CANCELLED") return s + " (cancelled by scancel or by the cluster; " + code + ")";
+  if (s == "NODE_FAIL") return s + " (its node failed; " + code + ")";
+  if (s == "FAILED") return s + " (its process exited non-zero or was killed; " + code + ")";
+  return s + " (" + code + ")";
+}
+
+// The Slurm states in which a task has ended; sacct may still say RUNNING or COMPLETING for a moment after
+// the job has left squeue, and such a state says nothing about how the task ended.
+bool final_state(const std::string& s) {
+  for (const char* f : {"BOOT_FAIL", "CANCELLED", "COMPLETED", "DEADLINE", "FAILED", "NODE_FAIL",
+                        "OUT_OF_MEMORY", "PREEMPTED", "TIMEOUT"})
+    if (s == f) return true;
+  return false;
 }
 
 }  // namespace
@@ -221,6 +326,8 @@ std::string run_slurm(const std::string& dir, const StudySpec& spec, const std::
   const std::string script = (fs::path(dir) / "slurm" / "job.sh").string();
   // An earlier outcome must not count as this job's: each submitted trial waits as "queued".
   for (std::size_t i : indices) mark_queued(dir, spec.trials[i]);
+  fs::remove_all(task_ids_dir(dir));  // an earlier job's task ids would name other tasks
+  fs::create_directories(task_ids_dir(dir));
   write_text_file(script, slurm_script(dir, spec, indices, options.cli));
   std::string job = run_command("sbatch --parsable '" + script + "'");
   job = job.substr(0, job.find_first_of(";\n"));
@@ -239,13 +346,30 @@ std::string run_slurm(const std::string& dir, const StudySpec& spec, const std::
     if (!queued) break;
     std::this_thread::sleep_for(std::chrono::duration<double>(options.poll_s));
   }
+  // sacct is asked only about tasks that recorded no outcome: a trial's own record says more than its
+  // task's Slurm state.
+  std::vector<std::size_t> silent;
   for (std::size_t i : indices) {
     const std::string s = read_status(dir, spec.trials[i].name).status;
-    if (s != "done" && s != "failed")
-      record_failure(dir, spec.trials[i],
-                     "Slurm job " + job + " task " + std::to_string(i) +
-                         " ended without recording its outcome (see logs/slurm-" + job + "_" +
-                         std::to_string(i) + ".log)");
+    if (s != "done" && s != "failed") silent.push_back(i);
+  }
+  if (silent.empty()) return job;
+  std::string why;
+  const std::map<std::size_t, TaskEnd> ends = task_ends(dir, job, silent, &why);
+  if (!why.empty())
+    std::fprintf(stderr,
+                 "tirstrain: sacct cannot say how Slurm job %s's tasks ended (%s); the tasks that recorded "
+                 "no outcome are recorded as failed without their Slurm state\n",
+                 job.c_str(), why.c_str());
+  for (std::size_t i : silent) {
+    const auto end = ends.find(i);
+    const std::string state = end != ends.end() && final_state(end->second.state)
+                                  ? " in Slurm state " + state_meaning(end->second)
+                                  : "";
+    record_failure(dir, spec.trials[i],
+                   "Slurm job " + job + " task " + std::to_string(i) + " ended" + state +
+                       " without recording its outcome (see logs/slurm-" + job + "_" + std::to_string(i) +
+                       ".log)");
   }
   return job;
 }

@@ -1,7 +1,8 @@
 #pragma once
 // Executors of `tirstrain study run`: each trial needing work is one child process
 // `CLI study run-trial DIR INDEX` (CLI: this binary), either run here, `jobs` at a time, or submitted as one
-// task of a Slurm job array (sbatch) and waited for (squeue). No scheduling of our own beyond that.
+// task of a Slurm job array (sbatch), waited for (squeue) and asked how it ended (sacct). No scheduling of
+// our own beyond that.
 #include <string>
 #include <vector>
 
@@ -29,7 +30,8 @@ struct SlurmExecutorOptions {
 
 // Writes DIR/slurm/job.sh, submits it as an array over `indices` with the study's resources, and (wait)
 // polls squeue until the job has left the queue. Tasks that ended without recording a status are recorded
-// as failed. Returns the Slurm job id.
+// as failed, with the Slurm state sacct gives for them (TIMEOUT, OUT_OF_MEMORY, CANCELLED, …) when it
+// answers; when it does not, one line on stderr says why. Returns the Slurm job id.
 std::string run_slurm(const std::string& dir, const StudySpec& spec, const std::vector<std::size_t>& indices,
                       const SlurmExecutorOptions& options);
 
