@@ -2,16 +2,17 @@
 # tirstrain study through a real Slurm: starts munged, slurmctld and slurmd on this machine with a
 # temporary configuration (their own key, socket, ports, state and log folders), runs a three-trial study
 # with --executor slurm (submitted without waiting and followed with study status, then one changed trial
-# resubmitted and waited for), checks that study.csv's results and every result.h5 dataset and attribute
-# (h5diff) equal those of the local executor, and stops the daemons. Exits 77 (skipped) with the reason
-# when Slurm, munge or h5diff is not installed or the test does not run as root.
+# resubmitted and waited for, with a fourth trial cancelled while it runs), checks that study.csv's results
+# and every result.h5 dataset and attribute (h5diff) equal those of the local executor, that the cancelled
+# trial is recorded as failed with the Slurm state sacct gives for it, and stops the daemons. Exits 77
+# (skipped) with the reason when Slurm, munge or h5diff is not installed or the test does not run as root.
 set -euo pipefail
 tirstrain=$1
 work=$2
 here=$(cd "$(dirname "$0")" && pwd)
 
 skip() { echo "SKIP: $*"; exit 77; }
-for tool in munged slurmctld slurmd sbatch squeue sinfo; do
+for tool in munged slurmctld slurmd sbatch squeue sinfo sacct scancel; do
   command -v "$tool" > /dev/null || PATH=$PATH:/usr/sbin command -v "$tool" > /dev/null ||
     skip "$tool not found (Debian packages slurm-wlm and munge; scripts/install-deps)"
 done
@@ -43,6 +44,8 @@ munged --foreground --force --key-file="$work/munge/munge.key" --socket="$work/m
   > "$work/log/munged.out" 2>&1 &
 pids+=($!)
 
+# No slurmdbd (it needs a MySQL server): sacct's accounting form fails ("Slurm accounting storage is
+# disabled") and the executor asks the job completion log instead (jobcomp/filetxt, sacct --completion).
 export SLURM_CONF=$work/slurm.conf
 cat > "$SLURM_CONF" <<CONF
 ClusterName=tirstraintest
@@ -64,7 +67,8 @@ ProctrackType=proctrack/linuxproc
 TaskPlugin=task/none
 JobAcctGatherType=jobacct_gather/none
 AccountingStorageType=accounting_storage/none
-JobCompType=jobcomp/none
+JobCompType=jobcomp/filetxt
+JobCompLoc=$work/log/jobcomp.txt
 SchedulerType=sched/builtin
 SelectType=select/cons_tres
 SelectTypeParameters=CR_CPU
@@ -111,12 +115,34 @@ done
 "$tirstrain" study aggregate "$work/slurm"
 [ -f "$work/slurm/aggregate/conditions.csv" ]
 
-# A changed scene: one task submitted, waited for (squeue), then aggregated.
+# A changed scene and a new trial, cut, which is cancelled (scancel) while it runs: two tasks submitted,
+# waited for (squeue), cut's end asked of sacct, then aggregated. cut processes for about 1.4 s after its
+# status says running, and the cancel follows within 0.1 s.
+cp "$work/study.yaml" "$work/study2.yaml"
+sed -i '/p4, input/a\  - {name: cut, input: rec/load_4, scene: rec/load_4/scene.yaml, conditions: {normal_N: 4}}' \
+  "$work/study2.yaml"
 echo "# edited" >> "$work/rec/load_2/scene.yaml"
-"$tirstrain" study run "$work/study.yaml" --out "$work/slurm" --executor slurm --poll-s 0.5 2> "$work/slurm2.log"
+"$tirstrain" study run "$work/study2.yaml" --out "$work/slurm" --executor slurm --poll-s 0.5 \
+  2> "$work/slurm2.log" &
+run=$!
+cancelled=0
+for i in $(seq 300); do
+  if [ -s "$work/slurm/slurm/job_id" ] &&
+    grep -q '"status": "running"' "$work/slurm/status/cut.json" 2> /dev/null; then
+    scancel "$(cat "$work/slurm/slurm/job_id")_3"
+    cancelled=1
+    break
+  fi
+  sleep 0.05
+done
+[ "$cancelled" -eq 1 ] || { echo "cut never ran" >&2; exit 1; }
+status=0
+wait "$run" || status=$?
 cat "$work/slurm2.log"
-grep -q "1 of 3 trials to process" "$work/slurm2.log"
-grep -q -- "--array=1$" "$work/slurm/slurm/job.sh"
+[ "$status" -eq 1 ] || { echo "a study with a cancelled trial exited $status" >&2; exit 1; }
+grep -q "2 of 4 trials to process" "$work/slurm2.log"
+grep -q -- "--array=1,3$" "$work/slurm/slurm/job.sh"
+if grep -q "sacct cannot say" "$work/slurm2.log"; then echo "sacct did not answer" >&2; exit 1; fi
 "$tirstrain" study run "$work/study.yaml" --out "$work/local" --jobs 2 --quiet
 
 python3 - "$work/slurm" "$work/local" <<'PY'
@@ -125,7 +151,11 @@ slurm, local = sys.argv[1], sys.argv[2]
 def rows(d):
     return {r["name"]: r for r in csv.DictReader(open(d + "/study.csv"))}
 a, b = rows(slurm), rows(local)
-assert list(a) == ["p1", "p2", "p4"], list(a)
+assert list(a) == ["p1", "p2", "p4", "cut"], list(a)
+cut = a.pop("cut")
+# Recorded by the executor from sacct --completion: the task left no outcome of its own.
+assert cut["status"] == "failed", cut
+assert "Slurm state CANCELLED" in cut["error"] and "without recording its outcome" in cut["error"], cut
 for name in a:
     assert a[name]["status"] == "done", a[name]
     for key in ("frames", "peak_contact_area_mm2", "mu_dynamic", "U_t90_J", "mu_P_N", "hash"):
