@@ -30,7 +30,7 @@
 #include <Eigen/Dense>
 #include "../tests/flow/flow_support.hpp"
 
-#include "flow/mesh_correlation.hpp"
+#include "bench/studies/mesh_correlation.hpp"
 #include "flow/settings.hpp"
 #include "flow/subset.hpp"
 
@@ -72,7 +72,7 @@ synthesis:
 // Global (mesh) correlation of the frame-0 material against frame 0, frame after frame, each frame started
 // from the last two frames' fields extrapolated; scored on a grid of reference points.
 void run_mesh(const tirstrain::samples::Trial& trial, const tirstrain::flow::testing::RenderedTrial& rendered,
-              const tirstrain::flow::MeshCorrelationOptions& options, double sigma_px, int inset_px,
+              const tirstrain::studies::MeshCorrelationOptions& options, double sigma_px, int inset_px,
               double grid_px) {
   using namespace tirstrain;
   const auto to_float = [&](const cv::Mat& m) {
@@ -88,7 +88,7 @@ void run_mesh(const tirstrain::samples::Trial& trial, const tirstrain::flow::tes
   cv::Mat depth;
   cv::distanceTransform(rendered.mask, depth, cv::DIST_L2, 3);
   const auto t0 = std::chrono::steady_clock::now();
-  flow::MeshCorrelation mesh(to_float(rendered.frames[0]), region, options);
+  studies::MeshCorrelation mesh(to_float(rendered.frames[0]), region, options);
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::vector<Vec2> u(static_cast<std::size_t>(mesh.node_count())), last = u, before = u;
   std::vector<Vec2> points;
@@ -102,7 +102,7 @@ void run_mesh(const tirstrain::samples::Trial& trial, const tirstrain::flow::tes
     const auto t1 = std::chrono::steady_clock::now();
     for (std::size_t n = 0; n < u.size(); ++n)
       u[n] = {2.0 * last[n].x - before[n].x, 2.0 * last[n].y - before[n].y};
-    const flow::MeshCorrelationResult r = mesh.solve(current, current_mask, u);
+    const studies::MeshCorrelationResult r = mesh.solve(current, current_mask, u);
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
     iterations += r.iterations;
     const bool verbose = std::getenv("MESH_VERBOSE") != nullptr;
@@ -289,7 +289,7 @@ Args parse_args(int argc, char** argv) {
 void run_mesh_configs(const std::vector<std::string>& mesh_configs, const tirstrain::samples::Trial& trial,
                       const tirstrain::flow::testing::RenderedTrial& rendered) {
   for (const std::string& m : mesh_configs) {
-    tirstrain::flow::MeshCorrelationOptions o;
+    tirstrain::studies::MeshCorrelationOptions o;
     int brightness = 1, inset = 3, update = 0;
     double sigma = 1.0;
     std::sscanf(m.c_str(), "%d,%lf,%d,%lf,%d,%d,%lf", &o.element_px, &o.smoothness, &brightness, &sigma,

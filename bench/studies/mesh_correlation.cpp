@@ -1,4 +1,4 @@
-#include "flow/mesh_correlation.hpp"
+#include "bench/studies/mesh_correlation.hpp"
 
 #include <opencv2/imgproc.hpp>
 
@@ -8,7 +8,7 @@
 #include "core/error.hpp"
 #include "flow/bicubic.hpp"
 
-namespace tirstrain::flow {
+namespace tirstrain::studies {
 namespace {
 
 using Triplet = Eigen::Triplet<double>;
@@ -289,8 +289,8 @@ MeshCorrelationResult MeshCorrelation::solve(const cv::Mat& current, const cv::M
         if (!ok) continue;
         const int ix = static_cast<int>(x), iy = static_cast<int>(y);
         const float g =
-            detail::interpolate_keys(data + static_cast<std::size_t>(iy - 1) * step + (ix - 1), step,
-                                     static_cast<float>(x - ix), static_cast<float>(y - iy));
+            flow::detail::interpolate_keys(data + static_cast<std::size_t>(iy - 1) * step + (ix - 1), step,
+                                           static_cast<float>(x - ix), static_cast<float>(y - iy));
         const double gain = p.n[0] * a[0] + p.n[1] * a[1] + p.n[2] * a[2] + p.n[3] * a[3];
         const double offset = p.n[0] * b[0] + p.n[1] * b[1] + p.n[2] * b[2] + p.n[3] * b[3];
         const double r = g - (1.0 + gain) * p.f - offset;
@@ -358,4 +358,4 @@ bool MeshCorrelation::displacement_at(const std::vector<Vec2>& displacement_px, 
   return true;
 }
 
-}  // namespace tirstrain::flow
+}  // namespace tirstrain::studies

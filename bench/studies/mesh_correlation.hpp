@@ -7,10 +7,9 @@
 // four elements only, so a weak penalty on the field's second differences (which leaves uniform strain
 // free) carries nodes across texture-poor pixels.
 //
-// Experimental: flow_bench's --mesh rows measure it against the subset tracker; the tracker does not use it.
-// On the 640×512 goal trial it is neither faster nor close to
-// the subset tracker's accuracy (0.29 px against 0.037 px RMS over 30 frames): with one ridge system a 9–12
-// px element barely pins the motion along the ridges, and that error grows with the displacement.
+// A study, not part of the pipeline (bench/studies/README.md): flow_bench's --mesh rows measure it against the
+// subset tracker. With one ridge system a 9–12 px element barely pins the motion along the ridges, and that
+// error grows with the displacement, so the tracker keeps its subsets.
 //
 // Pixels whose current position leaves the current frame's usable mask (the contact, eroded for the
 // interpolation kernel) are removed from the sums, so material leaving the contact never pulls the field
@@ -24,7 +23,7 @@
 
 #include "core/tensor2.hpp"
 
-namespace tirstrain::flow {
+namespace tirstrain::studies {
 
 struct MeshCorrelationOptions {
   int element_px = 9;  // side of a square element (node spacing)
@@ -97,4 +96,4 @@ class MeshCorrelation {
   std::vector<double> brightness_;                        // gain, offset per node (kept between frames)
 };
 
-}  // namespace tirstrain::flow
+}  // namespace tirstrain::studies

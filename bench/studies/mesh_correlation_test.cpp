@@ -8,14 +8,14 @@
 #include <functional>
 #include <numbers>
 
+#include "bench/studies/mesh_correlation.hpp"
 #include "core/error.hpp"
-#include "flow/mesh_correlation.hpp"
-#include "ridge_texture.hpp"
+#include "tests/flow/ridge_texture.hpp"
 
-namespace tirstrain::flow {
+namespace tirstrain::studies {
 namespace {
 
-using testing::ridge_texture;
+using flow::testing::ridge_texture;
 
 // Renders the current frame for the forward map x = X + u(X), inverted per pixel by fixed-point iteration.
 cv::Mat render(int size, const std::function<Vec2(Vec2)>& u, double gain = 1.0, double offset = 0.0) {
@@ -151,4 +151,4 @@ TEST(MeshCorrelation, RejectsAnEmptyRegionAndMismatchedInput) {
 }
 
 }  // namespace
-}  // namespace tirstrain::flow
+}  // namespace tirstrain::studies
