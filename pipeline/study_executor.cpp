@@ -28,24 +28,21 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-// The environment of a trial's child: with several trials at a time, OpenCV's parallel loops get the
-// cores shared out (OPENCV_FOR_THREADS_NUM), because trials in parallel use the cores better than one
-// trial's loops over a few hundred tracks do. A value the user set is kept.
-std::vector<std::string> child_environment(int jobs) {
-  std::vector<std::string> env;
-  for (char** e = environ; *e != nullptr; ++e) env.emplace_back(*e);
-  if (jobs > 1 && std::getenv("OPENCV_FOR_THREADS_NUM") == nullptr) {
+// A trial's child process. With several trials at a time each gets its share of the cores for its image
+// loops (`tirstrain --threads`): trials side by side use the cores better than one trial's parallel loops
+// over a few hundred tracks, whose threads would otherwise compete with the other trials' for the same cores.
+std::vector<std::string> trial_command(const std::string& cli, const std::string& dir, std::size_t index,
+                                       int jobs) {
+  std::vector<std::string> argv{cli};
+  if (jobs > 1) {
     const long cores = std::max(1L, ::sysconf(_SC_NPROCESSORS_ONLN));
-    env.push_back("OPENCV_FOR_THREADS_NUM=" + std::to_string(std::max(1L, cores / jobs)));
+    argv.insert(argv.end(), {"--threads", std::to_string(std::max(1L, cores / jobs))});
   }
-  return env;
+  argv.insert(argv.end(), {"study", "run-trial", dir, std::to_string(index)});
+  return argv;
 }
 
-pid_t spawn(const std::vector<std::string>& argv, const std::string& log,
-            const std::vector<std::string>& environment = {}) {
-  std::vector<char*> env;
-  for (const std::string& e : environment) env.push_back(const_cast<char*>(e.c_str()));
-  env.push_back(nullptr);
+pid_t spawn(const std::vector<std::string>& argv, const std::string& log) {
   std::vector<char*> args;
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
@@ -56,8 +53,7 @@ pid_t spawn(const std::vector<std::string>& argv, const std::string& log,
     posix_spawn_file_actions_adddup2(&actions, 1, 2);
   }
   pid_t pid = 0;
-  const int rc =
-      posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environment.empty() ? environ : env.data());
+  const int rc = posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   if (rc != 0) throw Error("cannot start " + argv[0] + ": " + std::strerror(rc));
   return pid;
@@ -138,11 +134,12 @@ std::string slurm_script(const std::string& dir, const StudySpec& spec,
   if (!r.partition.empty()) s << "#SBATCH --partition=" << r.partition << "\n";
   if (r.mem_MB > 0) s << "#SBATCH --mem=" << r.mem_MB << "M\n";
   if (r.time_min > 0) s << "#SBATCH --time=" << r.time_min << "\n";
-  s << "export OPENCV_FOR_THREADS_NUM=\"${OPENCV_FOR_THREADS_NUM:-$SLURM_CPUS_PER_TASK}\"\n";
   // Each task's own job id, for sacct --completion, which names tasks by it alone.
   s << "echo \"$SLURM_ARRAY_JOB_ID $SLURM_JOB_ID\" > '" << task_ids_dir(dir).string()
     << "'/\"$SLURM_ARRAY_TASK_ID\"\n";
-  s << "exec '" << cli << "' study run-trial '" << dir << "' \"$SLURM_ARRAY_TASK_ID\"\n";
+  // The task's image loops use the CPUs Slurm gave it (every core of the node otherwise).
+  s << "exec '" << cli << "' --threads \"${SLURM_CPUS_PER_TASK:-0}\" study run-trial '" << dir
+    << "' \"$SLURM_ARRAY_TASK_ID\"\n";
   return s.str();
 }
 
@@ -293,14 +290,13 @@ int run_local(const std::string& dir, const StudySpec& spec, const std::vector<s
   StudyProgress progress(indices.size(), options.quiet);
   std::map<pid_t, std::size_t> running;  // child -> trial index
   std::size_t next = 0, finished = 0, failed = 0;
-  const std::vector<std::string> environment = child_environment(options.jobs);
   progress.draw(0, 0, 0);
   while (finished < indices.size()) {
     while (next < indices.size() && running.size() < static_cast<std::size_t>(std::max(1, options.jobs))) {
       const std::size_t i = indices[next++];
       std::remove(log_path(dir, spec.trials[i].name).c_str());
-      running[spawn({options.cli, "study", "run-trial", dir, std::to_string(i)},
-                    log_path(dir, spec.trials[i].name), environment)] = i;
+      running[spawn(trial_command(options.cli, dir, i, options.jobs), log_path(dir, spec.trials[i].name))] =
+          i;
     }
     int status = 0;
     const pid_t pid = waitpid(-1, &status, 0);
