@@ -140,55 +140,67 @@ std::optional<contact::Ellipse> truth_contact_ellipse(const cv::Mat& mask) {
   return ellipse;
 }
 
-CentreBound contact_centre_bound(const samples::Trial& trial, int frame,
-                                 const ObservabilityOptions& options) {
-  const samples::SynthConfig& config = trial.config();
-  const Vec2 centre = trial.history().contact_centre_px();
-  const Vec2 axes = trial.history().contact_semi_axes_px();
-  const PolarBorder border{centre, 3.0 * std::max(axes.x, axes.y) + 10.0, &trial};
+namespace {
 
-  // Alternatives: the truth's border plus the modes. Their truth ellipse is the direct fit of the border,
-  // as for the truth itself; its centre is linear in small mode amplitudes (Jacobian by central differences).
-  std::vector<double> phis(kBoundarySamples), radii(kBoundarySamples);
-  for (int i = 0; i < kBoundarySamples; ++i) {
-    phis[static_cast<std::size_t>(i)] = 2.0 * std::numbers::pi * i / kBoundarySamples;
-    radii[static_cast<std::size_t>(i)] = border.radius(phis[static_cast<std::size_t>(i)]);
+constexpr double kTolerance_px = 0.02;  // keeps the truth strictly feasible for pixels on its border
+
+// Alternatives to the truth: its border plus the modes. Their truth ellipse is the direct fit of the border,
+// as for the truth itself; its centre is linear in small mode amplitudes (Jacobian by central differences).
+class AlternativeBorders {
+ public:
+  AlternativeBorders(Vec2 centre, const PolarBorder& border)
+      : centre_(centre), phis_(kBoundarySamples), radii_(kBoundarySamples) {
+    for (std::size_t i = 0; i < phis_.size(); ++i) {
+      phis_[i] = 2.0 * std::numbers::pi * static_cast<double>(i) / kBoundarySamples;
+      radii_[i] = border.radius(phis_[i]);
+    }
   }
-  const auto ellipse_centre = [&](const Vector& x) {
+  Eigen::Vector2d ellipse_centre(const Vector& modes) const {
     std::vector<cv::Point2d> points;
-    points.reserve(phis.size());
-    for (std::size_t i = 0; i < phis.size(); ++i) {
-      const double r = radii[i] + modes_at(phis[i]).dot(x);
-      points.emplace_back(centre.x + r * std::cos(phis[i]), centre.y + r * std::sin(phis[i]));
+    points.reserve(phis_.size());
+    for (std::size_t i = 0; i < phis_.size(); ++i) {
+      const double r = radii_[i] + modes_at(phis_[i]).dot(modes);
+      points.emplace_back(centre_.x + r * std::cos(phis_[i]), centre_.y + r * std::sin(phis_[i]));
     }
     const std::optional<contact::Ellipse> e = contact::fit_ellipse_direct(points);
     if (!e) throw Error("contact observability: the truth's border does not fit an ellipse");
     return Eigen::Vector2d(e->cx_px, e->cy_px);
-  };
-  const Eigen::Vector2d centre_0 = ellipse_centre(Vector::Zero());
-  Eigen::Matrix<double, 2, kUnknowns> jacobian;
-  for (int j = 0; j < kUnknowns; ++j) {
-    Vector d = Vector::Zero();
-    d(j) = 0.01;
-    jacobian.col(j) = (ellipse_centre(d) - ellipse_centre(-d)) / 0.02;
+  }
+  Eigen::Matrix<double, 2, kUnknowns> jacobian() const {
+    Eigen::Matrix<double, 2, kUnknowns> j;
+    for (int k = 0; k < kUnknowns; ++k) {
+      Vector d = Vector::Zero();
+      d(k) = 0.01;
+      j.col(k) = (ellipse_centre(d) - ellipse_centre(-d)) / 0.02;
+    }
+    return j;
   }
 
-  // Pixel noise at the background level: shot noise, read noise and the quantisation step.
-  CentreBound bound;
+ private:
+  Vec2 centre_;
+  std::vector<double> phis_, radii_;
+};
+
+// Pixel noise at the background level: shot noise, read noise and the quantisation step.
+double background_noise_sigma(const samples::Trial& trial) {
+  const samples::SynthConfig& config = trial.config();
   const samples::SensorConfig& sensor = config.sensor;
   const double level = std::clamp(sensor.gain * trial.background_level(), 0.0, 1.0);
   const double full_scale = config.image.bit_depth == 16 ? 65535.0 : 255.0;
   const double shot = sensor.full_well_electrons > 0.0 ? level / sensor.full_well_electrons : 0.0;
-  bound.noise_sigma =
-      std::sqrt(shot + sensor.read_noise * sensor.read_noise + 1.0 / (12.0 * full_scale * full_scale));
-  const double threshold = options.k_sigma * bound.noise_sigma;
-  const double ridge_contrast = std::abs(config.fingerprint.ridge_contrast) * sensor.gain;
+  return std::sqrt(shot + sensor.read_noise * sensor.read_noise + 1.0 / (12.0 * full_scale * full_scale));
+}
 
-  // A pixel constrains the border when its ridge shows: inside, with the contrast it has there; outside, with
-  // the contrast it would have right at the border (the fade's floor, a full edge weight).
-  Constraints constraints;
+// A pixel constrains the border when its ridge shows: inside, with the contrast it has there; outside, with
+// the contrast it would have right at the border (the fade's floor, a full edge weight). Counts the pixels
+// in `bound`.
+void add_pixel_constraints(const samples::Trial& trial, int frame, const PolarBorder& border,
+                           double threshold, const ObservabilityOptions& options, CentreBound& bound,
+                           Constraints& constraints) {
+  const double ridge_contrast =
+      std::abs(trial.config().fingerprint.ridge_contrast) * trial.config().sensor.gain;
+  const Vec2 centre = border.centre;
   BorderPixels pixels(kDirectionBins);
-  constexpr double kTolerance_px = 0.02;  // keeps the truth strictly feasible for pixels on its border
   const samples::FrameField field = trial.field(frame);
   for (int y = 0; y < trial.height(); ++y)
     for (int x = 0; x < trial.width(); ++x) {
@@ -211,33 +223,56 @@ CentreBound contact_centre_bound(const samples::Trial& trial, int frame,
     else  // r_pixel > r_border + modes
       constraints.add(-modes_at(phi), kTolerance_px + beyond_px);
   });
-  if (bound.inside_pixels == 0)
-    throw Error("contact observability: frame " + std::to_string(frame) + " shows no ridge in contact");
-  // Alternatives stay within the band that was looked at (an unconstrained side would run away otherwise).
-  for (int j = 0; j < kUnknowns; ++j)
+}
+
+// Alternatives stay within the band that was looked at (an unconstrained side would run away otherwise), and
+// the irregularity modes within `mode_bound` times the generator's prior.
+void add_mode_bounds(const samples::Trial& trial, const ObservabilityOptions& options,
+                     Constraints& constraints) {
+  const auto add_bound = [&](int j, double limit) {
     for (double sign : {1.0, -1.0}) {
       Vector g = Vector::Zero();
       g(j) = -sign;
-      constraints.add(g, options.band_px);
+      constraints.add(g, limit);
     }
+  };
+  for (int j = 0; j < kUnknowns; ++j) add_bound(j, options.band_px);
+  const Vec2 axes = trial.history().contact_semi_axes_px();
   const double mean_radius_px = std::sqrt(axes.x * axes.y);
   for (int k = 3; k <= kModes; ++k) {
-    const double limit =
-        options.mode_bound * config.contact.border_irregularity * mean_radius_px / (1.0 + 0.5 * (k - 2));
-    for (int j : {2 * k - 1, 2 * k})
-      for (double sign : {1.0, -1.0}) {
-        Vector g = Vector::Zero();
-        g(j) = -sign;
-        constraints.add(g, limit + kTolerance_px);
-      }
+    const double limit = options.mode_bound * trial.config().contact.border_irregularity * mean_radius_px /
+                         (1.0 + 0.5 * (k - 2));
+    for (int j : {2 * k - 1, 2 * k}) add_bound(j, limit + kTolerance_px);
   }
+}
 
+}  // namespace
+
+CentreBound contact_centre_bound(const samples::Trial& trial, int frame,
+                                 const ObservabilityOptions& options) {
+  const Vec2 centre = trial.history().contact_centre_px();
+  const Vec2 axes = trial.history().contact_semi_axes_px();
+  const PolarBorder border{centre, 3.0 * std::max(axes.x, axes.y) + 10.0, &trial};
+  const AlternativeBorders alternatives(centre, border);
+  const Eigen::Vector2d centre_0 = alternatives.ellipse_centre(Vector::Zero());
+  const Eigen::Matrix<double, 2, kUnknowns> jacobian = alternatives.jacobian();
+
+  CentreBound bound;
+  bound.noise_sigma = background_noise_sigma(trial);
+  Constraints constraints;
+  add_pixel_constraints(trial, frame, border, options.k_sigma * bound.noise_sigma, options, bound,
+                        constraints);
+  if (bound.inside_pixels == 0)
+    throw Error("contact observability: frame " + std::to_string(frame) + " shows no ridge in contact");
+  add_mode_bounds(trial, options, constraints);
+
+  // The widest range of the centre along any of the directions.
   for (int d = 0; d < options.directions; ++d) {
     const double angle = std::numbers::pi * d / options.directions;
     const Eigen::Vector2d u(std::cos(angle), std::sin(angle));
     const Vector along = jacobian.transpose() * u;
-    const double high = (ellipse_centre(maximise(constraints, along)) - centre_0).dot(u);
-    const double low = (ellipse_centre(maximise(constraints, -along)) - centre_0).dot(u);
+    const double high = (alternatives.ellipse_centre(maximise(constraints, along)) - centre_0).dot(u);
+    const double low = (alternatives.ellipse_centre(maximise(constraints, -along)) - centre_0).dot(u);
     if (0.5 * (high - low) > bound.half_range_px) {
       bound.half_range_px = 0.5 * (high - low);
       bound.direction_deg = angle * 180.0 / std::numbers::pi;
