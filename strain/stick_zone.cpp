@@ -220,12 +220,12 @@ void slip_basis(Vec2 p, double k, double poisson, Vec2& b_x, Vec2& b_y) {
   basis(make_point(p, {}), k, poisson, b_x, b_y);
 }
 
-StickZoneFit fit_stick_zone(std::span<const Vec2> reference_px, std::span<const Vec2> current_px,
-                            const ContactDisk& disk, double poisson, const StickZoneSettings& settings) {
-  StickZoneFit out;
-  out.ratio = out.radius_px = out.residual_rms_px = out.max_slip_px = kNaN;
-  out.shift_px = out.amplitude_px = {kNaN, kNaN};
-  if (!(disk.radius_px > 0.0)) return out;
+namespace {
+
+// The tracks inside `extent` of the contact, in the contact's unit-disk frame, with their displacements
+// centred (the stuck-core shift absorbs the mean, returned in `mean`).
+std::vector<Point> disk_points(std::span<const Vec2> reference_px, std::span<const Vec2> current_px,
+                               const ContactDisk& disk, double extent, Vec2& mean) {
   std::vector<Point> points;
   const std::size_t n = std::min(reference_px.size(), current_px.size());
   for (std::size_t j = 0; j < n; ++j) {
@@ -233,49 +233,90 @@ StickZoneFit fit_stick_zone(std::span<const Vec2> reference_px, std::span<const 
     if (!std::isfinite(X.x) || !std::isfinite(X.y) || !std::isfinite(x.x) || !std::isfinite(x.y)) continue;
     const double dx = X.x - disk.centre_px.x, dy = X.y - disk.centre_px.y;
     const Vec2 p{disk.to_disk.xx * dx + disk.to_disk.xy * dy, disk.to_disk.yx * dx + disk.to_disk.yy * dy};
-    if (std::hypot(p.x, p.y) > settings.extent) continue;
+    if (std::hypot(p.x, p.y) > extent) continue;
     points.push_back({p, {x.x - X.x, x.y - X.y}});
   }
-  // Centre the displacements (the stuck-core shift t absorbs the mean) and precompute what does not depend
-  // on k.
-  Vec2 mean;
+  mean = {};
   for (const Point& q : points) {
     mean.x += q.d.x / static_cast<double>(points.size());
     mean.y += q.d.y / static_cast<double>(points.size());
   }
+  // Precomputes what does not depend on k.
   for (Point& q : points) q = make_point(q.p, {q.d.x - mean.x, q.d.y - mean.y});
+  return points;
+}
+
+// One pass of outlier rejection (lost or mismatched tracks): residuals beyond 5 σ, σ from the median
+// residual norm (a 2-D Gaussian residual's norm has median 1.1774 σ); the fit again without them.
+void reject_outliers(std::vector<Point>& points, double poisson, const StickZoneSettings& settings,
+                     Best& best) {
+  std::vector<double> norms;
+  norms.reserve(points.size());
+  for (const Point& q : points) {
+    Vec2 bx, by;
+    basis(q, best.k, poisson, bx, by);
+    const auto& t = best.solution.theta;
+    norms.push_back(
+        std::hypot(q.d.x - t[0] - t[2] * bx.x - t[3] * by.x, q.d.y - t[1] - t[2] * bx.y - t[3] * by.y));
+  }
+  std::vector<double> sorted = norms;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                   sorted.end());
+  const double sigma = sorted[sorted.size() / 2] / 1.1774;
+  const double limit = std::max(5.0 * sigma, 1e-9);
+  std::vector<Point> kept;
+  kept.reserve(points.size());
+  for (std::size_t j = 0; j < points.size(); ++j)
+    if (norms[j] <= limit) kept.push_back(points[j]);
+  if (kept.size() < points.size() && static_cast<int>(kept.size()) >= std::max(settings.min_points, 3)) {
+    points = std::move(kept);
+    best = minimise(points, poisson, settings);
+  }
+}
+
+// The largest slip the fitted field predicts at any of the points.
+double max_predicted_slip(const std::vector<Point>& points, const Best& best, double poisson) {
+  const auto& theta = best.solution.theta;
+  double max_slip = 0.0;
+  for (const Point& q : points) {
+    Vec2 bx, by;
+    basis(q, best.k, poisson, bx, by);
+    max_slip =
+        std::max(max_slip, std::hypot(theta[2] * bx.x + theta[3] * by.x, theta[2] * bx.y + theta[3] * by.y));
+  }
+  return max_slip;
+}
+
+// Slip is detected when the fit explains clearly more than the noise, predicts slip well above it, and the
+// stuck core has moved along the fitted traction (in Cattaneo–Mindlin the core shifts by
+// δ = π(1 − ν/2)(1 − k²)·|A| along A): a tracking bias at rest (a ring of small systematic errors near the
+// border) must not read as slip.
+bool slip_detected(const StickZoneFit& out, const Best& best, const StickZoneSettings& settings) {
+  const auto& theta = best.solution.theta;
+  const double floor_px = std::max(settings.significance * out.residual_rms_px, settings.min_slip_px);
+  const Vec2 t = out.shift_px;
+  const double shift = std::hypot(t.x, t.y), amplitude = std::hypot(theta[2], theta[3]);
+  const bool core_moved = shift > floor_px && t.x * theta[2] + t.y * theta[3] > 0.5 * shift * amplitude;
+  return best.solution.slip_determined && out.chi2_slip >= settings.chi2_slip && out.max_slip_px > floor_px &&
+         core_moved;
+}
+
+}  // namespace
+
+StickZoneFit fit_stick_zone(std::span<const Vec2> reference_px, std::span<const Vec2> current_px,
+                            const ContactDisk& disk, double poisson, const StickZoneSettings& settings) {
+  StickZoneFit out;
+  out.ratio = out.radius_px = out.residual_rms_px = out.max_slip_px = kNaN;
+  out.shift_px = out.amplitude_px = {kNaN, kNaN};
+  if (!(disk.radius_px > 0.0)) return out;
+  Vec2 mean;
+  std::vector<Point> points = disk_points(reference_px, current_px, disk, settings.extent, mean);
   if (static_cast<int>(points.size()) < std::max(settings.min_points, 3)) {
     out.points = static_cast<int>(points.size());
     return out;
   }
-
   Best best = minimise(points, poisson, settings);
-  // One pass of outlier rejection (lost or mismatched tracks): residuals beyond 5 σ, σ from the median
-  // residual norm (a 2-D Gaussian residual's norm has median 1.1774 σ).
-  {
-    std::vector<double> norms;
-    norms.reserve(points.size());
-    for (const Point& q : points) {
-      Vec2 bx, by;
-      basis(q, best.k, poisson, bx, by);
-      const auto& t = best.solution.theta;
-      norms.push_back(
-          std::hypot(q.d.x - t[0] - t[2] * bx.x - t[3] * by.x, q.d.y - t[1] - t[2] * bx.y - t[3] * by.y));
-    }
-    std::vector<double> sorted = norms;
-    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
-                     sorted.end());
-    const double sigma = sorted[sorted.size() / 2] / 1.1774;
-    const double limit = std::max(5.0 * sigma, 1e-9);
-    std::vector<Point> kept;
-    kept.reserve(points.size());
-    for (std::size_t j = 0; j < points.size(); ++j)
-      if (norms[j] <= limit) kept.push_back(points[j]);
-    if (kept.size() < points.size() && static_cast<int>(kept.size()) >= std::max(settings.min_points, 3)) {
-      points = std::move(kept);
-      best = minimise(points, poisson, settings);
-    }
-  }
+  reject_outliers(points, poisson, settings, best);
 
   // Model selection against the two boundary models, each by its residual decrease in units of the noise
   // variance: the offset-only field (no slip, c = a) and the single-block field (full slip, c = 0).
@@ -294,31 +335,14 @@ StickZoneFit fit_stick_zone(std::span<const Vec2> reference_px, std::span<const 
   out.shift_px = {theta[0] + mean.x, theta[1] + mean.y};
   out.amplitude_px = {theta[2], theta[3]};
   out.residual_rms_px = std::sqrt(best.solution.rss / dof);
-  double max_slip = 0.0;
-  for (const Point& q : points) {
-    Vec2 bx, by;
-    basis(q, best.k, poisson, bx, by);
-    max_slip =
-        std::max(max_slip, std::hypot(theta[2] * bx.x + theta[3] * by.x, theta[2] * bx.y + theta[3] * by.y));
-  }
-  out.max_slip_px = max_slip;
-  // Slip is detected when the fit explains clearly more than the noise, predicts slip well above it, and
-  // the stuck core has moved along the fitted traction (in Cattaneo–Mindlin the core shifts by
-  // δ = π(1 − ν/2)(1 − k²)·|A| along A): a tracking bias at rest (a ring of small systematic errors near the
-  // border) must not read as slip.
-  const double floor_px = std::max(settings.significance * out.residual_rms_px, settings.min_slip_px);
-  const Vec2 t = out.shift_px;
-  const double shift = std::hypot(t.x, t.y), amplitude = std::hypot(theta[2], theta[3]);
-  const bool core_moved = shift > floor_px && t.x * theta[2] + t.y * theta[3] > 0.5 * shift * amplitude;
-  const bool detected = best.solution.slip_determined && out.chi2_slip >= settings.chi2_slip &&
-                        max_slip > floor_px && core_moved;
-  if (!detected) {
+  out.max_slip_px = max_predicted_slip(points, best, poisson);
+  if (slip_detected(out, best, settings)) {
+    out.status = StickZoneStatus::kFit;
+    out.ratio = best.k;
+  } else {
     out.status = StickZoneStatus::kNoSlip;
     out.ratio = 1.0;
     out.amplitude_px = {0.0, 0.0};
-  } else {
-    out.status = StickZoneStatus::kFit;
-    out.ratio = best.k;
   }
   out.radius_px = out.ratio * disk.radius_px;
   return out;
