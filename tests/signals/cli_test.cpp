@@ -267,9 +267,11 @@ TEST(SignalsCli, PadDeformationRecoversTheDisplacementByBothRoutes) {
   const auto spectrum = tirstrain::read_numeric_csv(out);
   const auto& gain = spectrum.column("g1_gain");
   const auto& freq = spectrum.column("freq_Hz");
-  for (std::size_t i = 0; i < freq.size(); ++i)
-    if (std::abs(std::fmod(freq[i] + 5.0, 10.0) - 5.0) < 0.5 && freq[i] > 5.0 && freq[i] < 455.0)
+  for (std::size_t i = 0; i < freq.size(); ++i) {
+    if (std::abs(std::fmod(freq[i] + 5.0, 10.0) - 5.0) < 0.5 && freq[i] > 5.0 && freq[i] < 455.0) {
       EXPECT_NEAR(gain[i], 0.5, 1e-6) << freq[i] << " Hz";  // a calibration tone's bin
+    }
+  }
   const auto band = tirstrain::read_numeric_csv(bands);
   ASSERT_EQ(band.column("rms_side_m").size(), 1u);
   EXPECT_NEAR(band.column("rms_side_m")[0], x_m / std::sqrt(2.0), 0.03 * x_m / std::sqrt(2.0));
