@@ -45,16 +45,10 @@ void write_scene(const Trial& trial, const std::string& path) {
   save_scene(scene, path);
 }
 
-void write_truth(const Trial& trial, const std::string& path, const std::vector<GridTruth>& grid,
-                 const std::vector<cv::Mat>& masks,
-                 const std::vector<Trial::OrientationBlocks>& orientation) {
+// What the truth describes: the trial's scene, tissue, loading and contact geometry.
+void write_truth_attributes(const Trial& trial, H5Writer& out) {
   const SynthConfig& cfg = trial.config();
   const LoadHistory& history = trial.history();
-  const auto frames = static_cast<std::size_t>(trial.frames());
-  const std::size_t nx = trial.grid_x_px().size(), ny = trial.grid_y_px().size();
-  const auto w = static_cast<std::size_t>(trial.width()), h = static_cast<std::size_t>(trial.height());
-
-  H5Writer out(path);
   out.attribute("/", "format", kTruthFormat);
   out.attribute("/", "version", kTruthVersion);
   out.attribute("/", "field", field_name(cfg.loading.field));
@@ -76,7 +70,12 @@ void write_truth(const Trial& trial, const std::string& path, const std::vector<
   out.attribute("/", "contact_angle_rad", history.contact_angle_rad());
   out.attribute("/", "contact_radius_m", history.contact_radius_m());
   out.attribute("/", "max_rigid_shift_m", history.max_rigid_shift_m());
+}
 
+// Per frame: time, loads, stick radius, rigid shift, full slip and the plate's displacement.
+void write_load_series(const Trial& trial, H5Writer& out) {
+  const LoadHistory& history = trial.history();
+  const auto frames = static_cast<std::size_t>(trial.frames());
   std::vector<double> t_s(frames), normal(frames), tangential(frames), stick(frames), shift(frames),
       plate(2 * frames);
   std::vector<std::uint8_t> slip(frames);
@@ -99,12 +98,12 @@ void write_truth(const Trial& trial, const std::string& path, const std::vector<
   out.write("/load/rigid_shift_m", std::span<const double>(shift), {frames});
   out.write("/load/full_slip", std::span<const std::uint8_t>(slip), {frames});
   out.write("/plate/displacement_px", std::span<const double>(plate), {frames, 2});
+}
 
-  std::vector<std::uint8_t> mask_data;
-  mask_data.reserve(frames * w * h);
-  for (const cv::Mat& m : masks) mask_data.insert(mask_data.end(), m.datastart, m.dataend);
-  out.write("/contact/mask", std::span<const std::uint8_t>(mask_data), {frames, h, w});
-
+// The exact field on the regular grid, every frame.
+void write_grid_fields(const Trial& trial, const std::vector<GridTruth>& grid, H5Writer& out) {
+  const auto frames = static_cast<std::size_t>(trial.frames());
+  const std::size_t nx = trial.grid_x_px().size(), ny = trial.grid_y_px().size();
   out.write("/grid/x_px", std::span<const double>(trial.grid_x_px()), {nx});
   out.write("/grid/y_px", std::span<const double>(trial.grid_y_px()), {ny});
   const auto stack = [&](auto member, std::size_t components) {
@@ -128,7 +127,12 @@ void write_truth(const Trial& trial, const std::string& path, const std::vector<
   out.write("/field/in_stick", std::span<const std::uint8_t>(stick_flags), {frames, ny, nx});
   out.attribute("/field/gradient", "components", "H_xx, H_xy, H_yx, H_yy (H_ij = du_i/dX_j)");
   out.attribute("/field/strain", "components", "E_xx, E_yy, E_xy (Green-Lagrange, tensor shear)");
+}
 
+// The ridge orientation averaged over the contact segmenter's blocks, every frame.
+void write_orientation(const Trial& trial, const std::vector<Trial::OrientationBlocks>& orientation,
+                       H5Writer& out) {
+  const auto frames = static_cast<std::size_t>(trial.frames());
   const auto blocks_y = static_cast<std::size_t>(orientation.front().orientation_rad.rows);
   const auto blocks_x = static_cast<std::size_t>(orientation.front().orientation_rad.cols);
   const auto stack_blocks = [&](cv::Mat Trial::OrientationBlocks::*member) {
@@ -143,7 +147,24 @@ void write_truth(const Trial& trial, const std::string& path, const std::vector<
   const auto coherence = stack_blocks(&Trial::OrientationBlocks::coherence);
   out.write("/texture/orientation_coherence", std::span<const double>(coherence),
             {frames, blocks_y, blocks_x});
-  out.attribute("/texture/orientation_rad", "block_px", static_cast<double>(cfg.truth.orientation_block_px));
+  out.attribute("/texture/orientation_rad", "block_px",
+                static_cast<double>(trial.config().truth.orientation_block_px));
+}
+
+void write_truth(const Trial& trial, const std::string& path, const std::vector<GridTruth>& grid,
+                 const std::vector<cv::Mat>& masks,
+                 const std::vector<Trial::OrientationBlocks>& orientation) {
+  const auto frames = static_cast<std::size_t>(trial.frames());
+  const auto w = static_cast<std::size_t>(trial.width()), h = static_cast<std::size_t>(trial.height());
+  H5Writer out(path);
+  write_truth_attributes(trial, out);
+  write_load_series(trial, out);
+  std::vector<std::uint8_t> mask_data;
+  mask_data.reserve(frames * w * h);
+  for (const cv::Mat& m : masks) mask_data.insert(mask_data.end(), m.datastart, m.dataend);
+  out.write("/contact/mask", std::span<const std::uint8_t>(mask_data), {frames, h, w});
+  write_grid_fields(trial, grid, out);
+  write_orientation(trial, orientation, out);
   out.commit();
 }
 
