@@ -340,8 +340,10 @@ double student_t_quantile(double p, double dof) {
   return 0.5 * (lo + hi);
 }
 
-PowerLawFit fit_power_law(const std::vector<double>& normal_N, const std::vector<double>& mu,
-                          double confidence) {
+namespace {
+
+void check_power_law_samples(const std::vector<double>& normal_N, const std::vector<double>& mu,
+                             double confidence) {
   require_same_length(normal_N.size(), mu.size(), "power-law samples");
   const std::size_t n = mu.size();
   if (n < 3) throw Error("power-law fit needs at least 3 samples, got " + std::to_string(n));
@@ -354,25 +356,65 @@ PowerLawFit fit_power_law(const std::vector<double>& normal_N, const std::vector
     if (!std::isfinite(mu[i]))
       throw Error("friction coefficient of sample " + std::to_string(i) + " is not finite");
   }
-  // Start from the log–log line when every μ is positive; the nonlinear fit then only polishes.
-  double a = 0.0, b = 0.0;
-  if (std::all_of(mu.begin(), mu.end(), [](double v) { return v > 0.0; })) {
-    double sx = 0, sy = 0, sxx = 0, sxy = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      const double lx = std::log(normal_N[i]), ly = std::log(mu[i]);
-      sx += lx;
-      sy += ly;
-      sxx += lx * lx;
-      sxy += lx * ly;
-    }
-    const double nn = static_cast<double>(n);
-    const double denom = nn * sxx - sx * sx;
-    b = denom > 0.0 ? (nn * sxy - sx * sy) / denom : 0.0;
-    a = std::exp((sy - b * sx) / nn);
-  } else {
+}
+
+// The start: the log–log line when every μ is positive (the nonlinear fit then only polishes), else a
+// constant at the mean μ.
+void power_law_start(const std::vector<double>& normal_N, const std::vector<double>& mu, double& a,
+                     double& b) {
+  const std::size_t n = mu.size();
+  a = b = 0.0;
+  if (!std::all_of(mu.begin(), mu.end(), [](double v) { return v > 0.0; })) {
     for (double v : mu) a += v;
     a /= static_cast<double>(n);
+    return;
   }
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double lx = std::log(normal_N[i]), ly = std::log(mu[i]);
+    sx += lx;
+    sy += ly;
+    sxx += lx * lx;
+    sxy += lx * ly;
+  }
+  const double nn = static_cast<double>(n);
+  const double denom = nn * sxx - sx * sx;
+  b = denom > 0.0 ? (nn * sxy - sx * sy) / denom : 0.0;
+  a = std::exp((sy - b * sx) / nn);
+}
+
+// Standard errors and confidence bounds from Ceres' (JᵀJ)⁻¹ for unit-variance residuals, scaled by the
+// estimated residual variance.
+void power_law_uncertainty(ceres::Problem& problem, double* a, double* b, double ssr, PowerLawFit& fit) {
+  ceres::Covariance::Options cov_options;
+  ceres::Covariance covariance(cov_options);
+  std::vector<std::pair<const double*, const double*>> blocks{{a, a}, {a, b}, {b, b}};
+  if (!covariance.Compute(blocks, &problem))
+    throw Error("power-law fit: the Jacobian is rank deficient (are all normal forces equal?)");
+  double caa = 0.0, cab = 0.0, cbb = 0.0;
+  covariance.GetCovarianceBlock(a, a, &caa);
+  covariance.GetCovarianceBlock(a, b, &cab);
+  covariance.GetCovarianceBlock(b, b, &cbb);
+  const double dof = static_cast<double>(fit.samples - 2);
+  const double s2 = ssr / dof;
+  fit.a_stderr = std::sqrt(caa * s2);
+  fit.b_stderr = std::sqrt(cbb * s2);
+  fit.covariance_ab = cab * s2;
+  const double t = student_t_quantile(1.0 - 0.5 * (1.0 - fit.confidence), dof);
+  fit.a_low = fit.a - t * fit.a_stderr;
+  fit.a_high = fit.a + t * fit.a_stderr;
+  fit.b_low = fit.b - t * fit.b_stderr;
+  fit.b_high = fit.b + t * fit.b_stderr;
+}
+
+}  // namespace
+
+PowerLawFit fit_power_law(const std::vector<double>& normal_N, const std::vector<double>& mu,
+                          double confidence) {
+  check_power_law_samples(normal_N, mu, confidence);
+  const std::size_t n = mu.size();
+  double a = 0.0, b = 0.0;
+  power_law_start(normal_N, mu, a, b);
   ceres::Problem problem;
   for (std::size_t i = 0; i < n; ++i)
     problem.AddResidualBlock(
@@ -400,26 +442,7 @@ PowerLawFit fit_power_law(const std::vector<double>& normal_N, const std::vector
     ssr += r * r;
   }
   fit.residual_rms = std::sqrt(ssr / static_cast<double>(n));
-  ceres::Covariance::Options cov_options;
-  ceres::Covariance covariance(cov_options);
-  std::vector<std::pair<const double*, const double*>> blocks{{&a, &a}, {&a, &b}, {&b, &b}};
-  if (!covariance.Compute(blocks, &problem))
-    throw Error("power-law fit: the Jacobian is rank deficient (are all normal forces equal?)");
-  double caa = 0.0, cab = 0.0, cbb = 0.0;
-  covariance.GetCovarianceBlock(&a, &a, &caa);
-  covariance.GetCovarianceBlock(&a, &b, &cab);
-  covariance.GetCovarianceBlock(&b, &b, &cbb);
-  // Ceres returns (JᵀJ)⁻¹ for unit-variance residuals; scale by the estimated residual variance.
-  const double dof = static_cast<double>(n - 2);
-  const double s2 = ssr / dof;
-  fit.a_stderr = std::sqrt(caa * s2);
-  fit.b_stderr = std::sqrt(cbb * s2);
-  fit.covariance_ab = cab * s2;
-  const double t = student_t_quantile(1.0 - 0.5 * (1.0 - confidence), dof);
-  fit.a_low = a - t * fit.a_stderr;
-  fit.a_high = a + t * fit.a_stderr;
-  fit.b_low = b - t * fit.b_stderr;
-  fit.b_high = b + t * fit.b_stderr;
+  power_law_uncertainty(problem, &a, &b, ssr, fit);
   return fit;
 }
 
