@@ -267,17 +267,22 @@ TEST(ValidateCli, NoisyAndLowContrastScenesMeetTheDisplacementTarget) {
   }
 }
 
-// `--threads` sets how many threads the image loops use (trials side by side in a study run one each); the
-// result is the same to the last bit whatever the count: each track's work is done by one thread.
-TEST(ProcessCli, ThreadCountChangesNothingButTheTime) {
-  const std::string dir = fresh_dir("process_threads");
+// The default scene cut to `frames` frames, synthesised into DIR/trial (its scene in DIR/scene.yaml).
+void synth_default_cut(const std::string& dir, int frames) {
   fs::create_directories(dir);
   std::string scene = read_text(std::string(TIRSTRAIN_SOURCE_SCENES_DIR) + "/default.yaml");
   const std::size_t at = scene.find("frames: 60");
   ASSERT_NE(at, std::string::npos);
-  scene.replace(at, 10, "frames: 8");
+  scene.replace(at, 10, "frames: " + std::to_string(frames));
   std::ofstream(dir + "/scene.yaml") << scene;
   ASSERT_EQ(run_cli("synth --scene " + dir + "/scene.yaml --out " + dir + "/trial --quiet").exit_code, 0);
+}
+
+// `--threads` sets how many threads the image loops use (trials side by side in a study run one each); the
+// result is the same to the last bit whatever the count: each track's work is done by one thread.
+TEST(ProcessCli, ThreadCountChangesNothingButTheTime) {
+  const std::string dir = fresh_dir("process_threads");
+  ASSERT_NO_FATAL_FAILURE(synth_default_cut(dir, 8));
   for (const char* threads : {"1", "2"}) {
     const auto run = run_cli(std::string("--threads ") + threads + " process " + dir + "/trial --out " + dir +
                              "/result_" + threads + " --overlay none --quiet");
@@ -302,13 +307,7 @@ TEST(ProcessCli, ThreadCountChangesNothingButTheTime) {
 // fitted tangential force against the trial's true load, and the same fit as `tirstrain fit` on the result.
 TEST(ProcessCli, FitStageRecoversTheLoadAndMatchesTheFitCommand) {
   const std::string dir = fresh_dir("process_fit_stage");
-  fs::create_directories(dir);
-  std::string scene = read_text(std::string(TIRSTRAIN_SOURCE_SCENES_DIR) + "/default.yaml");
-  const std::size_t at = scene.find("frames: 60");
-  ASSERT_NE(at, std::string::npos);
-  scene.replace(at, 10, "frames: 12");
-  std::ofstream(dir + "/scene.yaml") << scene;
-  ASSERT_EQ(run_cli("synth --scene " + dir + "/scene.yaml --out " + dir + "/trial --quiet").exit_code, 0);
+  ASSERT_NO_FATAL_FAILURE(synth_default_cut(dir, 12));
   const auto run =
       run_cli("process " + dir + "/trial --out " + dir + "/result --compute fit --overlay none --quiet");
   ASSERT_EQ(run.exit_code, 0) << run.output;
