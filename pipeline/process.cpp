@@ -381,7 +381,7 @@ class ProcessRun {
     while (std::optional<capture::Frame> frame = reader.next()) {
       process_frame(*frame);
       ++report_.frames;
-      if (report_.frames % kFlushEveryFrames == 0) mark_progress();
+      if (report_.frames % options_.flush_every_frames == 0) mark_progress();
       progress.update(static_cast<long>(report_.frames));
     }
     progress.finish();
@@ -564,9 +564,6 @@ class ProcessRun {
     report_.outputs.push_back((final_out() / "result.h5").string());
   }
 
-  // Frames between flushes of result.h5: what a killed run can lose at most.
-  static constexpr std::int64_t kFlushEveryFrames = 64;
-
   const ProcessOptions& options_;
   const std::chrono::steady_clock::time_point wall_start_ = std::chrono::steady_clock::now();
   ProcessReport report_;
@@ -598,6 +595,9 @@ class ProcessRun {
 }  // namespace
 
 ProcessReport run_process(const ProcessOptions& options) {
+  if (options.flush_every_frames < 1)
+    throw Error("must be at least 1 (frames between flushes of the partial result)",
+                {.key = "--flush-every-frames"});
   return ProcessRun(options).run();
 }
 

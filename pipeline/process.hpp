@@ -42,6 +42,9 @@ struct ProcessOptions {
   std::string tracking_preset;
   std::string segmentation_preset;
   std::string strain_mode;
+  // Frames between flushes of the partial result: a run killed later leaves every frame before the last
+  // flush readable in OUT.partial (result.h5.partial, summary.json `complete: false`). ≥ 1.
+  std::int64_t flush_every_frames = 64;
   std::FILE* log = stderr;  // warnings and progress
 };
 

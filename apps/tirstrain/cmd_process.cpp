@@ -15,6 +15,7 @@ struct ProcessArgs {
   std::string input, scene, out, overlay = "mp4", preset, segmentation, strain_mode;
   std::optional<double> frame_rate_Hz;
   std::vector<std::string> compute;
+  std::int64_t flush_every_frames = 64;
   bool quiet = false, strict = false, no_scene = false;
 };
 
@@ -52,6 +53,7 @@ pipeline::ProcessOptions process_options(const ProcessArgs& args) {
   options.tracking_preset = args.preset;
   options.segmentation_preset = args.segmentation;
   options.strain_mode = args.strain_mode;
+  options.flush_every_frames = args.flush_every_frames;
   return options;
 }
 
@@ -103,6 +105,10 @@ void add_process_command(CLI::App& app) {
   sub->add_flag(
       "--strict", args->strict,
       "Stop at a corrupt frame, a missing stage or missing timestamps instead of skipping/assuming");
+  sub->add_option("--flush-every-frames", args->flush_every_frames,
+                  "Frames between flushes of the partial result (default 64): a run killed later leaves the "
+                  "frames before the last flush readable in DIR.partial, marked incomplete")
+      ->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 40));
   sub->add_option("--overlay", args->overlay, "Overlay for viewing: mp4 (default), png (DIR/overlay/), none")
       ->check(CLI::IsMember({"mp4", "png", "none"}));
   sub->callback([args] { run_process_command(*args); });

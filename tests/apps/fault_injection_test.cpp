@@ -21,8 +21,10 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <map>
 #include <optional>
 #include <random>
@@ -30,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "core/h5_file.hpp"
 #include "tests/support/scratch.hpp"
 
 namespace tirstrain {
@@ -47,6 +50,7 @@ struct CliRun {
 struct RunOptions {
   std::optional<rlim_t> file_size_limit_bytes;  // RLIMIT_FSIZE of the child
   std::optional<double> kill_after_s;           // SIGKILL this long after the start
+  std::optional<fs::path> kill_once_exists;     // SIGKILL as soon as this file exists (polled every 5 ms)
 };
 
 double now_s() {
@@ -82,11 +86,14 @@ CliRun run_cli(const std::vector<std::string>& args, const RunOptions& options =
     int timeout_ms = -1;
     if (options.kill_after_s && !sent_kill)
       timeout_ms = std::max(0, static_cast<int>(1e3 * (start_s + *options.kill_after_s - now_s())));
+    if (options.kill_once_exists && !sent_kill) timeout_ms = 5;
     pollfd p{fds[0], POLLIN, 0};
     const int ready = poll(&p, 1, timeout_ms);
     if (ready == 0) {
-      kill(pid, SIGKILL);
-      sent_kill = true;
+      if (!options.kill_once_exists || fs::exists(*options.kill_once_exists)) {
+        kill(pid, SIGKILL);
+        sent_kill = true;
+      }
       continue;
     }
     char buffer[4096];
@@ -346,6 +353,55 @@ TEST(Faults, ProcessKilledAnywhereLeavesTheEarlierResult) {
   const CliRun again = run_cli(process_args(out));
   EXPECT_EQ(again.exit_code, 0) << again.output;
   EXPECT_FALSE(fs::exists(dir / "out.partial"));  // a new run clears what a killed one left
+}
+
+// A run killed part way leaves, apart from any complete result, the frames before its last flush readable
+// and marked incomplete (result.h5.partial `complete` 0 and `frames_written`, summary.json `complete:
+// false`), each of them equal to the complete run's.
+TEST(Faults, ProcessKilledMidRunLeavesItsFlushedFramesReadableAndMarkedIncomplete) {
+  const fs::path dir = testing::scratch_dir("faults", "kill_partial");
+  const fs::path reference = dir / "reference", out = dir / "out", staged = dir / "out.partial";
+  std::vector<std::string> args = process_args(reference);
+  args.insert(args.end(), {"--overlay", "none", "--flush-every-frames", "3"});
+  const CliRun complete = run_cli(args);
+  ASSERT_EQ(complete.exit_code, 0) << complete.output;
+  const H5Reader whole((reference / "result.h5").string());
+  H5Shape whole_shape;
+  const std::vector<double> whole_t = whole.read_doubles("/frames/t_s");
+  const std::vector<double> whole_positions = whole.read_doubles("/tracks/position_px", &whole_shape);
+  ASSERT_EQ(whole_t.size(), 12u);
+
+  args[3] = out.string();
+  // Killed as soon as the first flush has said so: the frames before it must be readable.
+  const CliRun run = run_cli(args, {.kill_once_exists = staged / "summary.json"});
+  ASSERT_TRUE(run.killed) << "the run ended before it was killed: " << run.output;
+  EXPECT_FALSE(fs::exists(out));  // nothing incomplete where the complete result would be
+  std::ifstream summary_file(staged / "summary.json");
+  const nlohmann::json summary = nlohmann::json::parse(summary_file);
+  EXPECT_FALSE(summary.at("complete").get<bool>());
+  const auto k = summary.at("frames_written").get<std::size_t>();
+  std::cout << "  killed after the flush at frame " << k << "\n";
+  EXPECT_GE(k, 3u);
+  EXPECT_LT(k, 12u);
+  const H5Reader partial((staged / "result.h5.partial").string());
+  EXPECT_EQ(partial.attribute_number("/", "complete"), 0.0);
+  EXPECT_GE(partial.attribute_number("/", "frames_written"), static_cast<double>(k));
+  const std::vector<double> t = partial.read_doubles("/frames/t_s");
+  ASSERT_GE(t.size(), k);
+  for (std::size_t f = 0; f < k; ++f) EXPECT_EQ(t[f], whole_t[f]) << "frame " << f;
+  H5Shape shape;
+  const std::vector<double> positions = partial.read_doubles("/tracks/position_px", &shape);
+  ASSERT_EQ(shape.size(), 3u);
+  ASSERT_GE(shape[0], k);
+  const std::size_t tracks = std::min(shape[1], whole_shape[1]);
+  ASSERT_GT(tracks, 100u);
+  int differing = 0;
+  for (std::size_t f = 0; f < k; ++f)
+    for (std::size_t i = 0; i < 2 * tracks; ++i) {
+      const double a = positions[f * shape[1] * 2 + i], b = whole_positions[f * whole_shape[1] * 2 + i];
+      differing += !(a == b || (std::isnan(a) && std::isnan(b)));
+    }
+  EXPECT_EQ(differing, 0);
 }
 
 TEST(Faults, SynthKilledAnywhereLeavesTheEarlierTrial) {
