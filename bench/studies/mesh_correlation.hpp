@@ -7,9 +7,9 @@
 // four elements only, so a weak penalty on the field's second differences (which leaves uniform strain
 // free) carries nodes across texture-poor pixels.
 //
-// A study, not part of the pipeline (bench/studies/README.md): flow_bench's --mesh rows measure it against the
-// subset tracker. With one ridge system a 9–12 px element barely pins the motion along the ridges, and that
-// error grows with the displacement, so the tracker keeps its subsets.
+// A study, not part of the pipeline (bench/studies/README.md): flow_bench's --mesh rows measure it against
+// the subset tracker. With one ridge system a 9–12 px element barely pins the motion along the ridges, and
+// that error grows with the displacement, so the tracker keeps its subsets.
 //
 // Pixels whose current position leaves the current frame's usable mask (the contact, eroded for the
 // interpolation kernel) are removed from the sums, so material leaving the contact never pulls the field
