@@ -142,8 +142,9 @@ std::vector<std::string> write_side_by_side_maps(const ValidateOptions& options,
   H5Shape shape;
   const std::size_t frame =
       options.map_frame >= 0 ? std::min(static_cast<std::size_t>(options.map_frame), n - 1) : u_argmax;
-  const std::vector<double> maps = h5.read_doubles("/maps/strain_total", &shape);
-  const std::size_t g = shape[1];
+  // Only the pictured frame's map is read: the maps of a long trial do not fit in memory.
+  const std::vector<double> maps = h5.read_row_doubles("/maps/strain_total", frame, &shape);
+  const std::size_t g = shape[0];
   const cv::Matx23d to_reference =
       invert_similarity(parse_matrix(h5.attribute_text("/maps", "to_normalised"), result_path));
   const samples::FrameField field = trial.field(static_cast<int>(frame));
@@ -158,7 +159,7 @@ std::vector<std::string> write_side_by_side_maps(const ValidateOptions& options,
       const double qy = -1.0 + 2.0 * static_cast<double>(r) / static_cast<double>(g - 1);
       const Vec2 X{to_reference(0, 0) * qx + to_reference(0, 1) * qy + to_reference(0, 2),
                    to_reference(1, 0) * qx + to_reference(1, 1) * qy + to_reference(1, 2)};
-      const std::size_t base = ((frame * g + r) * g + col) * 3;
+      const std::size_t base = (r * g + col) * 3;
       const bool inside = trial.contact_signed_distance_px(X) < 0.0;
       const Strain2 e = inside ? green_lagrange(field.evaluate(X).gradient) : Strain2{kNaN, kNaN, kNaN};
       const double truth_values[3] = {e.xx, e.yy, e.xy};
