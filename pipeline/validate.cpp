@@ -101,7 +101,8 @@ ContactErrors contact_errors(const ContactTruth& truth, std::int64_t status, std
   return e;
 }
 
-// Per live track at one frame: where the displacement errors are (for finding a tracking bias).
+// Per live track at one frame: where the displacement errors are (for finding a tracking bias). `position`:
+// that frame's /tracks/position_px row.
 void write_tracks_csv(const fs::path& path, const samples::Trial& trial, std::size_t frame,
                       const std::vector<double>& reference, const std::vector<double>& position) {
   const samples::FrameField field = trial.field(static_cast<int>(frame));
@@ -109,7 +110,7 @@ void write_tracks_csv(const fs::path& path, const samples::Trial& trial, std::si
   CsvWriter csv(path.string(), {"frame", "track", "X_px", "Y_px", "border_distance_px", "u_px", "v_px",
                                 "u_truth_px", "v_truth_px"});
   for (std::size_t j = 0; j < k; ++j) {
-    const Vec2 x{position[2 * (frame * k + j)], position[2 * (frame * k + j) + 1]};
+    const Vec2 x{position[2 * j], position[2 * j + 1]};
     if (!std::isfinite(x.x)) continue;
     const Vec2 X{reference[2 * j], reference[2 * j + 1]};
     const Vec2 u = field.displacement_px(X);
@@ -374,7 +375,8 @@ ValidationReport run_validate(const ValidateOptions& options) {
   const std::size_t map_frame = options.map_frame >= 0
                                     ? std::min(static_cast<std::size_t>(options.map_frame), result.frames - 1)
                                     : field.energy_peak_frame();
-  write_tracks_csv(out / "validation_tracks.csv", trial, map_frame, result.reference, result.position);
+  write_tracks_csv(out / "validation_tracks.csv", trial, map_frame, result.reference,
+                   frame_rows(result, map_frame).position);
   report.outputs.push_back((out / "validation_tracks.csv").string());
   field.append_rows(report.rows);
   contact.append_rows(report.rows);

@@ -59,21 +59,21 @@ void read_tracks_and_strain(const H5Reader& h5, ValidatedResult& r) {
   H5Shape shape;
   r.reference = read(h5, "/tracks/reference_px", &shape);
   r.tracks = shape[0];
-  r.position = read(h5, "/tracks/position_px", &shape);
-  r.covariance = h5.has("/tracks/covariance_px2") ? h5.read_doubles("/tracks/covariance_px2", &shape)
-                                                  : std::vector<double>(r.position.size() / 2 * 3, kNaN);
+  for (const char* name : {"/tracks/position_px", "/strain/total", "/stick/stuck"})
+    if (!h5.has(name))
+      throw Error(std::string("the result has no ") + name + " (was it processed with tracking and strain?)",
+                  {.file = h5.path()});
   r.plate = read(h5, "/plate/displacement_px", &shape);
   r.triangles = read(h5, "/mesh/triangles", &shape);
   r.triangles_count = shape[0];
   r.mode = h5.attribute_text("/strain", "mode");
   r.other_mode = r.mode == "exact" ? "incremental" : "exact";
-  r.total = read(h5, "/strain/total", &shape);
-  r.other = read(h5, "/strain/total_" + r.other_mode, &shape);
+  if (!h5.has("/strain/total_" + r.other_mode))
+    throw Error(
+        "the result has no /strain/total_" + r.other_mode + " (was it processed with tracking and strain?)",
+        {.file = h5.path()});
   r.energy = read(h5, "/energy/total_J", &shape);
-  r.total_sd = h5.has("/strain/total_sd") ? h5.read_doubles("/strain/total_sd", &shape)
-                                          : std::vector<double>(r.total.size(), kNaN);
   r.stick_ratio = read(h5, "/stick/ratio", &shape);
-  r.stuck = h5.read_integers("/stick/stuck");
   r.tolerance_px = h5.attribute_number("/stick", "tolerance_px");
   // c from the strain stage's slip-profile fit (older results have only the stuck labels).
   r.c_fit = h5.has("/stick/radius_mm") ? h5.read_doubles("/stick/radius_mm", &shape)
@@ -97,13 +97,28 @@ void read_contact(const H5Reader& h5, ValidatedResult& r) {
 }  // namespace
 
 ValidatedResult read_validated_result(const std::string& result_path, const samples::Trial& trial) {
-  const H5Reader h5(result_path);
   ValidatedResult r;
+  r.h5 = std::make_shared<const H5Reader>(result_path);
   r.path = result_path;
-  read_frames(h5, trial, r);
-  read_tracks_and_strain(h5, r);
-  read_contact(h5, r);
+  read_frames(*r.h5, trial, r);
+  read_tracks_and_strain(*r.h5, r);
+  read_contact(*r.h5, r);
   return r;
+}
+
+FrameRows frame_rows(const ValidatedResult& result, std::size_t i) {
+  const H5Reader& h5 = *result.h5;
+  const auto row_or_nan = [&](const std::string& name, std::size_t values) {
+    return h5.has(name) ? h5.read_row_doubles(name, i) : std::vector<double>(values, kNaN);
+  };
+  FrameRows rows;
+  rows.position = h5.read_row_doubles("/tracks/position_px", i);
+  rows.covariance = row_or_nan("/tracks/covariance_px2", 3 * result.tracks);
+  rows.total = h5.read_row_doubles("/strain/total", i);
+  rows.other = h5.read_row_doubles("/strain/total_" + result.other_mode, i);
+  rows.total_sd = row_or_nan("/strain/total_sd", 3 * result.triangles_count);
+  rows.stuck = h5.read_row_doubles("/stick/stuck", i);
+  return rows;
 }
 
 FieldValidation::FieldValidation(const samples::Trial& trial, const ValidatedResult& result,
@@ -139,6 +154,11 @@ FieldValidation::Accumulator FieldValidation::acc_or_empty(const std::string& qu
 }
 
 void FieldValidation::add_frame(std::size_t i) {
+  if (i > 0 && previous_frame_ != i - 1) {
+    previous_position_ = frame_rows(r_, i - 1).position;
+    previous_frame_ = i - 1;
+  }
+  rows_ = frame_rows(r_, i);
   const samples::FrameField field = trial_.field(static_cast<int>(i));
   const samples::LoadState load = trial_.load(static_cast<int>(i));
   add_tracks(i, field, load);
@@ -148,6 +168,8 @@ void FieldValidation::add_frame(std::size_t i) {
   c_model_[i] = load.stick_radius_m * 1e3;
   if (std::isfinite(r_.stick_ratio[i]) && std::isfinite(ratio_truth_[i]))
     stick_error_.add(r_.stick_ratio[i] - ratio_truth_[i]);
+  previous_position_ = std::move(rows_.position);
+  previous_frame_ = i;
 }
 
 // Each live track against the exact displacement of its reference point; the plate against its truth.
@@ -156,16 +178,16 @@ void FieldValidation::add_tracks(std::size_t i, const samples::FrameField& field
   const std::size_t k = r_.tracks;
   Accumulator frame_disp;
   for (std::size_t j = 0; j < k; ++j) {
-    const Vec2 x = vec(r_.position, i * k + j);
+    const Vec2 x = vec(rows_.position, j);
     if (!std::isfinite(x.x)) continue;
     const Vec2 X = vec(r_.reference, j);
     const Vec2 u = field.displacement_px(X);
     const double error = std::hypot(x.x - X.x - u.x, x.y - X.y - u.y);
     displacement_.add(error);
     frame_disp.add(error);
-    const std::size_t c = 3 * (i * k + j);
+    const std::size_t c = 3 * j;
     rings_.add_track({X.x + u.x, X.y + u.y}, {x.x - X.x - u.x, x.y - X.y - u.y},
-                     {r_.covariance[c], r_.covariance[c + 1], r_.covariance[c + 2]});
+                     {rows_.covariance[c], rows_.covariance[c + 1], rows_.covariance[c + 2]});
     const double inside_px = -std::max(trial_.contact_signed_distance_px(X),
                                        trial_.contact_signed_distance_px({X.x + u.x, X.y + u.y}));
     if (inside_px > border_px_) displacement_interior_.add(error);
@@ -216,8 +238,8 @@ void FieldValidation::add_triangles(std::size_t i, const samples::FrameField& fi
 
 void FieldValidation::add_triangle(std::size_t i, std::size_t t, const samples::FrameField& field,
                                    const samples::LoadState& load, FrameSums& sums) {
-  const std::size_t cell = i * r_.triangles_count + t;
-  if (!std::isfinite(r_.total[cell * 3])) return;
+  const std::size_t cell = t;  // in this frame's rows
+  if (!std::isfinite(rows_.total[cell * 3])) return;
   std::array<Vec2, 3> X, x_true;
   for (std::size_t v = 0; v < 3; ++v) {
     const auto id = static_cast<std::size_t>(r_.triangles[t * 3 + v]);
@@ -229,14 +251,14 @@ void FieldValidation::add_triangle(std::size_t i, std::size_t t, const samples::
   const Strain2 e_point = green_lagrange(at.gradient);
   const double area_m2 = std::abs(strain::signed_area(X[0], X[1], X[2])) * m_per_px_ * m_per_px_;
   sums.truth_energy += plane_strain_energy_density_J_m3(e_point, young_, nu_) * area_m2;
-  const Strain2 other_value = {r_.other[cell * 3], r_.other[cell * 3 + 1], r_.other[cell * 3 + 2]};
+  const Strain2 other_value = {rows_.other[cell * 3], rows_.other[cell * 3 + 1], rows_.other[cell * 3 + 2]};
   if (std::isfinite(other_value.xx))
     sums.other_energy += plane_strain_energy_density_J_m3(other_value, young_, nu_) * area_m2;
   sums.valid_area += area_m2;
   const bool truth_stuck = std::hypot(at.displacement_px.x - load.plate_px.x,
                                       at.displacement_px.y - load.plate_px.y) <= r_.tolerance_px;
   if (truth_stuck) sums.stuck_truth_area += area_m2;
-  if (r_.stuck[cell] == 1) sums.stuck_area_mm2 += area_m2 * 1e6;
+  if (rows_.stuck[cell] == 1.0) sums.stuck_area_mm2 += area_m2 * 1e6;
 
   const Gradient2 h_true = strain::displacement_gradient(X, x_true);
   const Strain2 e_triangle = green_lagrange(h_true);
@@ -244,13 +266,13 @@ void FieldValidation::add_triangle(std::size_t i, std::size_t t, const samples::
   if (std::isfinite(incremental_total()[cell * 3]))
     sums.truth_increments_energy += plane_strain_energy_density_J_m3(sum_truth, young_, nu_) * area_m2;
   sums.truth_triangle_energy += plane_strain_energy_density_J_m3(e_triangle, young_, nu_) * area_m2;
-  const Strain2 measured = {r_.total[cell * 3], r_.total[cell * 3 + 1], r_.total[cell * 3 + 2]};
+  const Strain2 measured = {rows_.total[cell * 3], rows_.total[cell * 3 + 1], rows_.total[cell * 3 + 2]};
   const Vec2 current{centroid.x + at.displacement_px.x, centroid.y + at.displacement_px.y};
   rings_.add_triangle(current, {measured.xx - e_point.xx, measured.yy - e_point.yy, measured.xy - e_point.xy},
-                      {r_.total_sd[cell * 3], r_.total_sd[cell * 3 + 1], r_.total_sd[cell * 3 + 2]});
+                      {rows_.total_sd[cell * 3], rows_.total_sd[cell * 3 + 1], rows_.total_sd[cell * 3 + 2]});
   std::array<Vec2, 3> x_measured;
   for (std::size_t v = 0; v < 3; ++v)
-    x_measured[v] = vec(r_.position, i * r_.tracks + static_cast<std::size_t>(r_.triangles[t * 3 + v]));
+    x_measured[v] = vec(rows_.position, static_cast<std::size_t>(r_.triangles[t * 3 + v]));
   sums.measured_triangles.push_back(x_measured);
   if (trial_.contact_signed_distance_px(centroid) >= -border_px_ ||
       trial_.contact_signed_distance_px(current) >= -border_px_)
@@ -270,7 +292,7 @@ const Strain2& FieldValidation::advance_truth_increments(std::size_t i, std::siz
                                                          const std::array<Vec2, 3>& X,
                                                          const Gradient2& h_true, const Strain2& e_triangle) {
   Strain2& sum_truth = increments_truth_[t];
-  if (!std::isfinite(incremental_total()[(i * r_.triangles_count + t) * 3])) return sum_truth;
+  if (!std::isfinite(incremental_total()[t * 3])) return sum_truth;
   if (!std::isfinite(sum_truth.xx)) {
     sum_truth = i == r_.reference_row ? Strain2{0.0, 0.0, 0.0} : e_triangle;
     return sum_truth;
@@ -280,7 +302,7 @@ const Strain2& FieldValidation::advance_truth_increments(std::size_t i, std::siz
   bool tracked_before = i > 0;
   for (std::size_t v = 0; v < 3 && tracked_before; ++v) {
     const auto id = static_cast<std::size_t>(r_.triangles[t * 3 + v]);
-    tracked_before = std::isfinite(r_.position[2 * ((i - 1) * r_.tracks + id)]);
+    tracked_before = std::isfinite(previous_position_[2 * id]);
     x_before[v] = true_before_[id];
   }
   if (tracked_before) {
@@ -294,7 +316,8 @@ const Strain2& FieldValidation::advance_truth_increments(std::size_t i, std::siz
 // An interior triangle's six quantities in both strain modes against both truths, and the strain gain.
 void FieldValidation::add_interior_errors(std::size_t cell, const Strain2& measured, const Strain2& e_point,
                                           const Strain2& e_triangle, const Strain2& sum_truth) {
-  const Strain2 measured_other = {r_.other[cell * 3], r_.other[cell * 3 + 1], r_.other[cell * 3 + 2]};
+  const Strain2 measured_other = {rows_.other[cell * 3], rows_.other[cell * 3 + 1],
+                                  rows_.other[cell * 3 + 2]};
   const auto truth_point = components(e_point, young_, nu_);
   const auto truth_triangle = components(e_triangle, young_, nu_);
   if (std::isfinite(sum_truth.xx)) {
@@ -346,12 +369,12 @@ void FieldValidation::add_stick_fits(std::size_t i, const samples::FrameField& f
   const std::size_t k = r_.tracks;
   std::vector<Vec2> ref_px, exact_px, tracked_px;
   for (std::size_t j = 0; j < k; ++j) {
-    if (!std::isfinite(r_.position[2 * (i * k + j)])) continue;
+    if (!std::isfinite(rows_.position[2 * j])) continue;
     const Vec2 X = vec(r_.reference, j);
     const Vec2 u = field.displacement_px(X);
     ref_px.push_back(X);
     exact_px.push_back({X.x + u.x, X.y + u.y});
-    tracked_px.push_back(vec(r_.position, i * k + j));
+    tracked_px.push_back(vec(rows_.position, j));
   }
   const samples::LoadHistory& history = trial_.history();
   const strain::ContactDisk disk =

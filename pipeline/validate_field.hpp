@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -18,26 +19,35 @@
 namespace tirstrain::pipeline {
 
 // The datasets of result.h5 that validate compares, flat as H5Reader returns them.
+// The result's per-frame track and strain rows of one frame: a long trial's whole arrays do not fit in
+// memory, so they are read a frame at a time (ValidatedResult::frame_rows).
+struct FrameRows {
+  std::vector<double> position, covariance;    // [K, 2], [K, 3]
+  std::vector<double> total, other, total_sd;  // [T, 3]
+  std::vector<double> stuck;                   // [T]: 1 stuck, 0 slipping, −1 not labelled
+};
+
 struct ValidatedResult {
   std::string path;
+  std::shared_ptr<const H5Reader> h5;  // open for the per-frame rows
   std::size_t frames = 0, tracks = 0, triangles_count = 0;
   std::vector<double> t_s;
-  std::vector<double> reference, position, covariance;  // [K, 2], [N, K, 2], [N, K, 3]
-  std::vector<double> plate;                            // [N, 2]
-  std::vector<double> triangles;                        // [T, 3] vertex track ids
-  std::string mode, other_mode;                         // strain mode of /strain/total and the other one
-  std::vector<double> total, other, total_sd;           // [N, T, 3]
-  std::vector<double> energy, stick_ratio, c_fit;       // [N]
-  std::vector<std::int64_t> stuck;                      // [N, T]
-  double tolerance_px = 0.0;                            // the stick test's
-  std::size_t reference_row = 0;                        // the tracks' reference frame
-  std::vector<std::int64_t> contact_status;             // [N]
-  std::vector<double> hull, ellipses, contact_area;     // [N, H, 2], [N, 5], [N]
-  std::size_t hull_values = 0;                          // H × 2
+  std::vector<double> reference;                     // [K, 2]
+  std::vector<double> plate;                         // [N, 2]
+  std::vector<double> triangles;                     // [T, 3] vertex track ids
+  std::string mode, other_mode;                      // strain mode of /strain/total and the other one
+  std::vector<double> energy, stick_ratio, c_fit;    // [N]
+  double tolerance_px = 0.0;                         // the stick test's
+  std::size_t reference_row = 0;                     // the tracks' reference frame
+  std::vector<std::int64_t> contact_status;          // [N]
+  std::vector<double> hull, ellipses, contact_area;  // [N, H, 2], [N, 5], [N]
+  std::size_t hull_values = 0;                       // H × 2
 };
 
 // Reads and checks RESULT_DIR/result.h5 against the trial (frame count and times).
 ValidatedResult read_validated_result(const std::string& result_path, const samples::Trial& trial);
+// Frame i's rows of the per-frame track and strain datasets (NaN where a dataset is absent).
+FrameRows frame_rows(const ValidatedResult& result, std::size_t i);
 
 // Errors against the exact field, accumulated frame by frame; rings: the same errors by ring of the contact.
 class FieldValidation {
@@ -66,9 +76,9 @@ class FieldValidation {
                                           const Gradient2& h_true, const Strain2& e_triangle);
   void add_interior_errors(std::size_t cell, const Strain2& measured, const Strain2& e_point,
                            const Strain2& e_triangle, const Strain2& sum_truth);
-  // The strain sum of the incremental mode, whichever mode /strain/total holds.
+  // The strain sum of the incremental mode, whichever mode /strain/total holds (this frame's rows).
   const std::vector<double>& incremental_total() const {
-    return r_.mode == "incremental" ? r_.total : r_.other;
+    return r_.mode == "incremental" ? rows_.total : rows_.other;
   }
   void add_contact_energy(std::size_t i);
   void add_stick_fits(std::size_t i, const samples::FrameField& field);
@@ -99,6 +109,9 @@ class FieldValidation {
   // The paper's running sum of increments applied to the exact vertex positions, per triangle.
   std::vector<Strain2> increments_truth_;
   std::vector<Vec2> true_now_, true_before_;
+  FrameRows rows_;                         // the frame being added
+  std::vector<double> previous_position_;  // the frame before's /tracks/position_px row
+  std::size_t previous_frame_ = SIZE_MAX;  // which frame that is
   std::size_t u_argmax_ = 0;
 };
 

@@ -69,7 +69,8 @@ ChildRun run_cli(const std::vector<std::string>& arguments) {
   return run;
 }
 
-// Synthesises a trial of `frames` frames and processes it; returns the process run.
+// Synthesises a trial of `frames` frames and processes it into scratch/process_memory/NAME/out; returns the
+// process run.
 ChildRun synth_and_process(const std::string& name, int frames) {
   const fs::path dir = testing::scratch_dir("process_memory", name);
   fs::create_directories(dir);
@@ -94,6 +95,20 @@ TEST(ProcessMemory, LongTrialNeedsNoMoreMemoryThanAShortOne) {
   ASSERT_GT(short_run.peak_rss_MB, 0.0);
   // Keeping every frame would add 110 MB (the maps alone); the bound leaves room for allocator noise.
   EXPECT_LE(long_run.peak_rss_MB, 1.25 * short_run.peak_rss_MB + 50.0);
+
+  // `validate` of the two results (no processing): the track, strain and map rows are read a frame at a
+  // time. Reading the long trial's whole arrays would add about 50 MB (the 160x160 maps' 37 MB of them).
+  const auto validate = [](const std::string& name) {
+    const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "process_memory" / name;  // synth_and_process's
+    return run_cli({"validate", "--trial", (dir / "trial").string(), "--result", (dir / "out").string(),
+                    "--out", (dir / "validation").string(), "--quiet"});
+  };
+  const ChildRun short_validation = validate("short"), long_validation = validate("long");
+  std::printf("validate peak RSS: 12 frames %.1f MB, 72 frames %.1f MB\n", short_validation.peak_rss_MB,
+              long_validation.peak_rss_MB);
+  EXPECT_EQ(short_validation.exit_code, 0);
+  EXPECT_EQ(long_validation.exit_code, 0);
+  EXPECT_LE(long_validation.peak_rss_MB, short_validation.peak_rss_MB + 20.0);
 }
 
 }  // namespace
