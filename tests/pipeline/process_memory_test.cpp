@@ -1,7 +1,8 @@
-// `tirstrain process` on a long trial needs no more memory than on a short one: per-frame results go to
-// result.h5 as frames are done (pipeline/stage.hpp). Measured as the child process's peak resident set
-// (wait4's rusage), on small frames with large strain maps so that keeping every frame's results would
-// show: 160x160 map cells cost 1.84 MB per frame, 110 MB over the 60 extra frames of the long trial.
+// `tirstrain process`, `validate` and `track` on a long trial need no more memory than on a short one:
+// per-frame results go to result.h5 as frames are done (pipeline/stage.hpp). Measured as the child process's
+// peak resident set (wait4's rusage), on small frames with large strain maps so that keeping every frame's
+// results would show: 160x160 map cells cost 1.84 MB per frame, 110 MB over the 60 extra frames of the long
+// trial.
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -109,6 +110,19 @@ TEST(ProcessMemory, LongTrialNeedsNoMoreMemoryThanAShortOne) {
   EXPECT_EQ(short_validation.exit_code, 0);
   EXPECT_EQ(long_validation.exit_code, 0);
   EXPECT_LE(long_validation.peak_rss_MB, short_validation.peak_rss_MB + 20.0);
+
+  // `track` writes each frame's rows as it goes.
+  const auto track = [](const std::string& name) {
+    const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "process_memory" / name;
+    return run_cli({"track", (dir / "trial").string(), "--grid", "6", "--out", (dir / "tracks.csv").string(),
+                    "--quiet"});
+  };
+  const ChildRun short_track = track("short"), long_track = track("long");
+  std::printf("track peak RSS: 12 frames %.1f MB, 72 frames %.1f MB\n", short_track.peak_rss_MB,
+              long_track.peak_rss_MB);
+  EXPECT_EQ(short_track.exit_code, 0);
+  EXPECT_EQ(long_track.exit_code, 0);
+  EXPECT_LE(long_track.peak_rss_MB, short_track.peak_rss_MB + 20.0);
 }
 
 }  // namespace
