@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -88,6 +89,19 @@ ChildRun synth_and_process(const std::string& name, int frames) {
   return process;
 }
 
+// The command `arguments(dir)` gives, run on synth_and_process's short and long trial folders: the long one
+// within 20 MB of the short one's peak resident set.
+void expect_flat_memory(const std::string& command,
+                        const std::function<std::vector<std::string>(const fs::path&)>& arguments) {
+  const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "process_memory";
+  const ChildRun short_run = run_cli(arguments(dir / "short")), long_run = run_cli(arguments(dir / "long"));
+  std::printf("%s peak RSS: 12 frames %.1f MB, 72 frames %.1f MB\n", command.c_str(), short_run.peak_rss_MB,
+              long_run.peak_rss_MB);
+  EXPECT_EQ(short_run.exit_code, 0) << command;
+  EXPECT_EQ(long_run.exit_code, 0) << command;
+  EXPECT_LE(long_run.peak_rss_MB, short_run.peak_rss_MB + 20.0) << command;
+}
+
 TEST(ProcessMemory, LongTrialNeedsNoMoreMemoryThanAShortOne) {
   const ChildRun short_run = synth_and_process("short", 12);
   const ChildRun long_run = synth_and_process("long", 72);
@@ -97,32 +111,23 @@ TEST(ProcessMemory, LongTrialNeedsNoMoreMemoryThanAShortOne) {
   // Keeping every frame would add 110 MB (the maps alone); the bound leaves room for allocator noise.
   EXPECT_LE(long_run.peak_rss_MB, 1.25 * short_run.peak_rss_MB + 50.0);
 
-  // `validate` of the two results (no processing): the track, strain and map rows are read a frame at a
-  // time. Reading the long trial's whole arrays would add about 50 MB (the 160x160 maps' 37 MB of them).
-  const auto validate = [](const std::string& name) {
-    const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "process_memory" / name;  // synth_and_process's
-    return run_cli({"validate", "--trial", (dir / "trial").string(), "--result", (dir / "out").string(),
-                    "--out", (dir / "validation").string(), "--quiet"});
-  };
-  const ChildRun short_validation = validate("short"), long_validation = validate("long");
-  std::printf("validate peak RSS: 12 frames %.1f MB, 72 frames %.1f MB\n", short_validation.peak_rss_MB,
-              long_validation.peak_rss_MB);
-  EXPECT_EQ(short_validation.exit_code, 0);
-  EXPECT_EQ(long_validation.exit_code, 0);
-  EXPECT_LE(long_validation.peak_rss_MB, short_validation.peak_rss_MB + 20.0);
-
-  // `track` writes each frame's rows as it goes.
-  const auto track = [](const std::string& name) {
-    const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "process_memory" / name;
-    return run_cli({"track", (dir / "trial").string(), "--grid", "6", "--out", (dir / "tracks.csv").string(),
-                    "--quiet"});
-  };
-  const ChildRun short_track = track("short"), long_track = track("long");
-  std::printf("track peak RSS: 12 frames %.1f MB, 72 frames %.1f MB\n", short_track.peak_rss_MB,
-              long_track.peak_rss_MB);
-  EXPECT_EQ(short_track.exit_code, 0);
-  EXPECT_EQ(long_track.exit_code, 0);
-  EXPECT_LE(long_track.peak_rss_MB, short_track.peak_rss_MB + 20.0);
+  // On the same two trials and results: `validate` (no processing) reads the track, strain and map rows a
+  // frame at a time (reading the long trial's whole arrays would add about 50 MB, the 160x160 maps' 37 MB of
+  // them), and `track` writes each frame's rows as it goes.
+  expect_flat_memory("validate", [](const fs::path& dir) -> std::vector<std::string> {
+    return {"validate",
+            "--trial",
+            (dir / "trial").string(),
+            "--result",
+            (dir / "out").string(),
+            "--out",
+            (dir / "validation").string(),
+            "--quiet"};
+  });
+  expect_flat_memory("track", [](const fs::path& dir) -> std::vector<std::string> {
+    return {"track", (dir / "trial").string(),      "--grid", "6",
+            "--out", (dir / "tracks.csv").string(), "--quiet"};
+  });
 }
 
 }  // namespace
