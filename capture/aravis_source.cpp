@@ -242,20 +242,44 @@ class AravisSource final : public FrameSource {
   }
 
   void apply_settings() {
-    GError* error = nullptr;
     const CameraSettings& s = requested_;
-    if (!s.pixel_format.empty()) {
+    apply_pixel_format(s.pixel_format);
+    if (s.roi_px) apply_roi(*s.roi_px);
+    if (s.exposure_us)
+      apply_bounded(
+          {"--exposure-us", "exposure time", "exposure", " us", "", arv_camera_is_exposure_time_available,
+           arv_camera_get_exposure_time_bounds, arv_camera_set_exposure_time},
+          *s.exposure_us);
+    if (s.gain_dB)
+      apply_bounded({"--gain-dB", "gain", "gain", "", "", arv_camera_is_gain_available,
+                     arv_camera_get_gain_bounds, arv_camera_set_gain},
+                    *s.gain_dB);
+    if (s.frame_rate_hz)
+      apply_bounded(
+          {"--fps", "frame rate", "frame rate", " Hz", " (at the current exposure and ROI)",
+           arv_camera_is_frame_rate_available, arv_camera_get_frame_rate_bounds, arv_camera_set_frame_rate},
+          *s.frame_rate_hz);
+    // After the frame rate: Aravis' arv_camera_set_frame_rate() switches triggers off.
+    apply_trigger(s.trigger);
+    if (arv_camera_is_gv_device(camera_)) apply_packet_size(s.packet_size_bytes);
+  }
+
+  // The requested pixel format (when one is), then a check that the camera's format is one this reader
+  // unpacks.
+  void apply_pixel_format(const std::string& requested) {
+    GError* error = nullptr;
+    if (!requested.empty()) {
       guint n = 0;
       const char** formats = arv_camera_dup_available_pixel_formats_as_strings(camera_, &n, &error);
       const std::vector<std::string> offered = take_strings(formats, n);
       throw_if(error, "cannot list the camera's pixel formats",
                {.file = uri_, .key = requested_.key("--pixel-format")});
-      if (std::find(offered.begin(), offered.end(), s.pixel_format) == offered.end())
-        throw Error("pixel format '" + s.pixel_format +
-                        "' is not offered by this camera; it offers: " + join(offered),
-                    {.file = uri_, .key = requested_.key("--pixel-format")});
-      arv_camera_set_pixel_format_from_string(camera_, s.pixel_format.c_str(), &error);
-      throw_if(error, "cannot set pixel format '" + s.pixel_format + "'",
+      if (std::find(offered.begin(), offered.end(), requested) == offered.end())
+        throw Error(
+            "pixel format '" + requested + "' is not offered by this camera; it offers: " + join(offered),
+            {.file = uri_, .key = requested_.key("--pixel-format")});
+      arv_camera_set_pixel_format_from_string(camera_, requested.c_str(), &error);
+      throw_if(error, "cannot set pixel format '" + requested + "'",
                {.file = uri_, .key = requested_.key("--pixel-format")});
     }
     const ArvPixelFormat format = arv_camera_get_pixel_format(camera_, &error);
@@ -267,70 +291,55 @@ class AravisSource final : public FrameSource {
       throw Error("pixel format '" + name + "' is not supported (supported: " + kSupportedFormats +
                       "); choose one with --pixel-format",
                   {.file = uri_, .key = requested_.key("--pixel-format")});
+  }
 
-    if (s.roi_px) apply_roi(*s.roi_px);
+  // A camera control with a range (exposure, gain, frame rate): there, the value within the camera's own
+  // range, set; each refusal names the flag.
+  struct BoundedControl {
+    const char* flag;
+    const char* control;  // "this camera has no <control> control"
+    const char* name;     // in the other messages
+    const char* unit;
+    const char* range_note;
+    gboolean (*available)(ArvCamera*, GError**);
+    void (*bounds)(ArvCamera*, double*, double*, GError**);
+    void (*set)(ArvCamera*, double, GError**);
+  };
+  void apply_bounded(const BoundedControl& c, double value) {
+    GError* error = nullptr;
+    const ErrorContext where{.file = uri_, .key = requested_.key(c.flag)};
+    if (!c.available(camera_, &error))
+      throw Error(std::string("this camera has no ") + c.control + " control", where);
+    double lo = 0, hi = 0;
+    c.bounds(camera_, &lo, &hi, &error);
+    throw_if(error, std::string("cannot read ") + c.name + " bounds", where);
+    if (!(value >= lo && value <= hi))
+      throw Error(std::string(c.name) + " " + format_double(value) + c.unit +
+                      " is outside this camera's range " + range_text(lo, hi) + c.unit + c.range_note,
+                  where);
+    c.set(camera_, value, &error);
+    throw_if(error, std::string("cannot set ") + c.name, where);
+  }
 
-    if (s.exposure_us) {
-      if (!arv_camera_is_exposure_time_available(camera_, &error))
-        throw Error("this camera has no exposure time control",
-                    {.file = uri_, .key = requested_.key("--exposure-us")});
-      double lo = 0, hi = 0;
-      arv_camera_get_exposure_time_bounds(camera_, &lo, &hi, &error);
-      throw_if(error, "cannot read exposure bounds", {.file = uri_, .key = requested_.key("--exposure-us")});
-      if (!(*s.exposure_us >= lo && *s.exposure_us <= hi))
-        throw Error("exposure " + format_double(*s.exposure_us) + " us is outside this camera's range " +
-                        range_text(lo, hi) + " us",
-                    {.file = uri_, .key = requested_.key("--exposure-us")});
-      arv_camera_set_exposure_time(camera_, *s.exposure_us, &error);
-      throw_if(error, "cannot set exposure", {.file = uri_, .key = requested_.key("--exposure-us")});
+  // GigE Vision: the requested packet size within the camera's range, or the largest the path carries.
+  void apply_packet_size(const std::optional<int>& packet_size_bytes) {
+    GError* error = nullptr;
+    if (!packet_size_bytes) {
+      // Larger packets mean fewer per frame; the negotiation tests what the path really carries.
+      arv_camera_gv_auto_packet_size(camera_, &error);
+      g_clear_error(&error);
+      return;
     }
-    if (s.gain_dB) {
-      if (!arv_camera_is_gain_available(camera_, &error))
-        throw Error("this camera has no gain control", {.file = uri_, .key = requested_.key("--gain-dB")});
-      double lo = 0, hi = 0;
-      arv_camera_get_gain_bounds(camera_, &lo, &hi, &error);
-      throw_if(error, "cannot read gain bounds", {.file = uri_, .key = requested_.key("--gain-dB")});
-      if (!(*s.gain_dB >= lo && *s.gain_dB <= hi))
-        throw Error(
-            "gain " + format_double(*s.gain_dB) + " is outside this camera's range " + range_text(lo, hi),
-            {.file = uri_, .key = requested_.key("--gain-dB")});
-      arv_camera_set_gain(camera_, *s.gain_dB, &error);
-      throw_if(error, "cannot set gain", {.file = uri_, .key = requested_.key("--gain-dB")});
-    }
-    if (s.frame_rate_hz) {
-      if (!arv_camera_is_frame_rate_available(camera_, &error))
-        throw Error("this camera has no frame rate control", {.file = uri_, .key = requested_.key("--fps")});
-      double lo = 0, hi = 0;
-      arv_camera_get_frame_rate_bounds(camera_, &lo, &hi, &error);
-      throw_if(error, "cannot read frame rate bounds", {.file = uri_, .key = requested_.key("--fps")});
-      if (!(*s.frame_rate_hz >= lo && *s.frame_rate_hz <= hi))
-        throw Error("frame rate " + format_double(*s.frame_rate_hz) + " Hz is outside this camera's range " +
-                        range_text(lo, hi) + " Hz (at the current exposure and ROI)",
-                    {.file = uri_, .key = requested_.key("--fps")});
-      arv_camera_set_frame_rate(camera_, *s.frame_rate_hz, &error);
-      throw_if(error, "cannot set frame rate", {.file = uri_, .key = requested_.key("--fps")});
-    }
-    // After the frame rate: Aravis' arv_camera_set_frame_rate() switches triggers off.
-    apply_trigger(s.trigger);
-    if (arv_camera_is_gv_device(camera_)) {
-      if (s.packet_size_bytes) {
-        gint64 lo = 0, hi = 0;
-        arv_camera_get_integer_bounds(camera_, "GevSCPSPacketSize", &lo, &hi, &error);
-        throw_if(error, "cannot read packet size bounds",
-                 {.file = uri_, .key = requested_.key("--packet-size")});
-        if (*s.packet_size_bytes < lo || *s.packet_size_bytes > hi)
-          throw Error("packet size " + std::to_string(*s.packet_size_bytes) +
-                          " B is outside this camera's range [" + std::to_string(lo) + ", " +
-                          std::to_string(hi) + "] B",
-                      {.file = uri_, .key = requested_.key("--packet-size")});
-        arv_camera_gv_set_packet_size(camera_, *s.packet_size_bytes, &error);
-        throw_if(error, "cannot set packet size", {.file = uri_, .key = requested_.key("--packet-size")});
-      } else {
-        // Larger packets mean fewer per frame; the negotiation tests what the path really carries.
-        arv_camera_gv_auto_packet_size(camera_, &error);
-        g_clear_error(&error);
-      }
-    }
+    gint64 lo = 0, hi = 0;
+    arv_camera_get_integer_bounds(camera_, "GevSCPSPacketSize", &lo, &hi, &error);
+    throw_if(error, "cannot read packet size bounds", {.file = uri_, .key = requested_.key("--packet-size")});
+    if (*packet_size_bytes < lo || *packet_size_bytes > hi)
+      throw Error("packet size " + std::to_string(*packet_size_bytes) +
+                      " B is outside this camera's range [" + std::to_string(lo) + ", " + std::to_string(hi) +
+                      "] B",
+                  {.file = uri_, .key = requested_.key("--packet-size")});
+    arv_camera_gv_set_packet_size(camera_, *packet_size_bytes, &error);
+    throw_if(error, "cannot set packet size", {.file = uri_, .key = requested_.key("--packet-size")});
   }
 
   void apply_roi(const cv::Rect& roi) {
