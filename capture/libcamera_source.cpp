@@ -173,17 +173,27 @@ class LibcameraSource final : public FrameSource {
     if (!config_ || config_->empty())
       throw Error("libcamera cannot generate a configuration for this camera", {.file = uri_});
     lc::StreamConfiguration& stream_config = config_->at(0);
-    const std::string format_key = requested_.key("--pixel-format");
     std::string offered;
     for (const auto& f : stream_config.formats().pixelformats())
       if (layout_of(f)) offered += (offered.empty() ? "" : ", ") + f.toString();
+    ask_for_requested(stream_config);
+    validate_configuration(stream_config, offered);
+    if (camera_->configure(config_.get()) < 0)
+      throw Error("libcamera could not apply the stream configuration " + stream_config.toString(),
+                  {.file = uri_});
+    record_configuration(stream_config);
+    check_controls();
+  }
+
+  // The requested pixel format (or one this backend reads), image size and buffer count.
+  void ask_for_requested(lc::StreamConfiguration& stream_config) {
     if (!requested_.pixel_format.empty()) {
       const auto want = format_from_name(requested_.pixel_format);
       if (!want)
         throw Error("pixel format '" + requested_.pixel_format +
                         "' is not supported by the libcamera backend (choices: GREY or R8, RGB888, BGR888, "
                         "XRGB8888, YUYV)",
-                    {.file = uri_, .key = format_key});
+                    {.file = uri_, .key = requested_.key("--pixel-format")});
       stream_config.pixelFormat = *want;
     } else if (!layout_of(stream_config.pixelFormat)) {
       for (const auto& f : stream_config.formats().pixelformats())
@@ -192,23 +202,27 @@ class LibcameraSource final : public FrameSource {
           break;
         }
     }
-    const std::string roi_key = requested_.key("--roi");
     if (requested_.roi_px) {
       if (requested_.roi_px->x != 0 || requested_.roi_px->y != 0)
         throw Error("the libcamera backend sets the image size only; the ROI offset must be 0,0",
-                    {.file = uri_, .key = roi_key});
+                    {.file = uri_, .key = requested_.key("--roi")});
       stream_config.size = lc::Size(static_cast<unsigned>(requested_.roi_px->width),
                                     static_cast<unsigned>(requested_.roi_px->height));
     }
     if (requested_.buffer_count > 0)
       stream_config.bufferCount = static_cast<unsigned>(requested_.buffer_count);
+  }
+
+  // libcamera's validation may adjust what was asked: a rejected configuration, a format this backend cannot
+  // read or another format than the one requested is an error; an adjusted size is recorded.
+  void validate_configuration(lc::StreamConfiguration& stream_config, const std::string& offered) {
+    const std::string format_key = requested_.key("--pixel-format");
     const lc::PixelFormat asked_format = stream_config.pixelFormat;
     const lc::Size asked_size = stream_config.size;
-    const auto status = config_->validate();
-    if (status == lc::CameraConfiguration::Invalid)
+    if (config_->validate() == lc::CameraConfiguration::Invalid)
       throw Error("libcamera rejects the stream configuration " + asked_size.toString() + " " +
                       asked_format.toString(),
-                  {.file = uri_, .key = roi_key});
+                  {.file = uri_, .key = requested_.key("--roi")});
     if (!layout_of(stream_config.pixelFormat))
       throw Error("the camera cannot deliver a pixel format this backend reads (it offers " +
                       (offered.empty() ? std::string("none of them") : offered) + ")",
@@ -221,9 +235,10 @@ class LibcameraSource final : public FrameSource {
       readback_["requested_size"] = asked_size.toString();
       readback_["size_adjusted"] = "true";
     }
-    if (camera_->configure(config_.get()) < 0)
-      throw Error("libcamera could not apply the stream configuration " + stream_config.toString(),
-                  {.file = uri_});
+  }
+
+  // The stream as configured: what frames are unpacked from, and the read-back settings.
+  void record_configuration(const lc::StreamConfiguration& stream_config) {
     stream_ = stream_config.stream();
     layout_ = *layout_of(stream_config.pixelFormat);
     width_ = static_cast<int>(stream_config.size.width);
@@ -235,18 +250,20 @@ class LibcameraSource final : public FrameSource {
     readback_["bytes_per_line"] = std::to_string(stride_);
     readback_["converted_to"] =
         layout_.conversion < 0 ? "grey" : "grey (from " + stream_config.pixelFormat.toString() + ")";
-    if (requested_.exposure_us || requested_.gain_dB || requested_.frame_rate_hz) {
-      // Controls go with each request; check that the camera has them before accepting the values.
-      const auto& controls = camera_->controls();
-      auto need = [&](const lc::ControlId& id, const std::string& option) {
-        if (controls.find(&id) == controls.end())
-          throw Error("the camera has no " + id.name() + " control",
-                      {.file = uri_, .key = requested_.key(option)});
-      };
-      if (requested_.exposure_us) need(lc::controls::ExposureTime, "--exposure");
-      if (requested_.gain_dB) need(lc::controls::AnalogueGain, "--gain");
-      if (requested_.frame_rate_hz) need(lc::controls::FrameDurationLimits, "--fps");
-    }
+  }
+
+  // Controls go with each request: the camera must have those asked for before their values are accepted.
+  // libcamera cameras run free (no trigger).
+  void check_controls() {
+    const auto& controls = camera_->controls();
+    auto need = [&](const lc::ControlId& id, const std::string& option) {
+      if (controls.find(&id) == controls.end())
+        throw Error("the camera has no " + id.name() + " control",
+                    {.file = uri_, .key = requested_.key(option)});
+    };
+    if (requested_.exposure_us) need(lc::controls::ExposureTime, "--exposure");
+    if (requested_.gain_dB) need(lc::controls::AnalogueGain, "--gain");
+    if (requested_.frame_rate_hz) need(lc::controls::FrameDurationLimits, "--fps");
     if (!requested_.trigger.empty() && requested_.trigger != "free-run")
       throw Error("libcamera cameras run free; trigger '" + requested_.trigger + "' is not available",
                   {.file = uri_, .key = requested_.key("--trigger")});
