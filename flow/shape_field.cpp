@@ -379,6 +379,8 @@ bool ShapeField::displacement(double x, double y, Vec2& u, Eigen::Matrix2d* grad
   return true;
 }
 
+// One piece on purpose: it is the per-pixel loop of resampling every frame, and the column reduction feeds
+// that loop through its locals.
 void ShapeField::displacement_row(int y, int x_begin, int x_end, Vec2* u, std::uint8_t* ok, int x_stride,
                                   int x_phase) const {
   if (x_end <= x_begin) return;
