@@ -235,14 +235,32 @@ class LiveSession {
 
   void poll_frames() {
     const double start_s = steady_now_s();
+    std::optional<double> first_device_time_s;
     Frame frame;
     while (!stop_capture_.load()) {
       if (options_.max_frames >= 0 && counters_.received.load() >= options_.max_frames) break;
       if (options_.max_seconds >= 0 && steady_now_s() - start_s >= options_.max_seconds) break;
       const FrameSource::Poll result = source_.poll(frame, 0.1);
       if (result == FrameSource::Poll::kEnd) break;
-      if (result == FrameSource::Poll::kFrame) on_frame(frame);
+      if (result != FrameSource::Poll::kFrame) continue;
+      if (options_.play_at_recorded_rate && !wait_for_recorded_time(frame, start_s, first_device_time_s))
+        break;
+      on_frame(frame);
     }
+  }
+
+  // Sleeps until the frame's offset from the first frame's timestamp has passed since `start_s` (in steps of
+  // at most 50 ms, so that a stop is not held up); false when a stop came first. The frame's host time is
+  // then its delivery time, as a camera's would be.
+  bool wait_for_recorded_time(Frame& frame, double start_s, std::optional<double>& first_device_time_s) {
+    if (!first_device_time_s) first_device_time_s = frame.device_time_s;
+    const double due_s = start_s + (frame.device_time_s - *first_device_time_s);
+    for (double now_s = steady_now_s(); now_s < due_s; now_s = steady_now_s()) {
+      if (stop_capture_.load() || (options_.stop != nullptr && options_.stop->load())) return false;
+      std::this_thread::sleep_for(std::chrono::duration<double>(std::min(due_s - now_s, 0.05)));
+    }
+    frame.host_time_s = steady_now_s();
+    return true;
   }
 
   void fill_counts() {

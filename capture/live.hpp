@@ -53,6 +53,10 @@ struct LiveOptions {
   RecordOptions record;    // out_dir is taken from record_dir
   std::int64_t max_frames = -1;
   double max_seconds = -1.0;
+  // A recording is delivered as fast as it is read; true delivers each frame at its timestamp's offset from
+  // the first (a replay at the recorded rate, as the camera gave it). Cameras ignore it: they pace
+  // themselves.
+  bool play_at_recorded_rate = false;
   const std::atomic<bool>* stop = nullptr;
   // Analysis and drawing for one displayed frame, on the display thread. `canvas` is the frame as 8-bit
   // BGR at full size; draw contact hull, ellipse, tracks, strain heat map onto it as those stages exist.

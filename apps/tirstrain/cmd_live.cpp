@@ -74,7 +74,7 @@ struct LiveArgs {
   std::optional<double> frame_rate_Hz;
   std::int64_t frames = -1;
   double seconds = -1;
-  bool no_window = false, quiet = false, overwrite = false;
+  bool no_window = false, quiet = false, overwrite = false, recorded_rate = false;
 };
 
 void print_status(const capture::LiveStatus& s) {
@@ -94,6 +94,7 @@ capture::LiveOptions live_options(const LiveArgs& args, const std::shared_ptr<Li
   options.record.overwrite = args.overwrite;
   options.max_frames = args.frames;
   options.max_seconds = args.seconds;
+  options.play_at_recorded_rate = args.recorded_rate;
   if (analysis) {
     options.overlay = [analysis](const capture::Frame& frame, cv::Mat& canvas) {
       analysis->run(frame, canvas);
@@ -180,6 +181,9 @@ void add_live_command(CLI::App& app) {
                   "Frame rate (Hz) of a recording whose file holds no timestamps and has no frames.csv "
                   "beside it (a multi-page TIFF)")
       ->check(CLI::PositiveNumber);
+  sub->add_flag("--recorded-rate", args->recorded_rate,
+                "Play a recording at the rate its timestamps give, as the camera delivered it (default: as "
+                "fast as it is read). Example: tirstrain live REC --scene REC/scene.yaml --recorded-rate");
   sub->add_option("--record", args->record, "Also record losslessly into this folder");
   sub->add_option("--format", args->format, "Recording image format: tiff (default), pgm, png")
       ->check(CLI::IsMember({"png", "tiff", "pgm"}));

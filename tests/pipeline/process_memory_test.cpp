@@ -1,8 +1,9 @@
-// `tirstrain process`, `validate` and `track` on a long trial need no more memory than on a short one:
-// per-frame results go to result.h5 as frames are done (pipeline/stage.hpp). Measured as the child process's
-// peak resident set (wait4's rusage), on small frames with large strain maps so that keeping every frame's
-// results would show: 160x160 map cells cost 1.84 MB per frame, 110 MB over the 60 extra frames of the long
-// trial.
+// `tirstrain process`, `validate`, `track` and `live` with analysis on a long trial need no more memory than
+// on a short one: per-frame results go to result.h5 as frames are done (pipeline/stage.hpp). Measured as the
+// child process's peak resident set (wait4's rusage), on small frames with large strain maps so that keeping
+// every frame's results would show: 160x160 map cells cost 1.84 MB per frame, 110 MB over the 60 extra frames
+// of the long trial.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -12,6 +13,8 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <regex>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -24,7 +27,7 @@ namespace {
 namespace fs = std::filesystem;
 
 // A 160x128 Hertz contact (a = 37 px) sheared by a Cattaneo-Mindlin field, noise free.
-std::string scene_yaml(int frames) {
+std::string scene_yaml(int frames, double frame_rate_Hz = 100.0) {
   return "calibration: {px_per_mm: 20, ridge_period_mm: 0.45, ridge_polarity: dark}\n"
          "compute: [contact, tracking, strain]\n"
          "strain: {map_cells: 160}\n"
@@ -32,8 +35,8 @@ std::string scene_yaml(int frames) {
          "  seed: 5\n"
          "  image: {width_px: 160, height_px: 128, bit_depth: 8}\n"
          "  timing: {frames: " +
-         std::to_string(frames) +
-         ", frame_rate_hz: 100, jitter_s: 0}\n"
+         std::to_string(frames) + ", frame_rate_hz: " + std::to_string(frame_rate_Hz) +
+         ", jitter_s: 0}\n"
          "  contact: {shape: hertz, normal_N: 2.0, radius_m: 0.005}\n"
          "  loading: {field: cattaneo_mindlin, friction: 1.0, direction_deg: 270, plate_speed_mm_s: 0.5, "
          "shear_start_s: 0.02}\n"
@@ -45,8 +48,9 @@ struct ChildRun {
   double peak_rss_MB = 0.0;
 };
 
-// Runs the CLI with `arguments` as a child and reports its own peak resident set (not the test's).
-ChildRun run_cli(const std::vector<std::string>& arguments) {
+// Runs the CLI with `arguments` as a child and reports its own peak resident set (not the test's); its
+// standard error goes to `stderr_path` when one is given.
+ChildRun run_cli(const std::vector<std::string>& arguments, const std::string& stderr_path = "") {
   std::vector<std::string> argv_text = {TIRSTRAIN_CLI};
   argv_text.insert(argv_text.end(), arguments.begin(), arguments.end());
   std::vector<char*> argv;
@@ -59,6 +63,11 @@ ChildRun run_cli(const std::vector<std::string>& arguments) {
     const char* asan = std::getenv("ASAN_OPTIONS");
     const std::string options = std::string(asan ? asan : "") + (asan ? ":" : "") + "quarantine_size_mb=16";
     setenv("ASAN_OPTIONS", options.c_str(), 1);
+    if (!stderr_path.empty()) {
+      const int fd = open(stderr_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      if (fd < 0 || dup2(fd, STDERR_FILENO) < 0) _exit(126);
+      close(fd);
+    }
     execv(argv[0], argv.data());
     _exit(127);
   }
@@ -128,6 +137,43 @@ TEST(ProcessMemory, LongTrialNeedsNoMoreMemoryThanAShortOne) {
     return {"track", (dir / "trial").string(),      "--grid", "6",
             "--out", (dir / "tracks.csv").string(), "--quiet"};
   });
+}
+
+// The number in `live`'s "(N frames analysed)" line, or -1.
+int frames_analysed(const fs::path& stderr_path) {
+  std::stringstream text;
+  text << std::ifstream(stderr_path).rdbuf();
+  std::smatch m;
+  const std::string s = text.str();
+  return std::regex_search(s, m, std::regex(R"(\((\d+) frames analysed\))")) ? std::stoi(m[1]) : -1;
+}
+
+// `live` with the scene's analysis stages on a recording replayed at its recorded rate: stages keep only the
+// newest frame, so six times the frames analysed need no more memory. 10 frames/s leaves every frame time to
+// be analysed, also under the sanitizers.
+TEST(ProcessMemory, LiveAnalysisOfALongReplayNeedsNoMoreMemoryThanAShortOne) {
+  ChildRun runs[2];
+  int analysed[2] = {0, 0};
+  const int frames[2] = {12, 72};
+  for (int i = 0; i < 2; ++i) {
+    const fs::path dir = testing::scratch_dir("process_memory", "live_" + std::to_string(frames[i]));
+    fs::create_directories(dir);
+    { std::ofstream(dir / "scene_in.yaml") << scene_yaml(frames[i], 10.0); }
+    ASSERT_EQ(run_cli({"synth", "--scene", (dir / "scene_in.yaml").string(), "--out",
+                       (dir / "trial").string(), "--quiet"})
+                  .exit_code,
+              0);
+    runs[i] = run_cli({"live", (dir / "trial").string(), "--scene", (dir / "trial" / "scene.yaml").string(),
+                       "--no-window", "--recorded-rate", "--quiet"},
+                      (dir / "live.log").string());
+    analysed[i] = frames_analysed(dir / "live.log");
+    EXPECT_EQ(runs[i].exit_code, 0) << frames[i] << " frames";
+  }
+  std::printf("live peak RSS: %d frames analysed %.1f MB, %d analysed %.1f MB\n", analysed[0],
+              runs[0].peak_rss_MB, analysed[1], runs[1].peak_rss_MB);
+  EXPECT_GE(analysed[1], 48);  // most of the 72: the replay gives each frame 100 ms
+  EXPECT_GT(analysed[0], 0);
+  EXPECT_LE(runs[1].peak_rss_MB, runs[0].peak_rss_MB + 20.0);
 }
 
 }  // namespace
