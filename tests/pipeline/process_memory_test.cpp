@@ -13,7 +13,6 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -143,9 +142,10 @@ TEST(ProcessMemory, LongTrialNeedsNoMoreMemoryThanAShortOne) {
 int frames_analysed(const fs::path& stderr_path) {
   std::stringstream text;
   text << std::ifstream(stderr_path).rdbuf();
-  std::smatch m;
-  const std::string s = text.str();
-  return std::regex_search(s, m, std::regex(R"(\((\d+) frames analysed\))")) ? std::stoi(m[1]) : -1;
+  const std::string s = text.str(), tail = " frames analysed)";
+  const std::size_t end = s.find(tail), open = s.rfind('(', end);
+  if (end == std::string::npos || open == std::string::npos) return -1;
+  return std::stoi(s.substr(open + 1, end - open - 1));
 }
 
 // `live` with the scene's analysis stages on a recording replayed at its recorded rate: stages keep only the
