@@ -29,10 +29,13 @@ static_assert(std::is_same_v<hid_t, std::int64_t>, "hid_t is a 64-bit id in the 
 constexpr std::size_t kChunkBytes = 16 * 1024;
 constexpr std::size_t kChunkWidth = 64;
 constexpr std::size_t kMaxFramesPerChunk = 1024;
-// Chunk cache per open dataset: holds the partly filled chunks of a frame block (a few hundred kB for the
-// widest datasets), so each chunk is compressed and written once, when its block of frames is complete.
-constexpr std::size_t kChunkCacheBytes = 2u << 20;
+// Chunk cache per open dataset: room for the partly filled chunks of one block of frames across the row
+// (ChunkCache), so each chunk is compressed and written once, when its block of frames is complete. A
+// fixed large cache would also keep finished chunks until it is full: about 2 MB per dataset, 90 MB for a
+// result's 45 per-frame datasets, for nothing.
 constexpr std::size_t kChunkCacheSlots = 521;
+// A dataset opened to be read back (temporal smoothing reads one track through time).
+constexpr std::size_t kReadCacheBytes = 1u << 20;
 
 std::size_t product(const H5Shape& shape, std::size_t from = 0) {
   std::size_t n = 1;
@@ -43,6 +46,12 @@ std::size_t product(const H5Shape& shape, std::size_t from = 0) {
 // Errors that say the disk (or the process's file-size limit) refused the write, as errno left them.
 bool is_storage_errno(int code) {
   return code == ENOSPC || code == EFBIG || code == EDQUOT || code == EROFS || code == EIO;
+}
+
+// A row width with room to grow to twice its width before the chunk cache must grow with it (a smaller
+// margin reopens more often, and each reopening writes chunks half full that are read back later).
+std::size_t with_room(std::size_t row_width) {
+  return 2 * row_width;
 }
 
 // The dataset's chunk: a block of frames by kChunkWidth along the growing axis by the whole trailing axes.
@@ -174,11 +183,9 @@ std::int64_t H5Stream::open_or_create(const std::string& name, const H5Shape& ro
                                       std::int64_t memory_type, std::int64_t file_type) {
   auto& sets = sets_;
   if (const auto it = sets.find(name); it != sets.end()) return it->second;
-  Id access(H5Pcreate(H5P_DATASET_ACCESS));
-  H5Pset_chunk_cache(access, kChunkCacheSlots, kChunkCacheBytes, 1.0);
   hid_t set = -1;
   if (has(name)) {
-    set = H5Dopen2(file_, name.c_str(), access);
+    set = open_with_cache(name, kReadCacheBytes);
   } else {
     ensure_parent_groups(name);
     const std::size_t rank = row_shape.size() + 1;
@@ -191,11 +198,40 @@ std::int64_t H5Stream::open_or_create(const std::string& name, const H5Shape& ro
     H5Pset_fill_value(create, memory_type, fill);
     H5Pset_shuffle(create);
     H5Pset_deflate(create, 4);
+    ChunkCache& cache = caches_[name];
+    cache.chunk_bytes = H5Tget_size(file_type);
+    for (const hsize_t c : chunk) cache.chunk_bytes *= static_cast<std::size_t>(c);
+    cache.chunk_width = rank > 1 && chunk[0] > 1 ? static_cast<std::size_t>(chunk[1]) : 0;
+    cache.bytes = cache.needed(row_shape.empty() ? 1 : with_room(row_shape[0]));
+    Id access(H5Pcreate(H5P_DATASET_ACCESS));
+    H5Pset_chunk_cache(access, kChunkCacheSlots, cache.bytes, 1.0);
     set = H5Dcreate2(file_, name.c_str(), file_type, space, H5P_DEFAULT, create, access);
   }
   if (set < 0) fail("cannot create per-frame dataset", name);
   sets[name] = set;
   return set;
+}
+
+std::int64_t H5Stream::open_with_cache(const std::string& name, std::size_t cache_bytes) const {
+  Id access(H5Pcreate(H5P_DATASET_ACCESS));
+  H5Pset_chunk_cache(access, kChunkCacheSlots, cache_bytes, 1.0);
+  return H5Dopen2(file_, name.c_str(), access);
+}
+
+// A row wider than the cache holds (tracks or triangles created) would have its chunks written half full
+// and read back: the dataset is reopened with room for twice the row (with_room), which writes out the
+// cache once.
+std::int64_t H5Stream::fit_cache_to_row(const std::string& name, std::int64_t set, std::size_t row_width) {
+  const auto it = caches_.find(name);
+  if (it == caches_.end() || it->second.needed(row_width) <= it->second.bytes) return set;
+  ChunkCache& cache = it->second;
+  cache.bytes = cache.needed(with_room(row_width));
+  if (H5Dclose(set) < 0) fail("cannot write dataset", name);
+  sets_.erase(name);
+  const hid_t reopened = open_with_cache(name, cache.bytes);
+  if (reopened < 0) fail("cannot reopen per-frame dataset", name);
+  sets_[name] = reopened;
+  return reopened;
 }
 
 H5Shape H5Stream::shape(const std::string& name) const {
@@ -216,7 +252,7 @@ void H5Stream::write_row_impl(const std::string& name, std::size_t row, std::spa
                               std::int64_t file_type) {
   if (product(row_shape) != data.size())
     throw Error("internal: row size does not match its shape", {.file = partial_path_, .column = name});
-  const hid_t set = open_or_create(name, row_shape, &fill, memory_type, file_type);
+  hid_t set = open_or_create(name, row_shape, &fill, memory_type, file_type);
   std::vector<hsize_t> dims(row_shape.size() + 1);
   {
     Id space(H5Dget_space(set));
@@ -232,6 +268,7 @@ void H5Stream::write_row_impl(const std::string& name, std::size_t row, std::spa
       throw Error("internal: row shape differs from the dataset's", {.file = partial_path_, .column = name});
   if (wanted != dims && H5Dset_extent(set, wanted.data()) < 0) fail("cannot extend dataset", name);
   if (data.empty()) return;
+  if (!row_shape.empty()) set = fit_cache_to_row(name, set, static_cast<std::size_t>(wanted[1]));
   std::vector<hsize_t> offset(dims.size(), 0), count(dims.size(), 1);
   offset[0] = row;
   for (std::size_t i = 0; i < row_shape.size(); ++i) count[i + 1] = row_shape[i];

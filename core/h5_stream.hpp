@@ -84,6 +84,8 @@ class H5Stream {
                    std::int64_t memory_type);
   std::int64_t open_or_create(const std::string& name, const H5Shape& row_shape, const void* fill,
                               std::int64_t memory_type, std::int64_t file_type);
+  std::int64_t open_with_cache(const std::string& name, std::size_t cache_bytes) const;
+  std::int64_t fit_cache_to_row(const std::string& name, std::int64_t set, std::size_t row_width);
   void ensure_parent_groups(const std::string& name);
   void close_sets();
   void discard() const;
@@ -94,6 +96,17 @@ class H5Stream {
   mutable std::int64_t file_ = -1;  // hid_t; -1 once closed or discarded
   // Per-frame datasets kept open, so their chunk caches fill a chunk before it is compressed and written.
   mutable std::map<std::string, std::int64_t> sets_;
+  // What each created dataset's chunk cache must hold: one chunk when a row fills its chunks whole
+  // (chunk_width 0), else every chunk across the row, partly filled until their block of frames completes.
+  struct ChunkCache {
+    std::size_t chunk_bytes = 0;
+    std::size_t chunk_width = 0;  // elements of the growing axis per chunk; 0: one frame per chunk
+    std::size_t bytes = 0;        // the cache's size now
+    std::size_t needed(std::size_t row_width) const {
+      return chunk_width == 0 ? chunk_bytes : (row_width + chunk_width - 1) / chunk_width * chunk_bytes;
+    }
+  };
+  std::map<std::string, ChunkCache> caches_;
   bool committed_ = false;
 };
 

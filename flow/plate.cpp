@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 
 #include "core/error.hpp"
 #include "core/median.hpp"
@@ -114,7 +116,7 @@ void PlateTracker::cover(Vec2 d) {
     origin_x_ = x0;
     origin_y_ = y0;
     mosaic_sum_ = cv::Mat::zeros(y1 - y0 + 1, x1 - x0 + 1, CV_32F);
-    mosaic_count_ = cv::Mat::zeros(mosaic_sum_.size(), CV_32F);
+    mosaic_count_ = cv::Mat::zeros(mosaic_sum_.size(), CV_16U);
     return;
   }
   const int left = std::max(0, origin_x_ - x0), top = std::max(0, origin_y_ - y0);
@@ -146,44 +148,45 @@ void PlateTracker::add_to_mosaic(const cv::Mat& image, Vec2 d, bool only_empty) 
   if (!shifted.ok()) return;  // so far off that no pixel lands in the image
   for (int j = j0; j <= j1; ++j) {
     float* sum = mosaic_sum_.ptr<float>(j);
-    float* count = mosaic_count_.ptr<float>(j);
+    std::uint16_t* count = mosaic_count_.ptr<std::uint16_t>(j);
     for (int i = i0; i <= i1; ++i) {
       float v = 0.0f;
-      if (only_empty && count[i] > 0.0f) continue;
+      // A pixel's mean stops at 65535 frames (a plate at rest for minutes): enough, and the count fits in
+      // 16 bits, a quarter of the mosaic's memory.
+      if ((only_empty && count[i] > 0) || count[i] == std::numeric_limits<std::uint16_t>::max()) continue;
       if (!shifted.sample(i - i0, j - j0, v)) continue;
       sum[i] += v;
-      count[i] += 1.0f;
+      ++count[i];
     }
   }
 }
 
 void PlateTracker::prepare_mean(Vec2 d) {
   cover(d);
-  mosaic_mean_.create(mosaic_sum_.size(), CV_32F);
-  mosaic_mask_.create(mosaic_sum_.size(), CV_8U);
-  mosaic_mask_.setTo(0);
-  mosaic_mean_.setTo(0);
-  // Only around the band's footprint: the rest of a long trial's mosaic is not sampled this frame (and a
-  // long trial's mosaic is many bands long, so neither is it eroded).
+  // Only around the band's footprint: the rest of a long trial's mosaic is not sampled this frame (a long
+  // trial's mosaic is many bands long, and a mean and mask of all of it would grow with the plate's travel).
   const cv::Rect near(static_cast<int>(std::floor(roi_.x - d.x)) - kPad - origin_x_,
                       static_cast<int>(std::floor(roi_.y - d.y)) - kPad - origin_y_,
                       roi_.width + 2 * kPad + 2, roi_.height + 2 * kPad + 2);
   const cv::Rect r = near & cv::Rect(0, 0, mosaic_sum_.cols, mosaic_sum_.rows);
+  mean_origin_ = r.tl();
+  mosaic_mean_.create(r.size(), CV_32F);
+  mosaic_mean_.setTo(0);
   scratch_mask_.create(r.size(), CV_8U);
   scratch_mask_.setTo(0);
   for (int j = r.y; j < r.y + r.height; ++j) {
     const float* sum = mosaic_sum_.ptr<float>(j);
-    const float* count = mosaic_count_.ptr<float>(j);
-    float* mean = mosaic_mean_.ptr<float>(j);
+    const std::uint16_t* count = mosaic_count_.ptr<std::uint16_t>(j);
+    float* mean = mosaic_mean_.ptr<float>(j - r.y);
     std::uint8_t* m = scratch_mask_.ptr<std::uint8_t>(j - r.y);
     for (int i = r.x; i < r.x + r.width; ++i)
-      if (count[i] > 0.0f) {
-        mean[i] = sum[i] / count[i];
+      if (count[i] > 0) {
+        mean[i - r.x] = sum[i] / static_cast<float>(count[i]);
         m[i - r.x] = 1;
       }
   }
-  cv::Mat eroded = mosaic_mask_(r);
-  erode_for_matching(scratch_mask_, eroded);
+  mosaic_mask_.create(r.size(), CV_8U);
+  erode_for_matching(scratch_mask_, mosaic_mask_);
 }
 
 // The share of the band's pixels (sampled every 4 px) that land on mosaic data at displacement d.
@@ -196,7 +199,7 @@ double PlateTracker::mosaic_coverage(Vec2 d) const {
       const int i = static_cast<int>(std::lround(roi_.x + x - d.x)) - origin_x_;
       const int j = static_cast<int>(std::lround(roi_.y + y - d.y)) - origin_y_;
       if (i >= 0 && j >= 0 && i < mosaic_count_.cols && j < mosaic_count_.rows &&
-          mosaic_count_.at<float>(j, i) > 0.0f)
+          mosaic_count_.at<std::uint16_t>(j, i) > 0)
         ++covered;
     }
   return total > 0 ? static_cast<double>(covered) / total : 0.0;
@@ -235,7 +238,7 @@ bool PlateTracker::match_mosaic(Vec2 guess) {
   prepare_mean(guess);
   MatchOptions options;
   options.min_valid_fraction = settings_.min_valid_fraction;
-  const double offset_x = roi_.x - origin_x_, offset_y = roi_.y - origin_y_;
+  const double offset_x = roi_.x - origin_x_ - mean_origin_.x, offset_y = roi_.y - origin_y_ - mean_origin_.y;
   scratch_x_.clear();
   scratch_y_.clear();
   for (const Subset& s : subsets_) {

@@ -114,7 +114,8 @@ class PlateTracker {
   cv::Mat hann_;                      // the band correlation's window
   PhaseCorrelator band_correlation_;  // against the previous frame's (smoothed) band
   // Mosaic pixel (i, j) holds plate point (origin_x_ + i, origin_y_ + j).
-  cv::Mat mosaic_sum_, mosaic_count_, mosaic_mean_, mosaic_mask_, scratch_mask_;
+  cv::Mat mosaic_sum_, mosaic_count_, mosaic_mean_, mosaic_mask_, scratch_mask_;  // count: CV_16U
+  cv::Point mean_origin_;  // mosaic_mean_ and mosaic_mask_'s top-left corner in the mosaic
   int origin_x_ = 0, origin_y_ = 0;
   Vec2 displacement_px_;    // since frame 0
   Vec2 velocity_px_per_s_;  // over the last interval (px per `t_s` unit)
