@@ -305,9 +305,13 @@ void H5Stream::write_row_impl(const std::string& name, std::size_t row, std::spa
   // creates many more tracks and triangles than are alive at once (17 000 triangles created by frame 1000
   // of a 1280x1024 trial, 5500 alive), and writing the retired ones' fill would touch every chunk across
   // the row at every frame, a cost that grows with the recording.
+  // A row written again (a stage revised and run again) is written whole, so that nothing of the earlier
+  // row survives where the new one holds the fill.
   std::vector<ColumnRun> runs{{0, row_shape.empty() ? 1 : row_shape[0]}};
-  if (const auto it = caches_.find(name);
-      it != caches_.end() && it->second.chunk_width > 0 && !row_shape.empty()) {
+  const auto it = caches_.find(name);
+  const bool first_write = it != caches_.end() && row >= it->second.rows_written;
+  if (it != caches_.end()) it->second.rows_written = std::max(it->second.rows_written, row + 1);
+  if (first_write && it->second.chunk_width > 0 && !row_shape.empty()) {
     runs = columns_not_fill(data, row_shape[0], it->second.chunk_width, fill);
     std::size_t columns = 0;
     for (const ColumnRun& r : runs) columns += r.count;

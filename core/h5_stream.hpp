@@ -100,8 +100,9 @@ class H5Stream {
   // (chunk_width 0), else every chunk across the row, partly filled until their block of frames completes.
   struct ChunkCache {
     std::size_t chunk_bytes = 0;
-    std::size_t chunk_width = 0;  // elements of the growing axis per chunk; 0: one frame per chunk
-    std::size_t bytes = 0;        // the cache's size now
+    std::size_t chunk_width = 0;   // elements of the growing axis per chunk; 0: one frame per chunk
+    std::size_t bytes = 0;         // the cache's size now
+    std::size_t rows_written = 0;  // one past the highest row written: a row below it may be a rewrite
     std::size_t needed(std::size_t row_width) const {
       return chunk_width == 0 ? chunk_bytes : (row_width + chunk_width - 1) / chunk_width * chunk_bytes;
     }

@@ -1,11 +1,15 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <vector>
 
 #include "core/atomic_output.hpp"
 #include "core/error.hpp"
 #include "core/h5_file.hpp"
+#include "core/h5_stream.hpp"
 
 namespace tirstrain {
 namespace {
@@ -42,6 +46,50 @@ TEST(H5, WritesAndReadsDatasetsGroupsAndAttributes) {
   EXPECT_TRUE(r.has("/frames/t_s"));
   EXPECT_FALSE(r.has("/strain/total"));
   EXPECT_EQ(r.members("/frames").size(), 2u);
+}
+
+// Rows of 300 tracks where only two blocks hold values, as when most tracks ever created are retired: the
+// values come back where written and the fill everywhere else; a row written again replaces the first
+// version whole, also where the new one is all fill.
+TEST(H5, StreamedRowsKeepValuesAndFillAndARewriteReplacesTheWholeRow) {
+  const std::string path = kTmp + "/sparse_rows.h5";
+  std::filesystem::remove(path);
+  constexpr std::size_t kWidth = 300;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const auto row_with = [&](std::size_t first, std::size_t count, double base) {
+    std::vector<double> row(kWidth * 2, nan);
+    for (std::size_t i = first; i < first + count; ++i) {
+      row[2 * i] = base + static_cast<double>(i);
+      row[2 * i + 1] = -base - static_cast<double>(i);
+    }
+    return row;
+  };
+  {
+    H5Stream out(path);
+    for (std::size_t frame = 0; frame < 40; ++frame) {
+      const std::vector<double> row = row_with(frame % 2 == 0 ? 3 : 250, 10, 1000.0 * frame);
+      out.write_row("/tracks/position_px", frame, row, {kWidth, 2}, nan);
+    }
+    // Frame 7 again, now with its values in columns 100-109 only.
+    out.write_row("/tracks/position_px", 7, row_with(100, 10, -5.0), {kWidth, 2}, nan);
+    out.commit();
+  }
+  H5Reader in(path);
+  H5Shape shape;
+  const std::vector<double> all = in.read_doubles("/tracks/position_px", &shape);
+  ASSERT_EQ(shape, (H5Shape{40, kWidth, 2}));
+  for (std::size_t frame = 0; frame < 40; ++frame) {
+    const std::vector<double> expected =
+        frame == 7 ? row_with(100, 10, -5.0) : row_with(frame % 2 == 0 ? 3 : 250, 10, 1000.0 * frame);
+    for (std::size_t k = 0; k < kWidth * 2; ++k) {
+      const double got = all[frame * kWidth * 2 + k];
+      if (std::isnan(expected[k])) {
+        EXPECT_TRUE(std::isnan(got)) << "frame " << frame << " value " << k;
+      } else {
+        EXPECT_EQ(got, expected[k]) << "frame " << frame << " value " << k;
+      }
+    }
+  }
 }
 
 TEST(H5, UncommittedWriterLeavesNothing) {
