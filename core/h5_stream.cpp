@@ -302,9 +302,8 @@ void H5Stream::write_row_impl(const std::string& name, std::size_t row, std::spa
   std::vector<hsize_t> count(dims.size(), 1);
   for (std::size_t i = 0; i < row_shape.size(); ++i) count[i + 1] = row_shape[i];
   // The whole row, or only the chunk columns holding something other than the fill value: a long trial
-  // creates many more tracks and triangles than are alive at once (17 000 triangles created by frame 1000
-  // of a 1280x1024 trial, 5500 alive), and writing the retired ones' fill would touch every chunk across
-  // the row at every frame, a cost that grows with the recording.
+  // creates several times more tracks and triangles than are alive at once, and writing the retired ones'
+  // fill would touch every chunk across the row at every frame, a cost that grows with the recording.
   // A row written again (a stage revised and run again) is written whole, so that nothing of the earlier
   // row survives where the new one holds the fill.
   std::vector<ColumnRun> runs{{0, row_shape.empty() ? 1 : row_shape[0]}};
