@@ -34,7 +34,13 @@ constexpr std::size_t kMaxFramesPerChunk = 1024;
 // (ChunkCache), so each chunk is compressed and written once, when its block of frames is complete. A
 // fixed large cache would also keep finished chunks until it is full: about 2 MB per dataset, 90 MB for a
 // result's 45 per-frame datasets, for nothing.
-constexpr std::size_t kChunkCacheSlots = 521;
+//
+// The cache finds a chunk by its index modulo the number of hash slots, and a chunk whose slot is taken
+// evicts the one there. A row's chunks in one block of frames have consecutive indices, so with at least
+// as many slots as the row has chunk columns none of them evicts another; with fewer (a long trial's
+// triangles outgrow 521 chunk columns after a few thousand frames) chunks still being filled are written
+// half full, read back and compressed again, at a cost that grows with the recording.
+constexpr std::size_t kMinChunkCacheSlots = 521;
 // A dataset opened to be read back (temporal smoothing reads one track through time).
 constexpr std::size_t kReadCacheBytes = 1u << 20;
 
@@ -79,10 +85,30 @@ std::vector<ColumnRun> columns_not_fill(std::span<const T> data, std::size_t wid
   return runs;
 }
 
-// A row width with room to grow to twice its width before the chunk cache must grow with it (a smaller
-// margin reopens more often, and each reopening writes chunks half full that are read back later).
-std::size_t with_room(std::size_t row_width) {
-  return 2 * row_width;
+// How many columns the runs cover.
+std::size_t columns_in(const std::vector<ColumnRun>& runs) {
+  std::size_t columns = 0;
+  for (const ColumnRun& r : runs) columns += r.count;
+  return columns;
+}
+
+// Room for a fifth more than what a row needs now before the cache must grow with it: tracks and triangles
+// are created steadily, and each reopening writes the chunks being filled half full (read back later). A
+// larger margin only holds finished chunks longer.
+std::size_t with_room(std::size_t count) {
+  return count + count / 4 + 1;
+}
+
+// The smallest prime at least n (hash slots: HDF5 advises a prime).
+std::size_t prime_at_least(std::size_t n) {
+  const auto is_prime = [](std::size_t v) {
+    if (v < 2) return false;
+    for (std::size_t d = 2; d * d <= v; ++d)
+      if (v % d == 0) return false;
+    return true;
+  };
+  while (!is_prime(n)) ++n;
+  return n;
 }
 
 // The dataset's chunk: a block of frames by kChunkWidth along the growing axis by the whole trailing axes.
@@ -216,7 +242,7 @@ std::int64_t H5Stream::open_or_create(const std::string& name, const H5Shape& ro
   if (const auto it = sets.find(name); it != sets.end()) return it->second;
   hid_t set = -1;
   if (has(name)) {
-    set = open_with_cache(name, kReadCacheBytes);
+    set = open_with_cache(name, kMinChunkCacheSlots, kReadCacheBytes);
   } else {
     ensure_parent_groups(name);
     const std::size_t rank = row_shape.size() + 1;
@@ -234,8 +260,9 @@ std::int64_t H5Stream::open_or_create(const std::string& name, const H5Shape& ro
     for (const hsize_t c : chunk) cache.chunk_bytes *= static_cast<std::size_t>(c);
     cache.chunk_width = rank > 1 && chunk[0] > 1 ? static_cast<std::size_t>(chunk[1]) : 0;
     cache.bytes = cache.needed(row_shape.empty() ? 1 : with_room(row_shape[0]));
+    cache.slots = cache.slots_needed(row_shape.empty() ? 1 : row_shape[0]);
     Id access(H5Pcreate(H5P_DATASET_ACCESS));
-    H5Pset_chunk_cache(access, kChunkCacheSlots, cache.bytes, 1.0);
+    H5Pset_chunk_cache(access, cache.slots, cache.bytes, 1.0);
     set = H5Dcreate2(file_, name.c_str(), file_type, space, H5P_DEFAULT, create, access);
   }
   if (set < 0) fail("cannot create per-frame dataset", name);
@@ -243,23 +270,33 @@ std::int64_t H5Stream::open_or_create(const std::string& name, const H5Shape& ro
   return set;
 }
 
-std::int64_t H5Stream::open_with_cache(const std::string& name, std::size_t cache_bytes) const {
+std::size_t H5Stream::ChunkCache::slots_needed(std::size_t row_width) const {
+  const std::size_t columns = chunk_width == 0 ? 1 : (row_width + chunk_width - 1) / chunk_width;
+  return prime_at_least(std::max(kMinChunkCacheSlots, columns));
+}
+
+std::int64_t H5Stream::open_with_cache(const std::string& name, std::size_t slots,
+                                       std::size_t cache_bytes) const {
   Id access(H5Pcreate(H5P_DATASET_ACCESS));
-  H5Pset_chunk_cache(access, kChunkCacheSlots, cache_bytes, 1.0);
+  H5Pset_chunk_cache(access, slots, cache_bytes, 1.0);
   return H5Dopen2(file_, name.c_str(), access);
 }
 
-// A row wider than the cache holds (tracks or triangles created) would have its chunks written half full
-// and read back: the dataset is reopened with room for twice the row (with_room), which writes out the
-// cache once.
-std::int64_t H5Stream::fit_cache_to_row(const std::string& name, std::int64_t set, std::size_t row_width) {
+// A row that needs more chunks than the cache holds, or spans more chunk columns than it has slots for
+// (tracks or triangles created), would have chunks being filled written half full and read back: the
+// dataset is reopened with room to grow (with_room), which writes out the cache once.
+std::int64_t H5Stream::fit_cache_to_row(const std::string& name, std::int64_t set,
+                                        std::size_t columns_written, std::size_t row_width) {
   const auto it = caches_.find(name);
-  if (it == caches_.end() || it->second.needed(row_width) <= it->second.bytes) return set;
+  if (it == caches_.end()) return set;
   ChunkCache& cache = it->second;
-  cache.bytes = cache.needed(with_room(row_width));
+  if (cache.needed(columns_written) <= cache.bytes && cache.slots_needed(row_width) <= cache.slots)
+    return set;
+  cache.bytes = std::max(cache.bytes, cache.needed(with_room(columns_written)));
+  cache.slots = std::max(cache.slots, cache.slots_needed(with_room(row_width)));
   if (H5Dclose(set) < 0) fail("cannot write dataset", name);
   sets_.erase(name);
-  const hid_t reopened = open_with_cache(name, cache.bytes);
+  const hid_t reopened = open_with_cache(name, cache.slots, cache.bytes);
   if (reopened < 0) fail("cannot reopen per-frame dataset", name);
   sets_[name] = reopened;
   return reopened;
@@ -277,61 +314,163 @@ H5Shape H5Stream::shape(const std::string& name) const {
   return H5Shape(dims.begin(), dims.end());
 }
 
+// Opens (or creates) `name` and extends it to hold row `row` of shape `row_shape`; returns the dataset and,
+// in `dims`, its extent after the extension.
+std::int64_t H5Stream::prepare_row(const std::string& name, std::size_t row, const H5Shape& row_shape,
+                                   const void* fill, std::int64_t memory_type, std::int64_t file_type,
+                                   H5Shape& dims) {
+  const hid_t set = open_or_create(name, row_shape, fill, memory_type, file_type);
+  std::vector<hsize_t> now(row_shape.size() + 1, 0);
+  {
+    Id space(H5Dget_space(set));
+    if (H5Sget_simple_extent_ndims(space) != static_cast<int>(now.size()))
+      throw Error("internal: row rank differs from the dataset's", {.file = partial_path_, .column = name});
+    H5Sget_simple_extent_dims(space, now.data(), nullptr);
+  }
+  std::vector<hsize_t> wanted = now;
+  wanted[0] = std::max<hsize_t>(now[0], row + 1);
+  if (!row_shape.empty()) wanted[1] = std::max<hsize_t>(now[1], row_shape[0]);
+  for (std::size_t i = 1; i < row_shape.size(); ++i)
+    if (wanted[i + 1] != row_shape[i])
+      throw Error("internal: row shape differs from the dataset's", {.file = partial_path_, .column = name});
+  if (wanted != now && H5Dset_extent(set, wanted.data()) < 0) fail("cannot extend dataset", name);
+  dims.assign(wanted.begin(), wanted.end());
+  return set;
+}
+
+// Whether row `row` of `name` may be written in part: its first write, to a dataset chunked in columns (a
+// row written again must replace the whole of the earlier one). Notes that the row is written now.
+bool H5Stream::first_write_of(const std::string& name, std::size_t row) {
+  const auto it = caches_.find(name);
+  if (it == caches_.end()) return false;
+  const bool first = row >= it->second.rows_written;
+  it->second.rows_written = std::max(it->second.rows_written, row + 1);
+  return first && it->second.chunk_width > 0;
+}
+
+// Writes the runs of columns (first, count) of row `row` from `memory`, which holds the whole row: the runs
+// are selected in it as in the file.
+void H5Stream::write_runs(const std::string& name, std::int64_t set, std::size_t row, const H5Shape& dims,
+                          const H5Shape& row_shape, std::span<const std::size_t> run_first,
+                          std::span<const std::size_t> run_count, const void* memory,
+                          std::int64_t memory_type) {
+  if (run_first.empty()) return;
+  std::vector<hsize_t> count(dims.size(), 1);
+  for (std::size_t i = 0; i < row_shape.size(); ++i) count[i + 1] = row_shape[i];
+  const auto select_runs = [&](hid_t space, std::size_t at_row) {
+    hsize_t selected = 0;
+    for (std::size_t k = 0; k < run_first.size(); ++k) {
+      std::vector<hsize_t> start(dims.size(), 0), extent = count;
+      if (!row_shape.empty()) {
+        start[1] = run_first[k];
+        extent[1] = run_count[k];
+      }
+      start[0] = at_row;
+      H5Sselect_hyperslab(space, k == 0 ? H5S_SELECT_SET : H5S_SELECT_OR, start.data(), nullptr,
+                          extent.data(), nullptr);
+      hsize_t n = 1;
+      for (const hsize_t e : extent) n *= e;
+      selected += n;
+    }
+    return selected;
+  };
+  Id file_space(H5Dget_space(set));
+  const hsize_t selected = select_runs(file_space, row);
+  Id memory_space(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr));
+  if (select_runs(memory_space, 0) != selected)
+    throw Error("internal: row selections differ", {.file = partial_path_, .column = name});
+  if (H5Dwrite(set, memory_type, memory_space, file_space, H5P_DEFAULT, memory) < 0)
+    fail("cannot write dataset row", name);
+}
+
 template <typename T>
 void H5Stream::write_row_impl(const std::string& name, std::size_t row, std::span<const T> data,
                               const H5Shape& row_shape, T fill, std::int64_t memory_type,
                               std::int64_t file_type) {
   if (product(row_shape) != data.size())
     throw Error("internal: row size does not match its shape", {.file = partial_path_, .column = name});
-  hid_t set = open_or_create(name, row_shape, &fill, memory_type, file_type);
-  std::vector<hsize_t> dims(row_shape.size() + 1);
-  {
-    Id space(H5Dget_space(set));
-    if (H5Sget_simple_extent_ndims(space) != static_cast<int>(dims.size()))
-      throw Error("internal: row rank differs from the dataset's", {.file = partial_path_, .column = name});
-    H5Sget_simple_extent_dims(space, dims.data(), nullptr);
-  }
-  std::vector<hsize_t> wanted = dims;
-  wanted[0] = std::max<hsize_t>(dims[0], row + 1);
-  if (!row_shape.empty()) wanted[1] = std::max<hsize_t>(dims[1], row_shape[0]);
-  for (std::size_t i = 1; i < row_shape.size(); ++i)
-    if (wanted[i + 1] != row_shape[i])
-      throw Error("internal: row shape differs from the dataset's", {.file = partial_path_, .column = name});
-  if (wanted != dims && H5Dset_extent(set, wanted.data()) < 0) fail("cannot extend dataset", name);
+  H5Shape dims;
+  hid_t set = prepare_row(name, row, row_shape, &fill, memory_type, file_type, dims);
   if (data.empty()) return;
-  std::vector<hsize_t> count(dims.size(), 1);
-  for (std::size_t i = 0; i < row_shape.size(); ++i) count[i + 1] = row_shape[i];
   // The whole row, or only the chunk columns holding something other than the fill value: a long trial
   // creates several times more tracks and triangles than are alive at once, and writing the retired ones'
   // fill would touch every chunk across the row at every frame, a cost that grows with the recording.
   // A row written again (a stage revised and run again) is written whole, so that nothing of the earlier
   // row survives where the new one holds the fill.
   std::vector<ColumnRun> runs{{0, row_shape.empty() ? 1 : row_shape[0]}};
-  const auto it = caches_.find(name);
-  const bool first_write = it != caches_.end() && row >= it->second.rows_written;
-  if (it != caches_.end()) it->second.rows_written = std::max(it->second.rows_written, row + 1);
-  if (first_write && it->second.chunk_width > 0 && !row_shape.empty()) {
-    runs = columns_not_fill(data, row_shape[0], it->second.chunk_width, fill);
-    std::size_t columns = 0;
-    for (const ColumnRun& r : runs) columns += r.count;
-    set = fit_cache_to_row(name, set, columns);
+  if (first_write_of(name, row) && !row_shape.empty()) {
+    runs = columns_not_fill(data, row_shape[0], caches_.at(name).chunk_width, fill);
+    set = fit_cache_to_row(name, set, columns_in(runs), dims[1]);
   }
-  if (runs.empty()) return;
-  Id file_space(H5Dget_space(set));
-  Id memory_space(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr));
-  for (std::size_t k = 0; k < runs.size(); ++k) {
-    std::vector<hsize_t> start(dims.size(), 0), extent = count;
-    if (!row_shape.empty()) {
-      start[1] = runs[k].first;
-      extent[1] = runs[k].count;
+  std::vector<std::size_t> first, count;
+  for (const ColumnRun& r : runs) {
+    first.push_back(r.first);
+    count.push_back(r.count);
+  }
+  write_runs(name, set, row, dims, row_shape, first, count, data.data(), memory_type);
+}
+
+template <typename T>
+void H5Stream::write_columns_impl(const std::string& name, std::size_t row,
+                                  std::span<const std::size_t> columns, std::span<const T> values,
+                                  const H5Shape& row_shape, T fill, std::int64_t memory_type,
+                                  std::int64_t file_type) {
+  const std::size_t per_column = row_shape.empty() ? 0 : product(row_shape, 1);
+  if (row_shape.empty() || values.size() != columns.size() * per_column)
+    throw Error("internal: column values do not match their shape", {.file = partial_path_, .column = name});
+  for (const std::size_t c : columns)
+    if (c >= row_shape[0])
+      throw Error("internal: column beyond the row's width", {.file = partial_path_, .column = name});
+  if (!caches_.contains(name) || row < caches_.at(name).rows_written || caches_.at(name).chunk_width == 0) {
+    // Created now, written again, or not chunked in columns: the row in full.
+    std::vector<T> row_data(product(row_shape), fill);
+    for (std::size_t i = 0; i < columns.size(); ++i)
+      std::copy_n(values.begin() + static_cast<std::ptrdiff_t>(i * per_column), per_column,
+                  row_data.begin() + static_cast<std::ptrdiff_t>(columns[i] * per_column));
+    write_row_impl(name, row, std::span<const T>(row_data), row_shape, fill, memory_type, file_type);
+    return;
+  }
+  H5Shape dims;
+  hid_t set = prepare_row(name, row, row_shape, &fill, memory_type, file_type, dims);
+  first_write_of(name, row);
+  // The row at full width in this dataset's buffer: the columns written last time back to the fill, this
+  // row's columns set. HDF5 then reads the row through a selection shaped as the file's (a compact buffer
+  // would make it map the elements one by one), and the cost follows the columns written, not the width.
+  RowBuffer& buffer = row_buffers_[name];
+  const std::size_t column_bytes = per_column * sizeof(T);
+  const std::size_t old_width = buffer.bytes.size() / column_bytes;
+  const auto put = [&](std::size_t column, const T* from) {
+    std::memcpy(buffer.bytes.data() + column * column_bytes, from, column_bytes);
+  };
+  const std::vector<T> fill_column(per_column, fill);
+  if (row_shape[0] > old_width) {
+    buffer.bytes.resize(row_shape[0] * column_bytes);
+    for (std::size_t c = old_width; c < row_shape[0]; ++c) put(c, fill_column.data());
+  }
+  for (const std::size_t c : buffer.columns) put(c, fill_column.data());
+  buffer.columns.assign(columns.begin(), columns.end());
+  for (std::size_t i = 0; i < columns.size(); ++i) put(columns[i], values.data() + i * per_column);
+  // The chunk columns holding a written column, as runs.
+  const std::size_t width = caches_.at(name).chunk_width;
+  std::vector<std::size_t> blocks;
+  blocks.reserve(columns.size());
+  for (const std::size_t c : columns) blocks.push_back(c / width);
+  std::sort(blocks.begin(), blocks.end());
+  blocks.erase(std::unique(blocks.begin(), blocks.end()), blocks.end());
+  std::vector<std::size_t> run_first, run_count;
+  std::size_t written = 0;
+  for (const std::size_t block : blocks) {
+    const std::size_t first = block * width, count = std::min(width, row_shape[0] - first);
+    written += count;
+    if (!run_first.empty() && run_first.back() + run_count.back() == first) {
+      run_count.back() += count;
+    } else {
+      run_first.push_back(first);
+      run_count.push_back(count);
     }
-    const H5S_seloper_t op = k == 0 ? H5S_SELECT_SET : H5S_SELECT_OR;
-    H5Sselect_hyperslab(memory_space, op, start.data(), nullptr, extent.data(), nullptr);
-    start[0] = row;
-    H5Sselect_hyperslab(file_space, op, start.data(), nullptr, extent.data(), nullptr);
   }
-  if (H5Dwrite(set, memory_type, memory_space, file_space, H5P_DEFAULT, data.data()) < 0)
-    fail("cannot write dataset row", name);
+  set = fit_cache_to_row(name, set, written, dims[1]);
+  write_runs(name, set, row, dims, row_shape, run_first, run_count, buffer.bytes.data(), memory_type);
 }
 
 void H5Stream::write_row(const std::string& name, std::size_t row, std::span<const double> data,
@@ -358,6 +497,27 @@ void H5Stream::write_row(const std::string& name, std::size_t row, std::span<con
 void H5Stream::write_row(const std::string& name, std::size_t row, std::span<const std::uint8_t> data,
                          const H5Shape& row_shape, std::uint8_t fill) {
   write_row_impl(name, row, data, row_shape, fill, H5T_NATIVE_UINT8, H5T_STD_U8LE);
+}
+
+void H5Stream::write_columns(const std::string& name, std::size_t row, std::span<const std::size_t> columns,
+                             std::span<const double> values, const H5Shape& row_shape, double fill,
+                             H5Precision precision) {
+  write_columns_impl(name, row, columns, values, row_shape, fill, H5T_NATIVE_DOUBLE,
+                     precision == H5Precision::kFloat32 ? H5T_IEEE_F32LE : H5T_IEEE_F64LE);
+}
+void H5Stream::write_columns(const std::string& name, std::size_t row, std::span<const std::size_t> columns,
+                             std::span<const float> values, const H5Shape& row_shape, float fill) {
+  write_columns_impl(name, row, columns, values, row_shape, fill, H5T_NATIVE_FLOAT, H5T_IEEE_F32LE);
+}
+void H5Stream::write_columns(const std::string& name, std::size_t row, std::span<const std::size_t> columns,
+                             std::span<const std::int8_t> values, const H5Shape& row_shape,
+                             std::int8_t fill) {
+  write_columns_impl(name, row, columns, values, row_shape, fill, H5T_NATIVE_INT8, H5T_STD_I8LE);
+}
+void H5Stream::write_columns(const std::string& name, std::size_t row, std::span<const std::size_t> columns,
+                             std::span<const std::uint8_t> values, const H5Shape& row_shape,
+                             std::uint8_t fill) {
+  write_columns_impl(name, row, columns, values, row_shape, fill, H5T_NATIVE_UINT8, H5T_STD_U8LE);
 }
 
 std::vector<double> H5Stream::read_block(const std::string& name, const H5Shape& offset,

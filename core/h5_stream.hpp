@@ -48,6 +48,19 @@ class H5Stream {
   void write_row(const std::string& name, std::size_t row, std::span<const std::uint8_t> data,
                  const H5Shape& row_shape, std::uint8_t fill);
 
+  // The same row given as the values of some columns of its first axis only (`row_shape[0]` wide; the
+  // columns in any order, each with product(row_shape[1:]) values), `fill` everywhere else: a trial's live
+  // tracks or triangles, among the many more it has created, at a cost that follows the live ones.
+  void write_columns(const std::string& name, std::size_t row, std::span<const std::size_t> columns,
+                     std::span<const double> values, const H5Shape& row_shape, double fill,
+                     H5Precision precision = H5Precision::kNative);
+  void write_columns(const std::string& name, std::size_t row, std::span<const std::size_t> columns,
+                     std::span<const float> values, const H5Shape& row_shape, float fill);
+  void write_columns(const std::string& name, std::size_t row, std::span<const std::size_t> columns,
+                     std::span<const std::int8_t> values, const H5Shape& row_shape, std::int8_t fill);
+  void write_columns(const std::string& name, std::size_t row, std::span<const std::size_t> columns,
+                     std::span<const std::uint8_t> values, const H5Shape& row_shape, std::uint8_t fill);
+
   // A box of an existing dataset, as doubles, and written back (no extension): one track through time.
   std::vector<double> read_block(const std::string& name, const H5Shape& offset, const H5Shape& count) const;
   void write_block(const std::string& name, const H5Shape& offset, const H5Shape& count,
@@ -80,12 +93,23 @@ class H5Stream {
   void write_row_impl(const std::string& name, std::size_t row, std::span<const T> data,
                       const H5Shape& row_shape, T fill, std::int64_t memory_type, std::int64_t file_type);
   template <typename T>
+  void write_columns_impl(const std::string& name, std::size_t row, std::span<const std::size_t> columns,
+                          std::span<const T> values, const H5Shape& row_shape, T fill,
+                          std::int64_t memory_type, std::int64_t file_type);
+  std::int64_t prepare_row(const std::string& name, std::size_t row, const H5Shape& row_shape,
+                           const void* fill, std::int64_t memory_type, std::int64_t file_type, H5Shape& dims);
+  bool first_write_of(const std::string& name, std::size_t row);
+  void write_runs(const std::string& name, std::int64_t set, std::size_t row, const H5Shape& dims,
+                  const H5Shape& row_shape, std::span<const std::size_t> run_first,
+                  std::span<const std::size_t> run_count, const void* memory, std::int64_t memory_type);
+  template <typename T>
   void write_whole(const std::string& name, std::span<const T> data, const H5Shape& shape,
                    std::int64_t memory_type);
   std::int64_t open_or_create(const std::string& name, const H5Shape& row_shape, const void* fill,
                               std::int64_t memory_type, std::int64_t file_type);
-  std::int64_t open_with_cache(const std::string& name, std::size_t cache_bytes) const;
-  std::int64_t fit_cache_to_row(const std::string& name, std::int64_t set, std::size_t row_width);
+  std::int64_t open_with_cache(const std::string& name, std::size_t slots, std::size_t cache_bytes) const;
+  std::int64_t fit_cache_to_row(const std::string& name, std::int64_t set, std::size_t columns_written,
+                                std::size_t row_width);
   void ensure_parent_groups(const std::string& name);
   void close_sets();
   void discard() const;
@@ -102,12 +126,22 @@ class H5Stream {
     std::size_t chunk_bytes = 0;
     std::size_t chunk_width = 0;   // elements of the growing axis per chunk; 0: one frame per chunk
     std::size_t bytes = 0;         // the cache's size now
+    std::size_t slots = 0;         // the cache's hash slots now (a prime)
     std::size_t rows_written = 0;  // one past the highest row written: a row below it may be a rewrite
     std::size_t needed(std::size_t row_width) const {
       return chunk_width == 0 ? chunk_bytes : (row_width + chunk_width - 1) / chunk_width * chunk_bytes;
     }
+    // Slots for a row `row_width` wide: one per chunk column, so that no chunk of the row evicts another.
+    std::size_t slots_needed(std::size_t row_width) const;
   };
   std::map<std::string, ChunkCache> caches_;
+  // The last row written by columns, per dataset, at full width (bytes of the memory type); only the
+  // columns written then need resetting to the fill for the next row.
+  struct RowBuffer {
+    std::vector<unsigned char> bytes;
+    std::vector<std::size_t> columns;
+  };
+  std::map<std::string, RowBuffer> row_buffers_;
   bool committed_ = false;
 };
 

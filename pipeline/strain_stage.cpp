@@ -316,48 +316,51 @@ class StrainStage final : public Stage {
     write_map_rows(f, row);
   }
 
+  // The frame's active triangles only: a long trial's union mesh holds many times more triangles than are
+  // in the mesh at once, and the rest of each row is the fill value.
   void write_triangle_rows(const StrainFrame& f, std::size_t r) const {
     H5Stream& out = *out_;
     const std::size_t t_count = f.computed ? mesh_.triangles().size() : 0;
-    std::vector<double> total(t_count * 3, kNaN), other(t_count * 3, kNaN), sd(t_count * 3, kNaN),
-        rate(t_count * 3, kNaN), principal(t_count * 3, kNaN), rotation(t_count, kNaN),
-        density(t_count, kNaN);
-    std::vector<std::uint8_t> status(t_count, kNotInMesh), source(t_count, 0);
-    std::vector<std::int8_t> stuck(t_count, -1);
-    for (std::size_t a = 0; a < f.active.size(); ++a) {
-      const auto cell = static_cast<std::size_t>(f.active[a]);
-      status[cell] = f.status[a];
-      stuck[cell] = f.stuck[a];
-      source[cell] = f.sources[a];
+    const std::size_t n = f.computed ? f.active.size() : 0;
+    std::vector<std::size_t> cells(n);
+    std::vector<double> total(n * 3), other(n * 3), sd(n * 3), rate(n * 3), principal(n * 3, kNaN),
+        rotation(n), density(n);
+    for (std::size_t a = 0; a < n; ++a) {
+      cells[a] = static_cast<std::size_t>(f.active[a]);
       const double* v = &f.values[a * kValueCount];
       for (std::size_t c = 0; c < 3; ++c) {
-        total[cell * 3 + c] = v[kExx + static_cast<int>(c)];
-        other[cell * 3 + c] = v[kOtherExx + static_cast<int>(c)];
-        rate[cell * 3 + c] = v[kRateXx + static_cast<int>(c)];
-        sd[cell * 3 + c] = v[kSdXx + static_cast<int>(c)];
+        total[a * 3 + c] = v[kExx + static_cast<int>(c)];
+        other[a * 3 + c] = v[kOtherExx + static_cast<int>(c)];
+        rate[a * 3 + c] = v[kRateXx + static_cast<int>(c)];
+        sd[a * 3 + c] = v[kSdXx + static_cast<int>(c)];
       }
       if (std::isfinite(v[kExx])) {
         const Principal2 p = principal_strains({v[kExx], v[kEyy], v[kExy]});
-        principal[cell * 3] = p.e1;
-        principal[cell * 3 + 1] = p.e2;
-        principal[cell * 3 + 2] = p.angle_rad;
+        principal[a * 3] = p.e1;
+        principal[a * 3 + 1] = p.e2;
+        principal[a * 3 + 2] = p.angle_rad;
       }
-      rotation[cell] = v[kRotation];
-      density[cell] = v[kEnergy];
+      rotation[a] = v[kRotation];
+      density[a] = v[kEnergy];
     }
+    const std::span<const std::uint8_t> status(f.status.data(), n), source(f.sources.data(), n);
+    const std::span<const std::int8_t> stuck(f.stuck.data(), n);
     const bool incremental = settings_.mode == strain::StrainMode::kIncremental;
-    const H5Shape tensors{t_count, 3}, cells{t_count};
-    out.write_row("/mesh/status", r, std::span<const std::uint8_t>(status), cells, kNotInMesh);
-    out.write_row("/strain/total", r, std::span<const double>(total), tensors, kNaN, kStored);
-    out.write_row(incremental ? "/strain/total_exact" : "/strain/total_incremental", r,
-                  std::span<const double>(other), tensors, kNaN, kStored);
-    out.write_row("/strain/total_sd", r, std::span<const double>(sd), tensors, kNaN, kStored);
-    out.write_row("/strain/source", r, std::span<const std::uint8_t>(source), cells, std::uint8_t{0});
-    out.write_row("/strain/rate", r, std::span<const double>(rate), tensors, kNaN, kStored);
-    out.write_row("/strain/principal", r, std::span<const double>(principal), tensors, kNaN, kStored);
-    out.write_row("/strain/rotation_rad", r, std::span<const double>(rotation), cells, kNaN, kStored);
-    out.write_row("/energy/density_J_m3", r, std::span<const double>(density), cells, kNaN, kStored);
-    out.write_row("/stick/stuck", r, std::span<const std::int8_t>(stuck), cells, std::int8_t{-1});
+    const H5Shape tensors{t_count, 3}, scalars{t_count};
+    out.write_columns("/mesh/status", r, cells, status, scalars, kNotInMesh);
+    out.write_columns("/strain/total", r, cells, std::span<const double>(total), tensors, kNaN, kStored);
+    out.write_columns(incremental ? "/strain/total_exact" : "/strain/total_incremental", r, cells,
+                      std::span<const double>(other), tensors, kNaN, kStored);
+    out.write_columns("/strain/total_sd", r, cells, std::span<const double>(sd), tensors, kNaN, kStored);
+    out.write_columns("/strain/source", r, cells, source, scalars, std::uint8_t{0});
+    out.write_columns("/strain/rate", r, cells, std::span<const double>(rate), tensors, kNaN, kStored);
+    out.write_columns("/strain/principal", r, cells, std::span<const double>(principal), tensors, kNaN,
+                      kStored);
+    out.write_columns("/strain/rotation_rad", r, cells, std::span<const double>(rotation), scalars, kNaN,
+                      kStored);
+    out.write_columns("/energy/density_J_m3", r, cells, std::span<const double>(density), scalars, kNaN,
+                      kStored);
+    out.write_columns("/stick/stuck", r, cells, stuck, scalars, std::int8_t{-1});
   }
 
   void write_scalar_rows(const StrainFrame& f, std::size_t r) const {

@@ -38,16 +38,19 @@ struct TrackFrame {
   int alive = 0, born = 0, retired = 0;
 };
 
-// One frame's /tracks rows, built from the tracker and written at once (K = tracks so far).
+// One frame's /tracks rows, built from the tracker and written at once: the columns (track ids) of the
+// tracks alive or retired in this frame, and their values in that order; every other track's cells hold the
+// fill value.
 struct TrackRow {
-  std::vector<double> position_px;  // K x 2
+  std::vector<std::size_t> column;
+  std::vector<double> position_px;  // per column x 2
   std::vector<std::int8_t> status;
   // What each position is (flow::TrackModel) and the statistic that let a model stand in for the match.
   std::vector<std::uint8_t> model;
   std::vector<float> model_mahalanobis2;
   std::vector<float> model_window_px;  // a local fit's window radius, px (NaN for other positions)
   std::vector<float> inside_fraction;  // share of the match's subset inside the contact
-  std::vector<float> covariance_px2;   // K x 3: the own match's, xx xy yy
+  std::vector<float> covariance_px2;   // per column x 3: the own match's, xx xy yy
 };
 
 // One track through time, read back from result.h5 for smoothing in time.
@@ -325,30 +328,31 @@ class TrackingStage final : public Stage {
     const std::size_t k_count = tracks.size();
     record.tracks = k_count;
     TrackRow row;
-    row.position_px.assign(k_count * 2, kNaN);
-    row.status.assign(k_count, kAbsent);
-    row.model.assign(k_count, 0);
-    row.model_mahalanobis2.assign(k_count, kNaNf);
-    row.model_window_px.assign(k_count, kNaNf);
-    row.inside_fraction.assign(k_count, kNaNf);
-    row.covariance_px2.assign(k_count * 3, kNaNf);
     for (std::size_t k = 0; k < k_count; ++k) {
       const flow::Track& t = tracks[k];
-      if (flow::is_alive(t.status)) {
-        row.position_px[2 * k] = t.position_px.x;
-        row.position_px[2 * k + 1] = t.position_px.y;
-        row.status[k] = static_cast<std::int8_t>(t.status);
-        row.model[k] = static_cast<std::uint8_t>(t.model);
-        row.model_mahalanobis2[k] = static_cast<float>(t.model_mahalanobis2);
-        row.model_window_px[k] = static_cast<float>(t.model_window_px);
-        row.inside_fraction[k] = static_cast<float>(t.subset_inside_fraction);
+      const bool alive = flow::is_alive(t.status);
+      if (!alive && t.retired_frame != frame) continue;
+      row.column.push_back(k);
+      row.status.push_back(static_cast<std::int8_t>(t.status));
+      if (alive) {
+        row.position_px.insert(row.position_px.end(), {t.position_px.x, t.position_px.y});
+        row.model.push_back(static_cast<std::uint8_t>(t.model));
+        row.model_mahalanobis2.push_back(static_cast<float>(t.model_mahalanobis2));
+        row.model_window_px.push_back(static_cast<float>(t.model_window_px));
+        row.inside_fraction.push_back(static_cast<float>(t.subset_inside_fraction));
         for (std::size_t c = 0; c < 3; ++c)
-          row.covariance_px2[3 * k + c] = static_cast<float>(t.covariance_px2[c]);
+          row.covariance_px2.push_back(static_cast<float>(t.covariance_px2[c]));
         ++model_track_frames_[static_cast<std::size_t>(t.model)];
         ++record.alive;
         if (t.status == flow::TrackStatus::kBorn && frame > 0) ++record.born;
-      } else if (t.retired_frame == frame) {
-        row.status[k] = static_cast<std::int8_t>(t.status);
+      } else {
+        // Retired in this frame: its status says why, its values are the fill.
+        row.position_px.insert(row.position_px.end(), {kNaN, kNaN});
+        row.model.push_back(0);
+        row.model_mahalanobis2.push_back(kNaNf);
+        row.model_window_px.push_back(kNaNf);
+        row.inside_fraction.push_back(kNaNf);
+        row.covariance_px2.insert(row.covariance_px2.end(), {kNaNf, kNaNf, kNaNf});
         ++record.retired;
       }
     }
@@ -361,15 +365,20 @@ class TrackingStage final : public Stage {
     H5Stream& out = *out_;
     const std::size_t r = frames_.size();
     const std::size_t k = f.tracks;
-    out.write_row("/tracks/position_px", r, std::span<const double>(row.position_px), {k, 2}, kNaN);
-    out.write_row("/tracks/status", r, std::span<const std::int8_t>(row.status), {k}, kAbsent);
-    out.write_row("/tracks/model", r, std::span<const std::uint8_t>(row.model), {k}, std::uint8_t{0});
-    out.write_row("/tracks/model_mahalanobis2", r, std::span<const float>(row.model_mahalanobis2), {k},
-                  kNaNf);
-    out.write_row("/tracks/model_window_px", r, std::span<const float>(row.model_window_px), {k}, kNaNf);
-    out.write_row("/tracks/covariance_px2", r, std::span<const float>(row.covariance_px2), {k, 3}, kNaNf);
-    out.write_row("/tracks/subset_inside_fraction", r, std::span<const float>(row.inside_fraction), {k},
-                  kNaNf);
+    const std::span<const std::size_t> columns(row.column);
+    out.write_columns("/tracks/position_px", r, columns, std::span<const double>(row.position_px), {k, 2},
+                      kNaN);
+    out.write_columns("/tracks/status", r, columns, std::span<const std::int8_t>(row.status), {k}, kAbsent);
+    out.write_columns("/tracks/model", r, columns, std::span<const std::uint8_t>(row.model), {k},
+                      std::uint8_t{0});
+    out.write_columns("/tracks/model_mahalanobis2", r, columns,
+                      std::span<const float>(row.model_mahalanobis2), {k}, kNaNf);
+    out.write_columns("/tracks/model_window_px", r, columns, std::span<const float>(row.model_window_px), {k},
+                      kNaNf);
+    out.write_columns("/tracks/covariance_px2", r, columns, std::span<const float>(row.covariance_px2),
+                      {k, 3}, kNaNf);
+    out.write_columns("/tracks/subset_inside_fraction", r, columns,
+                      std::span<const float>(row.inside_fraction), {k}, kNaNf);
     const std::int8_t rest[2] = {static_cast<std::int8_t>(f.rest_tested),
                                  static_cast<std::int8_t>(f.at_rest)};
     out.write_row("/tracks/rest_tested", r, std::span<const std::int8_t>(rest, 1), {}, std::int8_t{0});

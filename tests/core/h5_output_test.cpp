@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -90,6 +91,94 @@ TEST(H5, StreamedRowsKeepValuesAndFillAndARewriteReplacesTheWholeRow) {
       }
     }
   }
+}
+
+// Rows given as scattered columns (in no order) of a row that widens every frame, past 521 chunk columns
+// (the chunk cache's smallest hash table), and one row given again: the same file content as the rows
+// assembled in full.
+TEST(H5, RowsGivenAsColumnsEqualTheRowsInFull) {
+  const std::string path = kTmp + "/column_rows.h5";
+  std::filesystem::remove(path);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  constexpr std::size_t kFrames = 24;
+  const auto width_at = [](std::size_t frame) { return 2000 + frame * 1500; };  // 35 500 = 555 chunk columns
+  // Frame f's live columns: a block near the end (newborn) and survivors scattered over the whole width.
+  const auto columns_at = [&](std::size_t frame, std::size_t salt) {
+    std::vector<std::size_t> columns;
+    const std::size_t width = width_at(frame);
+    for (std::size_t k = 0; k < 50; ++k) columns.push_back(width - 1 - k * 3);
+    for (std::size_t k = 0; k < 200; ++k) columns.push_back((k * 7919 + frame * 131 + salt) % (width - 200));
+    std::sort(columns.begin(), columns.end());
+    columns.erase(std::unique(columns.begin(), columns.end()), columns.end());
+    std::reverse(columns.begin(), columns.end());
+    return columns;
+  };
+  const auto value = [](std::size_t frame, std::size_t column, std::size_t c, double base) {
+    return base + 1000.0 * static_cast<double>(frame) + static_cast<double>(column) +
+           0.25 * static_cast<double>(c);
+  };
+  const auto full_row = [&](std::size_t frame, const std::vector<std::size_t>& columns, double base) {
+    std::vector<double> row(width_at(frame) * 2, nan);
+    for (const std::size_t k : columns)
+      for (std::size_t c = 0; c < 2; ++c) row[2 * k + c] = value(frame, k, c, base);
+    return row;
+  };
+  const auto listed = [&](std::size_t frame, const std::vector<std::size_t>& columns, double base) {
+    std::vector<double> values;
+    for (const std::size_t k : columns)
+      for (std::size_t c = 0; c < 2; ++c) values.push_back(value(frame, k, c, base));
+    return values;
+  };
+  {
+    H5Stream out(path);
+    for (std::size_t frame = 0; frame < kFrames; ++frame) {
+      const std::vector<std::size_t> columns = columns_at(frame, 0);
+      const H5Shape shape{width_at(frame), 2};
+      out.write_columns("/by_columns", frame, columns, listed(frame, columns, 0.0), shape, nan);
+      out.write_row("/in_full", frame, full_row(frame, columns, 0.0), shape, nan);
+      std::vector<std::int8_t> status(columns.size(), 2);
+      out.write_columns("/status", frame, columns, std::span<const std::int8_t>(status), {width_at(frame)},
+                        std::int8_t{-1});
+    }
+    // Frame 5 again, with other columns: nothing of the first version stays.
+    const std::vector<std::size_t> again = columns_at(5, 17);
+    out.write_columns("/by_columns", 5, again, listed(5, again, -0.5), {width_at(5), 2}, nan);
+    out.write_row("/in_full", 5, full_row(5, again, -0.5), {width_at(5), 2}, nan);
+    out.commit();
+  }
+  H5Reader in(path);
+  H5Shape shape_columns, shape_full;
+  const std::vector<double> by_columns = in.read_doubles("/by_columns", &shape_columns);
+  const std::vector<double> in_full = in.read_doubles("/in_full", &shape_full);
+  const std::size_t width = width_at(kFrames - 1);
+  ASSERT_EQ(shape_columns, (H5Shape{kFrames, width, 2}));
+  ASSERT_EQ(shape_full, shape_columns);
+  std::size_t values = 0;
+  for (std::size_t frame = 0; frame < kFrames; ++frame) {
+    const std::vector<std::size_t> columns = columns_at(frame, frame == 5 ? 17 : 0);
+    std::vector<double> expected = full_row(frame, columns, frame == 5 ? -0.5 : 0.0);
+    expected.resize(width * 2, nan);
+    for (std::size_t k = 0; k < width * 2; ++k) {
+      const double got = by_columns[frame * width * 2 + k], full = in_full[frame * width * 2 + k];
+      if (std::isnan(expected[k])) {
+        ASSERT_TRUE(std::isnan(got) && std::isnan(full)) << "frame " << frame << " value " << k;
+      } else {
+        ASSERT_EQ(got, expected[k]) << "frame " << frame << " value " << k;
+        ASSERT_EQ(full, expected[k]) << "frame " << frame << " value " << k;
+        ++values;
+      }
+    }
+  }
+  EXPECT_GT(values, kFrames * 400);
+  const std::vector<std::int64_t> status = in.read_integers("/status");
+  std::size_t set = 0;
+  for (const std::int64_t s : status) {
+    ASSERT_TRUE(s == 2 || s == -1);
+    set += s == 2 ? 1 : 0;
+  }
+  std::size_t listed_total = 0;
+  for (std::size_t frame = 0; frame < kFrames; ++frame) listed_total += columns_at(frame, 0).size();
+  EXPECT_EQ(set, listed_total);
 }
 
 TEST(H5, UncommittedWriterLeavesNothing) {
