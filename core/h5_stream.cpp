@@ -60,17 +60,21 @@ struct ColumnRun {
   std::size_t first = 0, count = 0;
 };
 
+// Whether v equals the fill value; NaN counts as equal to a NaN fill.
+template <typename T>
+bool same_value(T v, T fill) {
+  if constexpr (std::is_floating_point_v<T>)
+    if (std::isnan(fill)) return std::isnan(v);
+  return v == fill;
+}
+
 // Runs of whole chunk columns (chunk_width elements of the row's first axis, with all their trailing
 // values) in which some value differs from `fill`; NaN counts as equal to a NaN fill.
 template <typename T>
 std::vector<ColumnRun> columns_not_fill(std::span<const T> data, std::size_t width, std::size_t chunk_width,
                                         T fill) {
   const std::size_t per_element = width == 0 ? 0 : data.size() / width;
-  const auto is_fill = [fill](T v) {
-    if constexpr (std::is_floating_point_v<T>)
-      if (std::isnan(fill)) return std::isnan(v);
-    return v == fill;
-  };
+  const auto is_fill = [fill](T v) { return same_value(v, fill); };
   std::vector<ColumnRun> runs;
   for (std::size_t first = 0; first < width; first += chunk_width) {
     const std::size_t end = std::min(width, first + chunk_width);
@@ -448,13 +452,18 @@ void H5Stream::write_columns_impl(const std::string& name, std::size_t row,
     for (std::size_t c = old_width; c < row_shape[0]; ++c) put(c, fill_column.data());
   }
   for (const std::size_t c : buffer.columns) put(c, fill_column.data());
-  buffer.columns.assign(columns.begin(), columns.end());
-  for (std::size_t i = 0; i < columns.size(); ++i) put(columns[i], values.data() + i * per_column);
-  // The chunk columns holding a written column, as runs.
+  // Columns holding only the fill (a retired track's values, a triangle without strain) are left out, so
+  // that a block of them creates no chunk.
   const std::size_t width = caches_.at(name).chunk_width;
+  buffer.columns.clear();
   std::vector<std::size_t> blocks;
-  blocks.reserve(columns.size());
-  for (const std::size_t c : columns) blocks.push_back(c / width);
+  for (std::size_t i = 0; i < columns.size(); ++i) {
+    const T* column = values.data() + i * per_column;
+    if (std::all_of(column, column + per_column, [fill](T v) { return same_value(v, fill); })) continue;
+    put(columns[i], column);
+    buffer.columns.push_back(columns[i]);
+    blocks.push_back(columns[i] / width);
+  }
   std::sort(blocks.begin(), blocks.end());
   blocks.erase(std::unique(blocks.begin(), blocks.end()), blocks.end());
   std::vector<std::size_t> run_first, run_count;
