@@ -123,10 +123,14 @@ void PlateTracker::cover(Vec2 d) {
   const int right = std::max(0, x1 - (origin_x_ + mosaic_sum_.cols - 1));
   const int bottom = std::max(0, y1 - (origin_y_ + mosaic_sum_.rows - 1));
   if (left + top + right + bottom == 0) return;
-  // Grow by at least a band's height or width at a time, so a moving plate does not copy every frame.
-  const auto grow = [](int need, int chunk) { return need > 0 ? std::max(need, chunk) : 0; };
-  const int l = grow(left, roi_.width), t = grow(top, roi_.height), rr = grow(right, roi_.width),
-            b = grow(bottom, roi_.height);
+  // Grow by an eighth of the mosaic's extent at a time (at least twice the margin), so a moving plate
+  // copies it a few times, not every frame; the side across the motion, which grows only by sub-pixel
+  // jitter, stays within an eighth of what it needs (growing it by a band's width tripled the mosaic).
+  const auto grow = [](int need, int extent) {
+    return need > 0 ? std::max({need, 2 * kPad, extent / 8}) : 0;
+  };
+  const int l = grow(left, mosaic_sum_.cols), t = grow(top, mosaic_sum_.rows),
+            rr = grow(right, mosaic_sum_.cols), b = grow(bottom, mosaic_sum_.rows);
   cv::copyMakeBorder(mosaic_sum_, mosaic_sum_, t, b, l, rr, cv::BORDER_CONSTANT, cv::Scalar(0));
   cv::copyMakeBorder(mosaic_count_, mosaic_count_, t, b, l, rr, cv::BORDER_CONSTANT, cv::Scalar(0));
   origin_x_ -= l;
