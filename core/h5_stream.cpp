@@ -96,6 +96,33 @@ std::size_t columns_in(const std::vector<ColumnRun>& runs) {
   return columns;
 }
 
+// The runs of whole chunk columns covering the blocks (chunk column numbers, in any order, repeated).
+std::vector<ColumnRun> runs_of_blocks(std::vector<std::size_t> blocks, std::size_t chunk_width,
+                                      std::size_t row_width) {
+  std::sort(blocks.begin(), blocks.end());
+  blocks.erase(std::unique(blocks.begin(), blocks.end()), blocks.end());
+  std::vector<ColumnRun> runs;
+  for (const std::size_t block : blocks) {
+    const std::size_t first = block * chunk_width, count = std::min(chunk_width, row_width - first);
+    if (!runs.empty() && runs.back().first + runs.back().count == first)
+      runs.back().count += count;
+    else
+      runs.push_back({first, count});
+  }
+  return runs;
+}
+
+// Runs as the first columns and the counts apart (H5Stream::write_runs).
+struct RunSpans {
+  std::vector<std::size_t> first, count;
+  explicit RunSpans(const std::vector<ColumnRun>& runs) {
+    for (const ColumnRun& r : runs) {
+      first.push_back(r.first);
+      count.push_back(r.count);
+    }
+  }
+};
+
 // Room for a fifth more than what a row needs now before the cache must grow with it: tracks and triangles
 // are created steadily, and each reopening writes the chunks being filled half full (read back later). A
 // larger margin only holds finished chunks longer.
@@ -406,12 +433,8 @@ void H5Stream::write_row_impl(const std::string& name, std::size_t row, std::spa
     runs = columns_not_fill(data, row_shape[0], caches_.at(name).chunk_width, fill);
     set = fit_cache_to_row(name, set, columns_in(runs), dims[1]);
   }
-  std::vector<std::size_t> first, count;
-  for (const ColumnRun& r : runs) {
-    first.push_back(r.first);
-    count.push_back(r.count);
-  }
-  write_runs(name, set, row, dims, row_shape, first, count, data.data(), memory_type);
+  const RunSpans spans(runs);
+  write_runs(name, set, row, dims, row_shape, spans.first, spans.count, data.data(), memory_type);
 }
 
 template <typename T>
@@ -464,22 +487,10 @@ void H5Stream::write_columns_impl(const std::string& name, std::size_t row,
     buffer.columns.push_back(columns[i]);
     blocks.push_back(columns[i] / width);
   }
-  std::sort(blocks.begin(), blocks.end());
-  blocks.erase(std::unique(blocks.begin(), blocks.end()), blocks.end());
-  std::vector<std::size_t> run_first, run_count;
-  std::size_t written = 0;
-  for (const std::size_t block : blocks) {
-    const std::size_t first = block * width, count = std::min(width, row_shape[0] - first);
-    written += count;
-    if (!run_first.empty() && run_first.back() + run_count.back() == first) {
-      run_count.back() += count;
-    } else {
-      run_first.push_back(first);
-      run_count.push_back(count);
-    }
-  }
-  set = fit_cache_to_row(name, set, written, dims[1]);
-  write_runs(name, set, row, dims, row_shape, run_first, run_count, buffer.bytes.data(), memory_type);
+  const std::vector<ColumnRun> runs = runs_of_blocks(std::move(blocks), width, row_shape[0]);
+  set = fit_cache_to_row(name, set, columns_in(runs), dims[1]);
+  const RunSpans spans(runs);
+  write_runs(name, set, row, dims, row_shape, spans.first, spans.count, buffer.bytes.data(), memory_type);
 }
 
 void H5Stream::write_row(const std::string& name, std::size_t row, std::span<const double> data,
