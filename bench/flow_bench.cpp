@@ -14,6 +14,7 @@
 // mesh_correlation.hpp; not used by the tracker): element E px, smoothness S, brightness fields B (0/1),
 // prefilter SIGMA px, region inset INSET px, full Gauss–Newton UPDATE (0/1), convergence CONV px; trailing
 // fields may be left out. MESH_VERBOSE=1 prints each frame's error (all, and deeper than 26 px).
+#include <yaml-cpp/yaml.h>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -37,11 +38,11 @@
 namespace {
 
 using tirstrain::flow::ShapeFunction;
-using tirstrain::flow::TrackerSettings;
+using tirstrain::flow::TrackerOptions;
 
 struct Config {
   std::string name;
-  TrackerSettings settings;
+  TrackerOptions settings;
 };
 
 YAML::Node bench_scene(int width, int height, int frames) {
@@ -301,51 +302,51 @@ void run_mesh_configs(const std::vector<std::string>& mesh_configs, const tirstr
 }
 
 // The configurations compared by default: the paper's preset, the automatic one, and one change at a time.
-std::vector<Config> standard_configs(const TrackerSettings& automatic, const TrackerSettings& paper) {
+std::vector<Config> standard_configs(const TrackerOptions& automatic, const TrackerOptions& paper) {
   std::vector<Config> configs = {{"delhaye2016", paper}, {"auto", automatic}};
   const auto variant = [&](const std::string& name, auto change) {
-    TrackerSettings s = automatic;
+    TrackerOptions s = automatic;
     change(s);
     configs.push_back({name, s});
   };
   // The paper's method with drift control, and the paper's window with our refinement.
   {
-    TrackerSettings s = paper;
-    s.reanchor_interval_frames = 5;
+    TrackerOptions s = paper;
+    s.reanchor.interval_frames = 5;
     configs.push_back({"delhaye2016+reanchor5", s});
   }
   for (int w : {11, 41})
-    variant("auto window=" + std::to_string(w), [w](TrackerSettings& s) { s.window_px = w; });
+    variant("auto window=" + std::to_string(w), [w](TrackerOptions& s) { s.prediction.window_px = w; });
   for (int l : {0, 1, 3})
-    variant("auto levels=" + std::to_string(l), [l](TrackerSettings& s) { s.pyramid_levels = l; });
+    variant("auto levels=" + std::to_string(l), [l](TrackerOptions& s) { s.prediction.pyramid_levels = l; });
   for (double g : {6.0, 12.0})
     variant("auto grid=" + std::to_string(static_cast<int>(g)),
-            [g](TrackerSettings& s) { s.grid_step_px = g; });
+            [g](TrackerOptions& s) { s.seeding.grid_step_px = g; });
   for (int r : {8, 18})
-    variant("auto subset_r=" + std::to_string(r), [r](TrackerSettings& s) { s.subset_radius_px = r; });
-  variant("auto stride=1", [](TrackerSettings& s) {
-    s.subset_stride = 1;
+    variant("auto subset_r=" + std::to_string(r),
+            [r](TrackerOptions& s) { s.main_match.subset_radius_px = r; });
+  variant("auto stride=1", [](TrackerOptions& s) {
+    s.main_match.subset_stride = 1;
     s.pinned.subset_stride = true;
   });
-  variant("auto quadratic", [](TrackerSettings& s) {
-    s.shape = ShapeFunction::kQuadratic;
+  variant("auto quadratic", [](TrackerOptions& s) {
+    s.main_match.shape = ShapeFunction::kQuadratic;
     s.pinned.shape = true;
   });
   for (int r : {2, 4})
-    variant("auto rounds=" + std::to_string(r),
-            [r](TrackerSettings& s) { s.fixed_shape_resampled_rounds = r; });
-  variant("auto no-fixed-shape", [](TrackerSettings& s) { s.fixed_shape_pass = false; });
+    variant("auto rounds=" + std::to_string(r), [r](TrackerOptions& s) { s.rounds.resampled_rounds = r; });
+  variant("auto no-fixed-shape", [](TrackerOptions& s) { s.rounds.enabled = false; });
   // The automatic preset with the rounds subset by subset and a second-order main match on every pixel,
   // for their cost and accuracy against the resampled rounds.
-  variant("auto subset-by-subset", [](TrackerSettings& s) {
-    s.fixed_shape_resampled = false;
-    s.shape = ShapeFunction::kQuadratic;
-    s.subset_stride = 1;
+  variant("auto subset-by-subset", [](TrackerOptions& s) {
+    s.rounds.resampled = false;
+    s.main_match.shape = ShapeFunction::kQuadratic;
+    s.main_match.subset_stride = 1;
     s.pinned.shape = s.pinned.subset_stride = true;
   });
-  variant("auto no-refine", [](TrackerSettings& s) {
+  variant("auto no-refine", [](TrackerOptions& s) {
     s.refine = false;
-    s.neighbour_check = false;
+    s.neighbours.enabled = false;
   });
   return configs;
 }
@@ -355,8 +356,8 @@ void use_custom_configs(const Args& args, const tirstrain::Scene& scene, std::ve
   if (!args.custom.empty()) std::erase_if(configs, [&](const Config& c) { return c.name != args.only; });
   for (const std::string& y : args.custom) {
     tirstrain::Scene with_tracking = scene;
-    with_tracking.tracking = YAML::Load(y);
-    configs.push_back({y, tirstrain::flow::parse_tracking_settings(with_tracking)});
+    with_tracking.tracking = tirstrain::SceneSection::parse(y, "--config");
+    configs.push_back({y, tirstrain::flow::parse_tracking_options(with_tracking)});
   }
 }
 
@@ -388,9 +389,10 @@ int main(int argc, char** argv) {
   using namespace tirstrain;
   const Args args = parse_args(argc, argv);
   if (args.threads >= 0) cv::setNumThreads(args.threads);
-  const Scene scene = args.scene_file.empty()
-                          ? parse_scene(bench_scene(args.width, args.height, args.frames), "flow-bench.yaml")
-                          : load_scene(args.scene_file);
+  const Scene scene =
+      args.scene_file.empty()
+          ? parse_scene_text(YAML::Dump(bench_scene(args.width, args.height, args.frames)), "flow-bench.yaml")
+          : load_scene(args.scene_file);
   samples::SynthConfig config = samples::parse_synth_config(scene);
   if (args.frames_given) config.timing.frames = args.frames;
   const samples::Trial trial(config);
@@ -398,17 +400,18 @@ int main(int argc, char** argv) {
   const flow::testing::RenderedTrial rendered = flow::testing::render(trial, true);
   if (std::getenv("FLOW_BENCH_DUMP")) cv::imwrite(std::getenv("FLOW_BENCH_DUMP"), rendered.frames.back());
   const flow::SceneHints hints = flow::hints_from_scene(scene);
-  const TrackerSettings automatic = flow::preset_settings("auto", hints);
+  const TrackerOptions automatic = flow::preset_options("auto", hints);
   if (args.crb) {
-    run_crb(trial, automatic.grid_step_px, automatic.border_exclusion_px + 2.0,
-            {automatic.subset_radius_px, automatic.fixed_shape_radius_px, 30}, automatic.rest_average_frames);
-    run_crb(trial, automatic.grid_step_px, 0.0, {automatic.fixed_shape_radius_px},
-            automatic.rest_average_frames);
+    run_crb(trial, automatic.seeding.grid_step_px, automatic.border.exclusion_px + 2.0,
+            {automatic.main_match.subset_radius_px, automatic.rounds.subset_radius_px, 30},
+            automatic.rest.average_frames);
+    run_crb(trial, automatic.seeding.grid_step_px, 0.0, {automatic.rounds.subset_radius_px},
+            automatic.rest.average_frames);
     return 0;
   }
   run_mesh_configs(args.mesh_configs, trial, rendered);
   if (!args.mesh_configs.empty() && args.only.empty()) return 0;
-  std::vector<Config> configs = standard_configs(automatic, flow::preset_settings("delhaye2016", hints));
+  std::vector<Config> configs = standard_configs(automatic, flow::preset_options("delhaye2016", hints));
   use_custom_configs(args, scene, configs);
   print_table(args, configs, trial, rendered);
   return 0;

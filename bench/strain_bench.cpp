@@ -60,7 +60,7 @@ Scene make_scene(int tracks) {
 
 void BM_StrainFrame(benchmark::State& state) {
   const Scene s = make_scene(static_cast<int>(state.range(0)));
-  const strain::StrainSettings settings;
+  const strain::StrainOptions settings;
   strain::NormalisedGrid grid;
   grid.cells = 65;
   grid.to_normalised = cv::Matx23d(1.0 / kRadiusPx, 0, 0, 0, 1.0 / kRadiusPx, 0);

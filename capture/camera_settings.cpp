@@ -57,7 +57,7 @@ std::string CameraSettings::key(const std::string& option) const {
   return "camera." + scene_key_of(option) + " (scene " + scene_file + ")";
 }
 
-CameraSettings parse_camera_settings(const YAML::Node& section, const std::string& file) {
+CameraSettings parse_camera_settings(const SceneSection& section, const std::string& file) {
   CameraSettings s;
   YamlSection y(section, file, "camera");
   if (y.has("pixel_format")) {

@@ -18,16 +18,14 @@
 #include <map>
 #include <string>
 
-#include <yaml-cpp/yaml.h>
-
 #include "capture/frame_source.hpp"
 #include "core/scene.hpp"
 
 namespace tirstrain::capture {
 
-// The `camera:` section of a scene (an undefined or null node gives empty settings). `file` is used in
-// messages and recorded as the settings' origin.
-CameraSettings parse_camera_settings(const YAML::Node& section, const std::string& file);
+// The `camera:` section of a scene (an absent section gives empty settings). `file` is used in messages and
+// recorded as the settings' origin.
+CameraSettings parse_camera_settings(const SceneSection& section, const std::string& file);
 inline CameraSettings parse_camera_settings(const Scene& scene) {
   return parse_camera_settings(scene.camera, scene.file);
 }

@@ -19,9 +19,11 @@ endforeach()
 
 install(TARGETS ${tirstrain_export_targets} EXPORT tirstrainTargets
   ARCHIVE DESTINATION lib COMPONENT dev)
+# Public headers only: a module's detail/ folder is its implementation's (core/detail holds the YAML library's
+# side of SceneSection), and no public header includes it.
 foreach(folder ${tirstrain_exported})
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${folder}/ DESTINATION include/tirstrain/${folder} COMPONENT dev
-          FILES_MATCHING PATTERN "*.hpp")
+          FILES_MATCHING PATTERN "*.hpp" PATTERN "detail" EXCLUDE)
 endforeach()
 install(FILES ${PROJECT_BINARY_DIR}/core/generated/core/version.hpp DESTINATION include/tirstrain/core
         COMPONENT dev)

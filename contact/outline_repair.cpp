@@ -5,6 +5,7 @@
 #include <optional>
 
 #include "contact/ellipse.hpp"
+#include "core/median.hpp"
 
 namespace tirstrain::contact {
 
@@ -22,9 +23,7 @@ void clip_spikes(std::vector<cv::Point2d>& points, const std::vector<std::uint8_
       const std::size_t j = (i + n - kHalf + k) % n;
       if (cut[j] == 0) window.push_back(radius[j]);
     }
-    const auto middle = window.begin() + static_cast<std::ptrdiff_t>(window.size() / 2);
-    std::nth_element(window.begin(), middle, window.end());
-    const double limit = *middle + spike_px;
+    const double limit = upper_median_in_place(window) + spike_px;
     if (radius[i] > limit) points[i] = centre + (points[i] - centre) * (limit / radius[i]);
   }
 }

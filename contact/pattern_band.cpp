@@ -9,6 +9,7 @@
 
 #include "core/error.hpp"
 #include "core/full_scale.hpp"
+#include "core/median.hpp"
 
 namespace tirstrain::contact {
 namespace {
@@ -42,8 +43,7 @@ double noise_lambda_per_variance(const PatternBandOptions& options) {
   rng.fill(noise, cv::RNG::NORMAL, 0.0, 1.0);
   const cv::Mat lambda = smaller_eigenvalue(noise, options);
   std::vector<float> v(lambda.begin<float>(), lambda.end<float>());
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-  return v[v.size() / 2];
+  return upper_median_in_place(v);
 }
 
 // |second differences| of `image` (Immerkaer's kernel, blind to planes and to slow curvature): a pixel-noise
@@ -62,18 +62,13 @@ std::vector<double> row_medians(const cv::Mat& m) {
   std::vector<float> row;
   for (int y = 0; y < m.rows; ++y) {
     row.assign(m.ptr<float>(y), m.ptr<float>(y) + m.cols);
-    const auto mid = row.begin() + static_cast<std::ptrdiff_t>(row.size() / 2);
-    std::nth_element(row.begin(), mid, row.end());
-    out[static_cast<std::size_t>(y)] = *mid;
+    out[static_cast<std::size_t>(y)] = upper_median_in_place(row);
   }
   return out;
 }
 
 double median_of(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
+  return v.empty() ? 0.0 : upper_median_in_place(v);
 }
 
 // Lines counted inward from `edge` of an image whose lines (rows, or columns as rows of the transpose) are

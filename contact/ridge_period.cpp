@@ -6,6 +6,8 @@
 #include <cmath>
 #include <vector>
 
+#include "core/median.hpp"
+
 namespace tirstrain::contact {
 
 std::optional<PeriodEstimate> estimate_ridge_period(const cv::Mat& image, double min_period_px,
@@ -59,8 +61,7 @@ std::optional<PeriodEstimate> estimate_ridge_period(const cv::Mat& image, double
     band.push_back(power[static_cast<std::size_t>(b)]);
     if (power[static_cast<std::size_t>(b)] > power[static_cast<std::size_t>(best)]) best = b;
   }
-  std::nth_element(band.begin(), band.begin() + static_cast<long>(band.size() / 2), band.end());
-  const double median = band[band.size() / 2];
+  const double median = upper_median_in_place(band);
   // Power-weighted centre of the peak and its neighbours gives a sub-bin frequency.
   double sum_w = 0.0, sum_wf = 0.0;
   for (int b = std::max(1, best - 1); b <= best + 1; ++b) {

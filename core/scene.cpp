@@ -5,6 +5,7 @@
 #include <fstream>
 
 #include "core/atomic_output.hpp"
+#include "core/detail/yaml_tree.hpp"
 #include "core/error.hpp"
 #include "core/yaml_reader.hpp"
 
@@ -15,7 +16,24 @@ const std::vector<std::string>& known_stages() {
   return stages;
 }
 
-Scene parse_scene(const YAML::Node& root, const std::string& file) {
+namespace {
+
+// The `compute:` list: known stage names, in pipeline order as given.
+std::vector<std::string> read_compute(YamlSection& top, const std::string& file) {
+  std::vector<std::string> stages = top.texts("compute", {}, "stage names");
+  const auto& known = known_stages();
+  for (const auto& name : stages) {
+    if (std::find(known.begin(), known.end(), name) != known.end()) continue;
+    std::string listed;
+    for (const auto& k : known) listed += (listed.empty() ? "" : ", ") + k;
+    throw Error("unknown stage '" + name + "' (known: " + listed + ")", {.file = file, .key = "compute"});
+  }
+  return stages;
+}
+
+}  // namespace
+
+Scene parse_scene(const SceneSection& root, const std::string& file) {
   Scene scene;
   scene.file = file;
   YamlSection top(root, file);
@@ -48,22 +66,8 @@ Scene parse_scene(const YAML::Node& root, const std::string& file) {
   pattern.finish();
 
   if (top.has("compute")) {
-    const YAML::Node stages = top.raw("compute");
-    if (!stages.IsSequence()) throw Error("expected a list of stage names", {.file = file, .key = "compute"});
-    scene.compute.clear();
+    scene.compute = read_compute(top, file);
     scene.compute_given = true;
-    for (const auto& s : stages) {
-      if (!s.IsScalar())
-        throw Error("row " + std::to_string(s.Mark().line + 1) +
-                        ": a stage name must be plain text, not a list or mapping",
-                    {.file = file, .key = "compute"});
-      const std::string name = s.as<std::string>();
-      const auto& known = known_stages();
-      if (std::find(known.begin(), known.end(), name) == known.end())
-        throw Error("unknown stage '" + name + "' (known: contact, tracking, strain, channels, fit)",
-                    {.file = file, .key = "compute"});
-      scene.compute.push_back(name);
-    }
   }
   scene.synthesis = top.raw("synthesis");
   scene.segmentation = top.raw("segmentation");
@@ -76,10 +80,16 @@ Scene parse_scene(const YAML::Node& root, const std::string& file) {
 }
 
 Scene load_scene(const std::string& path) {
-  return parse_scene(load_yaml_file(path), path);
+  return parse_scene(SceneSection::load(path), path);
 }
 
-YAML::Node scene_to_yaml(const Scene& scene) {
+Scene parse_scene_text(const std::string& yaml, const std::string& file) {
+  return parse_scene(SceneSection::parse(yaml, file), file);
+}
+
+namespace {
+
+YAML::Node scene_tree(const Scene& scene) {
   YAML::Node root;
   root["calibration"]["px_per_mm"] = scene.px_per_mm;
   if (scene.ridge_period_mm) root["calibration"]["ridge_period_mm"] = *scene.ridge_period_mm;
@@ -104,20 +114,26 @@ YAML::Node scene_to_yaml(const Scene& scene) {
     compute.SetStyle(YAML::EmitterStyle::Flow);
     root["compute"] = compute;
   }
-  if (scene.synthesis && !scene.synthesis.IsNull()) root["synthesis"] = scene.synthesis;
-  if (scene.segmentation && !scene.segmentation.IsNull()) root["segmentation"] = scene.segmentation;
-  if (scene.tracking && !scene.tracking.IsNull()) root["tracking"] = scene.tracking;
-  if (scene.strain && !scene.strain.IsNull()) root["strain"] = scene.strain;
-  if (scene.channels && !scene.channels.IsNull()) root["channels"] = scene.channels;
-  if (scene.camera && !scene.camera.IsNull()) root["camera"] = scene.camera;
+  const auto add = [&root](const char* key, const SceneSection& section) {
+    if (!section.empty()) root[key] = yaml_node(section);
+  };
+  add("synthesis", scene.synthesis);
+  add("segmentation", scene.segmentation);
+  add("tracking", scene.tracking);
+  add("strain", scene.strain);
+  add("channels", scene.channels);
+  add("camera", scene.camera);
   return root;
 }
 
+}  // namespace
+
+std::string scene_to_yaml(const Scene& scene) {
+  return section_of(scene_tree(scene)).to_yaml();
+}
+
 void save_scene(const Scene& scene, const std::string& path) {
-  YAML::Emitter emitter;
-  emitter.SetDoublePrecision(17);
-  emitter << scene_to_yaml(scene);
-  write_text_file(path, "# tirstrain scene file\n" + std::string(emitter.c_str()) + "\n");
+  write_text_file(path, "# tirstrain scene file\n" + scene_to_yaml(scene) + "\n");
 }
 
 }  // namespace tirstrain

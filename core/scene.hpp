@@ -1,13 +1,14 @@
 #pragma once
 // The scene file (YAML): one trial or one rig. Core parses what every stage shares (calibration, tissue,
 // reference pattern, what to compute); sections owned by one module (synthesis, segmentation, tracking,
-// strain, channels, camera) are kept as raw YAML nodes and parsed strictly by that module with YamlSection.
-#include <yaml-cpp/yaml.h>
-
+// strain, channels, camera) are kept as they are (SceneSection) and parsed strictly by that module with
+// YamlSection, each in one place.
 #include <array>
 #include <optional>
 #include <string>
 #include <vector>
+
+#include "core/scene_section.hpp"
 
 namespace tirstrain {
 
@@ -41,12 +42,12 @@ struct Scene {
   bool px_per_mm_given = false;
   bool tissue_given = false;
   // Module-owned sections, parsed by their modules.
-  YAML::Node synthesis;
-  YAML::Node segmentation;  // contact stage settings (pipeline/contact_stage.cpp)
-  YAML::Node tracking;
-  YAML::Node strain;
-  YAML::Node channels;
-  YAML::Node camera;  // camera settings for record/live (capture/camera_settings.cpp)
+  SceneSection synthesis;     // samples/synth_config.cpp
+  SceneSection segmentation;  // contact stage options (pipeline/contact_stage.cpp)
+  SceneSection tracking;      // flow/settings.cpp
+  SceneSection strain;        // strain/settings.cpp
+  SceneSection channels;      // pipeline/channels_stage.cpp
+  SceneSection camera;        // camera settings for record/live (capture/camera_settings.cpp)
 };
 
 // Known stage names for `compute`.
@@ -54,10 +55,12 @@ const std::vector<std::string>& known_stages();
 
 // Reads and validates a scene file; throws Error naming the file and key of anything wrong.
 Scene load_scene(const std::string& path);
-// Validates a YAML tree as a scene; `file` is used in messages.
-Scene parse_scene(const YAML::Node& root, const std::string& file);
-// The scene as YAML, readable back by parse_scene.
-YAML::Node scene_to_yaml(const Scene& scene);
+// Validates a YAML document as a scene; `file` is used in messages.
+Scene parse_scene(const SceneSection& root, const std::string& file);
+// The same from YAML text.
+Scene parse_scene_text(const std::string& yaml, const std::string& file);
+// The scene as YAML text, readable back by parse_scene_text.
+std::string scene_to_yaml(const Scene& scene);
 // Writes scene_to_yaml to a file (temporary name, then rename).
 void save_scene(const Scene& scene, const std::string& path);
 

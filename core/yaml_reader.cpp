@@ -5,13 +5,20 @@
 #include <map>
 
 #include "core/csv.hpp"
+#include "core/detail/yaml_tree.hpp"
 #include "core/error.hpp"
 
 namespace tirstrain {
 
-YamlSection::YamlSection(YAML::Node node, std::string file, std::string prefix)
-    : node_(std::move(node)), file_(std::move(file)), prefix_(std::move(prefix)) {
-  if (node_.IsDefined() && !node_.IsNull() && !node_.IsMap())
+namespace {
+
+const SceneSection kAbsent;
+
+}  // namespace
+
+YamlSection::YamlSection(SceneSection section, std::string file, std::string prefix)
+    : node_(std::move(section)), file_(std::move(file)), prefix_(std::move(prefix)) {
+  if (!node_.empty() && !node_.is_map())
     throw Error("expected a mapping of keys to values",
                 {.file = file_, .key = prefix_.empty() ? "(top)" : prefix_});
 }
@@ -21,22 +28,22 @@ void YamlSection::fail(const std::string& key, const std::string& message) const
 }
 
 bool YamlSection::has(const std::string& key) const {
-  if (!node_.IsDefined() || !node_.IsMap()) return false;
-  const YAML::Node& map = node_;
+  const YAML::Node& map = yaml_node(node_);  // const access: operator[] on a non-const node inserts the key
+  if (!map.IsDefined() || !map.IsMap()) return false;
   return map[key].IsDefined();
 }
 
-std::optional<YAML::Node> YamlSection::get(const std::string& key) {
+std::optional<SceneSection> YamlSection::get(const std::string& key) {
   read_.insert(key);
   if (!has(key)) return std::nullopt;
-  const YAML::Node& map = node_;  // const access: operator[] on a non-const node would insert the key
-  return map[key];
+  const YAML::Node& map = yaml_node(node_);
+  return section_of(map[key]);
 }
 
 double YamlSection::number(const std::string& key, double fallback, double min, double max) {
   const auto found = get(key);
   if (!found) return fallback;
-  const YAML::Node& value = *found;
+  const YAML::Node& value = yaml_node(*found);
   double result = 0.0;
   if (!value.IsScalar() || !YAML::convert<double>::decode(value, result)) fail(key, "expected a number");
   if (!std::isfinite(result)) fail(key, "expected a finite number");
@@ -54,7 +61,7 @@ double YamlSection::required_number(const std::string& key, double min, double m
 long YamlSection::integer(const std::string& key, long fallback, long min, long max) {
   const auto found = get(key);
   if (!found) return fallback;
-  const YAML::Node& value = *found;
+  const YAML::Node& value = yaml_node(*found);
   long result = 0;
   if (!value.IsScalar() || !YAML::convert<long>::decode(value, result)) fail(key, "expected a whole number");
   if (result < min || result > max)
@@ -66,7 +73,7 @@ long YamlSection::integer(const std::string& key, long fallback, long min, long 
 bool YamlSection::boolean(const std::string& key, bool fallback) {
   const auto found = get(key);
   if (!found) return fallback;
-  const YAML::Node& value = *found;
+  const YAML::Node& value = yaml_node(*found);
   bool result = false;
   if (!value.IsScalar() || !YAML::convert<bool>::decode(value, result)) fail(key, "expected true or false");
   return result;
@@ -75,7 +82,7 @@ bool YamlSection::boolean(const std::string& key, bool fallback) {
 std::string YamlSection::text(const std::string& key, const std::string& fallback) {
   const auto found = get(key);
   if (!found) return fallback;
-  const YAML::Node& value = *found;
+  const YAML::Node& value = yaml_node(*found);
   if (!value.IsScalar()) fail(key, "expected a text value");
   return value.as<std::string>();
 }
@@ -99,7 +106,7 @@ std::string YamlSection::choice(const std::string& key, const std::string& fallb
 std::vector<double> YamlSection::numbers(const std::string& key, const std::vector<double>& fallback) {
   const auto found = get(key);
   if (!found) return fallback;
-  const YAML::Node& value = *found;
+  const YAML::Node& value = yaml_node(*found);
   if (!value.IsSequence()) fail(key, "expected a list of numbers");
   std::vector<double> out;
   for (const auto& item : value) {
@@ -113,18 +120,79 @@ std::vector<double> YamlSection::numbers(const std::string& key, const std::vect
 
 YamlSection YamlSection::section(const std::string& key) {
   const auto found = get(key);
-  if (found && !found->IsNull() && !found->IsMap()) fail(key, "expected a mapping of keys to values");
-  return YamlSection(found ? *found : YAML::Node(YAML::NodeType::Undefined), file_, path_of(key));
+  if (found && !found->empty() && !found->is_map()) fail(key, "expected a mapping of keys to values");
+  return YamlSection(found ? *found : kAbsent, file_, path_of(key));
 }
 
-YAML::Node YamlSection::raw(const std::string& key) {
+std::vector<YamlSection> YamlSection::sections(const std::string& key) {
   const auto found = get(key);
-  return found ? *found : YAML::Node(YAML::NodeType::Undefined);
+  std::vector<YamlSection> out;
+  if (!found || found->empty()) return out;
+  const YAML::Node& list = yaml_node(*found);
+  if (!list.IsSequence()) fail(key, "expected a list of mappings");
+  for (const YAML::Node& item : list) {
+    const std::string name = path_of(key) + "[" + std::to_string(out.size()) + "]";
+    if (!item.IsNull() && !item.IsMap())
+      throw Error("expected a mapping of keys to values",
+                  {.file = file_, .row = item.Mark().line + 1, .key = name});
+    out.emplace_back(section_of(item), file_, name);
+  }
+  return out;
+}
+
+std::vector<std::string> YamlSection::texts(const std::string& key, const std::vector<std::string>& fallback,
+                                            const std::string& what) {
+  const auto found = get(key);
+  if (!found) return fallback;
+  std::vector<std::string> out;
+  if (found->empty()) return out;
+  const YAML::Node& list = yaml_node(*found);
+  if (!list.IsSequence()) fail(key, "expected a list of " + what);
+  for (const YAML::Node& item : list) {
+    if (!item.IsScalar())
+      throw Error("expected a list of " + what + ", not a list or mapping inside it",
+                  {.file = file_, .row = item.Mark().line + 1, .key = path_of(key)});
+    out.push_back(item.Scalar());
+  }
+  return out;
+}
+
+std::vector<std::pair<std::string, std::string>> YamlSection::text_map(const std::string& key) {
+  const auto found = get(key);
+  std::vector<std::pair<std::string, std::string>> out;
+  if (!found || found->empty()) return out;
+  const YAML::Node& map = yaml_node(*found);
+  if (!map.IsMap()) fail(key, "expected a mapping of names to values");
+  for (const auto& item : map) {
+    const std::string name = item.first.Scalar();
+    if (!item.second.IsScalar()) fail(key + "." + name, "expected one number or word");
+    out.emplace_back(name, item.second.Scalar());
+  }
+  return out;
+}
+
+std::vector<std::string> YamlSection::keys() const {
+  std::vector<std::string> out;
+  const YAML::Node& map = yaml_node(node_);
+  if (!map.IsDefined() || !map.IsMap()) return out;
+  for (const auto& item : map) out.push_back(item.first.Scalar());
+  return out;
+}
+
+SceneSection YamlSection::raw(const std::string& key) {
+  const auto found = get(key);
+  return found ? *found : kAbsent;
+}
+
+int YamlSection::line() const {
+  const YAML::Node& node = yaml_node(node_);
+  return node.IsDefined() && node.Mark().line >= 0 ? node.Mark().line + 1 : 0;
 }
 
 void YamlSection::finish() const {
-  if (!node_.IsDefined() || !node_.IsMap()) return;
-  for (const auto& item : node_) {
+  const YAML::Node& map = yaml_node(node_);
+  if (!map.IsDefined() || !map.IsMap()) return;
+  for (const auto& item : map) {
     if (!item.first.IsScalar())
       throw Error(
           "a key must be plain text, not a list or mapping",
@@ -135,48 +203,6 @@ void YamlSection::finish() const {
       for (const auto& k : read_) known += (known.empty() ? "" : ", ") + k;
       fail(key, "unknown key (known keys here: " + known + ")");
     }
-  }
-}
-
-namespace {
-
-// yaml-cpp keeps both entries of a key written twice and lookups find the first, so a second block (say
-// another `calibration:`) would be silently ignored: refused here, with both lines.
-void check_unique_keys(const YAML::Node& node, const std::string& path, const std::string& prefix) {
-  if (node.IsSequence()) {
-    for (const auto& item : node) check_unique_keys(item, path, prefix);
-    return;
-  }
-  if (!node.IsMap()) return;
-  std::map<std::string, int> first_line;
-  for (const auto& item : node) {
-    const int line = item.first.Mark().line + 1;
-    if (!item.first.IsScalar())
-      throw Error("a key must be plain text, not a list or mapping",
-                  {.file = path, .row = line, .key = prefix.empty() ? "(top)" : prefix});
-    const std::string key = item.first.Scalar();
-    const std::string full = prefix.empty() ? key : prefix + "." + key;
-    if (const auto found = first_line.find(key); found != first_line.end())
-      throw Error("key given twice (first at line " + std::to_string(found->second) + ")",
-                  {.file = path, .row = line, .key = full});
-    first_line.emplace(key, line);
-    check_unique_keys(item.second, path, full);
-  }
-}
-
-}  // namespace
-
-YAML::Node load_yaml_file(const std::string& path) {
-  if (!std::filesystem::is_regular_file(path))
-    throw Error("file not found or not a regular file", {.file = path});
-  try {
-    YAML::Node root = YAML::LoadFile(path);
-    check_unique_keys(root, path, "");
-    return root;
-  } catch (const YAML::Exception& e) {
-    ErrorContext context{.file = path};
-    if (e.mark.line >= 0) context.row = e.mark.line + 1;
-    throw Error("not valid YAML: " + e.msg, context);
   }
 }
 

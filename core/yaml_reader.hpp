@@ -2,20 +2,22 @@
 // Strict reading of YAML configuration (scene files): every key is typed and range-checked, and keys that
 // nobody read are reported, so a typo never silently falls back to a default. Errors name the file and the
 // full key path (e.g. "tissue.E_Pa").
-#include <yaml-cpp/yaml.h>
-
 #include <limits>
 #include <optional>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
+
+#include "core/scene_section.hpp"
 
 namespace tirstrain {
 
 class YamlSection {
  public:
-  // `node` must be a map (or null, treated as empty). `prefix` is the key path of this section ("" at top).
-  YamlSection(YAML::Node node, std::string file, std::string prefix = "");
+  // `section` must be a map (or absent, treated as empty). `prefix` is the key path of this section ("" at
+  // the top).
+  YamlSection(SceneSection section, std::string file, std::string prefix = "");
 
   bool has(const std::string& key) const;
 
@@ -35,8 +37,19 @@ class YamlSection {
   std::vector<double> numbers(const std::string& key, const std::vector<double>& fallback);
   // A nested map; absent gives an empty section.
   YamlSection section(const std::string& key);
-  // The raw node, marked as read (for sections another module parses).
-  YAML::Node raw(const std::string& key);
+  // A list of maps (e.g. a study's trials), each a section named key[i]; absent gives none.
+  std::vector<YamlSection> sections(const std::string& key);
+  // A list of text values; absent gives the fallback. `what` names the items in the error ("names").
+  std::vector<std::string> texts(const std::string& key, const std::vector<std::string>& fallback = {},
+                                 const std::string& what = "text values");
+  // A map of text values, in the file's order; absent gives none.
+  std::vector<std::pair<std::string, std::string>> text_map(const std::string& key);
+  // This section's keys, in the file's order (for maps whose keys are data, e.g. column names).
+  std::vector<std::string> keys() const;
+  // The sub-tree as it is, marked as read (for sections another module parses).
+  SceneSection raw(const std::string& key);
+  // The 1-based line of this section in its file (0 when unknown).
+  int line() const;
 
   // Throws Error naming the first key present in the file but never read.
   void finish() const;
@@ -46,15 +59,13 @@ class YamlSection {
 
  private:
   [[noreturn]] void fail(const std::string& key, const std::string& message) const;
-  std::optional<YAML::Node> get(const std::string& key);
+  // The value under `key` (marked as read), absent if the key is not there.
+  std::optional<SceneSection> get(const std::string& key);
 
-  YAML::Node node_;
+  SceneSection node_;
   std::string file_;
   std::string prefix_;
   std::set<std::string> read_;
 };
-
-// Loads a YAML file, turning parser errors into Error with the file and line.
-YAML::Node load_yaml_file(const std::string& path);
 
 }  // namespace tirstrain

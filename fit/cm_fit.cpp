@@ -11,6 +11,7 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "core/median.hpp"
 
 namespace tirstrain::fit {
 namespace {
@@ -354,9 +355,7 @@ double shared_residuals_of(const FrameObservations& obs, const Samples& s, const
     for (std::size_t j = 0; j < X.size(); ++j)
       if (i != j) nearest[i] = std::min(nearest[i], std::hypot(X[i].x - X[j].x, X[i].y - X[j].y));
   if (X.size() < 3) return 1.0;
-  std::nth_element(nearest.begin(), nearest.begin() + static_cast<std::ptrdiff_t>(nearest.size() / 2),
-                   nearest.end());
-  const double spacing = nearest[nearest.size() / 2];
+  const double spacing = upper_median_in_place(nearest);
   if (!(spacing > 0.0) || !std::isfinite(spacing)) return 1.0;
   return shared_residuals(X, r, spacing, std::max(2.0 * spacing, 0.2 * s.a_seg_px));
 }

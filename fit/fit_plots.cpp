@@ -12,6 +12,7 @@
 #include "core/atomic_output.hpp"
 #include "core/error.hpp"
 #include "core/heatmap.hpp"
+#include "core/median.hpp"
 
 namespace tirstrain::fit {
 namespace {
@@ -85,8 +86,7 @@ double friction_limit_N(const std::vector<FrameFit>& fits) {
   for (const FrameFit& f : fits)
     if (loaded(f) && std::isfinite(f.limit_N.value)) v.push_back(f.limit_N.value);
   if (v.empty()) return kNaN;
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  return v[v.size() / 2];
+  return upper_median_in_place(v);
 }
 
 struct Axes {

@@ -1,7 +1,5 @@
 #include "fit/fit_result.hpp"
 
-#include <yaml-cpp/yaml.h>
-
 #include <atomic>
 #include <cmath>
 #include <filesystem>
@@ -60,8 +58,7 @@ void read_tracks(const H5Reader& h5, ResultForFit& r) {
 
 // Calibration and tissue from the scene the result was computed with (root attribute scene_yaml).
 void read_scene(const H5Reader& h5, ResultForFit& r) {
-  const Scene scene =
-      parse_scene(YAML::Load(h5.attribute_text("/", "scene_yaml")), h5.path() + " scene_yaml");
+  const Scene scene = parse_scene_text(h5.attribute_text("/", "scene_yaml"), h5.path() + " scene_yaml");
   r.px_per_mm = scene.px_per_mm;
   r.young_Pa = scene.tissue.young_Pa;
   r.poisson = scene.tissue.poisson;

@@ -35,12 +35,13 @@ const cv::Mat& PlateTracker::smoothed(const cv::Mat& image) {
 }
 
 void PlateTracker::start(const cv::Mat& image_in, const cv::Mat& image_u8, const RoiPx& roi,
-                         const PlateSettings& settings, double t_s) {
+                         const PlateOptions& settings, double t_s) {
+  settings.check();
   settings_ = settings;
   roi_ = cv::Rect(roi.x, roi.y, roi.width, roi.height) & cv::Rect(0, 0, image_in.cols, image_in.rows);
   const cv::Mat& image = smoothed(image_in);
-  // Larger subsets average more of the pattern's noise: 22 px was the best measured on the shipped scenes
-  // (PlateSettings in settings.hpp); a narrower band gets the largest radius it holds.
+  // Larger subsets average more of the pattern's noise, with nothing gained beyond 22 px on the dot
+  // patterns tried; a narrower band gets the largest radius it holds.
   constexpr int kAutomaticRadiusPx = 22;
   if (settings_.subset_radius_px <= 0)
     settings_.subset_radius_px =
@@ -337,6 +338,21 @@ Vec2 PlateTracker::track(const cv::Mat& image_in, const cv::Mat& image_u8, doubl
   base_px_ = displacement_px_;
   base_time_s_ = t;
   return displacement_px_;
+}
+
+void PlateOptions::check() const {
+  const auto fail = [](const std::string& field, const std::string& message) {
+    throw Error("plate options: " + field + " " + message);
+  };
+  if (subset_radius_px != 0 && subset_radius_px < 3) fail("subset_radius_px", "must be 0 or at least 3 px");
+  if (!(grid_step_px >= 0.0)) fail("grid_step_px", "must not be negative");
+  if (window_px < 3 || window_px % 2 == 0) fail("window_px", "must be odd and at least 3");
+  if (pyramid_levels < 0 || pyramid_levels > 8) fail("pyramid_levels", "must lie in [0, 8]");
+  if (!(max_spread_px > 0.0)) fail("max_spread_px", "must be positive");
+  if (!(min_zncc >= -1.0 && min_zncc <= 1.0)) fail("min_zncc", "must lie in [-1, 1]");
+  if (!(min_valid_fraction > 0.0 && min_valid_fraction <= 1.0))
+    fail("min_valid_fraction", "must lie in (0, 1]");
+  if (!(prefilter_sigma_px >= 0.0)) fail("prefilter_sigma_px", "must not be negative");
 }
 
 }  // namespace tirstrain::flow

@@ -10,8 +10,8 @@
 //
 // Why a mosaic: the plate carries its pattern across the band in a few frames (56 px at 2.6 px/frame on
 // the shipped scenes). Matching against one reference frame needs a new reference every time the pattern
-// has left the band, and each such rebase carried that frame's noise and error into every later frame
-// (0.022 px RMS on the default scene, 0.097 px with heavy noise, stepping at each rebase). In the mosaic
+// has left the band, and each such rebase carries that frame's noise and error into every later frame,
+// a step at each rebase. In the mosaic
 // every patch of pattern is the mean of all the frames that saw it, and each frame is registered against
 // all of the pattern it shares with them, so the chain's steps are smaller and the noise averages out.
 #include <opencv2/core.hpp>
@@ -36,32 +36,28 @@ enum class PlateStatus : std::int8_t {
   kFlowOnly = 2,   // nothing matched, the band having left the mosaic: placed by LK alone
 };
 
-struct PlateSettings {
-  int subset_radius_px = 0;  // 0: automatic, the largest radius up to 22 px that fits the band
-  // 0: automatic, the subsets side by side (2 radius + 1). Overlapping subsets add no information, only
-  // work: at 24 px (subsets 45 px wide) the plate was 17 % of the tracker's instructions on the goal trial,
-  // side by side 27 % less, and on the shipped scenes its error stayed within −5 … +12 % (default 0.0040 →
-  // 0.0040 px, hard_heavy_noise 0.0181 → 0.0172, hard_large_displacement 0.0119 → 0.0133 px RMS).
+struct PlateOptions {
+  int subset_radius_px = 0;  // subset half-side, px; 0 = the largest up to 22 px that fits the band
+  // Subset spacing, px; 0 = side by side (2 radius + 1): overlapping subsets add work, not information.
   double grid_step_px = 0.0;
-  int window_px = 21;
-  int pyramid_levels = 2;
-  double max_spread_px = 0.5;  // subsets further than this from the median are left out of it
-  double min_zncc = 0.6;
+  int window_px = 21;          // LK window side of the band's coarse motion (odd), px; default 21
+  int pyramid_levels = 2;      // LK pyramid levels; default 2
+  double max_spread_px = 0.5;  // subsets further than this from the median are left out of it, px; 0.5
+  double min_zncc = 0.6;       // subsets matched with less correlation are left out; default 0.6
   // A subset counts when at least this share of it lands where the mosaic has data (the mask keeps the
-  // bicubic kernel clear of the edge, so a partly covered subset is unbiased, only noisier). 0.4, not 0.6:
-  // the frame after an unstitched (motion-blurred) one at 10.4 px per frame overlaps a 56-row band's mosaic
-  // by 35 rows, too little for 45 px subsets at 0.6.
+  // bicubic kernel clear of the edge, so a partly covered subset is unbiased, only noisier); 0.4, so that
+  // the frame after an unstitched (motion-blurred) one still overlaps a narrow band's mosaic enough.
   double min_valid_fraction = 0.4;
-  // Both the band and the mosaic are smoothed by a Gaussian of this σ before matching (0: off). Pixel noise
-  // resampled by the bicubic kernel varies with the sub-pixel phase and pulls the match; a σ of 0.7 px
-  // takes most of it out and keeps the dots (measured 0 / 0.5 / 0.7 / 1.0 / 1.5 px: hard_heavy_noise
-  // 0.0212 / 0.0189 / 0.0183 / 0.0188 / 0.0367 px RMS, default 0.0043 / 0.0042 / 0.0041 / - / - px).
+  // Band and mosaic smoothed by a Gaussian of this σ before matching, px (0: off); default 0.7. Pixel noise
+  // resampled by the bicubic kernel varies with the sub-pixel phase and pulls the match; 0.7 px takes most
+  // of it out and keeps the dots.
   double prefilter_sigma_px = 0.7;
   // The band's phase correlation with the previous frame's replaces the last motion as LK's start when its
-  // peak is at least this strong and further than a quarter of the LK window from that motion. Measured
-  // peaks: 0.76-1.3 on sharp frames (lowest on hard_large_displacement), 0.54-0.58 where a frame is motion
-  // blurred (hard_motion_blur), where the box blur's sign-flipping spectrum moves the peak ~5 px off.
+  // peak is at least this strong and further than a quarter of the LK window from that motion; default 0.7
+  // (sharp frames peak near 1, a motion-blurred band's box spectrum moves a weaker peak off).
   double min_shift_response = 0.7;
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 class PlateTracker {
@@ -69,7 +65,7 @@ class PlateTracker {
   // `image` CV_32F (full scale 1), `image_u8` the same frame in 8 bits (for LK).
   // `t_s`: the frame's time (s); the plate's motion is extrapolated in time. NaN, or times that do not
   // increase: one unit per frame.
-  void start(const cv::Mat& image, const cv::Mat& image_u8, const RoiPx& roi, const PlateSettings& settings,
+  void start(const cv::Mat& image, const cv::Mat& image_u8, const RoiPx& roi, const PlateOptions& settings,
              double t_s = std::numeric_limits<double>::quiet_NaN());
   // Returns the displacement since the first frame. Where no subset matched, the previous frame's LK
   // motion is added; where most subsets disagree (a motion-blurred band), the last motion is; either way
@@ -100,7 +96,7 @@ class PlateTracker {
   std::optional<Vec2> band_shift(const cv::Mat& band);
   bool match_mosaic(Vec2 guess);
 
-  PlateSettings settings_;
+  PlateOptions settings_;
   cv::Rect roi_;
   cv::Mat smoothed_;
   cv::Mat band_mask_;  // ones over the band (AnchorImage trims its edge)

@@ -35,8 +35,7 @@ class ShapeField {
   // u at anchor point (x, y): the polynomials of the (up to four) fitted nodes around it, blended with
   // bilinear weights. False where no surrounding node has a fit. `gradient` (optional): the nodes' du/dX
   // blended alike. That is not the derivative of the blend, which adds the nodes' disagreement divided by
-  // their spacing: noise, and the fusion carries positions with this gradient (hard_heavy_noise 0.1331 px
-  // with the blend of gradients, 0.1394 px with the exact derivative).
+  // their spacing: noise, which the fusion would carry into the positions it moves with this gradient.
   bool displacement(double x, double y, Vec2& u, Eigen::Matrix2d* gradient = nullptr) const;
   // displacement() along image row y for x = x_begin … x_end − 1, into u[x − x_begin], with ok[…] = 0
   // where it is undefined: the per-pixel cost of resampling a frame. Only the columns x ≡ x_phase

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstddef>
 
+#include "core/error.hpp"
 #include "flow/bicubic.hpp"
 
 namespace tirstrain::flow {
@@ -734,6 +735,14 @@ bool WindowSums::window(cv::Point centre, cv::Point first, int radius, Window& o
   for (int c = 0; c < kChannels; ++c)
     *fields[c] = at(plane, j1, i1, c) - at(plane, j0, i1, c) - at(plane, j1, i0, c) + at(plane, j0, i0, c);
   return true;
+}
+
+void MatchOptions::check() const {
+  if (max_iterations < 1) throw Error("match options: max_iterations must be at least 1");
+  if (!(convergence_px > 0.0)) throw Error("match options: convergence_px must be positive");
+  if (!(convergence_ssd >= 0.0)) throw Error("match options: convergence_ssd must not be negative");
+  if (!(min_valid_fraction > 0.0 && min_valid_fraction <= 1.0))
+    throw Error("match options: min_valid_fraction must lie in (0, 1]");
 }
 
 }  // namespace tirstrain::flow

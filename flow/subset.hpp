@@ -122,13 +122,13 @@ class WindowSums {
 };
 
 struct MatchOptions {
-  int max_iterations = 20;
+  int max_iterations = 20;       // Gauss–Newton iterations at most; default 20
   double convergence_px = 2e-3;  // largest change of the displacement over the subset in the last step
   // ... or the last step changed the normalised SSD by less than this: along the ridges a subset barely
   // constrains the motion and Gauss–Newton creeps there; such a match is converged in every direction the
   // texture determines, and what it leaves undetermined is weighted down by translation_information().
   double convergence_ssd = 1e-6;
-  double min_valid_fraction = 0.5;
+  double min_valid_fraction = 0.5;  // less of the subset inside the current mask and image: no match; 0.5
   // Solve for the translation only and keep the warp's shape (its gradient and curvature terms, e.g. taken
   // from the neighbours) fixed: the shape terms are correlated with the along-ridge translation, so with
   // them free the noise of both frames moves a subset along its ridges several times further.
@@ -136,6 +136,8 @@ struct MatchOptions {
   // How the current frame is read between pixels; for the B-spline the caller passes the frame's spline
   // coefficients (cubic_bspline_coefficients) as `current`.
   Interpolation interpolation = Interpolation::kKeys;
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct MatchResult {

@@ -4,6 +4,8 @@
 #include <array>
 #include <cmath>
 
+#include "core/median.hpp"
+
 namespace tirstrain::flow {
 namespace {
 
@@ -37,11 +39,7 @@ struct LineSums {
 
 double series_noise(std::span<const double> x) {
   if (x.size() < 4) return 0.0;
-  const auto median = [](std::vector<double>& v) {
-    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-    std::nth_element(v.begin(), mid, v.end());
-    return *mid;
-  };
+  const auto median = [](std::vector<double>& v) { return upper_median_in_place(v); };
   // σ of white noise from the median absolute deviation of its k-th differences (variance 6σ² for the
   // second, 20σ² for the third; 1.4826 MAD estimates a normal σ). Motion adds to them too: a track that
   // accelerates in most frames (a plate faster than a frame's worth of the subset) puts its acceleration

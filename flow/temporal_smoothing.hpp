@@ -9,9 +9,9 @@
 // its second and third differences (robust: median absolute deviation).
 //
 // Why it exists: on noisy texture (ridge SNR below 4) each frame's match is at its Cramér–Rao bound and the
-// error is white in time, so only time can average it (bench/studies/temporal_smoothing.py, BENCHMARKS.md
-// flow/ sessions 12-13). On clean texture there is little to average and a window one frame too long costs
-// more than it removes, so the pipeline applies it only to noisy texture (pipeline/tracking_stage.cpp).
+// error is white in time, so only time can average it (bench/studies/temporal_smoothing.py). On clean texture
+// there is little to average and a window one frame too long costs more than it removes, so the pipeline
+// applies it only to noisy texture (pipeline/tracking_stage.cpp).
 #include <span>
 #include <vector>
 

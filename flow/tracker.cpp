@@ -117,7 +117,7 @@ void FeatureTracker::Impl::prepare(const cv::Mat& image, const cv::Mat& contact_
     // Eroded only around the contact (its bounding box grown past both kernels' reach, where the mask is 0
     // as it is everywhere else), and the 0.6 P ellipse by erode_ellipse: the same mask, and cv::erode's
     // ellipse over the whole frame was 5-8 % of the tracker's instructions on the 640×512 goal trial.
-    const int e = static_cast<int>(std::lround(settings.border_exclusion_px));
+    const int e = static_cast<int>(std::lround(settings.border.exclusion_px));
     cv::Rect box = cv::boundingRect(mask);
     const int reach = e + 3;
     box = cv::Rect(box.x - reach, box.y - reach, box.width + 2 * reach, box.height + 2 * reach) &
@@ -132,100 +132,101 @@ void FeatureTracker::Impl::prepare(const cv::Mat& image, const cv::Mat& contact_
   }
 }
 
-// Frame 0 decides how much model the subsets can afford (TrackerSettings::adapt_to_texture).
+// Frame 0 decides how much model the subsets can afford (TrackerOptions::adapt_to_texture).
 void FeatureTracker::Impl::adapt_to_texture(double expected_tracks) {
   texture = TextureQuality{};
   low_snr = false;
   if (!settings.refine) return;
-  const double period = settings.ridge_period_px > 0.0 ? settings.ridge_period_px : settings.window_px;
+  const double period =
+      settings.ridge_period_px > 0.0 ? settings.ridge_period_px : settings.prediction.window_px;
   // The resampled rounds (step 7) carry a track where neighbours surround it; on a contact of a few hundred
   // grid points most tracks are border tracks, whose main match counts on its own, so there the main match
-  // keeps the second-order subset on every pixel (hard_tiny_contact, 31 tracks: 0.149 px, against 0.186
-  // with the affine seed on every 2nd pixel).
-  if (settings.adapt_to_texture && settings.fixed_shape_resampled && expected_tracks < kFewTracks) {
-    if (!settings.pinned.shape) settings.shape = ShapeFunction::kQuadratic;
-    if (!settings.pinned.subset_stride) settings.subset_stride = 1;
-    if (!settings.pinned.fixed_shape_stride) settings.fixed_shape_stride = 1;
-    if (!settings.pinned.main_match_period) settings.main_match_period_frames = 1;
+  // keeps the second-order subset on every pixel: there it sets the position, not just the rounds' seed.
+  if (settings.texture.adapt && settings.rounds.resampled && expected_tracks < kFewTracks) {
+    if (!settings.pinned.shape) settings.main_match.shape = ShapeFunction::kQuadratic;
+    if (!settings.pinned.subset_stride) settings.main_match.subset_stride = 1;
+    if (!settings.pinned.fixed_shape_stride) settings.rounds.subset_stride = 1;
+    if (!settings.pinned.main_match_period) settings.main_match.period_frames = 1;
   }
   texture = measure_texture(current_f, mask, period);
-  if (!settings.adapt_to_texture || texture.pixels == 0) return;
+  if (!settings.texture.adapt || texture.pixels == 0) return;
   // Without ridges (speckle, any isotropic texture) the smoothing and the low-SNR subsets below, sized from
   // the ridge period and tuned on ridges, do not apply: the subsets keep the preset's sizes. Unsmoothed,
   // neighbouring pixels carry independent noise, so a subset sampled on every s-th pixel would see s² times
   // the noise variance: every pixel is matched.
   if (!texture.ridges) {
-    if (!settings.pinned.subset_stride) settings.subset_stride = 1;
-    if (!settings.pinned.fixed_shape_stride) settings.fixed_shape_stride = 1;
+    if (!settings.pinned.subset_stride) settings.main_match.subset_stride = 1;
+    if (!settings.pinned.fixed_shape_stride) settings.rounds.subset_stride = 1;
     // The wide subset that sets the final positions grows (up to twice the preset's) until its
     // predicted noise reaches kTargetNoisePx: sqrt(2 σ_n² / (n ⟨g²⟩)) with n = (2r + 1)² pixels.
     if (!settings.pinned.subset_radius && texture.gradient_energy > 0.0) {
       const double side = std::sqrt(2.0 * texture.noise_sigma * texture.noise_sigma /
                                     (kTargetNoisePx * kTargetNoisePx * texture.gradient_energy));
-      const int wide = std::max(settings.fixed_shape_radius_px, settings.subset_radius_px);
-      settings.fixed_shape_radius_px =
+      const int wide = std::max(settings.rounds.subset_radius_px, settings.main_match.subset_radius_px);
+      settings.rounds.subset_radius_px =
           std::clamp(static_cast<int>(std::ceil(0.5 * (side - 1.0))), wide, 2 * wide);
     }
     return;
   }
-  if (texture.snr >= settings.min_unfiltered_snr) return;
+  if (texture.snr >= settings.texture.min_unfiltered_snr) return;
   // Light smoothing keeps 97 % of the ridge contrast and takes most pixel noise out of the reference
   // gradients: faster convergence and a lower error on noisy frames (not on noise-free ones).
   const auto& pinned = settings.pinned;
   if (!pinned.prefilter)
-    settings.prefilter_sigma_px =
-        std::max(settings.prefilter_sigma_px, std::round(10.0 * period / 24.0) / 10.0);
-  if (texture.snr >= settings.min_quadratic_snr) return;
+    settings.main_match.prefilter_sigma_px =
+        std::max(settings.main_match.prefilter_sigma_px, std::round(10.0 * period / 24.0) / 10.0);
+  if (texture.snr >= settings.texture.min_quadratic_snr) return;
   low_snr = true;
   // Every track matched every frame: with tracks starting from their neighbours, the rounds left 2
   // track-frames 1.0-1.13 px off in hard_heavy_noise's first 20 frames (none with the main match, which the
   // neighbour check then weighs; Tracker.HeavyNoiseRoundsOverruleADisagreeingMainMatch).
-  if (!pinned.main_match_period) settings.main_match_period_frames = 1;
-  if (!pinned.shape && settings.shape == ShapeFunction::kQuadratic) settings.shape = ShapeFunction::kAffine;
+  if (!pinned.main_match_period) settings.main_match.period_frames = 1;
+  if (!pinned.shape && settings.main_match.shape == ShapeFunction::kQuadratic)
+    settings.main_match.shape = ShapeFunction::kAffine;
   if (!pinned.prefilter)
-    settings.prefilter_sigma_px =
-        std::max(settings.prefilter_sigma_px, std::round(10.0 * period / 12.0) / 10.0);
+    settings.main_match.prefilter_sigma_px =
+        std::max(settings.main_match.prefilter_sigma_px, std::round(10.0 * period / 12.0) / 10.0);
   if (!pinned.subset_radius)
-    settings.subset_radius_px =
-        std::max(settings.subset_radius_px, static_cast<int>(std::lround(0.75 * period)));
+    settings.main_match.subset_radius_px =
+        std::max(settings.main_match.subset_radius_px, static_cast<int>(std::lround(0.75 * period)));
   // Smoothed by σ ≥ 1.5 px, neighbouring pixels repeat each other: the Gaussian keeps 6 % (σ = 1.5) or less
   // (1 % at P/12 = 1.9 px) of the signal at the Nyquist frequency of every 2nd pixel, and the noise left is
-  // correlated over ~2σ. A quarter of the samples then carries the same information; the main match is
-  // 4× cheaper (hard_heavy_noise 0.1396 → 0.1369 px, hard_low_contrast 0.1550 → 0.1522 px, +25 % frames/s
-  // tracking only; on the default scene's σ = 1 px it would cost 1 % of accuracy, so not there).
-  if (!pinned.subset_stride && settings.prefilter_sigma_px >= 1.5) settings.subset_stride = 2;
+  // correlated over ~2σ. A quarter of the samples then carries the same information, and the main match
+  // is 4× cheaper. Below σ = 1.5 px the skipped pixels still carry independent noise.
+  if (!pinned.subset_stride && settings.main_match.prefilter_sigma_px >= 1.5)
+    settings.main_match.subset_stride = 2;
   // Along its ridges such a subset is pinned down only by the ridges' curvature: at this SNR that leaves
   // ~0.2 px of noise, which only neighbours further away (beyond the overlapping subsets) average out.
-  // Fusing twice as wide, as strongly as the track's own information and until it settles, halves the
-  // strain noise (hard_heavy_noise: E_yy 0.013 → 0.009, U 5.9 → 4.3 %; the stick radius, whose slip
-  // profile has a kink that the smoothing rounds, 8 → 12 %).
+  // Fusing twice as wide, as strongly as the track's own information and until it settles, averages that
+  // noise; the cost is a slightly rounded slip front (the stick radius' kink).
   if (!pinned.fusion) {
-    settings.fusion_sigma_px = std::max(settings.fusion_sigma_px, 2.0 * settings.grid_step_px);
-    settings.fusion_weight = std::max(settings.fusion_weight, 1.0);
-    settings.fusion_sweeps = std::max(settings.fusion_sweeps, 16);
+    settings.fusion.sigma_px = std::max(settings.fusion.sigma_px, 2.0 * settings.seeding.grid_step_px);
+    settings.fusion.weight = std::max(settings.fusion.weight, 1.0);
+    settings.fusion.sweeps = std::max(settings.fusion.sweeps, 16);
   }
 }
 
 // After update_roi: the smoothing covers the tracked region only, as the rest is never sampled.
 void FeatureTracker::Impl::prepare_matching() {
   if (!settings.refine) return;
-  if (settings.prefilter_sigma_px <= 0.0) {
+  if (settings.main_match.prefilter_sigma_px <= 0.0) {
     match_f = current_f;
   } else {
     // Zeros outside the region: anchors copy (and differentiate) the whole frame.
     if (match_f.size() != current_f.size() || match_f.data == current_f.data)
       match_f = cv::Mat::zeros(current_f.size(), CV_32F);
-    cv::GaussianBlur(current_f(roi), match_f(roi), cv::Size(), settings.prefilter_sigma_px,
-                     settings.prefilter_sigma_px, cv::BORDER_REPLICATE);
+    cv::GaussianBlur(current_f(roi), match_f(roi), cv::Size(), settings.main_match.prefilter_sigma_px,
+                     settings.main_match.prefilter_sigma_px, cv::BORDER_REPLICATE);
   }
-  if (settings.match.interpolation == Interpolation::kCubicBSpline)
+  if (settings.main_match.solver.interpolation == Interpolation::kCubicBSpline)
     cubic_bspline_coefficients(match_f, roi, match_spline);
 }
 
 void FeatureTracker::Impl::update_roi(bool rebuild_previous) {
   cv::Rect box = cv::boundingRect(mask);
   if (box.area() == 0) box = cv::Rect(0, 0, size.width, size.height);
-  const int margin = settings.window_px + static_cast<int>(std::ceil(2.0 * settings.max_displacement_px)) + 8;
+  const int margin = settings.prediction.window_px +
+                     static_cast<int>(std::ceil(2.0 * settings.prediction.max_displacement_px)) + 8;
   box.x -= margin;
   box.y -= margin;
   box.width += 2 * margin;
@@ -235,19 +236,20 @@ void FeatureTracker::Impl::update_roi(bool rebuild_previous) {
   roi = roi.area() > 0 ? (roi | box) : box;
   if (rebuild_previous && !previous_u8.empty()) {
     build_pyramid(previous_u8, previous_pyramid);
-    if (settings.global_prediction) {
+    if (settings.prediction.global_jump) {
       // The previous high-passed image must cover the new ROI too.
       cv::Mat previous_f;
       previous_u8.convertTo(previous_f, CV_32F, 1.0 / 255.0);
-      high_pass(previous_f, previous_hp);
-      global_correlation.set_reference(previous_hp);
+      high_pass(previous_f, jump.previous);
+      jump.correlation.set_reference(jump.previous);
     }
   }
 }
 
 void FeatureTracker::Impl::build_pyramid(const cv::Mat& u8, std::vector<cv::Mat>& pyramid) const {
-  cv::buildOpticalFlowPyramid(u8(roi), pyramid, cv::Size(settings.window_px, settings.window_px),
-                              settings.pyramid_levels);
+  cv::buildOpticalFlowPyramid(u8(roi), pyramid,
+                              cv::Size(settings.prediction.window_px, settings.prediction.window_px),
+                              settings.prediction.pyramid_levels);
 }
 
 // Ridges only, faded out towards the contact border: the border stays put while the skin moves, so its
@@ -260,22 +262,22 @@ void FeatureTracker::Impl::high_pass(const cv::Mat& image, cv::Mat& out) {
   const double period = 4.0 * ridge_reach_px() / factor;
   cv::Mat view = image(roi);
   if (factor > 1) {
-    cv::pyrDown(view, hp_small);
+    cv::pyrDown(view, jump.small);
     if (factor == 4) {
-      cv::pyrDown(hp_small, hp_quarter);
-      std::swap(hp_small, hp_quarter);
+      cv::pyrDown(jump.small, jump.quarter);
+      std::swap(jump.small, jump.quarter);
     }
-    view = hp_small;
-    cv::resize(mask(roi), hp_mask, view.size(), 0.0, 0.0, cv::INTER_NEAREST);
+    view = jump.small;
+    cv::resize(mask(roi), jump.mask, view.size(), 0.0, 0.0, cv::INTER_NEAREST);
   } else {
-    hp_mask = mask(roi);
+    jump.mask = mask(roi);
   }
-  cv::GaussianBlur(view, hp_blur, cv::Size(0, 0), 0.5 * period);
-  cv::subtract(view, hp_blur, out);
-  hp_mask.convertTo(hp_weight, CV_32F);
-  cv::erode(hp_weight, hp_weight, cv::Mat(), cv::Point(-1, -1), static_cast<int>(0.5 * period));
-  cv::GaussianBlur(hp_weight, hp_weight, cv::Size(0, 0), 0.5 * period);
-  cv::multiply(out, hp_weight, out);
+  cv::GaussianBlur(view, jump.blur, cv::Size(0, 0), 0.5 * period);
+  cv::subtract(view, jump.blur, out);
+  jump.mask.convertTo(jump.weight, CV_32F);
+  cv::erode(jump.weight, jump.weight, cv::Mat(), cv::Point(-1, -1), static_cast<int>(0.5 * period));
+  cv::GaussianBlur(jump.weight, jump.weight, cv::Size(0, 0), 0.5 * period);
+  cv::multiply(out, jump.weight, out);
 }
 
 int FeatureTracker::Impl::add_key_frame() {
@@ -303,23 +305,26 @@ void FeatureTracker::Impl::release_key(int key) {
 
 bool FeatureTracker::Impl::build_subsets(const AnchorImage& anchor, cv::Point centre, Subset& subset,
                                          Subset& wide) const {
-  const int r = settings.subset_radius_px;
-  const int side = 2 * (r / settings.subset_stride) + 1;
-  if (!subset.build(anchor, centre, r, settings.subset_stride, settings.shape, side * side / 3)) return false;
-  const int rw = std::max(r, settings.fixed_shape_radius_px);
-  if (settings.fixed_shape_pass && (rw > r || settings.fixed_shape_stride != settings.subset_stride)) {
-    const int wside = 2 * (rw / settings.fixed_shape_stride) + 1;
+  const int r = settings.main_match.subset_radius_px;
+  const int side = 2 * (r / settings.main_match.subset_stride) + 1;
+  if (!subset.build(anchor, centre, r, settings.main_match.subset_stride, settings.main_match.shape,
+                    side * side / 3))
+    return false;
+  const int rw = std::max(r, settings.rounds.subset_radius_px);
+  if (settings.rounds.enabled &&
+      (rw > r || settings.rounds.subset_stride != settings.main_match.subset_stride)) {
+    const int wside = 2 * (rw / settings.rounds.subset_stride) + 1;
     // On the image's lattice: the resampled rounds then resample and sum one pixel class only, whatever
     // the parity of the newborns' centres (PixelClasses).
-    wide.build(anchor, centre, rw, settings.fixed_shape_stride, ShapeFunction::kTranslation,
+    wide.build(anchor, centre, rw, settings.rounds.subset_stride, ShapeFunction::kTranslation,
                wside * wside / 3, Subset::Lattice::kImage);
   }
   return true;
 }
 
-FeatureTracker::FeatureTracker(TrackerSettings settings, std::optional<RoiPx> plate_roi)
+FeatureTracker::FeatureTracker(TrackerOptions settings, std::optional<RoiPx> plate_roi)
     : impl_(std::make_unique<Impl>()) {
-  validate(settings);
+  settings.check();
   impl_->settings = std::move(settings);
   impl_->plate_roi = plate_roi;
 }
@@ -344,32 +349,32 @@ void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, do
   m.roi = cv::Rect();
   m.stats = FrameStats{};
   m.prepare(image, contact_mask);
-  m.adapt_to_texture(!points_px.empty()
-                         ? static_cast<double>(points_px.size())
-                         : cv::countNonZero(m.mask) / (m.settings.grid_step_px * m.settings.grid_step_px));
+  m.adapt_to_texture(!points_px.empty() ? static_cast<double>(points_px.size())
+                                        : cv::countNonZero(m.mask) / (m.settings.seeding.grid_step_px *
+                                                                      m.settings.seeding.grid_step_px));
   m.update_roi(false);
   m.prepare_matching();
   m.build_pyramid(m.current_u8, m.previous_pyramid);
-  if (m.settings.global_prediction) {
-    m.high_pass(m.current_f, m.previous_hp);
-    m.global_correlation.set_reference(m.previous_hp);
+  if (m.settings.prediction.global_jump) {
+    m.high_pass(m.current_f, m.jump.previous);
+    m.jump.correlation.set_reference(m.jump.previous);
   }
   m.add_key_frame();
   // The measured outline moves by a pixel or two from frame to frame: only skin this far beyond where frame
   // 0 seeded counts as a contact that grew.
   constexpr int kGrowthTolerancePx = 4;
   const int margin =
-      std::max(0, static_cast<int>(std::ceil(m.settings.border_margin_px)) - kGrowthTolerancePx);
+      std::max(0, static_cast<int>(std::ceil(m.settings.seeding.border_margin_px)) - kGrowthTolerancePx);
   cv::erode(m.mask, m.first_seeded,
             cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * margin + 1, 2 * margin + 1)));
-  m.rest_count = 0;
+  m.rest.count = 0;
   // Noise-free frames gain nothing from a mean anchor, and would only risk the blur of a slow creep.
-  const bool noisy = !m.settings.adapt_to_texture || m.texture.snr < m.settings.min_unfiltered_snr;
-  m.resting = m.settings.refine && m.settings.rest_average_frames > 1 && noisy;
-  if (m.resting) {
-    m.rest_sum = m.match_f.clone();
-    m.rest_mask = m.match_mask.clone();
-    m.rest_count = 1;
+  const bool noisy = !m.settings.texture.adapt || m.texture.snr < m.settings.texture.min_unfiltered_snr;
+  m.rest.active = m.settings.refine && m.settings.rest.average_frames > 1 && noisy;
+  if (m.rest.active) {
+    m.rest.sum = m.match_f.clone();
+    m.rest.mask = m.match_mask.clone();
+    m.rest.count = 1;
   }
   m.points_mode = !points_px.empty();
   if (m.points_mode) {
@@ -388,14 +393,14 @@ void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, do
     m.states[i].previous = m.tracks[i].position_px;
   }
   if (m.plate_roi) {
-    PlateSettings ps;
-    ps.subset_radius_px = m.settings.plate_subset_radius_px;
-    ps.grid_step_px = m.settings.plate_grid_step_px;
-    ps.prefilter_sigma_px = m.settings.plate_prefilter_sigma_px;
+    PlateOptions ps;
+    ps.subset_radius_px = m.settings.plate.subset_radius_px;
+    ps.grid_step_px = m.settings.plate.grid_step_px;
+    ps.prefilter_sigma_px = m.settings.plate.prefilter_sigma_px;
     m.plate.emplace();
     m.plate->start(m.current_f, m.current_u8, *m.plate_roi, ps, t_s);
   }
-  if (m.keys[0]->users == 0 && !m.settings.births) m.keys[0].reset();
+  if (m.keys[0]->users == 0 && !m.settings.births.enabled) m.keys[0].reset();
   std::swap(m.previous_u8, m.current_u8);
   m.stats.frame = 0;
   m.stats.alive = static_cast<int>(
@@ -414,7 +419,8 @@ const FrameStats& FeatureTracker::track(const cv::Mat& image, const cv::Mat& con
   m.finish_frame();
   m.follow_rest();
   m.report_local_fits();
-  if (!m.points_mode && m.settings.births && m.frame % m.settings.birth_interval_frames == 0) m.births();
+  if (!m.points_mode && m.settings.births.enabled && m.frame % m.settings.births.interval_frames == 0)
+    m.births();
   if (m.plate) m.plate->track(m.current_f, m.current_u8, t_s);
   m.end_frame();
   return m.stats;
@@ -437,20 +443,20 @@ void FeatureTracker::Impl::begin_frame(const cv::Mat& image, const cv::Mat& cont
 // After the main match: the neighbour check, the shape rounds (resampled, then subset by subset), the
 // tracks' own matches recorded, fusion where it is within the match noise; unrefined tracks re-anchored.
 void FeatureTracker::Impl::refine_matches() {
-  if (settings.refine && settings.neighbour_check) check_neighbours();
-  resampled_done.clear();
-  if (settings.refine && settings.fixed_shape_pass && settings.fixed_shape_resampled) resampled_shape_pass();
-  if (!skipped.empty()) match_unconfirmed_skipped();
-  if (settings.refine && settings.fixed_shape_pass)
-    for (int k = 0; k < settings.fixed_shape_iterations; ++k)
-      fixed_shape_pass(k + 1 == settings.fixed_shape_iterations);
+  if (settings.refine && settings.neighbours.enabled) check_neighbours();
+  field.done.clear();
+  if (settings.refine && settings.rounds.enabled && settings.rounds.resampled) resampled_shape_pass();
+  if (!schedule.skipped.empty()) match_unconfirmed_skipped();
+  if (settings.refine && settings.rounds.enabled)
+    for (int k = 0; k < settings.rounds.iterations; ++k)
+      fixed_shape_pass(k + 1 == settings.rounds.iterations);
   if (settings.refine) record_own_matches();
-  if (settings.refine && settings.fusion_sigma_px > 0.0) {
+  if (settings.refine && settings.fusion.sigma_px > 0.0) {
     fuse();
     decline_fusion_beyond_noise();
   }
-  if (!settings.refine && settings.reanchor_interval_frames > 0 &&
-      frame % settings.reanchor_interval_frames == 0)
+  if (!settings.refine && settings.reanchor.interval_frames > 0 &&
+      frame % settings.reanchor.interval_frames == 0)
     reanchor();
 }
 
@@ -463,8 +469,9 @@ void FeatureTracker::Impl::retire_lost() {
       if (!settings.refine)
         retire(i, TrackStatus::kForwardBackward);
       else
-        retire(i, st.match.valid_fraction < settings.match.min_valid_fraction ? TrackStatus::kLeftContact
-                                                                              : TrackStatus::kPoorMatch);
+        retire(i, st.match.valid_fraction < settings.main_match.solver.min_valid_fraction
+                      ? TrackStatus::kLeftContact
+                      : TrackStatus::kPoorMatch);
       continue;
     }
     const Vec2 p = st.candidate;
@@ -482,11 +489,11 @@ void FeatureTracker::Impl::end_frame() {
     if (k && k->users == 0) k.reset();
   std::swap(previous_pyramid, current_pyramid);
   std::swap(previous_u8, current_u8);
-  std::swap(previous_hp, current_hp);
+  std::swap(jump.previous, jump.current);
   // The high-passed frame correlated this frame is the next reference (its spectrum kept); otherwise the
-  // reference follows whatever previous_hp now holds.
-  if (!global_correlation.adopt_last_as_reference() && !previous_hp.empty())
-    global_correlation.set_reference(previous_hp);
+  // reference follows whatever jump.previous now holds.
+  if (!jump.correlation.adopt_last_as_reference() && !jump.previous.empty())
+    jump.correlation.set_reference(jump.previous);
   stats.alive = static_cast<int>(
       std::count_if(tracks.begin(), tracks.end(), [](const Track& t) { return is_alive(t.status); }));
 }
@@ -500,7 +507,7 @@ const std::vector<Track>& FeatureTracker::tracks() const {
 const FrameStats& FeatureTracker::stats() const {
   return impl_->stats;
 }
-const TrackerSettings& FeatureTracker::settings() const {
+const TrackerOptions& FeatureTracker::settings() const {
   return impl_->settings;
 }
 const TextureQuality& FeatureTracker::texture() const {

@@ -107,7 +107,7 @@ class FeatureTracker {
  public:
   // `plate_roi`: the band of the image showing the pattern printed on the glass
   // (Scene::reference_pattern_roi).
-  explicit FeatureTracker(TrackerSettings settings, std::optional<RoiPx> plate_roi = std::nullopt);
+  explicit FeatureTracker(TrackerOptions settings, std::optional<RoiPx> plate_roi = std::nullopt);
   ~FeatureTracker();
   FeatureTracker(const FeatureTracker&) = delete;
   FeatureTracker& operator=(const FeatureTracker&) = delete;
@@ -126,7 +126,7 @@ class FeatureTracker {
   const std::vector<Track>& tracks() const;
   const FrameStats& stats() const;
   // The settings in effect (after adapt_to_texture, once started).
-  const TrackerSettings& settings() const;
+  const TrackerOptions& settings() const;
   // Frame 0's texture as measured at start() (refined tracking only), and whether it made the subsets
   // drop to the low-SNR configuration.
   const TextureQuality& texture() const;

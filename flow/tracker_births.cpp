@@ -66,19 +66,19 @@ bool FeatureTracker::Impl::create_track(Vec2 position, Vec2 reference, const Mat
 }
 
 void FeatureTracker::Impl::seed_grid() {
-  const int margin = static_cast<int>(std::ceil(settings.border_margin_px));
+  const int margin = static_cast<int>(std::ceil(settings.seeding.border_margin_px));
   cv::erode(mask, birth_mask,
             cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * margin + 1, 2 * margin + 1)));
-  min_eigenvalue_map(current_f(roi), settings.eigen_block_px, eigen, eigen_scratch);
+  min_eigenvalue_map(current_f(roi), settings.seeding.eigen_block_px, eigen, eigen_scratch);
   double largest = 0.0;
   cv::minMaxLoc(eigen, nullptr, &largest, nullptr, nullptr, birth_mask(roi));
-  eigen_threshold = settings.min_eigen_quality * largest;
+  eigen_threshold = settings.seeding.min_eigen_quality * largest;
   struct Candidate {
     float strength;
     cv::Point p;
   };
   std::vector<Candidate> candidates;
-  const double step = settings.grid_step_px;
+  const double step = settings.seeding.grid_step_px;
   const int i0 = static_cast<int>(std::ceil(roi.x / step)),
             i1 = static_cast<int>((roi.x + roi.width - 1) / step);
   const int j0 = static_cast<int>(std::ceil(roi.y / step)),
@@ -90,10 +90,10 @@ void FeatureTracker::Impl::seed_grid() {
       const float strength = eigen.at<float>(p - roi.tl());
       if (strength >= eigen_threshold && strength > 0.0f) candidates.push_back({strength, p});
     }
-  if (static_cast<int>(candidates.size()) > settings.max_features) {
-    std::nth_element(candidates.begin(), candidates.begin() + settings.max_features, candidates.end(),
+  if (static_cast<int>(candidates.size()) > settings.seeding.max_features) {
+    std::nth_element(candidates.begin(), candidates.begin() + settings.seeding.max_features, candidates.end(),
                      [](const Candidate& a, const Candidate& b) { return a.strength > b.strength; });
-    candidates.resize(static_cast<std::size_t>(settings.max_features));
+    candidates.resize(static_cast<std::size_t>(settings.seeding.max_features));
     std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
       return a.p.y != b.p.y ? a.p.y < b.p.y : a.p.x < b.p.x;
     });
@@ -142,10 +142,10 @@ FeatureTracker::Impl::FirstFrameBirth FeatureTracker::Impl::birth_from_first_fra
   w.p[3] = f(0, 1);
   w.p[4] = f(1, 0);
   w.p[5] = f(1, 1) - 1.0;
-  if (settings.shape == ShapeFunction::kTranslation) w.p[2] = w.p[3] = w.p[4] = w.p[5] = 0.0;
+  if (settings.main_match.shape == ShapeFunction::kTranslation) w.p[2] = w.p[3] = w.p[4] = w.p[5] = 0.0;
   match_track(index, guess, &w);
   if (!st.matched ||
-      std::hypot(st.candidate.x - guess.x, st.candidate.y - guess.y) > settings.neighbour_tolerance_px) {
+      std::hypot(st.candidate.x - guess.x, st.candidate.y - guess.y) > settings.neighbours.tolerance_px) {
     --keys[0]->users;
     tracks.pop_back();
     states.pop_back();
@@ -161,20 +161,20 @@ FeatureTracker::Impl::FirstFrameBirth FeatureTracker::Impl::birth_from_first_fra
 }
 
 void FeatureTracker::Impl::births() {
-  const double step = settings.grid_step_px;
+  const double step = settings.seeding.grid_step_px;
   const int cols = static_cast<int>((size.width - 1) / step) + 1,
             rows = static_cast<int>((size.height - 1) / step) + 1;
   int live = mark_taken_lattice(cols, rows);
-  if (live >= settings.max_features) return;
-  const int margin = static_cast<int>(std::ceil(settings.border_margin_px));
+  if (live >= settings.seeding.max_features) return;
+  const int margin = static_cast<int>(std::ceil(settings.seeding.border_margin_px));
   cv::erode(mask, birth_mask,
             cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * margin + 1, 2 * margin + 1)));
-  min_eigenvalue_map(current_f(roi), settings.eigen_block_px, eigen, eigen_scratch);
+  min_eigenvalue_map(current_f(roi), settings.seeding.eigen_block_px, eigen, eigen_scratch);
   build_hash(false);
   int key = -1;
-  const double radius = std::max(settings.neighbour_radius_px, 2.5 * step);
-  for (int lj = 0; lj < rows && live < settings.max_features; ++lj)
-    for (int li = 0; li < cols && live < settings.max_features; ++li) {
+  const double radius = std::max(settings.neighbours.radius_px, 2.5 * step);
+  for (int lj = 0; lj < rows && live < settings.seeding.max_features; ++lj)
+    for (int li = 0; li < cols && live < settings.seeding.max_features; ++li) {
       if (lattice_taken[static_cast<std::size_t>(lj) * static_cast<std::size_t>(cols) +
                         static_cast<std::size_t>(li)])
         continue;
@@ -196,7 +196,7 @@ void FeatureTracker::Impl::births() {
 
 // Marks the lattice points of the seeding grid that a live track is near; returns how many tracks live.
 int FeatureTracker::Impl::mark_taken_lattice(int cols, int rows) {
-  const double step = settings.grid_step_px;
+  const double step = settings.seeding.grid_step_px;
   lattice_taken.assign(static_cast<std::size_t>(cols) * static_cast<std::size_t>(rows), 0);
   int live = 0;
   for (int i : alive) {
@@ -299,7 +299,7 @@ bool FeatureTracker::Impl::born_at(Vec2 x, const BirthMap& map, int& key) {
     // seeded, not its whole contact: a contact that grows carries its births across frame 0's border band
     // (seeded by neither frame 0 nor, unless extrapolated, by births), and a contact that does not grow has
     // no birth candidates in that band anyway.
-    if (!settings.extrapolate_all_births && keys[0] && keys[0]->frame == 0 && inside_mask(first_seeded, x))
+    if (!settings.births.extrapolate_all && keys[0] && keys[0]->frame == 0 && inside_mask(first_seeded, x))
       return false;
   }
   if (key < 0) key = add_key_frame();

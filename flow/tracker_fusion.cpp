@@ -39,9 +39,9 @@ void FeatureTracker::Impl::record_own_matches() {
         st.fixed_shape ? st.fixed_information : st.subset.translation_information();
     st.own.reference_px = tracks[static_cast<std::size_t>(i)].reference_px;
     st.own.position_px = st.candidate;
-    st.own.covariance_px2 =
-        predicted_match_covariance(st.match.zncc, matched.pixel_count(), information,
-                                   correlated_pixels(settings.prefilter_sigma_px, matched.stride()));
+    st.own.covariance_px2 = predicted_match_covariance(
+        st.match.zncc, matched.pixel_count(), information,
+        correlated_pixels(settings.main_match.prefilter_sigma_px, matched.stride()));
   }
 }
 
@@ -74,13 +74,13 @@ void FeatureTracker::Impl::decline_fusion_beyond_noise() {
 // each track's own information, so it decides only the directions the texture leaves open; Jacobi sweeps,
 // warm-started from the matches, spread that information along the ridges.
 void FeatureTracker::Impl::fuse() {
-  const double sigma = settings.fusion_sigma_px;
+  const double sigma = settings.fusion.sigma_px;
   const double radius = 2.0 * sigma;
   build_hash(true);
   const std::size_t n = alive.size();
-  fused.resize(n);
-  fusion_terms.resize(n);
-  fusion_neighbours.resize(n);
+  fusion.positions.resize(n);
+  fusion.terms.resize(n);
+  fusion.neighbours.resize(n);
   // Everything but the neighbours' positions is the same in every sweep (the weights depend on the
   // reference positions, the neighbours' offsets on the deformation gradients, the system on the track's
   // own information), so it is set up once and a sweep is a weighted sum per track.
@@ -88,27 +88,27 @@ void FeatureTracker::Impl::fuse() {
     for (int k = range.start; k < range.end; ++k) {
       const int i = alive[static_cast<std::size_t>(k)];
       const TrackState& st = states[static_cast<std::size_t>(i)];
-      FusionTerm& term = fusion_terms[static_cast<std::size_t>(k)];
-      std::vector<std::pair<int, double>>& list = fusion_neighbours[static_cast<std::size_t>(k)];
+      FusionTerm& term = fusion.terms[static_cast<std::size_t>(k)];
+      std::vector<std::pair<int, double>>& list = fusion.neighbours[static_cast<std::size_t>(k)];
       term.active = false;
       list.clear();
       if (!is_alive(tracks[static_cast<std::size_t>(i)].status) || !st.matched || st.suspect) continue;
       const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
       const Vec2 p = st.candidate;
       const Eigen::Matrix2d own = st.fixed_shape ? st.fixed_information : st.subset.translation_information();
-      const double alpha = settings.fusion_weight * 0.5 * own.trace();
+      const double alpha = settings.fusion.weight * 0.5 * own.trace();
       double wsum = 0.0;
       Eigen::Vector2d offset_sum = Eigen::Vector2d::Zero();
-      const int cx0 = std::max(0, static_cast<int>((p.x - radius) / hash_cell));
-      const int cx1 = std::min(hash_cols - 1, static_cast<int>((p.x + radius) / hash_cell));
-      const int cy0 = std::max(0, static_cast<int>((p.y - radius) / hash_cell));
-      const int cy1 = std::min(hash_rows - 1, static_cast<int>((p.y + radius) / hash_cell));
+      const int cx0 = std::max(0, static_cast<int>((p.x - radius) / hash.cell));
+      const int cx1 = std::min(hash.cols - 1, static_cast<int>((p.x + radius) / hash.cell));
+      const int cy0 = std::max(0, static_cast<int>((p.y - radius) / hash.cell));
+      const int cy1 = std::min(hash.rows - 1, static_cast<int>((p.y + radius) / hash.cell));
       for (int cy = cy0; cy <= cy1; ++cy)
         for (int cx = cx0; cx <= cx1; ++cx) {
-          const std::size_t c = static_cast<std::size_t>(cy) * static_cast<std::size_t>(hash_cols) +
+          const std::size_t c = static_cast<std::size_t>(cy) * static_cast<std::size_t>(hash.cols) +
                                 static_cast<std::size_t>(cx);
-          for (int h = hash_start[c]; h < hash_start[c + 1]; ++h) {
-            const int j = hash_items[static_cast<std::size_t>(h)];
+          for (int h = hash.start[c]; h < hash.start[c + 1]; ++h) {
+            const int j = hash.items[static_cast<std::size_t>(h)];
             if (j == i) continue;
             const TrackState& nb = states[static_cast<std::size_t>(j)];
             const Vec2 Xj = tracks[static_cast<std::size_t>(j)].reference_px;
@@ -127,23 +127,24 @@ void FeatureTracker::Impl::fuse() {
       term.constant = own * Eigen::Vector2d(st.candidate.x, st.candidate.y) + term.scale * offset_sum;
     }
   });
-  for (int sweep = 0; sweep < settings.fusion_sweeps; ++sweep) {
+  for (int sweep = 0; sweep < settings.fusion.sweeps; ++sweep) {
     cv::parallel_for_(cv::Range(0, static_cast<int>(n)), [&](const cv::Range& range) {
       for (int k = range.start; k < range.end; ++k) {
-        const FusionTerm& term = fusion_terms[static_cast<std::size_t>(k)];
+        const FusionTerm& term = fusion.terms[static_cast<std::size_t>(k)];
         const Vec2 current = states[static_cast<std::size_t>(alive[static_cast<std::size_t>(k)])].candidate;
-        fused[static_cast<std::size_t>(k)] = current;
+        fusion.positions[static_cast<std::size_t>(k)] = current;
         if (!term.active) continue;
         Eigen::Vector2d q_sum = Eigen::Vector2d::Zero();
-        for (const auto& [j, w] : fusion_neighbours[static_cast<std::size_t>(k)]) {
+        for (const auto& [j, w] : fusion.neighbours[static_cast<std::size_t>(k)]) {
           const Vec2 c = states[static_cast<std::size_t>(j)].candidate;
           q_sum += w * Eigen::Vector2d(c.x, c.y);
         }
         const Eigen::Vector2d x = term.solve * (term.constant + term.scale * q_sum);
-        if (x.allFinite()) fused[static_cast<std::size_t>(k)] = {x.x(), x.y()};
+        if (x.allFinite()) fusion.positions[static_cast<std::size_t>(k)] = {x.x(), x.y()};
       }
     });
-    for (std::size_t k = 0; k < n; ++k) states[static_cast<std::size_t>(alive[k])].candidate = fused[k];
+    for (std::size_t k = 0; k < n; ++k)
+      states[static_cast<std::size_t>(alive[k])].candidate = fusion.positions[k];
   }
 }
 

@@ -13,16 +13,16 @@ using namespace tracker_detail;
 // overlapping subsets share noise over the matched subset's side plus the prefilter's reach.
 LocalFitOptions FeatureTracker::Impl::local_fit_options() const {
   LocalFitOptions o;
-  const double step = settings.grid_step_px;
+  const double step = settings.seeding.grid_step_px;
   const double largest =
-      settings.local_fit_max_radius_px > 0.0 ? settings.local_fit_max_radius_px : 8.0 * step;
+      settings.local_fit.max_radius_px > 0.0 ? settings.local_fit.max_radius_px : 8.0 * step;
   for (double r = 1.5 * step; r < largest * (1.0 + 1e-9); r *= std::sqrt(2.0)) o.radii_px.push_back(r);
   if (o.radii_px.empty() || o.radii_px.back() < largest) o.radii_px.push_back(largest);
-  o.agreement_chi2 = settings.local_fit_agreement_chi2;
-  const int radius = settings.fixed_shape_pass
-                         ? std::max(settings.subset_radius_px, settings.fixed_shape_radius_px)
-                         : settings.subset_radius_px;
-  o.correlation_side_px = 2.0 * (radius + 2.0 * settings.prefilter_sigma_px) + 1.0;
+  o.agreement_chi2 = settings.local_fit.agreement_chi2;
+  const int radius = settings.rounds.enabled
+                         ? std::max(settings.main_match.subset_radius_px, settings.rounds.subset_radius_px)
+                         : settings.main_match.subset_radius_px;
+  o.correlation_side_px = 2.0 * (radius + 2.0 * settings.main_match.prefilter_sigma_px) + 1.0;
   return o;
 }
 
@@ -32,7 +32,7 @@ LocalFitOptions FeatureTracker::Impl::local_fit_options() const {
 // covariance is no measure of that direction's error, and the fusion (designed for exactly that direction,
 // at full weight) is the better evidence.
 void FeatureTracker::Impl::report_local_fits() {
-  if (!settings.refine || !settings.local_fit) return;
+  if (!settings.refine || !settings.local_fit.enabled) return;
   std::vector<OwnMatch> matches;
   std::vector<int> members;
   for (int i : alive) {

@@ -34,12 +34,12 @@ void FeatureTracker::Impl::match_track(int index, Vec2 guess, const Warp* initia
                               {guess.x - c.x - st.offset.x, guess.y - c.y - st.offset.y});
   st.guess = guess;
   st.fixed_shape = false;
-  st.match = st.subset.match(match_source(), match_mask, st.warp, settings.match);
+  st.match = st.subset.match(match_source(), match_mask, st.warp, settings.main_match.solver);
   const Vec2 u = st.warp.displacement_px(st.offset.x, st.offset.y);
   st.candidate = {c.x + st.offset.x + u.x, c.y + st.offset.y + u.y};
-  st.matched = st.match.converged && st.match.zncc >= settings.min_zncc;
+  st.matched = st.match.converged && st.match.zncc >= settings.main_match.min_zncc;
   const double moved = std::hypot(st.candidate.x - guess.x, st.candidate.y - guess.y);
-  st.suspect = !st.matched || moved > settings.max_correction_px;
+  st.suspect = !st.matched || moved > settings.main_match.max_correction_px;
   if (st.matched) {
     const Mat2d a = Mat2d::Identity() + to_matrix(st.warp.gradient(st.offset.x, st.offset.y));
     st.deformation = a * st.birth;
@@ -48,7 +48,7 @@ void FeatureTracker::Impl::match_track(int index, Vec2 guess, const Warp* initia
     st.main.position_px = st.candidate;
     st.main.covariance_px2 = predicted_match_covariance(
         st.match.zncc, st.subset.pixel_count(), st.subset.translation_information(),
-        correlated_pixels(settings.prefilter_sigma_px, st.subset.stride()));
+        correlated_pixels(settings.main_match.prefilter_sigma_px, st.subset.stride()));
   }
 }
 
@@ -56,17 +56,17 @@ void FeatureTracker::Impl::predict_and_match() {
   collect_alive();
   const Vec2 shift = global_jump_shift();
   choose_main_matches();
-  const int n = static_cast<int>(to_match.size());
-  lk_from.resize(static_cast<std::size_t>(n));
-  lk_to.resize(static_cast<std::size_t>(n));
+  const int n = static_cast<int>(schedule.to_match.size());
+  lk.from.resize(static_cast<std::size_t>(n));
+  lk.to.resize(static_cast<std::size_t>(n));
   for (int k = 0; k < n; ++k) {
-    const TrackState& st = states[static_cast<std::size_t>(to_match[static_cast<std::size_t>(k)])];
-    lk_from[static_cast<std::size_t>(k)] = to_roi(st.previous);
-    lk_to[static_cast<std::size_t>(k)] = to_roi(motion_guess(st, shift));
+    const TrackState& st = states[static_cast<std::size_t>(schedule.to_match[static_cast<std::size_t>(k)])];
+    lk.from[static_cast<std::size_t>(k)] = to_roi(st.previous);
+    lk.to[static_cast<std::size_t>(k)] = to_roi(motion_guess(st, shift));
   }
   if (n > 0) {
     lk_forward();
-    lk_back = lk_from;
+    lk.back = lk.from;
     if (settings.refine)
       lk_backward_where_uncorroborated(shift);
     else
@@ -76,7 +76,7 @@ void FeatureTracker::Impl::predict_and_match() {
   stats.main_matched = n;
   if (!settings.refine) return;
   match_from_lk_guesses(shift);
-  if (!skipped.empty()) start_skipped_from_neighbours();
+  if (!schedule.skipped.empty()) start_skipped_from_neighbours();
 }
 
 void FeatureTracker::Impl::collect_alive() {
@@ -91,13 +91,13 @@ void FeatureTracker::Impl::collect_alive() {
 Vec2 FeatureTracker::Impl::global_jump_shift() {
   stats.global_jump = false;
   stats.global_shift_px = {};
-  if (!settings.global_prediction || alive.empty()) return {0.0, 0.0};
-  high_pass(current_f, current_hp);
-  if (!global_correlation.has_reference() || global_correlation.reference_size() != current_hp.size())
+  if (!settings.prediction.global_jump || alive.empty()) return {0.0, 0.0};
+  high_pass(current_f, jump.current);
+  if (!jump.correlation.has_reference() || jump.correlation.reference_size() != jump.current.size())
     return {0.0, 0.0};
   double response = 0.0;
   const cv::Point2d s =
-      global_correlation.correlate(current_hp, &response) * static_cast<double>(high_pass_factor());
+      jump.correlation.correlate(jump.current, &response) * static_cast<double>(high_pass_factor());
   stats.global_shift_px = {s.x, s.y};
   scratch_x.clear();
   scratch_y.clear();
@@ -115,15 +115,15 @@ Vec2 FeatureTracker::Impl::global_jump_shift() {
 
 // Which tracks take this frame's main match (to_match) and which start from their neighbours (skipped).
 void FeatureTracker::Impl::choose_main_matches() {
-  to_match.clear();
-  skipped.clear();
-  skip_match.assign(states.size(), 0);
+  schedule.to_match.clear();
+  schedule.skipped.clear();
+  schedule.skip.assign(states.size(), 0);
   for (int i : alive) {
     if (!stats.global_jump && skips_main_match(i)) {
-      skip_match[static_cast<std::size_t>(i)] = 1;
-      skipped.push_back(i);
+      schedule.skip[static_cast<std::size_t>(i)] = 1;
+      schedule.skipped.push_back(i);
     } else {
-      to_match.push_back(i);
+      schedule.to_match.push_back(i);
     }
   }
 }
@@ -139,19 +139,20 @@ cv::Point2f FeatureTracker::Impl::to_roi(Vec2 p) const {
 }
 
 cv::TermCriteria FeatureTracker::Impl::lk_criteria() const {
-  return {cv::TermCriteria::COUNT | cv::TermCriteria::EPS, settings.lk_max_iterations, settings.lk_epsilon};
+  return {cv::TermCriteria::COUNT | cv::TermCriteria::EPS, settings.prediction.max_iterations,
+          settings.prediction.epsilon_px};
 }
 
 void FeatureTracker::Impl::lk_forward() {
-  cv::calcOpticalFlowPyrLK(previous_pyramid, current_pyramid, lk_from, lk_to, lk_status, lk_error,
-                           cv::Size(settings.window_px, settings.window_px), settings.pyramid_levels,
-                           lk_criteria(), cv::OPTFLOW_USE_INITIAL_FLOW);
+  cv::calcOpticalFlowPyrLK(previous_pyramid, current_pyramid, lk.from, lk.to, lk.status, lk.error,
+                           cv::Size(settings.prediction.window_px, settings.prediction.window_px),
+                           settings.prediction.pyramid_levels, lk_criteria(), cv::OPTFLOW_USE_INITIAL_FLOW);
 }
 
 void FeatureTracker::Impl::lk_backward_all() {
-  cv::calcOpticalFlowPyrLK(current_pyramid, previous_pyramid, lk_to, lk_back, lk_back_status, lk_error,
-                           cv::Size(settings.window_px, settings.window_px), settings.pyramid_levels,
-                           lk_criteria(), cv::OPTFLOW_USE_INITIAL_FLOW);
+  cv::calcOpticalFlowPyrLK(current_pyramid, previous_pyramid, lk.to, lk.back, lk.back_status, lk.error,
+                           cv::Size(settings.prediction.window_px, settings.prediction.window_px),
+                           settings.prediction.pyramid_levels, lk_criteria(), cv::OPTFLOW_USE_INITIAL_FLOW);
 }
 
 // With refinement the backward pass checks only the forward answers that the track's own motion (or the
@@ -159,30 +160,30 @@ void FeatureTracker::Impl::lk_backward_all() {
 // estimates agree, and the subset match and the neighbour check follow anyway. A full backward pass costs
 // an eighth of the tracker's time on a 640×512 trial.
 void FeatureTracker::Impl::lk_backward_where_uncorroborated(Vec2 shift) {
-  const auto n = lk_from.size();
+  const auto n = lk.from.size();
   const cv::Point2f tl(static_cast<float>(roi.x), static_cast<float>(roi.y));
-  lk_back_status.assign(n, 1);
-  lk_check.clear();
-  lk_back_from.clear();
-  lk_back_to.clear();
+  lk.back_status.assign(n, 1);
+  lk.check.clear();
+  lk.back_from.clear();
+  lk.back_to.clear();
   for (std::size_t kk = 0; kk < n; ++kk) {
-    if (!lk_status[kk]) continue;
-    const Vec2 predicted = motion_guess(states[static_cast<std::size_t>(to_match[kk])], shift);
-    const double dx = lk_to[kk].x + tl.x - predicted.x;
-    const double dy = lk_to[kk].y + tl.y - predicted.y;
-    if (std::hypot(dx, dy) <= settings.forward_backward_px) continue;
-    lk_check.push_back(static_cast<int>(kk));
-    lk_back_from.push_back(lk_to[kk]);
-    lk_back_to.push_back(lk_from[kk]);
+    if (!lk.status[kk]) continue;
+    const Vec2 predicted = motion_guess(states[static_cast<std::size_t>(schedule.to_match[kk])], shift);
+    const double dx = lk.to[kk].x + tl.x - predicted.x;
+    const double dy = lk.to[kk].y + tl.y - predicted.y;
+    if (std::hypot(dx, dy) <= settings.prediction.forward_backward_px) continue;
+    lk.check.push_back(static_cast<int>(kk));
+    lk.back_from.push_back(lk.to[kk]);
+    lk.back_to.push_back(lk.from[kk]);
   }
-  if (lk_check.empty()) return;
-  cv::calcOpticalFlowPyrLK(current_pyramid, previous_pyramid, lk_back_from, lk_back_to, lk_check_status,
-                           lk_error, cv::Size(settings.window_px, settings.window_px),
-                           settings.pyramid_levels, lk_criteria(), cv::OPTFLOW_USE_INITIAL_FLOW);
-  for (std::size_t j = 0; j < lk_check.size(); ++j) {
-    const auto kk = static_cast<std::size_t>(lk_check[j]);
-    lk_back[kk] = lk_back_to[j];
-    lk_back_status[kk] = lk_check_status[j];
+  if (lk.check.empty()) return;
+  cv::calcOpticalFlowPyrLK(current_pyramid, previous_pyramid, lk.back_from, lk.back_to, lk.check_status,
+                           lk.error, cv::Size(settings.prediction.window_px, settings.prediction.window_px),
+                           settings.prediction.pyramid_levels, lk_criteria(), cv::OPTFLOW_USE_INITIAL_FLOW);
+  for (std::size_t j = 0; j < lk.check.size(); ++j) {
+    const auto kk = static_cast<std::size_t>(lk.check[j]);
+    lk.back[kk] = lk.back_to[j];
+    lk.back_status[kk] = lk.check_status[j];
   }
 }
 
@@ -190,11 +191,11 @@ void FeatureTracker::Impl::lk_backward_where_uncorroborated(Vec2 shift) {
 // otherwise. Without refinement a failed check retires the track (below, with the reason).
 void FeatureTracker::Impl::take_lk_guesses(Vec2 shift) {
   const cv::Point2f tl(static_cast<float>(roi.x), static_cast<float>(roi.y));
-  for (std::size_t kk = 0; kk < to_match.size(); ++kk) {
-    TrackState& st = states[static_cast<std::size_t>(to_match[kk])];
-    const double fb = std::hypot(lk_back[kk].x - lk_from[kk].x, lk_back[kk].y - lk_from[kk].y);
-    st.lk_ok = lk_status[kk] && lk_back_status[kk] && fb <= settings.forward_backward_px;
-    st.guess = st.lk_ok ? Vec2{lk_to[kk].x + tl.x, lk_to[kk].y + tl.y} : motion_guess(st, shift);
+  for (std::size_t kk = 0; kk < schedule.to_match.size(); ++kk) {
+    TrackState& st = states[static_cast<std::size_t>(schedule.to_match[kk])];
+    const double fb = std::hypot(lk.back[kk].x - lk.from[kk].x, lk.back[kk].y - lk.from[kk].y);
+    st.lk_ok = lk.status[kk] && lk.back_status[kk] && fb <= settings.prediction.forward_backward_px;
+    st.guess = st.lk_ok ? Vec2{lk.to[kk].x + tl.x, lk.to[kk].y + tl.y} : motion_guess(st, shift);
     st.candidate = st.guess;
     st.matched = st.lk_ok;
     st.suspect = false;
@@ -205,9 +206,9 @@ void FeatureTracker::Impl::take_lk_guesses(Vec2 shift) {
 // The main subset match from each LK guess. A failed LK guess is not the only start: the track's own
 // motion may still be right, so a failed match from LK's guess is tried again from there.
 void FeatureTracker::Impl::match_from_lk_guesses(Vec2 shift) {
-  cv::parallel_for_(cv::Range(0, static_cast<int>(to_match.size())), [&](const cv::Range& range) {
+  cv::parallel_for_(cv::Range(0, static_cast<int>(schedule.to_match.size())), [&](const cv::Range& range) {
     for (int k = range.start; k < range.end; ++k) {
-      const int index = to_match[static_cast<std::size_t>(k)];
+      const int index = schedule.to_match[static_cast<std::size_t>(k)];
       TrackState& st = states[static_cast<std::size_t>(index)];
       const Vec2 first = st.guess;
       match_track(index, first, nullptr);
@@ -231,9 +232,8 @@ void FeatureTracker::Impl::match_from_lk_guesses(Vec2 shift) {
 // A frame-0 track skips the main match in the frames where its class on the seeding lattice is not due
 // (main_match_period_frames), once it has been matched at least once; tracks anchored later always match.
 bool FeatureTracker::Impl::skips_main_match(int index) const {
-  const int period = settings.main_match_period_frames;
-  if (!settings.refine || !settings.fixed_shape_pass || !settings.fixed_shape_resampled || period <= 1)
-    return false;
+  const int period = settings.main_match.period_frames;
+  if (!settings.refine || !settings.rounds.enabled || !settings.rounds.resampled || period <= 1) return false;
   const TrackState& st = states[static_cast<std::size_t>(index)];
   const Track& t = tracks[static_cast<std::size_t>(index)];
   if (st.key != 0 || !st.exact_reference || t.born_frame + 1 >= frame) return false;
@@ -241,28 +241,27 @@ bool FeatureTracker::Impl::skips_main_match(int index) const {
   // one side, and started from them the rounds left more frame-to-frame jitter there (a noise-free 24-frame
   // trial smoothed in time: largest move 0.21 px, against 0.13 px matching every track and 0.15 px so).
   if (st.match.valid_fraction < 0.999) return false;
-  const long ix = std::lround(t.reference_px.x / settings.grid_step_px);
-  const long iy = std::lround(t.reference_px.y / settings.grid_step_px);
+  const long ix = std::lround(t.reference_px.x / settings.seeding.grid_step_px);
+  const long iy = std::lround(t.reference_px.y / settings.seeding.grid_step_px);
   const long lattice_class = period == 2 ? ((ix + iy) & 1) : ((ix & 1) + 2 * (iy & 1));
   return lattice_class != frame % period;
 }
 
 // Where a track that skipped the main match starts its rounds: the median of where its matched neighbours
-// put it, each carrying its own position over by its deformation gradient (as the neighbour check does).
-// Measured against the alternative of its own motion corrected by the neighbours' median correction (a
-// piecewise-constant interpolation of the change of motion): default scene end to end 0.0461 -> 0.0443 px,
-// U error 3.7 -> 3.3 % (period 2). Too few matched neighbours: it takes the main match after all.
+// put it, each carrying its own position over by its deformation gradient (as the neighbour check does):
+// the neighbours' matches this frame know the change of motion, which the track's own last motion does not.
+// Too few matched neighbours: it takes the main match after all.
 void FeatureTracker::Impl::start_skipped_from_neighbours() {
-  for (int i : skipped) states[static_cast<std::size_t>(i)].matched = false;
+  for (int i : schedule.skipped) states[static_cast<std::size_t>(i)].matched = false;
   build_hash(true);
   retry.clear();
-  for (int i : skipped) {
+  for (int i : schedule.skipped) {
     TrackState& st = states[static_cast<std::size_t>(i)];
     // (No track skips on a frame with a global jump: its own motion is the prediction here.)
     const Vec2 own{st.previous.x + st.velocity.x, st.previous.y + st.velocity.y};
-    gather_neighbours(own, settings.neighbour_radius_px, i);
-    if (static_cast<int>(neighbours.size()) < settings.min_neighbours) {
-      skip_match[static_cast<std::size_t>(i)] = 0;
+    gather_neighbours(own, settings.neighbours.radius_px, i);
+    if (static_cast<int>(neighbours.size()) < settings.neighbours.min_count) {
+      schedule.skip[static_cast<std::size_t>(i)] = 0;
       st.guess = own;
       retry.push_back(i);
       continue;
@@ -301,11 +300,11 @@ void FeatureTracker::Impl::match_from_guesses(const std::vector<int>& indices) {
 // matched from where it started, then checked like any other (retired if that match fails).
 void FeatureTracker::Impl::match_unconfirmed_skipped() {
   retry.clear();
-  for (int i : skipped) {
+  for (int i : schedule.skipped) {
     const std::size_t ii = static_cast<std::size_t>(i);
-    if (!skip_match[ii] || (!resampled_done.empty() && resampled_done[ii])) continue;
+    if (!schedule.skip[ii] || (!field.done.empty() && field.done[ii])) continue;
     if (!is_alive(tracks[ii].status)) continue;
-    skip_match[ii] = 0;
+    schedule.skip[ii] = 0;
     retry.push_back(i);
   }
   stats.main_matched += static_cast<int>(retry.size());

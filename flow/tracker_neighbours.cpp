@@ -26,16 +26,16 @@ namespace tirstrain::flow {
 using namespace tracker_detail;
 
 void FeatureTracker::Impl::build_hash(bool matched_only) {
-  hash_cell = std::max(4.0, settings.neighbour_radius_px);
-  hash_cols = static_cast<int>(size.width / hash_cell) + 1;
-  hash_rows = static_cast<int>(size.height / hash_cell) + 1;
-  const std::size_t cells = static_cast<std::size_t>(hash_cols) * static_cast<std::size_t>(hash_rows);
-  hash_start.assign(cells + 1, 0);
-  hash_items.clear();
+  hash.cell = std::max(4.0, settings.neighbours.radius_px);
+  hash.cols = static_cast<int>(size.width / hash.cell) + 1;
+  hash.rows = static_cast<int>(size.height / hash.cell) + 1;
+  const std::size_t cells = static_cast<std::size_t>(hash.cols) * static_cast<std::size_t>(hash.rows);
+  hash.start.assign(cells + 1, 0);
+  hash.items.clear();
   const auto cell_of = [&](Vec2 p) {
-    const int cx = std::clamp(static_cast<int>(p.x / hash_cell), 0, hash_cols - 1);
-    const int cy = std::clamp(static_cast<int>(p.y / hash_cell), 0, hash_rows - 1);
-    return static_cast<std::size_t>(cy) * static_cast<std::size_t>(hash_cols) + static_cast<std::size_t>(cx);
+    const int cx = std::clamp(static_cast<int>(p.x / hash.cell), 0, hash.cols - 1);
+    const int cy = std::clamp(static_cast<int>(p.y / hash.cell), 0, hash.rows - 1);
+    return static_cast<std::size_t>(cy) * static_cast<std::size_t>(hash.cols) + static_cast<std::size_t>(cx);
   };
   const auto usable = [&](int i) {
     const TrackState& st = states[static_cast<std::size_t>(i)];
@@ -43,29 +43,29 @@ void FeatureTracker::Impl::build_hash(bool matched_only) {
            (!matched_only || (st.matched && !st.suspect));
   };
   for (int i : alive)
-    if (usable(i)) ++hash_start[cell_of(states[static_cast<std::size_t>(i)].candidate) + 1];
-  for (std::size_t c = 0; c < cells; ++c) hash_start[c + 1] += hash_start[c];
-  hash_items.resize(static_cast<std::size_t>(hash_start[cells]));
-  hash_fill.assign(hash_start.begin(), hash_start.end() - 1);
+    if (usable(i)) ++hash.start[cell_of(states[static_cast<std::size_t>(i)].candidate) + 1];
+  for (std::size_t c = 0; c < cells; ++c) hash.start[c + 1] += hash.start[c];
+  hash.items.resize(static_cast<std::size_t>(hash.start[cells]));
+  hash.fill.assign(hash.start.begin(), hash.start.end() - 1);
   for (int i : alive)
     if (usable(i))
-      hash_items[static_cast<std::size_t>(
-          hash_fill[cell_of(states[static_cast<std::size_t>(i)].candidate)]++)] = i;
+      hash.items[static_cast<std::size_t>(
+          hash.fill[cell_of(states[static_cast<std::size_t>(i)].candidate)]++)] = i;
 }
 
 void FeatureTracker::Impl::gather_neighbours(Vec2 p, double radius, int self) {
   neighbours.clear();
-  const int cx0 = std::max(0, static_cast<int>((p.x - radius) / hash_cell));
-  const int cx1 = std::min(hash_cols - 1, static_cast<int>((p.x + radius) / hash_cell));
-  const int cy0 = std::max(0, static_cast<int>((p.y - radius) / hash_cell));
-  const int cy1 = std::min(hash_rows - 1, static_cast<int>((p.y + radius) / hash_cell));
+  const int cx0 = std::max(0, static_cast<int>((p.x - radius) / hash.cell));
+  const int cx1 = std::min(hash.cols - 1, static_cast<int>((p.x + radius) / hash.cell));
+  const int cy0 = std::max(0, static_cast<int>((p.y - radius) / hash.cell));
+  const int cy1 = std::min(hash.rows - 1, static_cast<int>((p.y + radius) / hash.cell));
   const double r2 = radius * radius;
   for (int cy = cy0; cy <= cy1; ++cy)
     for (int cx = cx0; cx <= cx1; ++cx) {
       const std::size_t c =
-          static_cast<std::size_t>(cy) * static_cast<std::size_t>(hash_cols) + static_cast<std::size_t>(cx);
-      for (int k = hash_start[c]; k < hash_start[c + 1]; ++k) {
-        const int j = hash_items[static_cast<std::size_t>(k)];
+          static_cast<std::size_t>(cy) * static_cast<std::size_t>(hash.cols) + static_cast<std::size_t>(cx);
+      for (int k = hash.start[c]; k < hash.start[c + 1]; ++k) {
+        const int j = hash.items[static_cast<std::size_t>(k)];
         if (j == self) continue;
         const Vec2 q = states[static_cast<std::size_t>(j)].candidate;
         const double dx = q.x - p.x, dy = q.y - p.y;
@@ -80,8 +80,8 @@ void FeatureTracker::Impl::gather_neighbours(Vec2 p, double radius, int self) {
 bool FeatureTracker::Impl::predict_from_neighbours(int index, Vec2& predicted, Mat2d& deformation) {
   const TrackState& st = states[static_cast<std::size_t>(index)];
   const Vec2 X = tracks[static_cast<std::size_t>(index)].reference_px;
-  gather_neighbours(st.candidate, settings.neighbour_radius_px, index);
-  if (static_cast<int>(neighbours.size()) < settings.min_neighbours) return false;
+  gather_neighbours(st.candidate, settings.neighbours.radius_px, index);
+  if (static_cast<int>(neighbours.size()) < settings.neighbours.min_count) return false;
   scratch_x.clear();
   scratch_y.clear();
   Mat2d sum = Mat2d::Zero();
@@ -106,20 +106,21 @@ void FeatureTracker::Impl::check_neighbours() {
   for (int i : alive) {
     TrackState& st = states[static_cast<std::size_t>(i)];
     // Placed by its neighbours' corrections: nothing of its own to check yet.
-    if (!skip_match.empty() && skip_match[static_cast<std::size_t>(i)]) continue;
+    if (!schedule.skip.empty() && schedule.skip[static_cast<std::size_t>(i)]) continue;
     Vec2 predicted;
     Mat2d deformation;
     if (!predict_from_neighbours(i, predicted, deformation)) {
       if (st.suspect)
-        retire(i, st.match.valid_fraction < settings.match.min_valid_fraction ? TrackStatus::kLeftContact
-                                                                              : TrackStatus::kPoorMatch);
+        retire(i, st.match.valid_fraction < settings.main_match.solver.min_valid_fraction
+                      ? TrackStatus::kLeftContact
+                      : TrackStatus::kPoorMatch);
       else
         tracks[static_cast<std::size_t>(i)].status = TrackStatus::kUnchecked;
       continue;
     }
     const double deviation = std::hypot(st.candidate.x - predicted.x, st.candidate.y - predicted.y);
-    if (!st.suspect && deviation <= settings.neighbour_tolerance_px) continue;
-    if (st.match.valid_fraction < settings.match.min_valid_fraction) {
+    if (!st.suspect && deviation <= settings.neighbours.tolerance_px) continue;
+    if (st.match.valid_fraction < settings.main_match.solver.min_valid_fraction) {
       retire(i, TrackStatus::kLeftContact);
       continue;
     }
@@ -130,7 +131,7 @@ void FeatureTracker::Impl::check_neighbours() {
     w.p[3] = a(0, 1);
     w.p[4] = a(1, 0);
     w.p[5] = a(1, 1);
-    if (settings.shape == ShapeFunction::kTranslation) w.p[2] = w.p[3] = w.p[4] = w.p[5] = 0.0;
+    if (settings.main_match.shape == ShapeFunction::kTranslation) w.p[2] = w.p[3] = w.p[4] = w.p[5] = 0.0;
     st.warp = w;
     st.guess = predicted;
     retry.push_back(i);
@@ -146,13 +147,13 @@ void FeatureTracker::Impl::check_neighbours() {
   for (int i : retry) {
     TrackState& st = states[static_cast<std::size_t>(i)];
     const double deviation = std::hypot(st.candidate.x - st.guess.x, st.candidate.y - st.guess.y);
-    if (st.matched && deviation <= settings.neighbour_tolerance_px) {
+    if (st.matched && deviation <= settings.neighbours.tolerance_px) {
       st.suspect = false;
       tracks[static_cast<std::size_t>(i)].status = TrackStatus::kRecovered;
       ++stats.recovered;
     } else {
       retire(i, st.matched ? TrackStatus::kInconsistent
-                           : (st.match.valid_fraction < settings.match.min_valid_fraction
+                           : (st.match.valid_fraction < settings.main_match.solver.min_valid_fraction
                                   ? TrackStatus::kLeftContact
                                   : TrackStatus::kPoorMatch));
     }

@@ -29,31 +29,31 @@ using namespace tracker_detail;
 // the other's.
 RestTestOptions FeatureTracker::Impl::rest_test_options() const {
   RestTestOptions o;
-  o.max_chi2_per_dof = settings.rest_max_chi2_per_dof;
-  o.max_correlation_z = settings.rest_max_correlation_z;
-  const double reach = settings.subset_radius_px + 2.0 * settings.prefilter_sigma_px;
+  o.max_chi2_per_dof = settings.rest.max_chi2_per_dof;
+  o.max_correlation_z = settings.rest.max_correlation_z;
+  const double reach = settings.main_match.subset_radius_px + 2.0 * settings.main_match.prefilter_sigma_px;
   o.independence_px = 2.0 * reach + 1.0;
-  o.pair_band_px = 2.0 * settings.grid_step_px;
-  o.tolerance_px = settings.rest_tolerance_px;
-  o.max_motion_chi2 = settings.rest_max_motion_chi2;
-  o.correlated_tracks = std::numbers::pi * std::pow(reach / settings.grid_step_px, 2);
+  o.pair_band_px = 2.0 * settings.seeding.grid_step_px;
+  o.tolerance_px = settings.rest.tolerance_px;
+  o.max_motion_chi2 = settings.rest.max_motion_chi2;
+  o.correlated_tracks = std::numbers::pi * std::pow(reach / settings.seeding.grid_step_px, 2);
   return o;
 }
 
 // While nothing has moved since frame 0, frame 0's anchor becomes the mean of the frames so far (see
-// TrackerSettings::rest_average_frames): every later match then sees the anchor's pixel noise divided by
+// TrackerOptions::rest_average_frames): every later match then sees the anchor's pixel noise divided by
 // the square root of their number; and the tracks report the fitted rest motion rather than their own
 // noise. Rest is a test of an affine fit of the frame-0 tracks' own matches against their predicted
 // noise (test_affine_model).
 void FeatureTracker::Impl::follow_rest() {
-  if (!resting) return;
+  if (!rest.active) return;
   const auto end_averaging = [this] {
-    rest_count = 0;
-    rest_sum.release();
-    rest_mask.release();
+    rest.count = 0;
+    rest.sum.release();
+    rest.mask.release();
   };
   const auto stop = [&] {
-    resting = false;
+    rest.active = false;
     end_averaging();
   };
   if (keys.empty() || !keys[0] || keys[0]->frame != 0) return stop();
@@ -96,11 +96,11 @@ void FeatureTracker::Impl::follow_rest() {
   stats.fused = static_cast<int>(std::count_if(tracks.begin(), tracks.end(), [](const Track& t) {
     return is_alive(t.status) && t.model == TrackModel::kFused;
   }));
-  if (rest_count < 1 || rest_count >= settings.rest_average_frames) return end_averaging();
-  rest_sum += match_f;
-  ++rest_count;
+  if (rest.count < 1 || rest.count >= settings.rest.average_frames) return end_averaging();
+  rest.sum += match_f;
+  ++rest.count;
   KeyFrame& key = *keys[0];
-  key.anchor.assign(rest_sum * (1.0 / rest_count), rest_mask);
+  key.anchor.assign(rest.sum * (1.0 / rest.count), rest.mask);
   for (int i : members) {
     TrackState& st = states[static_cast<std::size_t>(i)];
     Subset subset, wide;

@@ -39,7 +39,7 @@ void FeatureTracker::Impl::fixed_shape_pass(bool last) {
   for (int i : alive) {
     const TrackState& st = states[static_cast<std::size_t>(i)];
     if (!is_alive(tracks[static_cast<std::size_t>(i)].status) || !st.matched || st.suspect) continue;
-    if (!resampled_done.empty() && resampled_done[static_cast<std::size_t>(i)]) continue;
+    if (!field.done.empty() && field.done[static_cast<std::size_t>(i)]) continue;
     // A track whose reference position is extrapolated keeps its own match: the rounds fit the field in
     // reference coordinates, where its extrapolation error would pull it (and, through the fits, its
     // newborn neighbours) a little further each frame, compounding from one generation of births to the next.
@@ -57,7 +57,7 @@ void FeatureTracker::Impl::fixed_shape_pass(bool last) {
 // too. Gives the subset's warp with that shape (`shape`) and the fitted F (`f`); false where no fit holds.
 bool FeatureTracker::Impl::neighbourhood_shape(int i, Warp& shape, Mat2d& f) {
   const TrackState& st = states[static_cast<std::size_t>(i)];
-  const double sigma = settings.fixed_shape_sigma_grid * settings.grid_step_px;
+  const double sigma = settings.rounds.sigma_grid * settings.seeding.grid_step_px;
   const double radius = 2.0 * sigma;
   const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
   gather_neighbours(st.candidate, radius, -1);  // includes the track itself
@@ -125,9 +125,9 @@ bool FeatureTracker::Impl::neighbourhood_shape(int i, Warp& shape, Mat2d& f) {
 // The translation-only matches of the tracks in `retry`, each with its neighbourhood's shape; an answer
 // further than the neighbour tolerance from the track's current position is not taken.
 void FeatureTracker::Impl::match_fixed_shapes(bool last) {
-  MatchOptions options = settings.match;
+  MatchOptions options = settings.main_match.solver;
   options.translation_only = true;
-  if (!last) options.convergence_px = std::max(options.convergence_px, settings.fixed_shape_convergence_px);
+  if (!last) options.convergence_px = std::max(options.convergence_px, settings.rounds.convergence_px);
   cv::parallel_for_(cv::Range(0, static_cast<int>(retry.size())), [&](const cv::Range& range) {
     for (int k = range.start; k < range.end; ++k) {
       const int i = retry[static_cast<std::size_t>(k)];
@@ -140,17 +140,17 @@ void FeatureTracker::Impl::match_fixed_shapes(bool last) {
       }
       const Subset& subset = st.wide.empty() ? st.subset : st.wide;
       const MatchResult m = subset.match(match_source(), match_mask, w, options);
-      if (!m.converged || m.zncc < settings.min_zncc) continue;
+      if (!m.converged || m.zncc < settings.main_match.min_zncc) continue;
       const cv::Point c = st.subset.centre();
       const Vec2 u = w.displacement_px(st.offset.x, st.offset.y);
       const Vec2 p{c.x + st.offset.x + u.x, c.y + st.offset.y + u.y};
-      if (std::hypot(p.x - st.candidate.x, p.y - st.candidate.y) > settings.neighbour_tolerance_px) continue;
+      if (std::hypot(p.x - st.candidate.x, p.y - st.candidate.y) > settings.neighbours.tolerance_px) continue;
       st.candidate = p;
       st.match = m;
       st.fixed_shape = true;
       // The fitted F is far less noisy than one subset's: it is what the fusion and the neighbour check
       // carry positions over with, and what the track reports.
-      if (settings.smoothed_gradient) st.deformation = smoothed[static_cast<std::size_t>(i)];
+      if (settings.rounds.smoothed_gradient) st.deformation = smoothed[static_cast<std::size_t>(i)];
       st.fixed_information = subset.fixed_shape_information();
     }
   });
@@ -163,23 +163,23 @@ void FeatureTracker::Impl::match_fixed_shapes(bool last) {
 // The shape is the blend of the nodes' neighbourhood fits instead of the track's own, and fit and match
 // iterate together.
 void FeatureTracker::Impl::resampled_shape_pass() {
-  resampled_done.assign(states.size(), 0);
+  field.done.assign(states.size(), 0);
   if (keys.empty() || !keys[0] || keys[0]->frame != 0) return;
   const std::optional<cv::Rect> region = choose_resampled_tracks();
   if (!region) return;
-  const std::size_t n = eligible.size();
-  resampled_position.resize(states.size());
-  resampled_match.assign(n, MatchResult{});
-  resampled_moved.assign(n, 0.0);
-  for (int i : eligible)
-    resampled_position[static_cast<std::size_t>(i)] = states[static_cast<std::size_t>(i)].candidate;
+  const std::size_t n = field.eligible.size();
+  field.position.resize(states.size());
+  field.match.assign(n, MatchResult{});
+  field.moved.assign(n, 0.0);
+  for (int i : field.eligible)
+    field.position[static_cast<std::size_t>(i)] = states[static_cast<std::size_t>(i)].candidate;
   const PixelClasses lattices = resampled_lattices();
-  for (int round = 0; round < settings.fixed_shape_resampled_rounds; ++round) {
+  for (int round = 0; round < settings.rounds.resampled_rounds; ++round) {
     resampled_round(*region, lattices);
     // The rounds are not iterated to their fixed point: where the fit passes a pattern that the subsets
     // average out (scales between the fit's σ and the subset's width) it amplifies the noise there, and a
     // few rounds (like the subset-by-subset passes' three) regularise it. Stop early only once nothing moves.
-    if (*std::max_element(resampled_moved.begin(), resampled_moved.end()) < 1e-3) break;
+    if (*std::max_element(field.moved.begin(), field.moved.end()) < 1e-3) break;
   }
   take_resampled_answers();
 }
@@ -188,24 +188,24 @@ void FeatureTracker::Impl::resampled_shape_pass() {
 // only take part in the fit (`others`: anchored later, their reference positions frame 0's too, matched
 // subset by subset); the region the field covers. None when too few tracks are eligible.
 std::optional<cv::Rect> FeatureTracker::Impl::choose_resampled_tracks() {
-  eligible.clear();
-  others.clear();
+  field.eligible.clear();
+  field.others.clear();
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (int i : alive) {
     const TrackState& st = states[static_cast<std::size_t>(i)];
     if (!is_alive(tracks[static_cast<std::size_t>(i)].status) || !st.matched || st.suspect) continue;
     if (st.key != 0 || !st.exact_reference) {
-      others.push_back(i);
+      field.others.push_back(i);
       continue;
     }
-    eligible.push_back(i);
+    field.eligible.push_back(i);
     const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
     x0 = std::min(x0, X.x), y0 = std::min(y0, X.y), x1 = std::max(x1, X.x), y1 = std::max(y1, X.y);
   }
-  if (eligible.size() < 6) return std::nullopt;
+  if (field.eligible.size() < 6) return std::nullopt;
   // The field's nodes on the seeding lattice (multiples of fixed_shape_node_grid grid steps): there a
   // node's fit is that seeded track's own neighbourhood fit, as in the subset-by-subset rounds.
-  const int reach = std::max(settings.subset_radius_px, settings.fixed_shape_radius_px) + 2;
+  const int reach = std::max(settings.main_match.subset_radius_px, settings.rounds.subset_radius_px) + 2;
   const double step = resampled_node_step_px();
   const int left = static_cast<int>(std::lround(std::max(0.0, std::floor((x0 - reach) / step)) * step));
   const int top = static_cast<int>(std::lround(std::max(0.0, std::floor((y0 - reach) / step)) * step));
@@ -217,11 +217,11 @@ std::optional<cv::Rect> FeatureTracker::Impl::choose_resampled_tracks() {
 // The subsets read every stride-th pixel: only their lattices are resampled (one in four pixels at stride
 // 2: the wide subsets sample the image's lattice). Every pixel when a subset has another stride.
 PixelClasses FeatureTracker::Impl::resampled_lattices() const {
-  PixelClasses lattices(settings.fixed_shape_stride);
-  for (int i : eligible) {
+  PixelClasses lattices(settings.rounds.subset_stride);
+  for (int i : field.eligible) {
     const TrackState& st = states[static_cast<std::size_t>(i)];
     const Subset& subset = st.wide.empty() ? st.subset : st.wide;
-    if (subset.stride() != settings.fixed_shape_stride) return PixelClasses();
+    if (subset.stride() != settings.rounds.subset_stride) return PixelClasses();
     lattices.add(subset.centre().x + subset.first_offset().x, subset.centre().y + subset.first_offset().y);
   }
   return lattices;
@@ -230,47 +230,47 @@ PixelClasses FeatureTracker::Impl::resampled_lattices() const {
 // One round: the field fitted to the tracks' current answers, the frame resampled through it, and each
 // eligible track moved by one translation step of its subset.
 void FeatureTracker::Impl::resampled_round(const cv::Rect& region, const PixelClasses& lattices) {
-  field_anchor.clear();
-  field_displacement.clear();
-  for (int i : eligible) {
+  field.anchor.clear();
+  field.displacement.clear();
+  for (int i : field.eligible) {
     const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
-    const Vec2 x = resampled_position[static_cast<std::size_t>(i)];
-    field_anchor.push_back(X);
-    field_displacement.push_back({x.x - X.x, x.y - X.y});
+    const Vec2 x = field.position[static_cast<std::size_t>(i)];
+    field.anchor.push_back(X);
+    field.displacement.push_back({x.x - X.x, x.y - X.y});
   }
-  for (int i : others) {
+  for (int i : field.others) {
     const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
     const Vec2 x = states[static_cast<std::size_t>(i)].candidate;
-    field_anchor.push_back(X);
-    field_displacement.push_back({x.x - X.x, x.y - X.y});
+    field.anchor.push_back(X);
+    field.displacement.push_back({x.x - X.x, x.y - X.y});
   }
-  shape_field.fit(field_anchor, field_displacement, region, resampled_node_step_px(),
-                  settings.fixed_shape_sigma_grid * settings.grid_step_px);
-  resample_through(match_source(), match_mask, shape_field, keys[0]->anchor.mask(), region, resampled,
-                   resampled_valid, lattices, settings.match.interpolation);
-  window_sums.build(keys[0]->anchor, resampled, resampled_valid, region, settings.fixed_shape_stride,
-                    lattices);
-  cv::parallel_for_(cv::Range(0, static_cast<int>(eligible.size())), [&](const cv::Range& range) {
+  field.shape.fit(field.anchor, field.displacement, region, resampled_node_step_px(),
+                  settings.rounds.sigma_grid * settings.seeding.grid_step_px);
+  resample_through(match_source(), match_mask, field.shape, keys[0]->anchor.mask(), region, field.frame,
+                   field.valid, lattices, settings.main_match.solver.interpolation);
+  field.window_sums.build(keys[0]->anchor, field.frame, field.valid, region, settings.rounds.subset_stride,
+                          lattices);
+  cv::parallel_for_(cv::Range(0, static_cast<int>(field.eligible.size())), [&](const cv::Range& range) {
     for (int k = range.start; k < range.end; ++k) {
-      const int i = eligible[static_cast<std::size_t>(k)];
+      const int i = field.eligible[static_cast<std::size_t>(k)];
       const TrackState& st = states[static_cast<std::size_t>(i)];
       const Subset& subset = st.wide.empty() ? st.subset : st.wide;
       Vec2 step;
-      MatchResult& m = resampled_match[static_cast<std::size_t>(k)];
-      m = subset.translation_step(window_sums, keys[0]->anchor, resampled, resampled_valid,
-                                  settings.match.min_valid_fraction, step);
-      resampled_moved[static_cast<std::size_t>(k)] = 0.0;
+      MatchResult& m = field.match[static_cast<std::size_t>(k)];
+      m = subset.translation_step(field.window_sums, keys[0]->anchor, field.frame, field.valid,
+                                  settings.main_match.solver.min_valid_fraction, step);
+      field.moved[static_cast<std::size_t>(k)] = 0.0;
       if (!m.converged) continue;
       const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
       const Vec2 q{X.x - step.x, X.y - step.y};
       Vec2 u;
-      if (!shape_field.displacement(q.x, q.y, u)) {
+      if (!field.shape.displacement(q.x, q.y, u)) {
         m.converged = false;
         continue;
       }
-      Vec2& x = resampled_position[static_cast<std::size_t>(i)];
+      Vec2& x = field.position[static_cast<std::size_t>(i)];
       const Vec2 p{q.x + u.x, q.y + u.y};
-      resampled_moved[static_cast<std::size_t>(k)] = std::hypot(p.x - x.x, p.y - x.y);
+      field.moved[static_cast<std::size_t>(k)] = std::hypot(p.x - x.x, p.y - x.y);
       x = p;
     }
   });
@@ -281,22 +281,22 @@ void FeatureTracker::Impl::resampled_round(const cv::Rect& region, const PixelCl
 // one subset, and where they disagree the main match is the wrong one far more often (the neighbour check
 // would otherwise catch a wrong border track only a frame later).
 void FeatureTracker::Impl::take_resampled_answers() {
-  for (std::size_t k = 0; k < eligible.size(); ++k) {
-    const int i = eligible[k];
+  for (std::size_t k = 0; k < field.eligible.size(); ++k) {
+    const int i = field.eligible[k];
     TrackState& st = states[static_cast<std::size_t>(i)];
-    const MatchResult& m = resampled_match[k];
-    if (!m.converged || m.zncc < settings.min_zncc) continue;
-    const Vec2 p = resampled_position[static_cast<std::size_t>(i)];
+    const MatchResult& m = field.match[k];
+    if (!m.converged || m.zncc < settings.main_match.min_zncc) continue;
+    const Vec2 p = field.position[static_cast<std::size_t>(i)];
     const Vec2 X = tracks[static_cast<std::size_t>(i)].reference_px;
     Vec2 u;
     Mat2d gradient;
-    if (!shape_field.displacement(X.x, X.y, u, &gradient)) continue;
+    if (!field.shape.displacement(X.x, X.y, u, &gradient)) continue;
     st.candidate = p;
     st.match = m;
     st.fixed_shape = true;
-    if (settings.smoothed_gradient) st.deformation = Mat2d::Identity() + gradient;
+    if (settings.rounds.smoothed_gradient) st.deformation = Mat2d::Identity() + gradient;
     st.fixed_information = (st.wide.empty() ? st.subset : st.wide).fixed_shape_information();
-    resampled_done[static_cast<std::size_t>(i)] = 1;
+    field.done[static_cast<std::size_t>(i)] = 1;
   }
 }
 
@@ -304,35 +304,35 @@ void FeatureTracker::Impl::take_resampled_answers() {
 // estimate. Where both agree, the anchored result replaces the chained one, so the random walk of
 // frame-to-frame chaining is reset every few frames instead of growing over the whole trial.
 void FeatureTracker::Impl::reanchor() {
-  const cv::Size window(settings.window_px, settings.window_px);
-  const cv::TermCriteria term(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, settings.lk_max_iterations,
-                              settings.lk_epsilon);
+  const cv::Size window(settings.prediction.window_px, settings.prediction.window_px);
+  const cv::TermCriteria term(cv::TermCriteria::COUNT | cv::TermCriteria::EPS,
+                              settings.prediction.max_iterations, settings.prediction.epsilon_px);
   const cv::Point2f tl(static_cast<float>(roi.x), static_cast<float>(roi.y));
   for (std::size_t k = 0; k < keys.size(); ++k) {
     if (!keys[k] || keys[k]->users == 0 || keys[k]->frame == frame) continue;
     retry.clear();
-    lk_from.clear();
-    lk_to.clear();
+    lk.from.clear();
+    lk.to.clear();
     for (int i : alive) {
       const TrackState& st = states[static_cast<std::size_t>(i)];
       if (st.key != static_cast<int>(k) || !is_alive(tracks[static_cast<std::size_t>(i)].status) ||
           st.suspect)
         continue;
       retry.push_back(i);
-      lk_from.push_back(
+      lk.from.push_back(
           cv::Point2f(static_cast<float>(st.anchor_point.x), static_cast<float>(st.anchor_point.y)) - tl);
-      lk_to.push_back(cv::Point2f(static_cast<float>(st.candidate.x), static_cast<float>(st.candidate.y)) -
+      lk.to.push_back(cv::Point2f(static_cast<float>(st.candidate.x), static_cast<float>(st.candidate.y)) -
                       tl);
     }
     if (retry.empty()) continue;
     build_pyramid(keys[k]->image_u8, anchor_pyramid);
-    cv::calcOpticalFlowPyrLK(anchor_pyramid, current_pyramid, lk_from, lk_to, lk_status, lk_error, window,
-                             settings.pyramid_levels, term, cv::OPTFLOW_USE_INITIAL_FLOW);
+    cv::calcOpticalFlowPyrLK(anchor_pyramid, current_pyramid, lk.from, lk.to, lk.status, lk.error, window,
+                             settings.prediction.pyramid_levels, term, cv::OPTFLOW_USE_INITIAL_FLOW);
     for (std::size_t n = 0; n < retry.size(); ++n) {
       TrackState& st = states[static_cast<std::size_t>(retry[n])];
-      const Vec2 anchored{lk_to[n].x + tl.x, lk_to[n].y + tl.y};
-      if (lk_status[n] && std::hypot(anchored.x - st.candidate.x, anchored.y - st.candidate.y) <=
-                              settings.reanchor_tolerance_px)
+      const Vec2 anchored{lk.to[n].x + tl.x, lk.to[n].y + tl.y};
+      if (lk.status[n] && std::hypot(anchored.x - st.candidate.x, anchored.y - st.candidate.y) <=
+                              settings.reanchor.tolerance_px)
         st.candidate = anchored;
     }
   }

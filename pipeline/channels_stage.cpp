@@ -113,24 +113,14 @@ struct Config {
 void parse_reading(YamlSection& top, const std::string& scene_file, ts::ChannelReadOptions& read) {
   if (top.has("rate_hz")) read.rate_Hz = top.number("rate_hz", 0.0, 1e-9, 1e12);
   if (top.has("mat_column_names")) {
-    const YAML::Node map = top.raw("mat_column_names");
-    if (!map.IsMap())
-      throw Error("expected a map from a matrix variable to the list of its column names",
-                  {.file = scene_file, .key = "channels.mat_column_names"});
-    for (const auto& item : map) {
-      const std::string matrix = item.first.as<std::string>();
-      if (!item.second.IsSequence())
-        throw Error("expected a list of column names, in column order",
-                    {.file = scene_file, .key = "channels.mat_column_names." + matrix});
-      auto& names = read.mat_column_names[matrix];
-      for (const auto& name : item.second) names.push_back(name.as<std::string>());
-    }
+    YamlSection matrices = top.section("mat_column_names");
+    for (const std::string& matrix : matrices.keys())
+      read.mat_column_names[matrix] = matrices.texts(matrix, {}, "column names, in column order");
+    matrices.finish();
   }
   YamlSection calibration = top.section("calibration");
   if (top.has("calibration")) {
-    const YAML::Node map = top.raw("calibration");
-    for (const auto& item : map) {
-      const std::string column = item.first.as<std::string>();
+    for (const std::string& column : calibration.keys()) {
       YamlSection one = calibration.section(column);
       ts::ChannelCalibration cal;
       cal.gain = one.required_number("gain", -1e12, 1e12);
@@ -247,12 +237,7 @@ void check_mapping(const std::string& scene_file, const Config& c) {
 // channels.invert: the roles whose sign is flipped.
 void parse_invert(YamlSection& top, const std::string& scene_file, Config& c) {
   if (!top.has("invert")) return;
-  const YAML::Node list = top.raw("invert");
-  if (!list.IsSequence())
-    throw Error("expected a list of roles whose sign is flipped",
-                {.file = scene_file, .key = "channels.invert"});
-  for (const auto& item : list) {
-    const std::string role = item.as<std::string>();
+  for (const std::string& role : top.texts("invert", {}, "roles whose sign is flipped")) {
     auto it = std::find_if(c.mapped.begin(), c.mapped.end(), [&](const Mapped& m) { return m.role == role; });
     if (it == c.mapped.end())
       throw Error("role '" + role + "' is not mapped under channels.columns",
@@ -308,7 +293,7 @@ void parse_friction(YamlSection& top, Config& c) {
 
 // The scene's channels: section, checked strictly: every error names the scene file and the key.
 Config parse_config(const Scene& scene) {
-  if (!scene.channels || scene.channels.IsNull())
+  if (scene.channels.empty())
     throw Error("the channels stage needs a 'channels:' section naming the channel file and its columns",
                 {.file = scene.file, .key = "channels"});
   Config c;

@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "core/csv.hpp"
+#include "core/median.hpp"
 #include "core/yaml_reader.hpp"
 
 namespace tirstrain::pipeline {
@@ -215,8 +216,7 @@ class ContactStage final : public Stage {
     c["ridge_polarity"] = polarity();
     c["working_downsample"] = segmenter_.downsample();
     if (!snr.empty()) {
-      std::nth_element(snr.begin(), snr.begin() + static_cast<std::ptrdiff_t>(snr.size() / 2), snr.end());
-      c["texture_snr_median"] = snr[snr.size() / 2];
+      c["texture_snr_median"] = upper_median_in_place(snr);
     } else {
       c["texture_snr_median"] = nullptr;
     }

@@ -26,8 +26,8 @@ double elapsed_ms(Clock::time_point since) {
 }
 
 // The grid `tirstrain track --grid` seeds: a subset radius (or half the LK window) plus 2 px from the edges.
-std::vector<Vec2> grid_points(const flow::TrackerSettings& s, cv::Size size, double step_px) {
-  const double margin = s.refine ? s.subset_radius_px + 2.0 : s.window_px / 2.0;
+std::vector<Vec2> grid_points(const flow::TrackerOptions& s, cv::Size size, double step_px) {
+  const double margin = s.refine ? s.main_match.subset_radius_px + 2.0 : s.prediction.window_px / 2.0;
   std::vector<Vec2> points;
   for (double y = margin; y <= size.height - 1 - margin; y += step_px)
     for (double x = margin; x <= size.width - 1 - margin; x += step_px) points.push_back({x, y});
@@ -126,16 +126,16 @@ const std::vector<std::string>& generalisation_presets() {
   return names;
 }
 
-flow::TrackerSettings generalisation_settings(const std::string& preset) {
+flow::TrackerOptions generalisation_settings(const std::string& preset) {
   const bool no_rest = preset == "auto_no_rest", local_fit = preset == "auto_local_fit";
   if (!no_rest && !local_fit && preset != "auto" && preset != "delhaye2016")
     throw Error("unknown generalisation configuration '" + preset +
                 "' (known: auto, delhaye2016, auto_no_rest, auto_local_fit)");
-  flow::TrackerSettings settings =
-      flow::parse_tracking_settings(Scene{}, no_rest || local_fit ? "auto" : preset);
-  settings.births = false;
-  if (no_rest) settings.rest_average_frames = 1;
-  if (local_fit) settings.local_fit = true;
+  flow::TrackerOptions settings =
+      flow::parse_tracking_options(Scene{}, no_rest || local_fit ? "auto" : preset);
+  settings.births.enabled = false;
+  if (no_rest) settings.rest.average_frames = 1;
+  if (local_fit) settings.local_fit.enabled = true;
   return settings;
 }
 
@@ -196,8 +196,8 @@ GeneralisationResult run_generalisation(const samples::GeneralisationCase& seque
       grid_points(tracker.settings(), frames.front().size(), options.grid_step_px);
   result.seeded = static_cast<int>(points.size());
   tracker.start(frames.front(), cv::Mat(), 0.0, points);
-  const flow::TrackerSettings& s = tracker.settings();
-  result.radius_px = s.refine ? s.subset_radius_px : 0.5 * s.window_px;
+  const flow::TrackerOptions& s = tracker.settings();
+  result.radius_px = s.refine ? s.main_match.subset_radius_px : 0.5 * s.prediction.window_px;
 
   ErrorSums totals;
   double alive_sum = 0.0, ms_sum = 0.0;

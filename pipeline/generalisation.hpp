@@ -81,7 +81,7 @@ struct GeneralisationResult {
 // averaged anchor, no affine fit reported on frames found at rest), to show what that handling costs, and
 // "auto_local_fit" the automatic preset with the local fit on (flow/local_fit.hpp). Throws Error for another
 // name.
-flow::TrackerSettings generalisation_settings(const std::string& preset);
+flow::TrackerOptions generalisation_settings(const std::string& preset);
 const std::vector<std::string>& generalisation_presets();
 
 // Tracks `frames` (16-bit, as GeneralisationCase::add_noise makes them) with the preset and measures them

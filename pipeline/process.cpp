@@ -12,7 +12,6 @@
 #include <limits>
 #include <map>
 #include <memory>
-#include <sstream>
 
 #include "capture/file_sources.hpp"
 #include "capture/frame_source.hpp"
@@ -165,10 +164,10 @@ std::optional<std::string> scene_path_for(const ProcessOptions& options) {
 // file the channels stage itself names what is missing.
 void use_default_channels_when_asked(Scene& scene, const std::string& input, std::string& stages_reason) {
   const bool asked = std::find(scene.compute.begin(), scene.compute.end(), "channels") != scene.compute.end();
-  if (!asked || (scene.channels && !scene.channels.IsNull())) return;
+  if (!asked || !scene.channels.empty()) return;
   const std::string file = default_channel_file(input);
-  YAML::Node section = default_channels_section(file);
-  if (!section || section.IsNull()) return;
+  const SceneSection section = default_channels_section(file);
+  if (section.empty()) return;
   scene.channels = section;
   stages_reason += "; channels from " + file + " (no channels section in the scene)";
 }
@@ -191,17 +190,11 @@ Scene scene_with_overrides(const ProcessOptions& options, const std::optional<st
       scene.compute.push_back(name);
   }
   use_default_channels_when_asked(scene, options.input, stages_reason);
-  // The scene's module sections are YAML nodes shared by reference: give the overrides fresh maps.
-  const auto with_key = [](const YAML::Node& section, const std::string& key, const std::string& value) {
-    YAML::Node copy = section && section.IsMap() ? YAML::Clone(section) : YAML::Node(YAML::NodeType::Map);
-    copy[key] = value;
-    return copy;
-  };
   if (!options.tracking_preset.empty())
-    scene.tracking = with_key(scene.tracking, "preset", options.tracking_preset);
+    scene.tracking = scene.tracking.with("preset", options.tracking_preset);
   if (!options.segmentation_preset.empty())
-    scene.segmentation = with_key(scene.segmentation, "preset", options.segmentation_preset);
-  if (!options.strain_mode.empty()) scene.strain = with_key(scene.strain, "mode", options.strain_mode);
+    scene.segmentation = scene.segmentation.with("preset", options.segmentation_preset);
+  if (!options.strain_mode.empty()) scene.strain = scene.strain.with("mode", options.strain_mode);
   return scene;
 }
 
@@ -544,12 +537,10 @@ class ProcessRun {
     h5.attribute("/frames", "width_px", static_cast<double>(trial_->frame_size.width));
     h5.attribute("/frames", "height_px", static_cast<double>(trial_->frame_size.height));
     for (const auto& stage : plan_.stages) stage->write(h5);
-    std::ostringstream scene_yaml;
-    scene_yaml << scene_to_yaml(scene_);
     h5.attribute("/", "format", "tirstrain result");
     h5.attribute("/", "format_version", 1.0);
     h5.attribute("/", "software_version", std::string("tirstrain ") + kVersion);
-    h5.attribute("/", "scene_yaml", scene_yaml.str());
+    h5.attribute("/", "scene_yaml", scene_to_yaml(scene_));
     h5.attribute("/", "scene_file", scene_.file.empty() ? std::string("defaults") : recorded(scene_.file));
     h5.attribute("/", "input", recorded(options_.input));
     h5.attribute("/", "source", recorded(source_->describe()));

@@ -50,9 +50,9 @@ std::string default_channel_file(const std::string& input) {
   return (folder / "channels.csv").string();
 }
 
-YAML::Node default_channels_section(const std::string& file) {
+SceneSection default_channels_section(const std::string& file) {
   std::error_code ec;
-  if (!fs::is_regular_file(file, ec)) return YAML::Node();
+  if (!fs::is_regular_file(file, ec)) return {};
   // Roles by the column names `tirstrain synth` writes (docs/formats.md, channels.csv).
   static const std::vector<std::pair<std::string, std::string>> known = {
       {"normal_force", "normal_N"},       {"tangential_force", "tangential_N"},
@@ -62,33 +62,27 @@ YAML::Node default_channels_section(const std::string& file) {
   const auto has = [&](const std::string& name) {
     return std::find(header.begin(), header.end(), name) != header.end();
   };
-  if (!has("t_s")) return YAML::Node();
-  YAML::Node columns(YAML::NodeType::Map);
-  for (const auto& [role, column] : known)
-    if (has(column)) columns[role] = column;
+  if (!has("t_s")) return {};
   // The plate's position goes by both axes or not at all.
-  if (columns["plate_position_x"].IsDefined() != columns["plate_position_y"].IsDefined()) {
-    columns.remove("plate_position_x");
-    columns.remove("plate_position_y");
-  }
-  if (columns.size() == 0) return YAML::Node();
-  YAML::Node section(YAML::NodeType::Map);
-  section["file"] = fs::absolute(file).lexically_normal().string();
-  section["columns"] = columns;
-  return section;
+  const bool plate = has("plate_x_mm") && has("plate_y_mm");
+  SceneSection columns;
+  for (const auto& [role, column] : known)
+    if (has(column) && (plate || role.rfind("plate_position_", 0) != 0)) columns = columns.with(role, column);
+  if (columns.empty()) return {};
+  return SceneSection().with("file", fs::absolute(file).lexically_normal().string()).with("columns", columns);
 }
 
 std::vector<std::string> default_stages(Scene& scene, const std::string& input, std::string& reason) {
   std::vector<std::string> stages = {"contact", "tracking", "strain"};
   reason = "no compute list in the scene: contact, tracking and strain from the images";
-  if (scene.channels && !scene.channels.IsNull()) {
+  if (!scene.channels.empty()) {
     stages.push_back("channels");
     reason += "; channels from the scene's channels section";
     return stages;
   }
   const std::string file = default_channel_file(input);
-  YAML::Node section = default_channels_section(file);
-  if (!section || section.IsNull()) {
+  const SceneSection section = default_channels_section(file);
+  if (section.empty()) {
     reason += "; no channels (no channels section, no " + file + " with known columns)";
     return stages;
   }

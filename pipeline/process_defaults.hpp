@@ -20,7 +20,7 @@ std::string default_channel_file(const std::string& input);
 
 // The `channels:` section for `file` from its header: every known column name mapped to its role. Null when
 // the file is absent or maps no role.
-YAML::Node default_channels_section(const std::string& file);
+SceneSection default_channels_section(const std::string& file);
 
 // For a scene without a compute list: every stage whose inputs exist, in pipeline order. Contact, tracking
 // and strain need only the images; channels needs a `channels:` section, or a default channel file (whose

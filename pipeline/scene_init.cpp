@@ -11,6 +11,7 @@
 #include "contact/segmenter.hpp"
 #include "core/atomic_output.hpp"
 #include "core/error.hpp"
+#include "core/median.hpp"
 
 namespace tirstrain::pipeline {
 namespace {
@@ -19,9 +20,7 @@ std::optional<double> rate_from(std::vector<double> times_s) {
   if (times_s.size() < 2) return std::nullopt;
   std::vector<double> intervals;
   for (std::size_t i = 1; i < times_s.size(); ++i) intervals.push_back(times_s[i] - times_s[i - 1]);
-  std::nth_element(intervals.begin(), intervals.begin() + static_cast<std::ptrdiff_t>(intervals.size() / 2),
-                   intervals.end());
-  const double median = intervals[intervals.size() / 2];
+  const double median = upper_median_in_place(intervals);
   if (!(median > 0.0)) return std::nullopt;
   return 1.0 / median;
 }

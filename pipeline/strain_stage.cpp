@@ -78,7 +78,7 @@ bool finite(const Strain2& e) {
 
 class StrainStage final : public Stage {
  public:
-  explicit StrainStage(const Scene& scene) : settings_(strain::parse_strain_settings(scene)) {}
+  explicit StrainStage(const Scene& scene) : settings_(strain::parse_strain_options(scene)) {}
 
   std::string name() const override { return "strain"; }
 
@@ -586,7 +586,7 @@ class StrainStage final : public Stage {
     return strain::strain_standard_deviation(X, x, c);
   }
 
-  strain::StrainStageSettings settings_;
+  strain::StrainStageOptions settings_;
   strain::EvolvingMesh mesh_;
   contact::EllipseNormalization reference_normalization_;
   bool reference_has_ellipse_ = false;

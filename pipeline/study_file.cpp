@@ -30,15 +30,15 @@ bool is_identifier(const std::string& name) {
          std::all_of(name.begin(), name.end(), word);
 }
 
-// Runs fn(); an Error it throws gains the 1-based line of `node` (list entries have no key of their own).
+// Runs fn(); an Error it throws gains the 1-based line of `section` (list entries have no key of their own).
 template <typename Fn>
-void at_line(const YAML::Node& node, Fn&& fn) {
+void at_line(const YamlSection& section, Fn&& fn) {
   try {
     fn();
   } catch (const Error& e) {
-    if (e.context().row) throw;
+    if (e.context().row || section.line() == 0) throw;
     ErrorContext context = e.context();
-    context.row = static_cast<long>(node.Mark().line) + 1;
+    context.row = section.line();
     throw Error(e.message(), context);
   }
 }
@@ -48,34 +48,17 @@ std::string absolute_from(const fs::path& base, const std::string& path) {
   return (p.is_absolute() ? p : base / p).lexically_normal().string();
 }
 
-std::vector<std::string> text_list(const YAML::Node& node, const std::string& file, const std::string& key) {
-  std::vector<std::string> out;
-  if (!node.IsDefined() || node.IsNull()) return out;
-  if (!node.IsSequence()) throw Error("expected a list of names", {.file = file, .key = key});
-  for (const YAML::Node& item : node) {
-    if (!item.IsScalar()) throw Error("expected a list of names", {.file = file, .key = key});
-    out.push_back(item.as<std::string>());
-  }
-  return out;
-}
-
-std::map<std::string, std::string> read_conditions(const YAML::Node& node, const std::string& file,
-                                                   const std::string& key) {
+std::map<std::string, std::string> read_conditions(YamlSection& trial) {
   std::map<std::string, std::string> out;
-  if (!node.IsDefined() || node.IsNull()) return out;
-  if (!node.IsMap())
-    throw Error("expected a mapping of condition names to values", {.file = file, .key = key});
-  for (const auto& entry : node) {
-    const std::string name = entry.first.as<std::string>();
-    const std::string where = key + "." + name;
+  const std::string& file = trial.file();
+  for (const auto& [name, value] : trial.text_map("conditions")) {
+    const std::string where = trial.path_of("conditions") + "." + name;
     if (!is_identifier(name))
       throw Error("a condition name is letters, digits and _ (a study.csv column)",
                   {.file = file, .key = where});
     if (reserved_columns().count(name) > 0)
       throw Error("'" + name + "' is a column study.csv has already", {.file = file, .key = where});
-    if (!entry.second.IsScalar())
-      throw Error("a condition value is one number or word", {.file = file, .key = where});
-    out[name] = entry.second.as<std::string>();
+    out[name] = value;
   }
   return out;
 }
@@ -92,18 +75,16 @@ void check_trial_name(const std::string& name, const std::string& file, const st
         {.file = file, .key = key});
 }
 
-StudyTrial read_trial(const YAML::Node& node, const std::string& file, std::size_t index,
-                      const fs::path& base, const std::string& default_scene) {
-  const std::string prefix = "trials[" + std::to_string(index) + "]";
+StudyTrial read_trial(YamlSection& s, const fs::path& base, const std::string& default_scene) {
+  const std::string& file = s.file();
   StudyTrial trial;
-  at_line(node, [&] {
-    YamlSection s(node, file, prefix);
+  at_line(s, [&] {
     trial.name = s.required_text("name");
     check_trial_name(trial.name, file, s.path_of("name"));
     trial.input = absolute_from(base, s.required_text("input"));
     const std::string scene = s.text("scene", "");
     trial.scene = scene.empty() ? default_scene : absolute_from(base, scene);
-    trial.conditions = read_conditions(s.raw("conditions"), file, s.path_of("conditions"));
+    trial.conditions = read_conditions(s);
     s.finish();
   });
   return trial;
@@ -130,13 +111,8 @@ std::vector<StudyTrial> glob_trials(const std::string& pattern, const std::strin
 
 StudyAggregate read_aggregate(YamlSection s) {
   StudyAggregate a;
-  const YAML::Node laws = s.raw("power_laws");
-  if (laws.IsDefined() && !laws.IsNull() && !laws.IsSequence())
-    throw Error("expected a list of {name, normal, mu}", {.file = s.file(), .key = s.path_of("power_laws")});
-  std::size_t i = 0;
-  for (const YAML::Node& node : laws) {
-    at_line(node, [&] {
-      YamlSection law(node, s.file(), s.path_of("power_laws[" + std::to_string(i++) + "]"));
+  for (YamlSection& law : s.sections("power_laws")) {
+    at_line(law, [&] {
       StudyPowerLaw p;
       p.name = law.required_text("name");
       check_trial_name(p.name, s.file(), law.path_of("name"));
@@ -147,10 +123,10 @@ StudyAggregate read_aggregate(YamlSection s) {
     });
   }
   YamlSection maps = s.section("maps");
-  a.maps_by = text_list(maps.raw("by"), s.file(), maps.path_of("by"));
+  a.maps_by = maps.texts("by", {}, "names");
   maps.finish();
   YamlSection table = s.section("table");
-  a.table_by = text_list(table.raw("by"), s.file(), table.path_of("by"));
+  a.table_by = table.texts("by", {}, "names");
   table.finish();
   s.finish();
   return a;
@@ -198,24 +174,24 @@ StudySpec load_study_file(const std::string& path) {
   StudySpec spec;
   spec.file = fs::absolute(path).lexically_normal().string();
   const fs::path base = fs::path(spec.file).parent_path();
-  YamlSection top(load_yaml_file(path), spec.file);
+  YamlSection top(SceneSection::load(path), spec.file);
   const std::string scene = top.text("scene", "");
   const std::string default_scene = scene.empty() ? "" : absolute_from(base, scene);
-  const YAML::Node trials = top.raw("trials");
+  const bool listed = top.has("trials");
   const std::string pattern = top.text("inputs", "");
-  if (trials.IsDefined() == !pattern.empty())
+  if (listed == !pattern.empty())
     throw Error("give either trials: (a list) or inputs: (a glob pattern), not both or neither",
                 {.file = spec.file, .key = "trials"});
-  if (trials.IsDefined()) {
-    if (!trials.IsSequence() || trials.size() == 0)
+  if (listed) {
+    std::vector<YamlSection> trials = top.sections("trials");
+    if (trials.empty())
       throw Error("expected a non-empty list of {name, input, scene, conditions}",
                   {.file = spec.file, .key = "trials"});
-    for (std::size_t i = 0; i < trials.size(); ++i)
-      spec.trials.push_back(read_trial(trials[i], spec.file, i, base, default_scene));
+    for (YamlSection& trial : trials) spec.trials.push_back(read_trial(trial, base, default_scene));
   } else {
     spec.trials = glob_trials(pattern, spec.file, base, default_scene);
   }
-  spec.compute = text_list(top.raw("compute"), spec.file, "compute");
+  spec.compute = top.texts("compute", {}, "names");
   spec.aggregate = read_aggregate(top.section("aggregate"));
   spec.slurm = read_slurm(top.section("slurm"));
   top.finish();

@@ -4,37 +4,38 @@
 
 namespace tirstrain::pipeline {
 
-nlohmann::json tracking_settings_json(const flow::TrackerSettings& s) {
-  return {{"preset", s.preset},
-          {"grid_step_px", s.grid_step_px},
-          {"max_features", s.max_features},
-          {"window_px", s.window_px},
-          {"pyramid_levels", s.pyramid_levels},
-          {"refine", s.refine ? flow::to_string(s.shape) : std::string("none")},
-          {"subset_radius_px", s.subset_radius_px},
-          {"subset_stride", s.subset_stride},
-          {"fixed_shape_pass", s.fixed_shape_pass},
-          {"fixed_shape_radius_px", s.fixed_shape_radius_px},
-          {"fixed_shape_stride", s.fixed_shape_stride},
-          {"main_match_period_frames", s.main_match_period_frames},
-          {"prefilter_sigma_px", s.prefilter_sigma_px},
-          {"fusion_sigma_px", s.fusion_sigma_px},
-          {"fusion_weight", s.fusion_weight},
-          {"border_exclusion_px", s.border_exclusion_px},
-          {"contact_inset_px", s.contact_inset_px},
-          {"max_displacement_px", s.max_displacement_px},
-          {"rest_average_frames", s.rest_average_frames},
-          {"rest_max_chi2_per_dof", s.rest_max_chi2_per_dof},
-          {"rest_max_correlation_z", s.rest_max_correlation_z},
-          {"rest_tolerance_px", s.rest_tolerance_px},
-          {"rest_max_motion_chi2", s.rest_max_motion_chi2},
-          {"smooth_in_time", s.smooth_in_time},
-          {"interpolation",
-           s.match.interpolation == flow::Interpolation::kCubicBSpline ? "cubic_bspline" : "keys"},
-          {"local_fit", s.local_fit},
-          {"local_fit_agreement_chi2", s.local_fit_agreement_chi2},
-          {"ridge_period_px", s.ridge_period_px},
-          {"adapt_to_texture", s.adapt_to_texture}};
+nlohmann::json tracking_settings_json(const flow::TrackerOptions& s) {
+  return {
+      {"preset", s.preset},
+      {"grid_step_px", s.seeding.grid_step_px},
+      {"max_features", s.seeding.max_features},
+      {"window_px", s.prediction.window_px},
+      {"pyramid_levels", s.prediction.pyramid_levels},
+      {"refine", s.refine ? flow::to_string(s.main_match.shape) : std::string("none")},
+      {"subset_radius_px", s.main_match.subset_radius_px},
+      {"subset_stride", s.main_match.subset_stride},
+      {"fixed_shape_pass", s.rounds.enabled},
+      {"fixed_shape_radius_px", s.rounds.subset_radius_px},
+      {"fixed_shape_stride", s.rounds.subset_stride},
+      {"main_match_period_frames", s.main_match.period_frames},
+      {"prefilter_sigma_px", s.main_match.prefilter_sigma_px},
+      {"fusion_sigma_px", s.fusion.sigma_px},
+      {"fusion_weight", s.fusion.weight},
+      {"border_exclusion_px", s.border.exclusion_px},
+      {"contact_inset_px", s.border.contact_inset_px},
+      {"max_displacement_px", s.prediction.max_displacement_px},
+      {"rest_average_frames", s.rest.average_frames},
+      {"rest_max_chi2_per_dof", s.rest.max_chi2_per_dof},
+      {"rest_max_correlation_z", s.rest.max_correlation_z},
+      {"rest_tolerance_px", s.rest.tolerance_px},
+      {"rest_max_motion_chi2", s.rest.max_motion_chi2},
+      {"smooth_in_time", s.smoothing.mode},
+      {"interpolation",
+       s.main_match.solver.interpolation == flow::Interpolation::kCubicBSpline ? "cubic_bspline" : "keys"},
+      {"local_fit", s.local_fit.enabled},
+      {"local_fit_agreement_chi2", s.local_fit.agreement_chi2},
+      {"ridge_period_px", s.ridge_period_px},
+      {"adapt_to_texture", s.texture.adapt}};
 }
 
 nlohmann::json texture_json(const flow::FeatureTracker& tracker) {
@@ -49,7 +50,7 @@ nlohmann::json texture_json(const flow::FeatureTracker& tracker) {
 }
 
 std::string texture_note(const flow::FeatureTracker& tracker) {
-  const flow::TrackerSettings& s = tracker.settings();
+  const flow::TrackerOptions& s = tracker.settings();
   const flow::TextureQuality& q = tracker.texture();
   char text[320];
   if (!s.refine || q.pixels == 0)
@@ -58,12 +59,12 @@ std::string texture_note(const flow::FeatureTracker& tracker) {
     std::snprintf(text, sizeof text,
                   "no ridges (coherence %.2f < %.2f): ridge-period heuristics off; subsets of radius %d px "
                   "(fixed-shape %d px) as the preset sizes them for a %.1f px period, no smoothing",
-                  q.coherence, flow::kMinRidgeCoherence, s.subset_radius_px, s.fixed_shape_radius_px,
-                  s.ridge_period_px);
+                  q.coherence, flow::kMinRidgeCoherence, s.main_match.subset_radius_px,
+                  s.rounds.subset_radius_px, s.ridge_period_px);
   else
     std::snprintf(text, sizeof text,
                   "ridges (coherence %.2f), SNR %.1f: subsets of radius %d px, smoothing sigma %.1f px%s",
-                  q.coherence, q.snr, s.subset_radius_px, s.prefilter_sigma_px,
+                  q.coherence, q.snr, s.main_match.subset_radius_px, s.main_match.prefilter_sigma_px,
                   tracker.low_snr_texture() ? ", low-SNR subsets" : "");
   return text;
 }

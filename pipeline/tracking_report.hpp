@@ -11,7 +11,7 @@
 namespace tirstrain::pipeline {
 
 // The settings in effect (after the texture adapted them, once `tracker` has started; `fallback` otherwise).
-nlohmann::json tracking_settings_json(const flow::TrackerSettings& settings);
+nlohmann::json tracking_settings_json(const flow::TrackerOptions& settings);
 // The frame-0 texture as the tracker judged it, and in words what followed from it (e.g. no ridges: the
 // ridge heuristics are off and the subsets keep the preset's sizes).
 nlohmann::json texture_json(const flow::FeatureTracker& tracker);

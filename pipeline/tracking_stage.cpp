@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "core/csv.hpp"
+#include "core/median.hpp"
 #include "flow/model_check.hpp"
 #include "flow/settings.hpp"
 #include "flow/temporal_smoothing.hpp"
@@ -65,7 +66,7 @@ class TrackingStage final : public Stage {
   explicit TrackingStage(const Scene& scene) : scene_(scene) {
     // Parsed now so that a bad `tracking:` section stops the run before any frame is read; sized again
     // from the measured ridge period when the reference frame arrives.
-    settings_ = flow::parse_tracking_settings(scene_);
+    settings_ = flow::parse_tracking_options(scene_);
   }
 
   std::string name() const override { return "tracking"; }
@@ -116,14 +117,14 @@ class TrackingStage final : public Stage {
   bool finish() override {
     smoothed_ = will_smooth();
     if (!smoothed_) return false;
-    smooth_tracks({.gamma = tracker_->settings().smooth_in_time_gamma});
+    smooth_tracks({.gamma = tracker_->settings().smoothing.gamma});
     return true;
   }
 
   // Known from frame 0 on (the texture is judged there), so the overlay can say it.
   bool will_smooth() const {
     if (!keep_history_ || !tracker_ || !out_) return false;
-    const std::string& mode = tracker_->settings().smooth_in_time;
+    const std::string& mode = tracker_->settings().smoothing.mode;
     return mode == "on" || (mode == "auto" && tracker_->low_snr_texture());
   }
 
@@ -277,7 +278,7 @@ class TrackingStage final : public Stage {
       outline.emplace_back(static_cast<int>(std::lround(p.x)), static_cast<int>(std::lround(p.y)));
     cv::fillPoly(mask_, std::vector<std::vector<cv::Point>>{outline}, cv::Scalar(255));
     // Kept clear of the measured outline (flow/settings.hpp, contact_inset_px).
-    const int inset = static_cast<int>(std::lround(settings_.contact_inset_px));
+    const int inset = static_cast<int>(std::lround(settings_.border.contact_inset_px));
     if (inset > 0)
       cv::erode(mask_, mask_,
                 cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * inset + 1, 2 * inset + 1)));
@@ -290,7 +291,7 @@ class TrackingStage final : public Stage {
     // contact stage measured on this frame.
     if (!scene_.ridge_period_mm && context.contact->ridge_period_px > 0.0)
       sized.ridge_period_mm = context.contact->ridge_period_px / scene_.px_per_mm;
-    settings_ = flow::parse_tracking_settings(sized);
+    settings_ = flow::parse_tracking_options(sized);
     tracker_ = std::make_unique<flow::FeatureTracker>(settings_, scene_.reference_pattern_roi);
     tracker_->start(context.frame->image, mask_, context.frame->device_time_s);
     reference_has_ellipse_ = context.contact->ellipse.has_value();
@@ -512,9 +513,7 @@ class TrackingStage final : public Stage {
       if (changed) write_column(k, column);
     }
     if (!noise.empty()) {
-      const auto mid = noise.begin() + static_cast<std::ptrdiff_t>(noise.size() / 2);
-      std::nth_element(noise.begin(), mid, noise.end());
-      smoothing_noise_px_median_ = *mid;
+      smoothing_noise_px_median_ = upper_median_in_place(noise);
     }
   }
 
@@ -526,7 +525,7 @@ class TrackingStage final : public Stage {
   }
 
   Scene scene_;
-  flow::TrackerSettings settings_;
+  flow::TrackerOptions settings_;
   std::unique_ptr<flow::FeatureTracker> tracker_;
   cv::Size frame_size_;
   cv::Mat mask_;

@@ -47,8 +47,9 @@ cv::Rect checked_roi(const std::vector<int>& v, const cv::Size& frame) {
 }
 
 // The grid of `tirstrain track --grid`: a margin of the refinement subset keeps every point's subset whole.
-std::vector<Vec2> grid_points(const cv::Rect& r, double step_px, const flow::TrackerSettings& settings) {
-  const double margin = settings.refine ? settings.subset_radius_px + 2.0 : settings.window_px / 2.0;
+std::vector<Vec2> grid_points(const cv::Rect& r, double step_px, const flow::TrackerOptions& settings) {
+  const double margin =
+      settings.refine ? settings.main_match.subset_radius_px + 2.0 : settings.prediction.window_px / 2.0;
   std::vector<Vec2> points;
   for (double y = r.y + margin; y <= r.y + r.height - 1 - margin; y += step_px)
     for (double x = r.x + margin; x <= r.x + r.width - 1 - margin; x += step_px) points.push_back({x, y});
@@ -75,8 +76,8 @@ TrackRun run_tracker(const NextFrame& next, const std::string& origin, double gr
                      const std::optional<std::string>& scene_path) {
   Scene scene;
   if (scene_path) scene = load_scene(*scene_path);
-  flow::TrackerSettings settings = flow::parse_tracking_settings(scene, preset);
-  settings.births = false;  // the grid is tracked as it is; K stays fixed
+  flow::TrackerOptions settings = flow::parse_tracking_options(scene, preset);
+  settings.births.enabled = false;  // the grid is tracked as it is; K stays fixed
   std::optional<capture::Frame> first = next();
   if (!first) throw Error("the sequence has no frames", {.file = origin});
   const cv::Size size = first->image.size();

@@ -40,8 +40,7 @@ std::string frame_name(int index) {
 // re-rendered bit for bit and `tirstrain process` finds calibration, tissue and the pattern band.
 void write_scene(const Trial& trial, const std::string& path) {
   Scene scene = trial.config().scene;
-  scene.synthesis = YAML::Clone(scene.synthesis);
-  scene.synthesis["seed"] = static_cast<unsigned long long>(trial.config().seed);
+  scene.synthesis = scene.synthesis.with("seed", std::to_string(trial.config().seed));
   save_scene(scene, path);
 }
 

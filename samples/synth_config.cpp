@@ -153,7 +153,7 @@ SynthConfig parse_synth_config(const Scene& scene) {
   SynthConfig cfg;
   cfg.scene = scene;
   const std::string& file = scene.file;
-  if (!scene.synthesis || scene.synthesis.IsNull())
+  if (scene.synthesis.empty())
     throw Error("required key is missing (the synthesis section describes the trial to render)",
                 {.file = file, .key = "synthesis"});
   YamlSection top(scene.synthesis, file, "synthesis");

@@ -12,6 +12,7 @@
 
 #include "core/csv.hpp"
 #include "core/error.hpp"
+#include "core/median.hpp"
 #include "signals/spectral.hpp"
 
 namespace tirstrain::signals {
@@ -99,9 +100,7 @@ std::optional<ValidationFailure> find_time_problem(const std::vector<double>& t,
   std::vector<double> dt(n - 1);
   for (std::size_t i = 1; i < n; ++i) dt[i - 1] = t[i] - t[i - 1];
   std::vector<double> sorted = dt;
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
-                   sorted.end());
-  const double median_dt = sorted[sorted.size() / 2];
+  const double median_dt = upper_median_in_place(sorted);
   for (std::size_t i = 0; i < dt.size(); ++i) {
     if (std::abs(dt[i] - median_dt) > tolerance * median_dt)
       return ValidationFailure{i + 1, "sample rate varies: interval " + fmt(dt[i]) +

@@ -7,6 +7,7 @@
 #include <ceres/ceres.h>
 
 #include "core/error.hpp"
+#include "core/median.hpp"
 #include "signals/channels.hpp"
 
 namespace tirstrain::signals {
@@ -145,12 +146,9 @@ std::optional<Plateau> detect_plateau(const std::vector<double>& time_s, const s
     if (hi > lo + 2) {
       std::vector<double> sorted(values.begin() + static_cast<std::ptrdiff_t>(lo),
                                  values.begin() + static_cast<std::ptrdiff_t>(hi + 1));
-      const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
-      std::nth_element(sorted.begin(), mid, sorted.end());
-      const double median = *mid;
+      const double median = upper_median_in_place(sorted);
       for (double& v : sorted) v = std::abs(v - median);
-      std::nth_element(sorted.begin(), mid, sorted.end());
-      const double band = std::max(3.0 * 1.4826 * *mid, 1e-9 * std::abs(median));
+      const double band = std::max(3.0 * 1.4826 * upper_median_in_place(sorted), 1e-9 * std::abs(median));
       while (lo < hi && std::abs(values[lo] - median) > band) ++lo;
       while (hi > lo && std::abs(values[hi] - median) > band) --hi;
     }

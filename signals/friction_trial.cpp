@@ -6,6 +6,7 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "core/median.hpp"
 
 namespace tirstrain::signals {
 namespace {
@@ -35,9 +36,7 @@ Plateau slide_plateau(const std::vector<double>& t, const std::vector<double>& f
       ft.begin() + static_cast<std::ptrdiff_t>(lo + p.start_index),
       ft.begin() + static_cast<std::ptrdiff_t>(std::max(level_end, lo + p.start_index + 1)));
   std::vector<double> sorted = level;
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
-                   sorted.end());
-  p.mean = sorted[sorted.size() / 2];
+  p.mean = upper_median_in_place(sorted);
   double var = 0.0;
   for (double v : level) var += (v - p.mean) * (v - p.mean);
   p.stddev = std::sqrt(var / static_cast<double>(level.size()));

@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "core/error.hpp"
+#include "core/median.hpp"
 
 namespace tirstrain::signals {
 namespace {
@@ -16,10 +17,7 @@ std::string fmt(double v) {
 }
 
 double median_of(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
+  return v.empty() ? 0.0 : upper_median_in_place(v);
 }
 
 double median_range(const std::vector<double>& v, std::size_t lo, std::size_t hi) {

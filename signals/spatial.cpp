@@ -5,6 +5,7 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "core/median.hpp"
 
 namespace tirstrain::signals {
 namespace {
@@ -49,9 +50,7 @@ SpatialSeries to_spatial_domain(const std::vector<double>& time_s, const std::ve
     steps.push_back(step);
   }
   if (!(dx_m > 0.0)) {
-    std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2),
-                     steps.end());
-    dx_m = steps[steps.size() / 2];
+    dx_m = upper_median_in_place(steps);
   }
   SpatialSeries out;
   out.dx_m = dx_m;

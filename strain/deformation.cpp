@@ -124,7 +124,7 @@ bool moves_with_plate(const FrameInput& input, const std::array<Vec2, 3>& ref, c
 
 }  // namespace
 
-FrameStrain compute_frame_strain(const FrameInput& input, const StrainSettings& settings) {
+FrameStrain compute_frame_strain(const FrameInput& input, const StrainOptions& settings) {
   const std::size_t count = input.triangles.size();
   FrameStrain out = empty_frame_strain(count);
   const double m_per_px = 1.0e-3 / settings.px_per_mm;

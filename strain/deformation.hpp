@@ -27,13 +27,16 @@ double polar_rotation_rad(const Gradient2& h);
 // F_inc = F_t · F_{t−1}⁻¹.
 Gradient2 incremental_gradient(const Gradient2& current, const Gradient2& previous);
 
-struct StrainSettings {
-  QualityCriteria quality;
-  double px_per_mm = 52.0;
-  double young_Pa = 1.0e6;
-  double poisson = 0.4;
-  double depth_m = 0.002;
-  double stick_tolerance_px = 0.5;  // a triangle is stuck when its centroid follows the plate this closely
+struct StrainOptions {
+  QualityCriteria quality;  // triangles kept (`min_area_px2`, `min_angle_deg`, `max_aspect`)
+  double px_per_mm = 52.0;  // the scene's calibration, px/mm; default 52
+  double young_Pa = 1.0e6;  // the tissue's Young's modulus E, Pa; default 1 MPa
+  double poisson = 0.4;     // the tissue's Poisson ratio ν; default 0.4
+  double depth_m = 0.002;   // thickness for the plane-strain energy U = depth · Σ u_i A_i, m; default 2 mm
+  // `stick_tolerance_px`: a triangle is stuck when its centroid follows the plate this closely, px; 0.5
+  double stick_tolerance_px = 0.5;
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct FrameInput {
@@ -75,7 +78,7 @@ struct FrameStrain {
   double stick_ratio = 0.0;     // stuck area / valid area (NaN when unknown)
 };
 
-FrameStrain compute_frame_strain(const FrameInput& input, const StrainSettings& settings);
+FrameStrain compute_frame_strain(const FrameInput& input, const StrainOptions& settings);
 
 // The paper's total strain: a running sum of per-frame increments, kept per triangle. Triangles not valid
 // in a frame keep their sum (their increment is unknown and treated as zero; counted in `gaps`).

@@ -31,9 +31,11 @@ enum class TriangleStatus : std::uint8_t {
 const char* to_string(TriangleStatus status);
 
 struct QualityCriteria {
-  double min_area_px2 = 2.0;
-  double min_angle_deg = 15.0;
-  double max_aspect = 10.0;  // longest edge over the altitude onto it; 1.15 for an equilateral triangle
+  double min_area_px2 = 2.0;    // smaller triangles are not used, px²; default 2
+  double min_angle_deg = 15.0;  // triangles with a smaller angle are not used, degrees; default 15
+  double max_aspect = 10.0;     // longest edge over the altitude onto it (1.15 equilateral); default 10
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 // Signed area (positive counter-clockwise in x–y), px².

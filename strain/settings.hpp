@@ -23,17 +23,19 @@ namespace tirstrain::strain {
 
 enum class StrainMode { kExact, kIncremental };
 
-struct StrainStageSettings {
-  StrainSettings strain;  // quality criteria, tissue and calibration, stick tolerance
-  StickZoneSettings stick_zone;
-  StrainMode mode = StrainMode::kExact;
-  int map_cells = 65;
-  std::string overlay = "e1";
-  double overlay_range = 0.2;
+struct StrainStageOptions {
+  StrainOptions strain;         // quality criteria, tissue and calibration, stick tolerance
+  StickZoneOptions stick_zone;  // the stick radius fit (`stick_fit_extent`, `stick_fit_significance`)
+  StrainMode mode = StrainMode::kExact;  // `mode`: exact or incremental; default exact
+  int map_cells = 65;                    // `map_cells`: normalised map cells across [-1, 1]; default 65
+  std::string overlay = "e1";            // `overlay`: component drawn on the overlay; default e1
+  double overlay_range = 0.2;  // `overlay_range`: colour scale ±range (strain) or 0..range (J/m³); 0.2
+  // Throws Error naming the scene key of the first value out of range.
+  void check() const;
 };
 
 // `mode_override` (e.g. from `--strain-mode`), if not empty, replaces the section's `mode`.
-StrainStageSettings parse_strain_settings(const Scene& scene, const std::string& mode_override = "");
+StrainStageOptions parse_strain_options(const Scene& scene, const std::string& mode_override = "");
 
 const char* to_string(StrainMode mode);
 

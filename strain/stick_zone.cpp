@@ -7,6 +7,8 @@
 #include <numbers>
 #include <vector>
 
+#include "core/median.hpp"
+
 namespace tirstrain::strain {
 namespace {
 
@@ -141,7 +143,7 @@ struct Best {
   Solution solution;
 };
 
-Best minimise(const std::vector<Point>& points, double poisson, const StickZoneSettings& settings) {
+Best minimise(const std::vector<Point>& points, double poisson, const StickZoneOptions& settings) {
   const int grid = std::max(settings.grid, 4);  // RSS(k) is smooth: a coarse grid brackets the minimum
   std::vector<double> rss(static_cast<std::size_t>(grid) + 1);
   std::size_t arg = 0;
@@ -248,7 +250,7 @@ std::vector<Point> disk_points(std::span<const Vec2> reference_px, std::span<con
 
 // One pass of outlier rejection (lost or mismatched tracks): residuals beyond 5 σ, σ from the median
 // residual norm (a 2-D Gaussian residual's norm has median 1.1774 σ); the fit again without them.
-void reject_outliers(std::vector<Point>& points, double poisson, const StickZoneSettings& settings,
+void reject_outliers(std::vector<Point>& points, double poisson, const StickZoneOptions& settings,
                      Best& best) {
   std::vector<double> norms;
   norms.reserve(points.size());
@@ -260,9 +262,7 @@ void reject_outliers(std::vector<Point>& points, double poisson, const StickZone
         std::hypot(q.d.x - t[0] - t[2] * bx.x - t[3] * by.x, q.d.y - t[1] - t[2] * bx.y - t[3] * by.y));
   }
   std::vector<double> sorted = norms;
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
-                   sorted.end());
-  const double sigma = sorted[sorted.size() / 2] / 1.1774;
+  const double sigma = upper_median_in_place(sorted) / 1.1774;
   const double limit = std::max(5.0 * sigma, 1e-9);
   std::vector<Point> kept;
   kept.reserve(points.size());
@@ -291,7 +291,7 @@ double max_predicted_slip(const std::vector<Point>& points, const Best& best, do
 // stuck core has moved along the fitted traction (in Cattaneo–Mindlin the core shifts by
 // δ = π(1 − ν/2)(1 − k²)·|A| along A): a tracking bias at rest (a ring of small systematic errors near the
 // border) must not read as slip.
-bool slip_detected(const StickZoneFit& out, const Best& best, const StickZoneSettings& settings) {
+bool slip_detected(const StickZoneFit& out, const Best& best, const StickZoneOptions& settings) {
   const auto& theta = best.solution.theta;
   const double floor_px = std::max(settings.significance * out.residual_rms_px, settings.min_slip_px);
   const Vec2 t = out.shift_px;
@@ -304,7 +304,7 @@ bool slip_detected(const StickZoneFit& out, const Best& best, const StickZoneSet
 }  // namespace
 
 StickZoneFit fit_stick_zone(std::span<const Vec2> reference_px, std::span<const Vec2> current_px,
-                            const ContactDisk& disk, double poisson, const StickZoneSettings& settings) {
+                            const ContactDisk& disk, double poisson, const StickZoneOptions& settings) {
   StickZoneFit out;
   out.ratio = out.radius_px = out.residual_rms_px = out.max_slip_px = kNaN;
   out.shift_px = out.amplitude_px = {kNaN, kNaN};

@@ -42,14 +42,16 @@ struct ContactDisk {
 // The disk map of an ellipse with semi-axes (major, minor) in pixels, major axis at `angle_rad` from +x.
 ContactDisk contact_disk(Vec2 centre_px, double semi_major_px, double semi_minor_px, double angle_rad);
 
-struct StickZoneSettings {
-  double extent = 0.95;       // points used: |p| ≤ extent (the fading border band is left out)
-  double significance = 4.0;  // slip is detected when the fitted slip exceeds this × the residual RMS
-  double min_slip_px = 0.02;  // ... and this many pixels
-  double chi2_slip = 25.0;    // ... and the fit lowers the residual by this × the noise variance
-  double chi2_stick = 16.0;   // a stick zone (k > 0) must lower the residual of the full-slip fit this much
-  int min_points = 12;
-  int grid = 24;  // k grid before the golden-section refinement
+struct StickZoneOptions {
+  double extent = 0.95;       // points used: |p| ≤ extent (the fading border band is left out); 0.95
+  double significance = 4.0;  // slip is detected when the fitted slip exceeds this × the residual RMS; 4
+  double min_slip_px = 0.02;  // ... and this many pixels; 0.02
+  double chi2_slip = 25.0;    // ... and the fit lowers the residual by this × the noise variance; 25
+  double chi2_stick = 16.0;   // a stick zone (k > 0) must lower the full-slip fit's residual this much; 16
+  int min_points = 12;        // fewer points: no fit; default 12
+  int grid = 24;              // k grid before the golden-section refinement; default 24
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 enum class StickZoneStatus : std::int8_t {
@@ -75,7 +77,7 @@ struct StickZoneFit {
 
 // reference_px / current_px per track; current NaN where the track is not alive.
 StickZoneFit fit_stick_zone(std::span<const Vec2> reference_px, std::span<const Vec2> current_px,
-                            const ContactDisk& disk, double poisson, const StickZoneSettings& settings = {});
+                            const ContactDisk& disk, double poisson, const StickZoneOptions& settings = {});
 
 // The slip basis at disk point p for stick ratio k (exposed for tests): b_x (traction along +x) and b_y.
 void slip_basis(Vec2 p, double k, double poisson, Vec2& b_x, Vec2& b_y);

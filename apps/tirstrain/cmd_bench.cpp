@@ -6,7 +6,6 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <yaml-cpp/yaml.h>
 #include <nlohmann/json.hpp>
 
 #include <fcntl.h>
@@ -191,12 +190,11 @@ void read_validation(const fs::path& dir, Row& row) {
 
 // The scene the configuration processes with: the trial's own plus the configuration's sections.
 std::string write_config_scene(const fs::path& trial, const Config& config, const fs::path& out) {
-  YAML::Node scene = load_yaml_file((trial / "scene.yaml").string());
-  scene["tracking"] = YAML::Load(config.tracking);
-  if (!config.segmentation.empty()) scene["segmentation"] = YAML::Load(config.segmentation);
-  YAML::Emitter emitter;
-  emitter << scene;
-  write_text_file(out.string(), std::string(emitter.c_str()) + "\n");
+  SceneSection scene = SceneSection::load((trial / "scene.yaml").string());
+  scene = scene.with("tracking", SceneSection::parse(config.tracking, "bench configuration"));
+  if (!config.segmentation.empty())
+    scene = scene.with("segmentation", SceneSection::parse(config.segmentation, "bench configuration"));
+  write_text_file(out.string(), scene.to_yaml() + "\n");
   return out.string();
 }
 
@@ -376,12 +374,12 @@ fs::path synthesise_trial(const BenchArgs& args, const fs::path& out, const std:
   fs::create_directories(out / "trials");
   if (scene_name == "quick") {
     // The default scene cut to 12 frames: five at rest, then partial slip.
-    YAML::Node s = load_yaml_file((fs::path(args.scenes_dir) / "default.yaml").string());
-    s["synthesis"]["timing"]["frames"] = 12;
-    YAML::Emitter e;
-    e << s;
+    const SceneSection s = SceneSection::load((fs::path(args.scenes_dir) / "default.yaml").string());
+    const SceneSection synthesis = s.at("synthesis");
+    const SceneSection quick =
+        s.with("synthesis", synthesis.with("timing", synthesis.at("timing").with("frames", "12")));
     scene_file = out / "trials" / "quick.yaml";
-    write_text_file(scene_file.string(), std::string(e.c_str()) + "\n");
+    write_text_file(scene_file.string(), quick.to_yaml() + "\n");
   }
   if (!fs::exists(scene_file)) throw Error("no such scene", {.file = scene_file.string()});
   std::cerr << "bench: synthesising " << scene_name << " -> " << trial.string() << "\n";

@@ -88,7 +88,7 @@ void check_track_output(const TrackOptions& o) {
 }
 
 // Where tracking starts: the user's points, or a grid over the region a full subset inside it.
-std::vector<Vec2> seed_points(const TrackOptions& o, const flow::TrackerSettings& settings, cv::Size size) {
+std::vector<Vec2> seed_points(const TrackOptions& o, const flow::TrackerOptions& settings, cv::Size size) {
   std::vector<Vec2> points;
   if (!o.points_csv.empty()) {
     const CsvTable table = read_numeric_csv(o.points_csv);
@@ -100,7 +100,8 @@ std::vector<Vec2> seed_points(const TrackOptions& o, const flow::TrackerSettings
   }
   const cv::Rect r = o.roi.empty() ? cv::Rect(0, 0, size.width, size.height) : parse_roi(o.roi, size);
   // Keep a margin of the refinement subset so every grid point starts with a full subset.
-  const double margin = settings.refine ? settings.subset_radius_px + 2.0 : settings.window_px / 2.0;
+  const double margin =
+      settings.refine ? settings.main_match.subset_radius_px + 2.0 : settings.prediction.window_px / 2.0;
   for (double y = r.y + margin; y <= r.y + r.height - 1 - margin; y += o.grid_step_px)
     for (double x = r.x + margin; x <= r.x + r.width - 1 - margin; x += o.grid_step_px)
       points.push_back({x, y});
@@ -149,8 +150,8 @@ class TrackRun {
   void open_input() {
     Scene scene;
     if (!o_.scene.empty()) scene = load_scene(o_.scene);
-    settings_ = flow::parse_tracking_settings(scene, o_.preset);
-    settings_.births = false;  // points given by the user are tracked as they are; nothing is born
+    settings_ = flow::parse_tracking_options(scene, o_.preset);
+    settings_.births.enabled = false;  // points given by the user are tracked as they are; nothing is born
     source_ = capture::open_source(o_.input, capture::FileSourceOptions{.frame_rate_Hz = o_.frame_rate_Hz});
   }
 
@@ -245,7 +246,7 @@ class TrackRun {
   }
 
   const TrackOptions& o_;
-  flow::TrackerSettings settings_;
+  flow::TrackerOptions settings_;
   std::unique_ptr<capture::FrameSource> source_;
   std::unique_ptr<flow::FeatureTracker> tracker_;
   cv::Mat mask_;

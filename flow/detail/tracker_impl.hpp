@@ -91,7 +91,7 @@ struct FeatureTracker::Impl {
   using KeyFrame = tracker_detail::KeyFrame;
   using TrackState = tracker_detail::TrackState;
 
-  TrackerSettings settings;
+  TrackerOptions settings;
   std::optional<RoiPx> plate_roi;
   std::optional<PlateTracker> plate;
 
@@ -117,60 +117,89 @@ struct FeatureTracker::Impl {
   cv::Mat match_spline;  // match_f's cubic B-spline coefficients over the ROI (B-spline interpolation)
   // What the subsets read the current frame from: match_f's pixels (Keys) or its spline coefficients.
   const cv::Mat& match_source() const {
-    return settings.match.interpolation == Interpolation::kCubicBSpline ? match_spline : match_f;
+    return settings.main_match.solver.interpolation == Interpolation::kCubicBSpline ? match_spline : match_f;
   }
   TextureQuality texture;
   bool low_snr = false;
   cv::Rect roi;
   std::vector<cv::Mat> previous_pyramid, current_pyramid;
-  cv::Mat previous_hp, current_hp, hp_blur, hp_weight, hp_small, hp_quarter, hp_mask;
-  PhaseCorrelator global_correlation;  // current_hp against previous_hp
-  // Until the skin first moves (resting), frame 0's anchor is averaged over the frames so far (rest_count
-  // of them, up to rest_average_frames; 0: averaging over or off) and tracks report the fitted rest motion.
-  bool resting = false;
-  cv::Mat rest_sum, rest_mask;
-  int rest_count = 0;
+
+  // The prediction's global jump (global_jump_shift): the contact's high-passed, reduced frames, this one
+  // against the previous one by phase correlation.
+  struct HighPass {
+    cv::Mat previous, current, blur, weight, small, quarter, mask;
+    PhaseCorrelator correlation;  // current against previous
+  } jump;
+
+  // Rest handling (follow_rest): until the skin first moves, frame 0's anchor is averaged over the frames so
+  // far (`count` of them, up to rest.average_frames) and tracks report the fitted rest motion.
+  struct RestAnchor {
+    bool active = false;  // still at rest and averaging
+    cv::Mat sum, mask;
+    int count = 0;
+  } rest;
+
+  // The prediction's LK pass (lk_forward, lk_backward_*): points and answers, reused every frame.
+  struct LkScratch {
+    std::vector<cv::Point2f> from, to, back;
+    std::vector<unsigned char> status, back_status, check_status;
+    std::vector<int> check;
+    std::vector<cv::Point2f> back_from, back_to;
+    std::vector<float> error;
+  } lk;
 
   // Per-frame scratch, reused.
   std::vector<int> alive;
-  std::vector<cv::Point2f> lk_from, lk_to, lk_back;
-  std::vector<unsigned char> lk_status, lk_back_status, lk_check_status;
-  std::vector<int> lk_check;
-  std::vector<cv::Point2f> lk_back_from, lk_back_to;
-  std::vector<float> lk_error;
   std::vector<double> scratch_x, scratch_y;
   std::vector<int> retry;
-  // fuse(): per alive track, what its sweeps need besides the neighbours' current positions.
+
+  // The fusion (fuse): per alive track, what its sweeps need besides the neighbours' current positions.
   struct FusionTerm {
     bool active = false;
     Eigen::Matrix2d solve = Eigen::Matrix2d::Zero();  // (own information + alpha I)^-1
     Eigen::Vector2d constant = Eigen::Vector2d::Zero();
     double scale = 0.0;  // alpha / sum of the neighbours' weights
   };
-  std::vector<Vec2> fused;
-  std::vector<FusionTerm> fusion_terms;
-  std::vector<std::vector<std::pair<int, double>>> fusion_neighbours;
+  struct FusionScratch {
+    std::vector<Vec2> positions;  // each sweep's answers
+    std::vector<FusionTerm> terms;
+    std::vector<std::vector<std::pair<int, double>>> neighbours;
+  } fusion;
+
+  // The rounds' neighbourhood shapes (neighbourhood_shape).
   std::vector<Warp> shapes;
   std::vector<Mat2d> smoothed;
-  // Spatial hash of live tracks by current position.
-  int hash_cols = 0, hash_rows = 0;
-  double hash_cell = 1.0;
-  std::vector<int> hash_start, hash_items, hash_fill;
-  std::vector<std::uint8_t> lattice_taken;
-  std::vector<int> neighbours, exact;
+
+  // Spatial hash of live tracks by current position (build_hash, gather_neighbours).
+  struct SpatialHash {
+    int cols = 0, rows = 0;
+    double cell = 1.0;
+    std::vector<int> start, items, fill;
+  } hash;
+  std::vector<std::uint8_t> lattice_taken;  // births: lattice points with a track nearby
+  std::vector<int> neighbours, exact;       // gather_neighbours' answer
   std::vector<cv::Mat> anchor_pyramid;
-  ShapeField shape_field;
-  cv::Mat resampled, resampled_valid;
-  WindowSums window_sums;  // of each round's resampled frame, for the subsets' translation steps
-  std::vector<Vec2> field_anchor, field_displacement;
-  std::vector<std::uint8_t> resampled_done;
-  std::vector<Vec2> resampled_position;
-  std::vector<MatchResult> resampled_match;
-  std::vector<double> resampled_moved;
-  std::vector<int> eligible, others;
-  // Tracks that skip this frame's main match (main_match_period_frames), and the tracks that take it.
-  std::vector<std::uint8_t> skip_match;
-  std::vector<int> to_match, skipped;
+
+  // The resampled rounds (resampled_shape_pass): the neighbours' fitted field, the current frame resampled
+  // through it, and each frame-0 track's answer of the round.
+  struct FieldRounds {
+    ShapeField shape;
+    cv::Mat frame, valid;    // the resampled frame and where it has data
+    WindowSums window_sums;  // of each round's resampled frame, for the subsets' translation steps
+    std::vector<Vec2> anchor, displacement;
+    std::vector<std::uint8_t> done;
+    std::vector<Vec2> position;
+    std::vector<MatchResult> match;
+    std::vector<double> moved;
+    std::vector<int> eligible, others;  // tracks the round takes, and those left to the subset-by-subset pass
+  } field;
+
+  // The main match's schedule (main_match.period_frames): tracks that skip this frame's main match, and the
+  // tracks that take it.
+  struct MainMatchSchedule {
+    std::vector<std::uint8_t> skip;
+    std::vector<int> to_match, skipped;
+  } schedule;
 
   void check_input(const cv::Mat& image, const cv::Mat& contact_mask) const;
   void begin_frame(const cv::Mat& image, const cv::Mat& contact_mask);
@@ -220,7 +249,7 @@ struct FeatureTracker::Impl {
   PixelClasses resampled_lattices() const;
   void resampled_round(const cv::Rect& region, const PixelClasses& lattices);
   void take_resampled_answers();
-  double resampled_node_step_px() const { return settings.fixed_shape_node_grid * settings.grid_step_px; }
+  double resampled_node_step_px() const { return settings.rounds.node_grid * settings.seeding.grid_step_px; }
   void reanchor();
   void fuse();
   void retire(int index, TrackStatus why);
@@ -243,8 +272,8 @@ struct FeatureTracker::Impl {
   // reference from the anchor: its per-pixel copy is dropped (Subset::release_pixels) and built again only
   // if the subset-by-subset pass needs it.
   void release_wide_pixels(TrackState& st) const {
-    if (st.key == 0 && st.exact_reference && settings.refine && settings.fixed_shape_pass &&
-        settings.fixed_shape_resampled)
+    if (st.key == 0 && st.exact_reference && settings.refine && settings.rounds.enabled &&
+        settings.rounds.resampled)
       st.wide.release_pixels();
   }
   void record_own_matches();
@@ -253,10 +282,11 @@ struct FeatureTracker::Impl {
   void follow_rest();
   LocalFitOptions local_fit_options() const;
   void report_local_fits();
-  double ridge_reach_px() const { return 0.25 * settings.window_px; }
+  double ridge_reach_px() const { return 0.25 * settings.prediction.window_px; }
   // The global shift's images are reduced by 2 or 4 while the ridges stay at least 5 px apart there.
   int high_pass_factor() const {
-    const double period = settings.ridge_period_px > 0.0 ? settings.ridge_period_px : settings.window_px;
+    const double period =
+        settings.ridge_period_px > 0.0 ? settings.ridge_period_px : settings.prediction.window_px;
     int factor = 1;
     while (factor < 4 && period / (2 * factor) >= 5.0) factor *= 2;
     return factor;

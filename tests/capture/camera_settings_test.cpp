@@ -82,7 +82,7 @@ TEST(CameraSettingsTest, SceneSectionSetsEveryKey) {
 }
 
 TEST(CameraSettingsTest, NoSectionMeansNothingIsChanged) {
-  const CameraSettings s = parse_camera_settings(parse_scene(YAML::Load("tissue: {E_Pa: 2e6}"), "x.yaml"));
+  const CameraSettings s = parse_camera_settings(parse_scene_text("tissue: {E_Pa: 2e6}", "x.yaml"));
   EXPECT_TRUE(s.empty());
   EXPECT_TRUE(s.from_scene.empty());
   EXPECT_TRUE(s.scene_file.empty());

@@ -72,7 +72,7 @@ TEST(Scene, ReadsValuesAndRoundTrips) {
   EXPECT_TRUE(s.compute_given);
   EXPECT_TRUE(s.px_per_mm_given);
   EXPECT_TRUE(s.tissue_given);
-  EXPECT_EQ(s.synthesis["frames"].as<int>(), 10);
+  EXPECT_EQ(YamlSection(s.synthesis, s.file, "synthesis").integer("frames", -1), 10);
 
   const std::string copy = std::string(TIRSTRAIN_TEST_TMP) + "/copy.yaml";
   save_scene(s, copy);
@@ -117,8 +117,53 @@ TEST(Scene, BadFilesNameTheKeyAndFile) {
             std::string::npos);
 }
 
+TEST(SceneSection, EditsAreCopiesAndRoundTripThroughText) {
+  const SceneSection original = SceneSection::parse("{a: 1, b: {c: x}}", "inline.yaml");
+  EXPECT_FALSE(original.empty());
+  EXPECT_TRUE(original.is_map());
+  EXPECT_TRUE(SceneSection().empty());
+  EXPECT_TRUE(original.at("missing").empty());
+  // A text value is taken as it is: a path with YAML's special characters stays one string.
+  const SceneSection edited = original.with("b", original.at("b").with("c", "/data/run: 1 #2"));
+  YamlSection before(original, "inline.yaml");
+  YamlSection after(SceneSection::parse(edited.to_yaml()), "inline.yaml");
+  EXPECT_EQ(before.section("b").text("c", ""), "x");  // the original is unchanged
+  EXPECT_EQ(after.section("b").text("c", ""), "/data/run: 1 #2");
+  EXPECT_EQ(after.integer("a", 0), 1);
+  // An absent section becomes a map when edited.
+  YamlSection built(SceneSection().with("k", "v"), "built");
+  EXPECT_EQ(built.text("k", ""), "v");
+  EXPECT_EQ(SceneSection().to_yaml(), "");
+}
+
+TEST(YamlSection, ListsAndMapsKeepTheFilesOrderAndLines) {
+  YamlSection s(SceneSection::parse("names: [b, a]\n"
+                                    "items:\n"
+                                    "  - {n: 1}\n"
+                                    "  - {n: 2}\n"
+                                    "pairs: {z: 1, y: two}\n"
+                                    "nested: [a, [b]]\n"),
+                "lists.yaml");
+  EXPECT_EQ(s.texts("names"), (std::vector<std::string>{"b", "a"}));
+  EXPECT_EQ(s.texts("absent", {"x"}), std::vector<std::string>{"x"});
+  std::vector<YamlSection> items = s.sections("items");
+  ASSERT_EQ(items.size(), 2u);
+  EXPECT_EQ(items[1].integer("n", 0), 2);
+  EXPECT_EQ(items[1].line(), 4);
+  EXPECT_EQ(items[1].path_of("n"), "items[1].n");
+  const auto pairs = s.text_map("pairs");
+  ASSERT_EQ(pairs.size(), 2u);
+  EXPECT_EQ(pairs[0].first, "z");
+  EXPECT_EQ(pairs[1].second, "two");
+  const std::string message = testing_error_of([&] { s.texts("nested", {}, "names"); });
+  EXPECT_NE(message.find("lists.yaml: row 6: 'nested': expected a list of names"), std::string::npos)
+      << message;
+  EXPECT_EQ(s.keys(), (std::vector<std::string>{"names", "items", "pairs", "nested"}));
+  EXPECT_NO_THROW(s.finish());
+}
+
 TEST(YamlSection, RequiredAndIntegerChecks) {
-  YamlSection s(YAML::Load("{n: 2.5, k: 3}"), "f.yaml", "sec");
+  YamlSection s(SceneSection::parse("{n: 2.5, k: 3}"), "f.yaml", "sec");
   EXPECT_THROW(s.integer("n", 0), Error);
   EXPECT_EQ(s.integer("k", 0, 1, 5), 3);
   try {
@@ -135,9 +180,10 @@ TEST(Scene, KeyThatIsNotTextIsRefusedWithItsLine) {
   const std::string message = error_of(write_scene("map_key.yaml", "calibration:\n  {px_per_mm}: 52\n"));
   EXPECT_NE(message.find("map_key.yaml: row 2: 'calibration': a key must be plain text"), std::string::npos)
       << message;
-  YamlSection section(YAML::Load("{[a, b]: 1}"), "inline.yaml");
-  const std::string finish = testing_error_of([&] { section.finish(); });
-  EXPECT_NE(finish.find("a key must be plain text"), std::string::npos) << finish;
+  // YAML text given in code is checked the same way when parsed.
+  const std::string parsed = testing_error_of([] { SceneSection::parse("{[a, b]: 1}", "inline.yaml"); });
+  EXPECT_NE(parsed.find("inline.yaml: row 1: '(top)': a key must be plain text"), std::string::npos)
+      << parsed;
 }
 
 TEST(Scene, StageNameThatIsNotTextIsRefusedWithItsLine) {
@@ -146,7 +192,7 @@ TEST(Scene, StageNameThatIsNotTextIsRefusedWithItsLine) {
       error_of(write_scene("map_stage.yaml", "calibration: {px_per_mm: 52}\ncompute: [contact, {mm: 5}]\n"));
   EXPECT_NE(message.find("map_stage.yaml"), std::string::npos) << message;
   EXPECT_NE(message.find("compute"), std::string::npos) << message;
-  EXPECT_NE(message.find("row 2: a stage name must be plain text"), std::string::npos) << message;
+  EXPECT_NE(message.find("row 2: 'compute': expected a list of stage names"), std::string::npos) << message;
 }
 
 TEST(Scene, KeyGivenTwiceIsRefusedWithBothLines) {

@@ -1,7 +1,6 @@
 // Cubic B-spline interpolation (flow/bspline.hpp): the coefficients reproduce the frame, and a subset match
 // through them reads a sub-pixel shift of a sprayed speckle without the bias Keys' kernel leaves.
 #include <gtest/gtest.h>
-#include <yaml-cpp/yaml.h>
 
 #include <cmath>
 #include <random>
@@ -80,13 +79,14 @@ TEST(CubicBSpline, SubsetReadsASpeckleShiftWithoutKeysBias) {
 }
 
 TEST(CubicBSpline, AutomaticPresetUsesItAndASceneMayChooseKeys) {
-  EXPECT_EQ(parse_tracking_settings(Scene{}, "auto").match.interpolation, Interpolation::kCubicBSpline);
+  EXPECT_EQ(parse_tracking_options(Scene{}, "auto").main_match.solver.interpolation,
+            Interpolation::kCubicBSpline);
   Scene scene;
   scene.file = "scene.yaml";
-  scene.tracking = YAML::Load("{interpolation: keys}");
-  EXPECT_EQ(parse_tracking_settings(scene, "").match.interpolation, Interpolation::kKeys);
-  scene.tracking = YAML::Load("{interpolation: linear}");
-  EXPECT_THROW(parse_tracking_settings(scene, ""), Error);
+  scene.tracking = SceneSection::parse("{interpolation: keys}");
+  EXPECT_EQ(parse_tracking_options(scene, "").main_match.solver.interpolation, Interpolation::kKeys);
+  scene.tracking = SceneSection::parse("{interpolation: linear}");
+  EXPECT_THROW(parse_tracking_options(scene, ""), Error);
 }
 
 }  // namespace

@@ -7,7 +7,7 @@
 
 namespace tirstrain::flow::testing {
 
-Score run_and_score(const samples::Trial& trial, const RenderedTrial& frames, const TrackerSettings& settings,
+Score run_and_score(const samples::Trial& trial, const RenderedTrial& frames, const TrackerOptions& settings,
                     bool with_plate) {
   std::optional<RoiPx> plate_roi;
   if (with_plate) plate_roi = trial.config().scene.reference_pattern_roi;

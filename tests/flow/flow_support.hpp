@@ -39,7 +39,7 @@ synthesis:
 }
 
 inline samples::SynthConfig config_of(const YAML::Node& root) {
-  return samples::parse_synth_config(parse_scene(root, "flow-test-scene.yaml"));
+  return samples::parse_synth_config(parse_scene_text(YAML::Dump(root), "flow-test-scene.yaml"));
 }
 
 struct Score {
@@ -85,7 +85,7 @@ inline RenderedTrial render(const samples::Trial& trial, bool sensor) {
   return r;
 }
 
-Score run_and_score(const samples::Trial& trial, const RenderedTrial& frames, const TrackerSettings& settings,
+Score run_and_score(const samples::Trial& trial, const RenderedTrial& frames, const TrackerOptions& settings,
                     bool with_plate);
 
 }  // namespace tirstrain::flow::testing

@@ -163,7 +163,7 @@ TEST(LocalFit, MatchWithoutCovarianceKeepsItsOwn) {
 namespace {
 
 using tirstrain::flow::FeatureTracker;
-using tirstrain::flow::TrackerSettings;
+using tirstrain::flow::TrackerOptions;
 using tirstrain::flow::TrackModel;
 
 // The tracker with the local fit on (the scene key `local_fit: true`) over the small speckle stretch of the
@@ -173,9 +173,9 @@ double stretch_rms(bool local_fit, int& fitted, double& worst_distance2, bool& w
   const tirstrain::samples::GeneralisationCase sequence(tirstrain::samples::generalisation_config(
       tirstrain::samples::GeneralisationField::kStretch, tirstrain::samples::GeneralisationTexture::kSpeckle,
       0.005, true));
-  TrackerSettings s = tirstrain::flow::parse_tracking_settings(tirstrain::Scene{}, "auto");
-  s.births = false;
-  s.local_fit = local_fit;
+  TrackerOptions s = tirstrain::flow::parse_tracking_options(tirstrain::Scene{}, "auto");
+  s.births.enabled = false;
+  s.local_fit.enabled = local_fit;
   FeatureTracker tracker(s);
   std::vector<Vec2> points;
   for (double y = 16; y < sequence.height() - 16; y += 10)
@@ -199,7 +199,7 @@ double stretch_rms(bool local_fit, int& fitted, double& worst_distance2, bool& w
         continue;
       }
       ++fitted;
-      windows_given = windows_given && t.model_window_px >= 1.5 * s.grid_step_px - 1e-9;
+      windows_given = windows_given && t.model_window_px >= 1.5 * s.seeding.grid_step_px - 1e-9;
       worst_distance2 = std::max(worst_distance2, t.model_mahalanobis2);
     }
   }

@@ -172,7 +172,7 @@ TEST(ModelCheck, TrackerReportsAFrameAtRestOnItsFitAndAWaveFrameOnItsMatches) {
   const double noise = 0.02;
   const cv::Mat f0 = speckle.render(rest, noise, 1), f1 = speckle.render(rest, noise, 2),
                 f2 = speckle.render(wave, noise, 3);
-  FeatureTracker tracker(preset_settings("auto", SceneHints{}));
+  FeatureTracker tracker(preset_options("auto", SceneHints{}));
   tracker.start(f0, cv::Mat(), 0.0);
   const FrameStats at_rest = tracker.track(f1, cv::Mat(), 0.01);
   std::printf("rest frame: chi2/dof %.3f, z %.2f, pairs %d, on fit %d of %d\n", at_rest.rest_chi2_per_dof,
@@ -225,14 +225,14 @@ TEST(ModelCheck, TrackerReportsAFrameAtRestOnItsFitAndAWaveFrameOnItsMatches) {
 TEST(ModelCheck, SpeckleHasNoRidgesAndKeepsThePresetSubsets) {
   const Speckle speckle({200, 160}, 9);
   const cv::Mat f0 = speckle.render([](Vec2) { return Vec2{}; }, 0.05, 1);
-  const TrackerSettings s = preset_settings("auto", SceneHints{});
+  const TrackerOptions s = preset_options("auto", SceneHints{});
   FeatureTracker tracker(s);
   tracker.start(f0, cv::Mat(), 0.0);
   EXPECT_FALSE(tracker.texture().ridges);
   EXPECT_LT(tracker.texture().coherence, kMinRidgeCoherence);
   EXPECT_FALSE(tracker.low_snr_texture());
-  EXPECT_EQ(tracker.settings().prefilter_sigma_px, s.prefilter_sigma_px);
-  EXPECT_EQ(tracker.settings().subset_radius_px, s.subset_radius_px);
+  EXPECT_EQ(tracker.settings().main_match.prefilter_sigma_px, s.main_match.prefilter_sigma_px);
+  EXPECT_EQ(tracker.settings().main_match.subset_radius_px, s.main_match.subset_radius_px);
 }
 
 }  // namespace

@@ -63,6 +63,19 @@ void render(const DotPattern& pattern, Vec2 d, double noise, std::mt19937& rng, 
   f.convertTo(u8, CV_8U, 255.0);
 }
 
+TEST(PlateOptions, CheckRefusesValuesOutOfRange) {
+  EXPECT_NO_THROW(PlateOptions{}.check());
+  PlateOptions even;
+  even.window_px = 20;
+  EXPECT_THROW(even.check(), Error);
+  PlateOptions tiny;
+  tiny.subset_radius_px = 2;
+  EXPECT_THROW(tiny.check(), Error);
+  PlateOptions fraction;
+  fraction.min_valid_fraction = 0.0;
+  EXPECT_THROW(fraction.check(), Error);
+}
+
 TEST(PlateTracker, FollowsLongBackAndForthTravelAndReturnsToZero) {
   // Down the band's short side for 40 frames (120 px, 2.5 band heights), back up past the start, then along
   // the band and straight back (an instant reversal at 4.4 px/frame: LK started from the previous motion
@@ -82,7 +95,7 @@ TEST(PlateTracker, FollowsLongBackAndForthTravelAndReturnsToZero) {
   PlateTracker plate;
   cv::Mat f, u8;
   render(pattern, path[0], 0.01, rng, f, u8);
-  plate.start(f, u8, RoiPx{0, 0, 240, 48}, PlateSettings{});
+  plate.start(f, u8, RoiPx{0, 0, 240, 48}, PlateOptions{});
   double sum2 = 0.0, worst = 0.0;
   for (std::size_t k = 1; k < path.size(); ++k) {
     render(pattern, path[k], 0.01, rng, f, u8);
@@ -103,7 +116,7 @@ TEST(PlateTracker, FollowsLongBackAndForthTravelAndReturnsToZero) {
 
 // RMS error of the plate tracker over `frames` frames of steady travel at `step` per frame with noise σ.
 // The band is as wide as the shipped scenes' 640 px frames.
-double travel_rms_px(const PlateSettings& settings, double noise, Vec2 step, int frames) {
+double travel_rms_px(const PlateOptions& settings, double noise, Vec2 step, int frames) {
   constexpr int kWidth = 640;
   const DotPattern pattern(11);
   std::mt19937 rng(13);
@@ -128,7 +141,7 @@ TEST(PlateTracker, StartFasterThanTheDotSpacingIsFound) {
   // settle on a nearby dot configuration; the phase correlation of the band with the previous band, on a
   // random pattern, has one peak at the true step. Measured: 0.0059 px RMS (75 px before the
   // correlation was used).
-  const double rms = travel_rms_px(PlateSettings{}, 0.005, {0.0, -12.8}, 12);
+  const double rms = travel_rms_px(PlateOptions{}, 0.005, {0.0, -12.8}, 12);
   std::printf("start at 12.8 px/frame: plate RMS %.4f px\n", rms);
   EXPECT_LT(rms, 0.02);
 }
@@ -151,7 +164,7 @@ TEST(PlateTracker, MotionBlurredFrameIsBridgedAndLeavesNoBias) {
   PlateTracker plate;
   cv::Mat f, u8, sub, sub_u8;
   render(pattern, {0.0, 0.0}, 0.005, rng, f, u8, kWidth, kBand);
-  plate.start(f, u8, RoiPx{0, 0, kWidth, kBand}, PlateSettings{}, 0.0);
+  plate.start(f, u8, RoiPx{0, 0, kWidth, kBand}, PlateOptions{}, 0.0);
   double sharp2 = 0.0, blurred_worst = 0.0;
   for (int k = 1; k < kFrames; ++k) {
     const double t_s = 0.01 * k + jitter(rng);
@@ -194,9 +207,9 @@ TEST(PlateTracker, HeavyNoiseIsSmoothedAwayBeforeMatching) {
   // prefilter, 0.0222 px without, with the subsets side by side (with subsets every 24 px, overlapping by
   // half: 0.0207 and 0.0232 px; on the hard_heavy_noise scene, flow_bench: 0.0183 and 0.0212 px).
   const Vec2 step{0.02, -2.6};
-  PlateSettings unfiltered;
+  PlateOptions unfiltered;
   unfiltered.prefilter_sigma_px = 0.0;
-  const double filtered_rms = travel_rms_px(PlateSettings{}, 0.04, step, 60);
+  const double filtered_rms = travel_rms_px(PlateOptions{}, 0.04, step, 60);
   const double unfiltered_rms = travel_rms_px(unfiltered, 0.04, step, 60);
   std::printf("heavy noise, 60 frames: plate RMS %.4f px prefiltered, %.4f px unfiltered\n", filtered_rms,
               unfiltered_rms);
@@ -210,12 +223,12 @@ TEST(PlateTracker, NarrowBandGetsTheLargestSubsetItHoldsAndTooNarrowIsAnError) {
   cv::Mat f, u8;
   render(pattern, {0.0, 0.0}, 0.01, rng, f, u8);
   PlateTracker narrow;
-  narrow.start(f, u8, RoiPx{0, 0, 240, 20}, PlateSettings{});  // automatic radius 8 px
+  narrow.start(f, u8, RoiPx{0, 0, 240, 20}, PlateOptions{});  // automatic radius 8 px
   render(pattern, {0.4, -0.7}, 0.01, rng, f, u8);
   const Vec2 d = narrow.track(f, u8);
   EXPECT_NEAR(d.x, 0.4, 0.05);
   EXPECT_NEAR(d.y, -0.7, 0.05);
-  PlateSettings fixed;
+  PlateOptions fixed;
   fixed.subset_radius_px = 15;
   PlateTracker too_small;
   EXPECT_THROW(too_small.start(f, u8, RoiPx{0, 0, 240, 20}, fixed), Error);
@@ -223,7 +236,7 @@ TEST(PlateTracker, NarrowBandGetsTheLargestSubsetItHoldsAndTooNarrowIsAnError) {
   const cv::Mat uniform(120, 240, CV_32F, cv::Scalar(0.5));
   cv::Mat uniform_u8;
   uniform.convertTo(uniform_u8, CV_8U, 255.0);
-  EXPECT_THROW(flat.start(uniform, uniform_u8, RoiPx{0, 0, 240, 48}, PlateSettings{}), Error);
+  EXPECT_THROW(flat.start(uniform, uniform_u8, RoiPx{0, 0, 240, 48}, PlateOptions{}), Error);
 }
 
 }  // namespace

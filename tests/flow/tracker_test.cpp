@@ -24,8 +24,8 @@ using testing::render;
 using testing::run_and_score;
 using testing::Score;
 
-TrackerSettings auto_settings() {
-  return preset_settings("auto", SceneHints{});
+TrackerOptions auto_settings() {
+  return preset_options("auto", SceneHints{});
 }
 
 void print(const char* label, const Score& s) {
@@ -70,7 +70,7 @@ BothRuns run_both(const YAML::Node& scene, bool sensor, bool plate) {
   const auto frames = render(trial, sensor);
   BothRuns r;
   r.automatic = run_and_score(trial, frames, auto_settings(), plate);
-  r.paper = run_and_score(trial, frames, preset_settings("delhaye2016", SceneHints{}), plate);
+  r.paper = run_and_score(trial, frames, preset_options("delhaye2016", SceneHints{}), plate);
   print("auto", r.automatic);
   print("delhaye2016", r.paper);
   return r;
@@ -134,10 +134,10 @@ TEST(Tracker, SmallContactKeepsEveryPixel) {
   FeatureTracker probe(auto_settings());
   probe.start(frames.frames[0], frames.mask, 0.0);
   EXPECT_LT(probe.tracks().size(), 300u);
-  EXPECT_EQ(probe.settings().shape, ShapeFunction::kQuadratic);
-  EXPECT_EQ(probe.settings().subset_stride, 1);
-  EXPECT_EQ(probe.settings().fixed_shape_stride, 1);
-  EXPECT_EQ(probe.settings().main_match_period_frames, 1);
+  EXPECT_EQ(probe.settings().main_match.shape, ShapeFunction::kQuadratic);
+  EXPECT_EQ(probe.settings().main_match.subset_stride, 1);
+  EXPECT_EQ(probe.settings().rounds.subset_stride, 1);
+  EXPECT_EQ(probe.settings().main_match.period_frames, 1);
 }
 
 // 300×280 px, 10 frames, ≈ 500 grid points of contact: large enough for the resampled rounds.
@@ -157,16 +157,16 @@ TEST(Tracker, LargeContactSeedsTheResampledRoundsWithACheapMatch) {
   FeatureTracker probe(auto_settings());
   probe.start(frames.frames[0], frames.mask, 0.0);
   EXPECT_FALSE(probe.low_snr_texture());
-  EXPECT_EQ(probe.settings().shape, ShapeFunction::kAffine);
-  EXPECT_EQ(probe.settings().subset_stride, 3);
-  EXPECT_EQ(probe.settings().fixed_shape_stride, 2);
+  EXPECT_EQ(probe.settings().main_match.shape, ShapeFunction::kAffine);
+  EXPECT_EQ(probe.settings().main_match.subset_stride, 3);
+  EXPECT_EQ(probe.settings().rounds.subset_stride, 2);
   EXPECT_GT(probe.tracks().size(), 200u);
-  TrackerSettings full = auto_settings();
-  full.shape = ShapeFunction::kQuadratic;
-  full.subset_stride = 1;
+  TrackerOptions full = auto_settings();
+  full.main_match.shape = ShapeFunction::kQuadratic;
+  full.main_match.subset_stride = 1;
   full.pinned.shape = full.pinned.subset_stride = true;
-  TrackerSettings subset_by_subset = full;
-  subset_by_subset.fixed_shape_resampled = false;
+  TrackerOptions subset_by_subset = full;
+  subset_by_subset.rounds.resampled = false;
   const Score cheap = run_and_score(trial, frames, auto_settings(), false);
   const Score second_order = run_and_score(trial, frames, full, false);
   const Score before = run_and_score(trial, frames, subset_by_subset, false);
@@ -190,13 +190,13 @@ TEST(Tracker, TracksThatSkipTheMainMatchLoseNothing) {
   // of the track-frames matched.
   const samples::Trial trial(config_of(large_contact_scene()));
   const auto frames = render(trial, true);
-  TrackerSettings every = auto_settings();
-  every.main_match_period_frames = 1;
+  TrackerOptions every = auto_settings();
+  every.main_match.period_frames = 1;
   every.pinned.main_match_period = true;
-  TrackerSettings checkerboard = auto_settings();
-  checkerboard.main_match_period_frames = 2;
+  TrackerOptions checkerboard = auto_settings();
+  checkerboard.main_match.period_frames = 2;
   checkerboard.pinned.main_match_period = true;
-  ASSERT_EQ(auto_settings().main_match_period_frames, 4);
+  ASSERT_EQ(auto_settings().main_match.period_frames, 4);
   const Score quarter = run_and_score(trial, frames, auto_settings(), false);
   const Score half = run_and_score(trial, frames, checkerboard, false);
   const Score all = run_and_score(trial, frames, every, false);
@@ -227,7 +227,7 @@ TEST(Tracker, HeavyNoiseRoundsOverruleADisagreeingMainMatch) {
   config.timing.frames = 20;
   const samples::Trial trial(config);
   const auto frames = render(trial, true);
-  const Score s = run_and_score(trial, frames, preset_settings("auto", hints_from_scene(scene)), false);
+  const Score s = run_and_score(trial, frames, preset_options("auto", hints_from_scene(scene)), false);
   print("auto, hard_heavy_noise, 20 frames", s);
   EXPECT_GT(s.tracks_started, 800);
   EXPECT_EQ(s.wrong, 0);
@@ -286,8 +286,8 @@ TEST(Tracker, NoisyTextureSwitchesToTheLowSnrSubsets) {
   YAML::Node root = heavy_noise_scene(12);
   const samples::Trial trial(config_of(root));
   const auto frames = render(trial, true);
-  TrackerSettings fixed = auto_settings();
-  fixed.adapt_to_texture = false;
+  TrackerOptions fixed = auto_settings();
+  fixed.texture.adapt = false;
   const Score adapted = run_and_score(trial, frames, auto_settings(), false);
   const Score unadapted = run_and_score(trial, frames, fixed, false);
   print("auto, noisy", adapted);
@@ -296,32 +296,32 @@ TEST(Tracker, NoisyTextureSwitchesToTheLowSnrSubsets) {
   probe.start(frames.frames[0], frames.mask, 0.0);
   EXPECT_TRUE(probe.low_snr_texture());
   EXPECT_LT(probe.texture().snr, 4.0);
-  EXPECT_EQ(probe.settings().shape, ShapeFunction::kAffine);
-  EXPECT_GT(probe.settings().prefilter_sigma_px, 1.5);
-  EXPECT_EQ(probe.settings().fusion_sigma_px, 2.0 * auto_settings().grid_step_px);
-  EXPECT_EQ(probe.settings().fusion_weight, 1.0);
-  EXPECT_EQ(probe.settings().subset_stride, 2);             // smoothed by > 1.5 px: every 2nd pixel each way
-  EXPECT_EQ(probe.settings().main_match_period_frames, 1);  // every track matched every frame
+  EXPECT_EQ(probe.settings().main_match.shape, ShapeFunction::kAffine);
+  EXPECT_GT(probe.settings().main_match.prefilter_sigma_px, 1.5);
+  EXPECT_EQ(probe.settings().fusion.sigma_px, 2.0 * auto_settings().seeding.grid_step_px);
+  EXPECT_EQ(probe.settings().fusion.weight, 1.0);
+  EXPECT_EQ(probe.settings().main_match.subset_stride, 2);  // smoothed by > 1.5 px: every 2nd pixel each way
+  EXPECT_EQ(probe.settings().main_match.period_frames, 1);  // every track matched every frame
   // A pinned setting is kept.
-  TrackerSettings pinned = auto_settings();
-  pinned.shape = ShapeFunction::kQuadratic;
+  TrackerOptions pinned = auto_settings();
+  pinned.main_match.shape = ShapeFunction::kQuadratic;
   pinned.pinned.shape = true;
   FeatureTracker kept(pinned);
   kept.start(frames.frames[0], frames.mask, 0.0);
   EXPECT_TRUE(kept.low_snr_texture());
-  EXPECT_EQ(kept.settings().shape, ShapeFunction::kQuadratic);
-  EXPECT_GT(kept.settings().prefilter_sigma_px, 1.5);
-  TrackerSettings pinned_fusion = auto_settings();
+  EXPECT_EQ(kept.settings().main_match.shape, ShapeFunction::kQuadratic);
+  EXPECT_GT(kept.settings().main_match.prefilter_sigma_px, 1.5);
+  TrackerOptions pinned_fusion = auto_settings();
   pinned_fusion.pinned.fusion = true;
   FeatureTracker kept_fusion(pinned_fusion);
   kept_fusion.start(frames.frames[0], frames.mask, 0.0);
-  EXPECT_EQ(kept_fusion.settings().fusion_weight, auto_settings().fusion_weight);
-  TrackerSettings pinned_stride = auto_settings();
-  pinned_stride.subset_stride = 1;
+  EXPECT_EQ(kept_fusion.settings().fusion.weight, auto_settings().fusion.weight);
+  TrackerOptions pinned_stride = auto_settings();
+  pinned_stride.main_match.subset_stride = 1;
   pinned_stride.pinned.subset_stride = true;
   FeatureTracker kept_stride(pinned_stride);
   kept_stride.start(frames.frames[0], frames.mask, 0.0);
-  EXPECT_EQ(kept_stride.settings().subset_stride, 1);
+  EXPECT_EQ(kept_stride.settings().main_match.subset_stride, 1);
   // Measured: adapted 0.23 px RMS (the noise floor of one subset here), 84 of 94 tracks alive at the end;
   // unadapted, every track is retired within the first frames (67 track-frames scored in all).
   EXPECT_GT(adapted.frame_alive.back(), 0.75 * adapted.tracks_started);
@@ -339,8 +339,8 @@ TEST(Tracker, AnchorIsAveragedWhileTheSkinRests) {
   root["synthesis"]["loading"]["shear_start_s"] = 0.1;
   const samples::Trial trial(config_of(root));
   const auto frames = render(trial, true);
-  TrackerSettings single = auto_settings();
-  single.rest_average_frames = 1;
+  TrackerOptions single = auto_settings();
+  single.rest.average_frames = 1;
   const Score averaged = run_and_score(trial, frames, auto_settings(), false);
   const Score plain = run_and_score(trial, frames, single, false);
   print("auto, anchor averaged at rest", averaged);
@@ -368,8 +368,8 @@ TEST(Tracker, AnchorIsAveragedWhileTheSkinRests) {
   // Measured: 0.081 px (the fit of 94 tracks, σ_fit ≈ 0.05-0.1 px here) against 0.165 px.
   EXPECT_LT(rest_rms(averaged), 0.6 * rest_rms(plain));
   // The anchor's mean stops growing at rest_average_frames; the rest motion is still reported after that.
-  TrackerSettings capped = auto_settings();
-  capped.rest_average_frames = 2;
+  TrackerOptions capped = auto_settings();
+  capped.rest.average_frames = 2;
   const Score short_mean = run_and_score(trial, frames, capped, false);
   EXPECT_EQ(short_mean.rest_frames_averaged, 1);
   EXPECT_EQ(short_mean.rest_frames_on_fit, 5);
@@ -461,8 +461,8 @@ TEST(Tracker, GrowingContactGetsTracksInItsNewAreaFlaggedAsExtrapolated) {
     cv::circle(m, cv::Point(130, 130), static_cast<int>(radius_px(k)), cv::Scalar(255), cv::FILLED);
     return m;
   };
-  TrackerSettings settings = auto_settings();
-  settings.birth_interval_frames = 1;
+  TrackerOptions settings = auto_settings();
+  settings.births.interval_frames = 1;
   FeatureTracker tracker(settings);
   tracker.start(frame(0), mask(0), 0.0);
   for (int k = 1; k < frames; ++k) tracker.track(frame(k), mask(k), 0.02 * k);
@@ -485,7 +485,7 @@ TEST(Tracker, GrowingContactGetsTracksInItsNewAreaFlaggedAsExtrapolated) {
       sum2_extrapolated += e2;
       // Only skin that frame 0 did not match is extrapolated: beyond its contact, or in the band along its
       // border where subsets are not matched (border_exclusion_px).
-      EXPECT_GT(r_reference, radius_px(0) - tracker.settings().border_exclusion_px - 6.0) << "track " << t.id;
+      EXPECT_GT(r_reference, radius_px(0) - tracker.settings().border.exclusion_px - 6.0) << "track " << t.id;
     } else {
       ++matched;
       sum2_matched += e2;

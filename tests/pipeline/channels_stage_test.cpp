@@ -61,7 +61,7 @@ synthesis:
   root["synthesis"]["timing"]["jitter_s"] = jitter_s;
   root["synthesis"]["channels"]["normal_noise_N"] = normal_noise_N;
   root["synthesis"]["channels"]["tangential_noise_N"] = tangential_noise_N;
-  return samples::Trial(samples::parse_synth_config(parse_scene(root, "trial.yaml")));
+  return samples::Trial(samples::parse_synth_config(parse_scene_text(YAML::Dump(root), "trial.yaml")));
 }
 
 // The load history from the scene alone: Mindlin's limit displacement at Q = μP, the 90 % point where
@@ -108,7 +108,7 @@ Scene channels_scene(const fs::path& dir, const std::string& channels_yaml) {
   YAML::Node root;
   root["compute"].push_back("channels");
   root["channels"] = YAML::Load(channels_yaml);
-  return parse_scene(root, (dir / "scene.yaml").string());
+  return parse_scene_text(YAML::Dump(root), (dir / "scene.yaml").string());
 }
 
 constexpr const char* kColumns =

@@ -10,6 +10,7 @@
 #include "core/csv.hpp"
 #include "core/h5_file.hpp"
 #include "core/scene.hpp"
+#include "core/yaml_reader.hpp"
 #include "samples/synth.hpp"
 #include "test_support.hpp"
 
@@ -76,7 +77,7 @@ TEST(SamplesCli, WritesACompleteTrialDirectory) {
   ASSERT_TRUE(written_scene.reference_pattern_roi);
   EXPECT_EQ(written_scene.reference_pattern_roi->height, 20);
   EXPECT_DOUBLE_EQ(written_scene.px_per_mm, 52.0);
-  EXPECT_EQ(written_scene.synthesis["seed"].as<int>(), 7);
+  EXPECT_EQ(YamlSection(written_scene.synthesis, written_scene.file, "synthesis").integer("seed", -1), 7);
 
   const H5Reader truth((trial / "truth.h5").string());
   EXPECT_EQ(truth.attribute_text("/", "format"), kTruthFormat);

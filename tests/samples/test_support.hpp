@@ -37,7 +37,7 @@ synthesis:
 }
 
 inline SynthConfig config_of(const YAML::Node& root) {
-  return parse_synth_config(parse_scene(root, "test-scene.yaml"));
+  return parse_synth_config(parse_scene_text(YAML::Dump(root), "test-scene.yaml"));
 }
 
 inline std::string scratch_dir(const std::string& name) {

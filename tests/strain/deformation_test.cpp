@@ -24,8 +24,8 @@ std::vector<Vec2> map_affine(const std::vector<Vec2>& points, const Gradient2& h
   return out;
 }
 
-StrainSettings loose_settings() {
-  StrainSettings s;
+StrainOptions loose_settings() {
+  StrainOptions s;
   s.quality.min_angle_deg = 1.0;  // random points: keep most triangles, the field is linear anyway
   s.quality.max_aspect = 100.0;
   return s;
@@ -98,7 +98,7 @@ TEST(Deformation, EnergyIsDepthTimesDensityTimesReferenceArea) {
   const auto triangles = delaunay(ref);
   const Gradient2 h{0.1, 0.05, 0.0, -0.04};
   const auto cur = map_affine(ref, h, {3, 3});
-  StrainSettings settings;
+  StrainOptions settings;
   const FrameStrain f =
       compute_frame_strain({.triangles = triangles, .reference_px = ref, .current_px = cur}, settings);
   const double w = plane_strain_energy_density_J_m3(green_lagrange(h), settings.young_Pa, settings.poisson);

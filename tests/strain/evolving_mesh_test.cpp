@@ -1,8 +1,6 @@
 // The mesh that follows births and retirements, the normalised-map rasteriser and the strain settings.
 #include <gtest/gtest.h>
 
-#include <yaml-cpp/yaml.h>
-
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -125,28 +123,54 @@ TEST(NormalisedMap, NanMeanIgnoresMissingCells) {
   EXPECT_DOUBLE_EQ(count.at<double>(0, 1), 1.0);
 }
 
-TEST(StrainSettings, ParsedStrictlyFromTheScene) {
+TEST(StrainOptions, ParsedStrictlyFromTheScene) {
   Scene scene;
   scene.file = "scene.yaml";
   scene.tissue.young_Pa = 2e6;
-  scene.strain = YAML::Load("{mode: incremental, stick_tolerance_px: 0.3, overlay: exx, map_cells: 33}");
-  const StrainStageSettings s = parse_strain_settings(scene);
+  scene.strain =
+      SceneSection::parse("{mode: incremental, stick_tolerance_px: 0.3, overlay: exx, map_cells: 33}");
+  const StrainStageOptions s = parse_strain_options(scene);
   EXPECT_EQ(s.mode, StrainMode::kIncremental);
   EXPECT_DOUBLE_EQ(s.strain.stick_tolerance_px, 0.3);
   EXPECT_DOUBLE_EQ(s.strain.young_Pa, 2e6);
   EXPECT_EQ(s.map_cells, 33);
-  EXPECT_EQ(parse_strain_settings(scene, "exact").mode, StrainMode::kExact);
+  EXPECT_EQ(parse_strain_options(scene, "exact").mode, StrainMode::kExact);
 
-  scene.strain = YAML::Load("{mode: exact, stick_tolerence_px: 0.3}");
+  scene.strain = SceneSection::parse("{mode: exact, stick_tolerence_px: 0.3}");
   try {
-    parse_strain_settings(scene);
+    parse_strain_options(scene);
     FAIL() << "a misspelt key must be an error";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("strain.stick_tolerence_px"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("scene.yaml"), std::string::npos) << e.what();
   }
-  scene.strain = YAML::Load("{mode: sum}");
-  EXPECT_THROW(parse_strain_settings(scene), Error);
+  scene.strain = SceneSection::parse("{mode: sum}");
+  EXPECT_THROW(parse_strain_options(scene), Error);
+}
+
+// Options built in code are checked too; the error names the scene key.
+TEST(StrainOptions, CheckNamesTheKeyOfAValueOutOfRange) {
+  const auto key_of = [](const StrainStageOptions& o) -> std::string {
+    try {
+      o.check();
+    } catch (const Error& e) {
+      return e.context().key;
+    }
+    return "";
+  };
+  StrainStageOptions o;
+  EXPECT_EQ(key_of(o), "");
+  o.strain.quality.min_angle_deg = 70.0;
+  EXPECT_EQ(key_of(o), "strain.min_angle_deg");
+  o = {};
+  o.stick_zone.extent = 1.5;
+  EXPECT_EQ(key_of(o), "strain.stick_fit_extent");
+  o = {};
+  o.strain.poisson = 0.5;
+  EXPECT_EQ(key_of(o), "tissue.nu");
+  o = {};
+  o.map_cells = 2;
+  EXPECT_EQ(key_of(o), "strain.map_cells");
 }
 
 }  // namespace
