@@ -20,6 +20,9 @@ namespace {
 
 // The `compute:` list: known stage names, in pipeline order as given.
 std::vector<std::string> read_compute(YamlSection& top, const std::string& file) {
+  // `compute:` with nothing after it is a list forgotten, not a request to run nothing.
+  if (top.raw("compute").empty())
+    throw Error("expected a list of stage names", {.file = file, .key = "compute"});
   std::vector<std::string> stages = top.texts("compute", {}, "stage names");
   const auto& known = known_stages();
   for (const auto& name : stages) {

@@ -193,6 +193,8 @@ TEST(Scene, StageNameThatIsNotTextIsRefusedWithItsLine) {
   EXPECT_NE(message.find("map_stage.yaml"), std::string::npos) << message;
   EXPECT_NE(message.find("compute"), std::string::npos) << message;
   EXPECT_NE(message.find("row 2: 'compute': expected a list of stage names"), std::string::npos) << message;
+  const std::string empty = error_of(write_scene("empty_stages.yaml", "compute:\n"));
+  EXPECT_NE(empty.find("'compute': expected a list of stage names"), std::string::npos) << empty;
 }
 
 TEST(Scene, KeyGivenTwiceIsRefusedWithBothLines) {
