@@ -89,6 +89,8 @@ const char* to_string(TrackModel model) {
       return "smoothed_in_time";
     case TrackModel::kLocalFit:
       return "local_fit";
+    case TrackModel::kAffineFit:
+      return "affine_fit";
   }
   return "?";
 }

@@ -23,6 +23,7 @@ enum class TrackModel : std::uint8_t {
   kRestFit = 2,         // the affine fit of a frame at rest (RestTest accepted it)
   kSmoothedInTime = 3,  // smoothed in time after tracking, within the own match's noise
   kLocalFit = 4,        // a local affine fit of the neighbours' matches (flow/local_fit.hpp accepted it)
+  kAffineFit = 5,       // the affine fit of a moving frame (test_affine_model accepted it)
 };
 const char* to_string(TrackModel model);
 

@@ -248,6 +248,13 @@ void parse_local_fit(YamlSection& t, TrackerOptions::LocalFit& o) {
   o.agreement_chi2 = t.number("local_fit_agreement_chi2", o.agreement_chi2, 0.1, 1e6);
 }
 
+void parse_affine_fit(YamlSection& t, TrackerOptions::AffineFit& o) {
+  o.enabled = t.boolean("affine_fit", o.enabled);
+  o.max_chi2_per_dof = t.number("affine_fit_max_chi2_per_dof", o.max_chi2_per_dof, 0.0, 100.0);
+  o.max_correlation_z = t.number("affine_fit_max_correlation_z", o.max_correlation_z, 0.0, 100.0);
+  o.max_hidden_px = t.number("affine_fit_max_hidden_px", o.max_hidden_px, 0.0, 10.0);
+}
+
 void parse_rest(YamlSection& t, TrackerOptions::Rest& o) {
   o.average_frames = integer(t, "rest_average_frames", o.average_frames, 1, 10000);
   o.max_chi2_per_dof = t.number("rest_max_chi2_per_dof", o.max_chi2_per_dof, 0.0, 100.0);
@@ -317,6 +324,7 @@ TrackerOptions parse_tracking_options(const Scene& scene, const std::string& pre
   s.reanchor.interval_frames = integer(t, "reanchor_interval_frames", s.reanchor.interval_frames, 0, 100000);
   parse_rest(t, s.rest);
   parse_local_fit(t, s.local_fit);
+  parse_affine_fit(t, s.affine_fit);
   parse_smoothing(t, s.smoothing);
   parse_plate(t, s.plate);
   t.finish();
@@ -404,6 +412,12 @@ void TrackerOptions::LocalFit::check() const {
   if (!(agreement_chi2 > 0.0)) fail("local_fit_agreement_chi2", "must be positive");
 }
 
+void TrackerOptions::AffineFit::check() const {
+  if (!(max_chi2_per_dof >= 0.0)) fail("affine_fit_max_chi2_per_dof", "must not be negative");
+  if (!(max_correlation_z >= 0.0)) fail("affine_fit_max_correlation_z", "must not be negative");
+  if (!(max_hidden_px >= 0.0)) fail("affine_fit_max_hidden_px", "must not be negative");
+}
+
 void TrackerOptions::Reanchor::check() const {
   if (interval_frames < 0) fail("reanchor_interval_frames", "must not be negative");
   if (!(tolerance_px > 0.0)) fail("reanchor_tolerance_px", "must be positive");
@@ -445,6 +459,7 @@ void TrackerOptions::check() const {
   neighbours.check();
   fusion.check();
   local_fit.check();
+  affine_fit.check();
   reanchor.check();
   rest.check();
   smoothing.check();

@@ -148,6 +148,23 @@ struct TrackerOptions {
     void check() const;
   } local_fit;
 
+  // The frame's affine fit (flow/tracker_affine_fit.cpp): where one affine motion describes the frame-0
+  // tracks' matches of this frame within their predicted noise and without spatial structure (the test of
+  // flow/model_check.hpp), each such track whose own match lies within its noise of the fit reports the fit.
+  // A rigid shift, a uniform stretch or a rotation is then measured by every match at once; any motion the
+  // affine model lacks (a load, a creep, a slip annulus) fails the test and the matches stand.
+  struct AffineFit {
+    bool enabled = true;             // `affine_fit`: default true (needs refinement)
+    double max_chi2_per_dof = 1.5;   // `affine_fit_max_chi2_per_dof`: residuals against predicted noise; 1.5
+    double max_correlation_z = 3.0;  // `affine_fit_max_correlation_z`: neighbours' residual correlation, z; 3
+    // `affine_fit_max_hidden_px`: the test must see a non-affine motion of this RMS over the frame, px; 0.03.
+    // Its χ² bound lets through motions up to the matches' typical noise times sqrt(bound − 1): where the
+    // matches are noisier than that allows (a low-contrast or noisy texture), no fit stands in for them. A
+    // normal load, a creep or a first partial slip moves the skin by 0.05 px and more.
+    double max_hidden_px = 0.03;
+    void check() const;
+  } affine_fit;
+
   // Drift control for unrefined (frame-to-frame) tracking: track again from the anchor frame and adopt
   // that result where it agrees. Refined tracking is anchored every frame and needs none.
   struct Reanchor {

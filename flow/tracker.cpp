@@ -419,6 +419,7 @@ const FrameStats& FeatureTracker::track(const cv::Mat& image, const cv::Mat& con
   m.finish_frame();
   m.follow_rest();
   m.report_local_fits();
+  m.report_affine_fit();
   if (!m.points_mode && m.settings.births.enabled && m.frame % m.settings.births.interval_frames == 0)
     m.births();
   if (m.plate) m.plate->track(m.current_f, m.current_u8, t_s);

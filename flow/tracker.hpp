@@ -96,6 +96,16 @@ struct FrameStats {
   int rest_pairs = 0;
   double rest_motion_px = std::numeric_limits<double>::quiet_NaN();  // the fitted motion's RMS
   int on_rest_fit = 0;                                               // tracks reporting the rest fit
+  // The affine-fit test of this frame (tested: the frame was not at rest and the step is on), RestTest's
+  // statistics, and whether the fit stands in for the matches that lie within their noise of it.
+  bool affine_tested = false;
+  double affine_chi2_per_dof = std::numeric_limits<double>::quiet_NaN();
+  double affine_correlation_z = std::numeric_limits<double>::quiet_NaN();
+  // The non-affine motion (RMS over the frame, px) the test's χ² bound would let through at these matches'
+  // noise; the fit stands in only where it is at most TrackerOptions::affine_fit.max_hidden_px.
+  double affine_hidden_px = std::numeric_limits<double>::quiet_NaN();
+  bool affine_fit = false;
+  int on_affine_fit = 0;    // tracks reporting the frame's affine fit
   int fused = 0;            // tracks reporting the neighbour fusion's position
   int fusion_declined = 0;  // tracks whose fused position lay outside their own match's noise: own match
   int local_fit = 0;        // tracks reporting a local fit of their neighbours' matches (flow/local_fit.hpp)

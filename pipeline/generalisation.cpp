@@ -122,19 +122,22 @@ bool fit_window(const samples::GeneralisationCase& sequence, const std::vector<V
 }  // namespace
 
 const std::vector<std::string>& generalisation_presets() {
-  static const std::vector<std::string> names = {"auto", "delhaye2016", "auto_no_rest", "auto_local_fit"};
+  static const std::vector<std::string> names = {"auto", "delhaye2016", "auto_no_rest", "auto_no_affine_fit",
+                                                 "auto_local_fit"};
   return names;
 }
 
 flow::TrackerOptions generalisation_settings(const std::string& preset) {
-  const bool no_rest = preset == "auto_no_rest", local_fit = preset == "auto_local_fit";
-  if (!no_rest && !local_fit && preset != "auto" && preset != "delhaye2016")
+  const bool no_rest = preset == "auto_no_rest", local_fit = preset == "auto_local_fit",
+             no_affine = preset == "auto_no_affine_fit";
+  if (!no_rest && !local_fit && !no_affine && preset != "auto" && preset != "delhaye2016")
     throw Error("unknown generalisation configuration '" + preset +
-                "' (known: auto, delhaye2016, auto_no_rest, auto_local_fit)");
+                "' (known: auto, delhaye2016, auto_no_rest, auto_no_affine_fit, auto_local_fit)");
   flow::TrackerOptions settings =
-      flow::parse_tracking_options(Scene{}, no_rest || local_fit ? "auto" : preset);
+      flow::parse_tracking_options(Scene{}, no_rest || local_fit || no_affine ? "auto" : preset);
   settings.births.enabled = false;
   if (no_rest) settings.rest.average_frames = 1;
+  if (no_affine) settings.affine_fit.enabled = false;
   if (local_fit) settings.local_fit.enabled = true;
   return settings;
 }
@@ -208,10 +211,13 @@ GeneralisationResult run_generalisation(const samples::GeneralisationCase& seque
     GeneralisationFrame frame;
     frame.track_ms = elapsed_ms(begin);
     frame.at_rest = stats.at_rest;
+    frame.affine_fit = stats.affine_fit;
+    frame.affine_hidden_px = stats.affine_hidden_px;
     measure_frame(sequence, tracker, index, frame, totals);
     alive_sum += frame.alive;
     ms_sum += frame.track_ms;
     result.rest_frames += frame.at_rest ? 1 : 0;
+    result.affine_fit_frames += frame.affine_fit ? 1 : 0;
     if (frame.alive) {
       const double bias = std::hypot(frame.bias_px.x, frame.bias_px.y);
       result.bias_px = std::isnan(result.bias_px) ? bias : std::max(result.bias_px, bias);

@@ -35,7 +35,9 @@ struct GeneralisationFrame {
   Vec2 bias_px;  // mean error vector
   double max_px = std::numeric_limits<double>::quiet_NaN();
   double track_ms = 0.0;
-  bool at_rest = false;  // the tracker declared the frame at rest (FrameStats::at_rest)
+  bool at_rest = false;     // the tracker declared the frame at rest (FrameStats::at_rest)
+  bool affine_fit = false;  // the frame's affine fit stood in for its matches (FrameStats::affine_fit)
+  double affine_hidden_px = std::numeric_limits<double>::quiet_NaN();  // FrameStats::affine_hidden_px
 };
 
 struct ChirpWindow {
@@ -72,13 +74,15 @@ struct GeneralisationResult {
   double longest_gain = std::numeric_limits<double>::quiet_NaN();
   double ms_per_frame = 0.0;  // FeatureTracker::track, mean over frames 1..N-1
   int rest_frames = 0;        // frames after 0 the tracker declared at rest
+  int affine_fit_frames = 0;  // frames whose affine fit stood in for the matches within their noise
   std::vector<GeneralisationFrame> per_frame;
   ChirpResolution chirp;
 };
 
 // What `tirstrain track` runs without a scene: the preset from the default hints, births off. Besides the
 // presets, "auto_no_rest" is the automatic preset without its rest handling (rest_average_frames 1: no
-// averaged anchor, no affine fit reported on frames found at rest), to show what that handling costs, and
+// averaged anchor, no affine fit reported on frames found at rest), to show what that handling costs,
+// "auto_no_affine_fit" the automatic preset without the moving frame's affine fit (affine_fit: false), and
 // "auto_local_fit" the automatic preset with the local fit on (flow/local_fit.hpp). Throws Error for another
 // name.
 flow::TrackerOptions generalisation_settings(const std::string& preset);

@@ -34,6 +34,8 @@ struct TrackFrame {
   std::size_t tracks = 0;  // tracks that existed at this frame (the width of its /tracks rows)
   bool rest_tested = false, at_rest = false;
   double rest_chi2_per_dof = kNaN, rest_correlation_z = kNaN;
+  bool affine_tested = false, affine_fit = false;
+  double affine_chi2_per_dof = kNaN, affine_correlation_z = kNaN, affine_hidden_px = kNaN;
   std::optional<Vec2> plate_px;
   std::int8_t plate_status = kAbsent;  // flow::PlateStatus, kAbsent where not measured
   int alive = 0, born = 0, retired = 0;
@@ -228,13 +230,14 @@ class TrackingStage final : public Stage {
     s["rest_frames_averaged"] = rest_frames_averaged_;
     // Frames at rest whose frame-0 tracks report the affine fit of their motion (docs/flow.md, step 5).
     s["rest_frames_on_fit"] = rest_frames_on_fit_;
+    // Moving frames whose frame-0 tracks report the frame's affine fit (docs/flow.md, step 9).
+    s["affine_fit_frames"] = affine_fit_frames_;
     // Track-frames by what their position is (docs/flow.md, what a position is): no model stands in for a
     // match unless a test on that frame accepted it.
-    s["track_frames_by_model"] = {{"own_match", model_track_frames_[0]},
-                                  {"fused", model_track_frames_[1]},
-                                  {"rest_fit", model_track_frames_[2]},
-                                  {"smoothed_in_time", model_track_frames_[3]},
-                                  {"local_fit", model_track_frames_[4]}};
+    s["track_frames_by_model"] = {
+        {"own_match", model_track_frames_[0]}, {"fused", model_track_frames_[1]},
+        {"rest_fit", model_track_frames_[2]},  {"smoothed_in_time", model_track_frames_[3]},
+        {"local_fit", model_track_frames_[4]}, {"affine_fit", model_track_frames_[5]}};
     s["fusion_declined_track_frames"] = fusion_declined_;
     s["smoothing_declined_track_frames"] = smoothing_declined_;
     s["tracks_total"] = tracker_ ? tracker_->tracks().size() : 0;
@@ -318,6 +321,12 @@ class TrackingStage final : public Stage {
     record.at_rest = stats.at_rest;
     record.rest_chi2_per_dof = stats.rest_chi2_per_dof;
     record.rest_correlation_z = stats.rest_correlation_z;
+    affine_fit_frames_ += stats.affine_fit ? 1 : 0;
+    record.affine_tested = stats.affine_tested;
+    record.affine_fit = stats.affine_fit;
+    record.affine_chi2_per_dof = stats.affine_chi2_per_dof;
+    record.affine_correlation_z = stats.affine_correlation_z;
+    record.affine_hidden_px = stats.affine_hidden_px;
     fusion_declined_ += stats.fusion_declined;
   }
 
@@ -387,6 +396,15 @@ class TrackingStage final : public Stage {
     out.write_row("/tracks/rest_chi2_per_dof", r, std::span<const double>(&f.rest_chi2_per_dof, 1), {}, kNaN);
     out.write_row("/tracks/rest_correlation_z", r, std::span<const double>(&f.rest_correlation_z, 1), {},
                   kNaN);
+    const std::int8_t affine[2] = {static_cast<std::int8_t>(f.affine_tested),
+                                   static_cast<std::int8_t>(f.affine_fit)};
+    out.write_row("/tracks/affine_tested", r, std::span<const std::int8_t>(affine, 1), {}, std::int8_t{0});
+    out.write_row("/tracks/affine_fit", r, std::span<const std::int8_t>(affine + 1, 1), {}, std::int8_t{0});
+    out.write_row("/tracks/affine_chi2_per_dof", r, std::span<const double>(&f.affine_chi2_per_dof, 1), {},
+                  kNaN);
+    out.write_row("/tracks/affine_correlation_z", r, std::span<const double>(&f.affine_correlation_z, 1), {},
+                  kNaN);
+    out.write_row("/tracks/affine_hidden_px", r, std::span<const double>(&f.affine_hidden_px, 1), {}, kNaN);
     const double plate[2] = {f.plate_px ? f.plate_px->x : kNaN, f.plate_px ? f.plate_px->y : kNaN};
     out.write_row("/plate/displacement_px", r, std::span<const double>(plate), {2}, kNaN);
     out.write_row("/plate/status", r, std::span<const std::int8_t>(&f.plate_status, 1), {}, kAbsent);
@@ -396,7 +414,8 @@ class TrackingStage final : public Stage {
     out.attribute(
         "/tracks", "model_codes",
         "0 own match; 1 neighbour fusion within the match's noise; 2 affine fit of a frame at rest; "
-        "3 smoothed in time within the match's noise (docs/flow.md, what a position is)");
+        "3 smoothed in time within the match's noise; 4 local fit of the neighbours' matches; 5 affine fit "
+        "of a moving frame (docs/flow.md, what a position is)");
     out.attribute(
         "/tracks", "subset_inside_fraction",
         "share of each match's subset pixels inside the contact (and the image); the others are not "
@@ -542,7 +561,8 @@ class TrackingStage final : public Stage {
   std::array<std::int64_t, 2> plate_frames_not_matched_{};  // predicted, LK only (/plate/status 1, 2)
   std::int64_t rest_frames_averaged_ = 0;
   std::int64_t rest_frames_on_fit_ = 0;
-  std::array<std::int64_t, 5> model_track_frames_{};
+  std::int64_t affine_fit_frames_ = 0;
+  std::array<std::int64_t, 6> model_track_frames_{};
   std::int64_t fusion_declined_ = 0, smoothing_declined_ = 0;
   bool smoothed_ = false;
   std::int64_t smoothed_track_frames_ = 0;

@@ -208,9 +208,9 @@ void write_plot(const std::vector<Row>& rows, const std::string& path) {
 }
 
 void print_generalisation_header() {
-  std::printf("%-15s %-11s %6s %-11s %6s %8s %8s %8s %6s %8s %7s %7s %8s %4s %8s\n", "case", "texture",
+  std::printf("%-15s %-11s %6s %-11s %6s %8s %8s %8s %6s %8s %7s %7s %8s %4s %6s %8s\n", "case", "texture",
               "noise%", "preset", "alive", "rms_px", "bias_px", "max_px", ">1px", "res_px", "res_r", "gain_l",
-              "long_px", "rest", "ms/frame");
+              "long_px", "rest", "affine", "ms/frame");
 }
 
 // The chirp's resolution: its wavelength, or ">L" when not even the longest window L reaches the gain.
@@ -226,10 +226,10 @@ std::string resolution_cell(const pipeline::GeneralisationResult& r) {
 }
 
 void print_generalisation_row(const pipeline::GeneralisationResult& r) {
-  std::printf("%-15s %-11s %6.1f %-11s %6.0f %8.4f %8.4f %8.3f %6d %8s %7.2f %7.3f %8.4f %4d %8.1f\n",
+  std::printf("%-15s %-11s %6.1f %-11s %6.0f %8.4f %8.4f %8.3f %6d %8s %7.2f %7.3f %8.4f %4d %6d %8.1f\n",
               r.field.c_str(), r.texture.c_str(), 100.0 * r.noise_fraction, r.preset.c_str(), r.alive_mean,
               r.rms_px, r.bias_px, r.max_px, r.over_1px, resolution_cell(r).c_str(), r.resolution_radii,
-              r.longest_gain, r.long_wave_rms_px, r.rest_frames, r.ms_per_frame);
+              r.longest_gain, r.long_wave_rms_px, r.rest_frames, r.affine_fit_frames, r.ms_per_frame);
   std::fflush(stdout);
 }
 
@@ -255,6 +255,7 @@ void write_generalisation_csv(const std::vector<pipeline::GeneralisationResult>&
                                                    "longest_gain",
                                                    "long_wave_rms_px",
                                                    "rest_frames",
+                                                   "affine_fit_frames",
                                                    "ms_per_frame"};
   CsvWriter summary((out / "generalisation.csv").string(), columns);
   for (const pipeline::GeneralisationResult& r : results)
@@ -278,16 +279,18 @@ void write_generalisation_csv(const std::vector<pipeline::GeneralisationResult>&
                       format_double(r.longest_gain),
                       format_double(r.long_wave_rms_px),
                       std::to_string(r.rest_frames),
+                      std::to_string(r.affine_fit_frames),
                       format_double(r.ms_per_frame)});
   summary.commit();
   CsvWriter frames((out / "generalisation_frames.csv").string(),
                    {"case", "texture", "noise_fraction", "preset", "frame", "alive", "rms_px", "bias_x_px",
-                    "bias_y_px", "max_px", "at_rest", "track_ms"});
+                    "bias_y_px", "max_px", "at_rest", "affine_fit", "affine_hidden_px", "track_ms"});
   for (const pipeline::GeneralisationResult& r : results)
     for (const pipeline::GeneralisationFrame& f : r.per_frame)
       frames.row_text({r.field, r.texture, format_double(r.noise_fraction), r.preset, std::to_string(f.frame),
                        std::to_string(f.alive), format_double(f.rms_px), format_double(f.bias_px.x),
                        format_double(f.bias_px.y), format_double(f.max_px), f.at_rest ? "1" : "0",
+                       f.affine_fit ? "1" : "0", format_double(f.affine_hidden_px),
                        format_double(f.track_ms)});
   frames.commit();
   CsvWriter chirp(
@@ -582,14 +585,16 @@ void add_bench_command(CLI::App& app) {
       "runs it without a scene) on exact-truth sequences it was not tuned on (docs/generalisation.md):\n"
       "speckle and fingerprint textures x subpixel_shift, integer_shift, chirp, step, stretch, rotation,\n"
       "creep (--cases picks them) x noise 0.5 and 2 % of full scale (16-bit frames) x presets auto and\n"
-      "delhaye2016 (--configs picks them; also auto_no_rest: auto without its rest handling, and\n"
-      "auto_local_fit: auto with the local fit of docs/flow.md). Per row:\n"
+      "delhaye2016 (--configs picks them; also auto_no_rest: auto without its rest handling,\n"
+      "auto_no_affine_fit: auto without the moving frame's affine fit, and auto_local_fit: auto with the\n"
+      "local fit of docs/flow.md). Per row:\n"
       "tracks alive (mean), displacement error RMS, the largest per-frame bias |mean error| and max (px),\n"
       "track-frames more than 1 px off (>1px); for the chirp (u = 0.1 px sin, wavelength 1000 -> 20 px\n"
       "along x): res_px, the shortest wavelength reproduced with >= 90 % of its amplitude ('>L': not even\n"
       "the longest window L the frame holds), res_r the same in radii (the subset radius, or half the LK\n"
       "window for delhaye2016), gain_l the gain at that longest window, long_px the RMS over wavelengths\n"
-      ">= 10 radii; rest: frames the tracker declared at rest; ms per tracked frame\n"
+      ">= 10 radii; rest: frames the tracker declared at rest; affine: moving frames whose affine fit\n"
+      "stood in for the matches within their noise; ms per tracked frame\n"
       "(FeatureTracker::track).\n"
       "Writes OUT/generalisation.csv, generalisation_frames.csv (per frame) and generalisation_chirp.csv\n"
       "(the chirp's windows). With --quick: the small test sizes (192x128, chirp 512x96), a few seconds.\n"

@@ -120,13 +120,22 @@ nlohmann::json frame_json(const flow::FrameStats& s) {
                       {"rest_tested", s.rest_tested},
                       {"at_rest", s.at_rest},
                       {"on_rest_fit", s.on_rest_fit},
-                      {"local_fit", s.local_fit}};
+                      {"local_fit", s.local_fit},
+                      {"affine_fit", s.affine_fit},
+                      {"on_affine_fit", s.on_affine_fit}};
   if (s.rest_tested) {
     f["rest_chi2_per_dof"] =
         std::isfinite(s.rest_chi2_per_dof) ? nlohmann::json(s.rest_chi2_per_dof) : nullptr;
     f["rest_correlation_z"] =
         std::isfinite(s.rest_correlation_z) ? nlohmann::json(s.rest_correlation_z) : nullptr;
     f["rest_pairs"] = s.rest_pairs;
+  }
+  if (s.affine_tested) {
+    f["affine_chi2_per_dof"] =
+        std::isfinite(s.affine_chi2_per_dof) ? nlohmann::json(s.affine_chi2_per_dof) : nullptr;
+    f["affine_correlation_z"] =
+        std::isfinite(s.affine_correlation_z) ? nlohmann::json(s.affine_correlation_z) : nullptr;
+    f["affine_hidden_px"] = std::isfinite(s.affine_hidden_px) ? nlohmann::json(s.affine_hidden_px) : nullptr;
   }
   return f;
 }
@@ -220,7 +229,8 @@ class TrackRun {
                                      {"fused", by_model_[1]},
                                      {"rest_fit", by_model_[2]},
                                      {"smoothed_in_time", by_model_[3]},
-                                     {"local_fit", by_model_[4]}}},
+                                     {"local_fit", by_model_[4]},
+                                     {"affine_fit", by_model_[5]}}},
                                    {"per_frame", frames_json_}};
     AtomicFile json(settings_path(o_.out));
     json.append(report.dump(2) + "\n");
@@ -239,7 +249,8 @@ class TrackRun {
               << json_path << '\n';
     std::cout << "texture: " << pipeline::texture_note(*tracker_) << '\n';
     std::cout << "positions: " << by_model_[0] << " own matches, " << by_model_[1] << " neighbour-fused, "
-              << by_model_[2] << " on the rest fit, " << by_model_[4]
+              << by_model_[2] << " on the rest fit, " << by_model_[5] << " on a moving frame's affine fit, "
+              << by_model_[4]
               << " on a local fit of their neighbours (track-frames; columns model and model_window_px, and "
                  "the tests per frame in "
               << json_path << ")\n";
@@ -252,7 +263,7 @@ class TrackRun {
   cv::Mat mask_;
   CsvWriter out_;
   nlohmann::json frames_json_ = nlohmann::json::array();
-  std::array<long, 5> by_model_{};
+  std::array<long, 6> by_model_{};
   int frames_ = 0;
 };
 

@@ -62,6 +62,12 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_EQ(s.main_match.shape, ShapeFunction::kAffine);
   EXPECT_EQ(s.prediction.window_px, 31);
   EXPECT_EQ(parse_tracking_options(scene_with("{}"), "delhaye2016").prediction.window_px, 101);
+  // The moving frame's affine fit: on by default, its keys read from the scene.
+  EXPECT_TRUE(s.affine_fit.enabled);
+  const TrackerOptions affine =
+      parse_tracking_options(scene_with("{affine_fit: false, affine_fit_max_hidden_px: 0.01}"));
+  EXPECT_FALSE(affine.affine_fit.enabled);
+  EXPECT_EQ(affine.affine_fit.max_hidden_px, 0.01);
   // What the scene sets is pinned: the texture adaptation leaves it alone, and adapts the rest.
   EXPECT_TRUE(s.texture.adapt);
   EXPECT_TRUE(s.pinned.shape);
@@ -160,6 +166,7 @@ TEST(Settings, EachGroupsCheckNamesTheSceneKey) {
       {[](TrackerOptions& o) { o.neighbours.tolerance_px = 0.0; }, "tracking.neighbour_tolerance_px"},
       {[](TrackerOptions& o) { o.fusion.sigma_px = -1.0; }, "tracking.fusion_sigma_px"},
       {[](TrackerOptions& o) { o.local_fit.agreement_chi2 = 0.0; }, "tracking.local_fit_agreement_chi2"},
+      {[](TrackerOptions& o) { o.affine_fit.max_hidden_px = -0.1; }, "tracking.affine_fit_max_hidden_px"},
       {[](TrackerOptions& o) { o.reanchor.interval_frames = -1; }, "tracking.reanchor_interval_frames"},
       {[](TrackerOptions& o) { o.rest.average_frames = 0; }, "tracking.rest_average_frames"},
       {[](TrackerOptions& o) { o.smoothing.mode = "sometimes"; }, "tracking.smooth_in_time"},

@@ -66,11 +66,14 @@ TEST(TrackCli, SubPixelShiftOfSpeckle) {
   std::printf("speckle: %d points, worst error %.4f px\n", n, worst);
 
   // Two frames: no rest test runs (the texture is noise-free), no model stands in for a match beyond the
-  // fusion and the local fit (each with the window it was fitted over), and the JSON beside the CSV says
-  // the texture has no ridges and which settings ran.
+  // fusion, the local fit (each with the window it was fitted over) and the frame's affine fit of the
+  // shift, and the JSON beside the CSV says the texture has no ridges, which settings ran and what the
+  // affine test found.
+  long on_affine_fit = 0;
   for (std::size_t i = 0; i < t.rows(); ++i) {
     const double model = t.column("model")[i];
-    EXPECT_TRUE(model == 0.0 || model == 1.0 || model == 4.0) << model;
+    EXPECT_TRUE(model == 0.0 || model == 1.0 || model == 4.0 || model == 5.0) << model;
+    on_affine_fit += model == 5.0 ? 1 : 0;
     if (model == 4.0)
       EXPECT_GE(t.column("model_window_px")[i], 10.0);
     else
@@ -85,13 +88,19 @@ TEST(TrackCli, SubPixelShiftOfSpeckle) {
   EXPECT_EQ(j["settings"]["preset"].get<std::string>(), "auto");
   EXPECT_EQ(j["per_frame"].size(), 2u);
   EXPECT_FALSE(j["per_frame"][1]["at_rest"].get<bool>());
+  EXPECT_TRUE(j["per_frame"][1]["affine_fit"].get<bool>());
+  EXPECT_LE(j["per_frame"][1]["affine_chi2_per_dof"].get<double>(), 1.5);
+  EXPECT_LE(j["per_frame"][1]["affine_hidden_px"].get<double>(), 0.03);
+  EXPECT_EQ(j["per_frame"][1]["on_affine_fit"].get<long>(), on_affine_fit);
+  EXPECT_GE(on_affine_fit, n / 2);
   const auto& by_model = j["track_frames_by_model"];
   EXPECT_EQ(by_model["rest_fit"].get<long>(), 0);
+  EXPECT_EQ(by_model["affine_fit"].get<long>(), on_affine_fit);
   long alive_rows = 0;
   for (std::size_t i = 0; i < t.rows(); ++i) alive_rows += t.column("status")[i] < 10 ? 1 : 0;
-  EXPECT_EQ(
-      by_model["own_match"].get<long>() + by_model["fused"].get<long>() + by_model["local_fit"].get<long>(),
-      alive_rows);
+  EXPECT_EQ(by_model["own_match"].get<long>() + by_model["fused"].get<long>() +
+                by_model["local_fit"].get<long>() + by_model["affine_fit"].get<long>(),
+            alive_rows);
 
   // Tracks written into the frames' folder would change the input: refused, and the folder stays as it was.
   EXPECT_EQ(run("track " + (dir / "frames").string() + " --grid 16 --out " +

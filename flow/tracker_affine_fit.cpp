@@ -1,0 +1,99 @@
+// The frame's affine fit: where one affine motion describes this frame's matches within their predicted
+// noise and without spatial structure, it stands in for each match that lies within its own noise of it.
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <vector>
+
+#include "core/median.hpp"
+#include "flow/detail/tracker_impl.hpp"
+
+namespace tirstrain::flow {
+
+using namespace tracker_detail;
+
+namespace {
+
+// The frame-0 tracks the fit may speak for (their X is a matched frame-0 pixel, so X and x share frame 0's
+// coordinates), and the matches it is tested on: the main matches of this frame, the ones whose predicted
+// covariance is the subset's own (the rounds' wider subsets take their shape from the neighbours, and share
+// their errors).
+struct AffineFitMembers {
+  std::vector<int> members;
+  std::vector<OwnMatch> tested;
+};
+
+// The smaller of the fit's distances from a track's own match and from this frame's main match, in units of
+// each one's predicted noise: the fit stands in where either of the track's own measurements agrees with it.
+double fit_distance2(Vec2 on_fit, const TrackState& st, int frame) {
+  const auto distance2 = [&on_fit](const OwnMatch& m) {
+    return mahalanobis2({on_fit.x - m.position_px.x, on_fit.y - m.position_px.y}, m.covariance_px2);
+  };
+  double d2 = distance2(st.own);
+  if (st.main_frame == frame) d2 = std::min(d2, distance2(st.main));
+  return d2;
+}
+
+// The RMS of a non-affine motion, spread over the frame, that the test's χ² bound lets through: the matches'
+// typical noise (the median of each one's geometric-mean σ, det(C)^(1/4)) times sqrt(bound − 1).
+double hidden_motion_px(const std::vector<OwnMatch>& tested, double max_chi2_per_dof) {
+  std::vector<double> sigma;
+  sigma.reserve(tested.size());
+  for (const OwnMatch& m : tested)
+    sigma.push_back(std::pow(std::max(m.covariance_px2.determinant(), 0.0), 0.25));
+  if (sigma.empty()) return std::numeric_limits<double>::infinity();
+  return upper_median_in_place(sigma) * std::sqrt(std::max(max_chi2_per_dof - 1.0, 0.0));
+}
+
+}  // namespace
+
+RestTestOptions FeatureTracker::Impl::affine_test_options() const {
+  RestTestOptions o = rest_test_options();
+  o.max_chi2_per_dof = settings.affine_fit.max_chi2_per_dof;
+  o.max_correlation_z = settings.affine_fit.max_correlation_z;
+  return o;
+}
+
+void FeatureTracker::Impl::report_affine_fit() {
+  if (!settings.refine || !settings.affine_fit.enabled || stats.at_rest) return;
+  AffineFitMembers m;
+  for (int i : alive) {
+    const TrackState& st = states[static_cast<std::size_t>(i)];
+    if (!is_alive(tracks[static_cast<std::size_t>(i)].status) || st.key != 0 || !st.exact_reference ||
+        !st.own_valid)
+      continue;
+    m.members.push_back(i);
+    if (st.main_frame == frame) m.tested.push_back(st.main);
+  }
+  const RestTest test = test_affine_model(m.tested, affine_test_options());
+  stats.affine_tested = true;
+  stats.affine_chi2_per_dof = test.chi2_per_dof;
+  stats.affine_correlation_z = test.correlation_z;
+  stats.affine_hidden_px = hidden_motion_px(m.tested, settings.affine_fit.max_chi2_per_dof);
+  if (!test.affine || !(stats.affine_hidden_px <= settings.affine_fit.max_hidden_px)) return;
+  stats.affine_fit = true;
+  const Gradient2 gradient = test.gradient();
+  for (int i : m.members) {
+    Track& t = tracks[static_cast<std::size_t>(i)];
+    const Vec2 d = test.displacement_px(t.reference_px);
+    const Vec2 on_fit{t.reference_px.x + d.x, t.reference_px.y + d.y};
+    const double d2 = fit_distance2(on_fit, states[static_cast<std::size_t>(i)], frame);
+    if (!(d2 <= kModelShiftChi2)) continue;  // a motion of its own: it keeps what it reports
+    t.position_px = on_fit;
+    t.gradient = gradient;
+    t.model = TrackModel::kAffineFit;
+    t.model_mahalanobis2 = d2;
+    t.model_window_px = std::numeric_limits<double>::quiet_NaN();
+    ++stats.on_affine_fit;
+  }
+  const auto reporting = [this](TrackModel model) {
+    return static_cast<int>(std::count_if(tracks.begin(), tracks.end(), [model](const Track& t) {
+      return is_alive(t.status) && t.model == model;
+    }));
+  };
+  stats.fused = reporting(TrackModel::kFused);
+  stats.local_fit = reporting(TrackModel::kLocalFit);
+}
+
+}  // namespace tirstrain::flow
