@@ -48,6 +48,27 @@ double hidden_motion_px(const std::vector<OwnMatch>& tested, double max_chi2_per
 
 }  // namespace
 
+// A second main match of a track whose own matches disagree with the fit, started from the fit's position:
+// its subset against the anchor again, so that a match that converged beside the answer (along its ridges, or
+// to a neighbouring minimum) gets another chance; the track's state is left as it was. The distance² of the
+// fit from that match in its predicted noise, or infinity where it does not converge.
+double FeatureTracker::Impl::second_look_distance2(const TrackState& st, Vec2 on_fit) const {
+  if (st.subset.empty()) return std::numeric_limits<double>::infinity();
+  Warp warp = st.warp;
+  const cv::Point c = st.subset.centre();
+  warp.set_displacement_at(st.offset.x, st.offset.y,
+                           {on_fit.x - c.x - st.offset.x, on_fit.y - c.y - st.offset.y});
+  const MatchResult match = st.subset.match(match_source(), match_mask, warp, settings.main_match.solver);
+  if (!match.converged || match.zncc < settings.main_match.min_zncc)
+    return std::numeric_limits<double>::infinity();
+  const Vec2 u = warp.displacement_px(st.offset.x, st.offset.y);
+  const Vec2 position{c.x + st.offset.x + u.x, c.y + st.offset.y + u.y};
+  const Eigen::Matrix2d covariance = predicted_match_covariance(
+      match.zncc, st.subset.pixel_count(), st.subset.translation_information(),
+      correlated_pixels(settings.main_match.prefilter_sigma_px, st.subset.stride()));
+  return mahalanobis2({on_fit.x - position.x, on_fit.y - position.y}, covariance);
+}
+
 RestTestOptions FeatureTracker::Impl::affine_test_options() const {
   RestTestOptions o = rest_test_options();
   o.max_chi2_per_dof = settings.affine_fit.max_chi2_per_dof;
@@ -78,7 +99,9 @@ void FeatureTracker::Impl::report_affine_fit() {
     Track& t = tracks[static_cast<std::size_t>(i)];
     const Vec2 d = test.displacement_px(t.reference_px);
     const Vec2 on_fit{t.reference_px.x + d.x, t.reference_px.y + d.y};
-    const double d2 = fit_distance2(on_fit, states[static_cast<std::size_t>(i)], frame);
+    const TrackState& st = states[static_cast<std::size_t>(i)];
+    double d2 = fit_distance2(on_fit, st, frame);
+    if (!(d2 <= kModelShiftChi2)) d2 = second_look_distance2(st, on_fit);
     if (!(d2 <= kModelShiftChi2)) continue;  // a motion of its own: it keeps what it reports
     t.position_px = on_fit;
     t.gradient = gradient;

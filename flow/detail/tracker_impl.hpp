@@ -284,6 +284,7 @@ struct FeatureTracker::Impl {
   void report_local_fits();
   void report_affine_fit();
   RestTestOptions affine_test_options() const;
+  double second_look_distance2(const TrackState& st, Vec2 on_fit) const;
   double ridge_reach_px() const { return 0.25 * settings.prediction.window_px; }
   // The global shift's images are reduced by 2 or 4 while the ridges stay at least 5 px apart there.
   int high_pass_factor() const {
