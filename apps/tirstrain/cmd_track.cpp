@@ -281,8 +281,8 @@ void add_track_command(CLI::App& app) {
       "Track points (or a grid) through an image sequence: pyramidal Lucas-Kanade between frames, refined\n"
       "against the first frame by subset correlation. Writes frame,id,X_px,Y_px,x_px,y_px,status,model,\n"
       "model_window_px (model: 0 own match, 1 neighbour-fused, 2 rest fit, 4 local affine fit of the\n"
-      "neighbours' matches over a window of model_window_px radius, else 0; each only where\n"
-      "a test on that frame accepted it)\n"
+      "neighbours' matches over a window of model_window_px radius, else 0; 5 the affine fit of a\n"
+      "moving frame; each only where a test on that frame accepted it)\n"
       "and, beside the CSV, a JSON of the settings in effect, the texture and the per-frame tests.\n"
       "Example: tirstrain track frames/ --grid 10 --out tracks.csv   (writes tracks.csv and tracks.json)");
   cmd->add_option("input", o->input,
