@@ -15,15 +15,6 @@ using namespace tracker_detail;
 
 namespace {
 
-// The frame-0 tracks the fit may speak for (their X is a matched frame-0 pixel, so X and x share frame 0's
-// coordinates), and the matches it is tested on: the main matches of this frame, the ones whose predicted
-// covariance is the subset's own (the rounds' wider subsets take their shape from the neighbours, and share
-// their errors).
-struct AffineFitMembers {
-  std::vector<int> members;
-  std::vector<OwnMatch> tested;
-};
-
 // The smaller of the fit's distances from a track's own match and from this frame's main match, in units of
 // each one's predicted noise: the fit stands in where either of the track's own measurements agrees with it.
 double fit_distance2(Vec2 on_fit, const TrackState& st, int frame) {
@@ -76,8 +67,8 @@ RestTestOptions FeatureTracker::Impl::affine_test_options() const {
   return o;
 }
 
-void FeatureTracker::Impl::report_affine_fit() {
-  if (!settings.refine || !settings.affine_fit.enabled || stats.at_rest) return;
+// The frame-0 tracks the fit may speak for, and this frame's main matches among them.
+AffineFitMembers FeatureTracker::Impl::affine_fit_members() const {
   AffineFitMembers m;
   for (int i : alive) {
     const TrackState& st = states[static_cast<std::size_t>(i)];
@@ -87,15 +78,13 @@ void FeatureTracker::Impl::report_affine_fit() {
     m.members.push_back(i);
     if (st.main_frame == frame) m.tested.push_back(st.main);
   }
-  const RestTest test = test_affine_model(m.tested, affine_test_options());
-  stats.affine_tested = true;
-  stats.affine_chi2_per_dof = test.chi2_per_dof;
-  stats.affine_correlation_z = test.correlation_z;
-  stats.affine_hidden_px = hidden_motion_px(m.tested, settings.affine_fit.max_chi2_per_dof);
-  if (!test.affine || !(stats.affine_hidden_px <= settings.affine_fit.max_hidden_px)) return;
-  stats.affine_fit = true;
+  return m;
+}
+
+// Each member whose own match, main match or second look lies within its noise of the fit reports the fit.
+void FeatureTracker::Impl::place_on_affine_fit(const RestTest& test, const std::vector<int>& members) {
   const Gradient2 gradient = test.gradient();
-  for (int i : m.members) {
+  for (int i : members) {
     Track& t = tracks[static_cast<std::size_t>(i)];
     const Vec2 d = test.displacement_px(t.reference_px);
     const Vec2 on_fit{t.reference_px.x + d.x, t.reference_px.y + d.y};
@@ -117,6 +106,19 @@ void FeatureTracker::Impl::report_affine_fit() {
   };
   stats.fused = reporting(TrackModel::kFused);
   stats.local_fit = reporting(TrackModel::kLocalFit);
+}
+
+void FeatureTracker::Impl::report_affine_fit() {
+  if (!settings.refine || !settings.affine_fit.enabled || stats.at_rest) return;
+  const AffineFitMembers m = affine_fit_members();
+  const RestTest test = test_affine_model(m.tested, affine_test_options());
+  stats.affine_tested = true;
+  stats.affine_chi2_per_dof = test.chi2_per_dof;
+  stats.affine_correlation_z = test.correlation_z;
+  stats.affine_hidden_px = hidden_motion_px(m.tested, settings.affine_fit.max_chi2_per_dof);
+  if (!test.affine || !(stats.affine_hidden_px <= settings.affine_fit.max_hidden_px)) return;
+  stats.affine_fit = true;
+  place_on_affine_fit(test, m.members);
 }
 
 }  // namespace tirstrain::flow

@@ -230,7 +230,7 @@ class TrackingStage final : public Stage {
     s["rest_frames_averaged"] = rest_frames_averaged_;
     // Frames at rest whose frame-0 tracks report the affine fit of their motion (docs/flow.md, step 5).
     s["rest_frames_on_fit"] = rest_frames_on_fit_;
-    // Moving frames whose frame-0 tracks report the frame's affine fit (docs/flow.md, step 9).
+    // Moving frames whose frame-0 tracks report the frame's affine fit (docs/flow.md, step 5).
     s["affine_fit_frames"] = affine_fit_frames_;
     // Track-frames by what their position is (docs/flow.md, what a position is): no model stands in for a
     // match unless a test on that frame accepted it.

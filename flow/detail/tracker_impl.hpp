@@ -65,6 +65,15 @@ struct TrackState {
   double model_mahalanobis2 = std::numeric_limits<double>::quiet_NaN();
 };
 
+// The frame-0 tracks a moving frame's affine fit may speak for (their X is a matched frame-0 pixel, so X and
+// x share frame 0's coordinates), and the matches it is tested on: the main matches of this frame, whose
+// predicted covariance is the subset's own (the rounds' wider subsets take their shape from the neighbours,
+// and share their errors).
+struct AffineFitMembers {
+  std::vector<int> members;
+  std::vector<OwnMatch> tested;
+};
+
 // A contact with fewer grid points than this is small enough to be mostly border (adapt_to_texture).
 constexpr double kFewTracks = 300.0;
 // Texture without ridges: the noise the final (fixed-shape) subset is sized for, px.
@@ -90,6 +99,7 @@ struct FeatureTracker::Impl {
   using Mat2d = tracker_detail::Mat2d;
   using KeyFrame = tracker_detail::KeyFrame;
   using TrackState = tracker_detail::TrackState;
+  using AffineFitMembers = tracker_detail::AffineFitMembers;
 
   TrackerOptions settings;
   std::optional<RoiPx> plate_roi;
@@ -285,6 +295,8 @@ struct FeatureTracker::Impl {
   void report_affine_fit();
   RestTestOptions affine_test_options() const;
   double second_look_distance2(const TrackState& st, Vec2 on_fit) const;
+  AffineFitMembers affine_fit_members() const;
+  void place_on_affine_fit(const RestTest& test, const std::vector<int>& members);
   double ridge_reach_px() const { return 0.25 * settings.prediction.window_px; }
   // The global shift's images are reduced by 2 or 4 while the ridges stay at least 5 px apart there.
   int high_pass_factor() const {
