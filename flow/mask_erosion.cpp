@@ -7,9 +7,14 @@
 #include <optional>
 #include <vector>
 
+#include "flow/subset.hpp"
+
 namespace tirstrain::flow {
 
 namespace {
+
+// erode_for_matching's reach: its 5 × 5 element.
+constexpr int kKernelReachPx = 2;
 
 // The elliptic element's row half-widths, read off OpenCV's own element so that the two agree exactly; −1
 // for an empty element row.
@@ -152,6 +157,33 @@ void erode_ellipse(const cv::Mat& mask, int radius_px, cv::Mat& out) {
       const bool survives = (x >= span->deep_lo && x <= span->deep_hi) || keep[static_cast<std::size_t>(x)];
       o[x] = survives ? m[x] : std::uint8_t{0};
     }
+  }
+}
+
+void erode_contact_for_matching(const cv::Mat& mask, cv::Rect box, int exclusion_px,
+                                MatchMaskScratch& scratch, cv::Mat& out) {
+  const cv::Rect image(0, 0, mask.cols, mask.rows);
+  CV_Assert(box == (box & image) && out.size() == box.size() && out.type() == CV_8U);
+  if (box.area() == 0) return;
+  const int e = std::max(0, exclusion_px);
+  // Beyond the image's edge the contact is taken to go on (the edge pixels repeated), far enough that
+  // neither erosion reaches back into the image from the padding's own border.
+  const int pad = e + kKernelReachPx + 1;
+  const int left = box.x == 0 ? pad : 0, top = box.y == 0 ? pad : 0;
+  const int right = box.br().x == image.width ? pad : 0, bottom = box.br().y == image.height ? pad : 0;
+  cv::copyMakeBorder(mask(box), scratch.padded, top, bottom, left, right, cv::BORDER_REPLICATE);
+  erode_for_matching(scratch.padded, scratch.eroded);
+  erode_ellipse(scratch.eroded, e, scratch.padded);
+  scratch.padded(cv::Rect(left, top, box.width, box.height)).copyTo(out);
+  // The kernel still needs its reach of real pixels inside the image's edge.
+  const int k = kKernelReachPx;
+  const cv::Rect strips[] = {{0, 0, image.width, k},
+                             {0, image.height - k, image.width, k},
+                             {0, 0, k, image.height},
+                             {image.width - k, 0, k, image.height}};
+  for (const cv::Rect& strip : strips) {
+    const cv::Rect hit = strip & box;
+    if (hit.area() > 0) out(hit - box.tl()).setTo(0);
   }
 }
 

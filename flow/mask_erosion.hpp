@@ -17,4 +17,17 @@ namespace tirstrain::flow {
 // pixels. radius_px 0 copies.
 void erode_ellipse(const cv::Mat& mask, int radius_px, cv::Mat& out);
 
+// Where subsets may read pixels: the contact `mask` (CV_8U, 0 or one nonzero value) eroded by the border
+// exclusion's ellipse of `exclusion_px` and by the interpolation kernel's reach (erode_for_matching), within
+// `box` (the contact's bounding box grown past both, clipped to the image); written into `out`, a view of
+// `box`'s size. The contact's border bounds both erosions. The image's edge bounds only the kernel's: a
+// contact running off the frame has no border there (no fading partial contact), and outside the image
+// there are simply no pixels, so the exclusion there would only throw away half of every edge subset.
+// `scratch`: reused buffers.
+struct MatchMaskScratch {
+  cv::Mat padded, eroded;
+};
+void erode_contact_for_matching(const cv::Mat& mask, cv::Rect box, int exclusion_px,
+                                MatchMaskScratch& scratch, cv::Mat& out);
+
 }  // namespace tirstrain::flow

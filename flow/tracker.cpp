@@ -126,8 +126,7 @@ void FeatureTracker::Impl::prepare(const cv::Mat& image, const cv::Mat& contact_
     match_mask.setTo(0);
     if (box.area() > 0) {
       cv::Mat eroded = match_mask(box);
-      erode_for_matching(mask(box), erosion_scratch);
-      erode_ellipse(erosion_scratch, std::max(0, e), eroded);
+      erode_contact_for_matching(mask, box, e, erosion_scratch, eroded);
     }
   }
 }

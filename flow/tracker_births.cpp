@@ -65,10 +65,24 @@ bool FeatureTracker::Impl::create_track(Vec2 position, Vec2 reference, const Mat
   return true;
 }
 
-void FeatureTracker::Impl::seed_grid() {
+// Where a track may start: border_margin_px inside the contact's border. The frame's edge is no contact
+// border (cv::erode's default border does not erode), but a refined track's subset must fit inside the
+// frame, so its centre stays its radius and the interpolation kernel's reach inside.
+void FeatureTracker::Impl::build_birth_mask() {
   const int margin = static_cast<int>(std::ceil(settings.seeding.border_margin_px));
   cv::erode(mask, birth_mask,
             cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * margin + 1, 2 * margin + 1)));
+  if (!settings.refine) return;
+  const int edge =
+      std::min({settings.main_match.subset_radius_px + 2, (size.width - 1) / 2, (size.height - 1) / 2});
+  birth_mask.rowRange(0, edge).setTo(0);
+  birth_mask.rowRange(size.height - edge, size.height).setTo(0);
+  birth_mask.colRange(0, edge).setTo(0);
+  birth_mask.colRange(size.width - edge, size.width).setTo(0);
+}
+
+void FeatureTracker::Impl::seed_grid() {
+  build_birth_mask();
   min_eigenvalue_map(current_f(roi), settings.seeding.eigen_block_px, eigen, eigen_scratch);
   double largest = 0.0;
   cv::minMaxLoc(eigen, nullptr, &largest, nullptr, nullptr, birth_mask(roi));
@@ -166,9 +180,7 @@ void FeatureTracker::Impl::births() {
             rows = static_cast<int>((size.height - 1) / step) + 1;
   int live = mark_taken_lattice(cols, rows);
   if (live >= settings.seeding.max_features) return;
-  const int margin = static_cast<int>(std::ceil(settings.seeding.border_margin_px));
-  cv::erode(mask, birth_mask,
-            cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * margin + 1, 2 * margin + 1)));
+  build_birth_mask();
   min_eigenvalue_map(current_f(roi), settings.seeding.eigen_block_px, eigen, eigen_scratch);
   build_hash(false);
   int key = -1;

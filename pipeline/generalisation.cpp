@@ -25,9 +25,14 @@ double elapsed_ms(Clock::time_point since) {
   return std::chrono::duration<double, std::milli>(Clock::now() - since).count();
 }
 
-// The grid `tirstrain track --grid` seeds: a subset radius (or half the LK window) plus 2 px from the edges.
+// How far from the frame's edges `tirstrain track --grid` seeds: a subset radius (or half the LK window)
+// plus 2 px.
+double grid_margin_px(const flow::TrackerOptions& s) {
+  return s.refine ? s.main_match.subset_radius_px + 2.0 : s.prediction.window_px / 2.0;
+}
+
 std::vector<Vec2> grid_points(const flow::TrackerOptions& s, cv::Size size, double step_px) {
-  const double margin = s.refine ? s.main_match.subset_radius_px + 2.0 : s.prediction.window_px / 2.0;
+  const double margin = grid_margin_px(s);
   std::vector<Vec2> points;
   for (double y = margin; y <= size.height - 1 - margin; y += step_px)
     for (double x = margin; x <= size.width - 1 - margin; x += step_px) points.push_back({x, y});
@@ -50,16 +55,25 @@ struct ErrorSums {
   double rms() const { return n ? std::sqrt(sum2 / n) : kNaN; }
 };
 
+struct RunSums {
+  ErrorSums all, edge, interior;
+};
+
+double edge_distance_px(const samples::GeneralisationCase& sequence, Vec2 p) {
+  return std::min({p.x, p.y, sequence.width() - 1.0 - p.x, sequence.height() - 1.0 - p.y});
+}
+
 // The frame's errors at every live track; fills `frame` and adds to the run's totals.
 void measure_frame(const samples::GeneralisationCase& sequence, const flow::FeatureTracker& tracker,
-                   int index, GeneralisationFrame& frame, ErrorSums& totals) {
+                   int index, double edge_band_px, GeneralisationFrame& frame, RunSums& totals) {
   ErrorSums sums;
   for (const flow::Track& t : tracker.tracks()) {
     if (!flow::is_alive(t.status)) continue;
     const Vec2 u = sequence.field(t.reference_px, index).displacement_px;
     const Vec2 e{t.position_px.x - t.reference_px.x - u.x, t.position_px.y - t.reference_px.y - u.y};
     sums.add(e);
-    totals.add(e);
+    totals.all.add(e);
+    (edge_distance_px(sequence, t.reference_px) < edge_band_px ? totals.edge : totals.interior).add(e);
   }
   frame.frame = index;
   frame.alive = sums.n;
@@ -202,7 +216,8 @@ GeneralisationResult run_generalisation(const samples::GeneralisationCase& seque
   const flow::TrackerOptions& s = tracker.settings();
   result.radius_px = s.refine ? s.main_match.subset_radius_px : 0.5 * s.prediction.window_px;
 
-  ErrorSums totals;
+  result.edge_band_px = grid_margin_px(s) + 1.5 * options.grid_step_px;
+  RunSums totals;
   double alive_sum = 0.0, ms_sum = 0.0;
   for (std::size_t k = 1; k < frames.size(); ++k) {
     const int index = static_cast<int>(k);
@@ -213,7 +228,7 @@ GeneralisationResult run_generalisation(const samples::GeneralisationCase& seque
     frame.at_rest = stats.at_rest;
     frame.affine_fit = stats.affine_fit;
     frame.affine_hidden_px = stats.affine_hidden_px;
-    measure_frame(sequence, tracker, index, frame, totals);
+    measure_frame(sequence, tracker, index, result.edge_band_px, frame, totals);
     alive_sum += frame.alive;
     ms_sum += frame.track_ms;
     result.rest_frames += frame.at_rest ? 1 : 0;
@@ -227,9 +242,11 @@ GeneralisationResult run_generalisation(const samples::GeneralisationCase& seque
   const double tracked_frames = static_cast<double>(frames.size() - 1);
   result.alive_mean = alive_sum / tracked_frames;
   result.ms_per_frame = ms_sum / tracked_frames;
-  result.rms_px = totals.rms();
-  result.max_px = totals.n ? totals.max : kNaN;
-  result.over_1px = totals.over_1px;
+  result.rms_px = totals.all.rms();
+  result.edge_rms_px = totals.edge.rms();
+  result.interior_rms_px = totals.interior.rms();
+  result.max_px = totals.all.n ? totals.all.max : kNaN;
+  result.over_1px = totals.all.over_1px;
   if (config.field == samples::GeneralisationField::kChirp) measure_chirp(sequence, tracker, options, result);
   return result;
 }

@@ -65,6 +65,11 @@ struct GeneralisationResult {
   double bias_px = std::numeric_limits<double>::quiet_NaN();  // largest per-frame |mean error|
   double max_px = std::numeric_limits<double>::quiet_NaN();
   int over_1px = 0;  // track-frames more than 1 px off: lost or mismatched tracks
+  // Over the track-frames of the grid's two outermost rows and columns (reference position within
+  // edge_band_px of the frame's edge), and over the others: where a subset meets the frame's edge.
+  double edge_rms_px = std::numeric_limits<double>::quiet_NaN();
+  double interior_rms_px = std::numeric_limits<double>::quiet_NaN();
+  double edge_band_px = 0.0;
   double resolution_px = std::numeric_limits<double>::quiet_NaN();  // chirp only
   double resolution_radii = std::numeric_limits<double>::quiet_NaN();
   double long_wave_rms_px = std::numeric_limits<double>::quiet_NaN();  // chirp only

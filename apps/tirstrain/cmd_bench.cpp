@@ -208,9 +208,9 @@ void write_plot(const std::vector<Row>& rows, const std::string& path) {
 }
 
 void print_generalisation_header() {
-  std::printf("%-15s %-11s %6s %-11s %6s %8s %8s %8s %6s %8s %7s %7s %8s %4s %6s %8s\n", "case", "texture",
-              "noise%", "preset", "alive", "rms_px", "bias_px", "max_px", ">1px", "res_px", "res_r", "gain_l",
-              "long_px", "rest", "affine", "ms/frame");
+  std::printf("%-15s %-11s %6s %-11s %6s %8s %8s %8s %8s %6s %8s %7s %7s %8s %4s %6s %8s\n", "case",
+              "texture", "noise%", "preset", "alive", "rms_px", "edge_px", "bias_px", "max_px", ">1px",
+              "res_px", "res_r", "gain_l", "long_px", "rest", "affine", "ms/frame");
 }
 
 // The chirp's resolution: its wavelength, or ">L" when not even the longest window L reaches the gain.
@@ -226,37 +226,24 @@ std::string resolution_cell(const pipeline::GeneralisationResult& r) {
 }
 
 void print_generalisation_row(const pipeline::GeneralisationResult& r) {
-  std::printf("%-15s %-11s %6.1f %-11s %6.0f %8.4f %8.4f %8.3f %6d %8s %7.2f %7.3f %8.4f %4d %6d %8.1f\n",
-              r.field.c_str(), r.texture.c_str(), 100.0 * r.noise_fraction, r.preset.c_str(), r.alive_mean,
-              r.rms_px, r.bias_px, r.max_px, r.over_1px, resolution_cell(r).c_str(), r.resolution_radii,
-              r.longest_gain, r.long_wave_rms_px, r.rest_frames, r.affine_fit_frames, r.ms_per_frame);
+  std::printf(
+      "%-15s %-11s %6.1f %-11s %6.0f %8.4f %8.4f %8.4f %8.3f %6d %8s %7.2f %7.3f %8.4f %4d %6d %8.1f\n",
+      r.field.c_str(), r.texture.c_str(), 100.0 * r.noise_fraction, r.preset.c_str(), r.alive_mean, r.rms_px,
+      r.edge_rms_px, r.bias_px, r.max_px, r.over_1px, resolution_cell(r).c_str(), r.resolution_radii,
+      r.longest_gain, r.long_wave_rms_px, r.rest_frames, r.affine_fit_frames, r.ms_per_frame);
   std::fflush(stdout);
 }
 
 void write_generalisation_csv(const std::vector<pipeline::GeneralisationResult>& results,
                               const fs::path& out) {
-  static const std::vector<std::string> columns = {"case",
-                                                   "texture",
-                                                   "noise_fraction",
-                                                   "preset",
-                                                   "width_px",
-                                                   "height_px",
-                                                   "frames",
-                                                   "seeded",
-                                                   "alive_mean",
-                                                   "rms_px",
-                                                   "bias_px",
-                                                   "max_px",
-                                                   "over_1px",
-                                                   "radius_px",
-                                                   "resolution_px",
-                                                   "resolution_radii",
-                                                   "longest_wavelength_px",
-                                                   "longest_gain",
-                                                   "long_wave_rms_px",
-                                                   "rest_frames",
-                                                   "affine_fit_frames",
-                                                   "ms_per_frame"};
+  static const std::vector<std::string> columns = {
+      "case",         "texture",          "noise_fraction",   "preset",
+      "width_px",     "height_px",        "frames",           "seeded",
+      "alive_mean",   "rms_px",           "edge_rms_px",      "interior_rms_px",
+      "edge_band_px", "bias_px",          "max_px",           "over_1px",
+      "radius_px",    "resolution_px",    "resolution_radii", "longest_wavelength_px",
+      "longest_gain", "long_wave_rms_px", "rest_frames",      "affine_fit_frames",
+      "ms_per_frame"};
   CsvWriter summary((out / "generalisation.csv").string(), columns);
   for (const pipeline::GeneralisationResult& r : results)
     summary.row_text({r.field,
@@ -269,6 +256,9 @@ void write_generalisation_csv(const std::vector<pipeline::GeneralisationResult>&
                       std::to_string(r.seeded),
                       format_double(r.alive_mean),
                       format_double(r.rms_px),
+                      format_double(r.edge_rms_px),
+                      format_double(r.interior_rms_px),
+                      format_double(r.edge_band_px),
                       format_double(r.bias_px),
                       format_double(r.max_px),
                       std::to_string(r.over_1px),
@@ -588,7 +578,8 @@ void add_bench_command(CLI::App& app) {
       "delhaye2016 (--configs picks them; also auto_no_rest: auto without its rest handling,\n"
       "auto_no_affine_fit: auto without the moving frame's affine fit, and auto_local_fit: auto with the\n"
       "local fit of docs/flow.md). Per row:\n"
-      "tracks alive (mean), displacement error RMS, the largest per-frame bias |mean error| and max (px),\n"
+      "tracks alive (mean), displacement error RMS (all tracks; edge_px: the grid's two outermost rows and\n"
+      "columns), the largest per-frame bias |mean error| and max (px),\n"
       "track-frames more than 1 px off (>1px); for the chirp (u = 0.1 px sin, wavelength 1000 -> 20 px\n"
       "along x): res_px, the shortest wavelength reproduced with >= 90 % of its amplitude ('>L': not even\n"
       "the longest window L the frame holds), res_r the same in radii (the subset radius, or half the LK\n"

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "flow/local_fit.hpp"
+#include "flow/mask_erosion.hpp"
 #include "flow/phase_correlation.hpp"
 #include "flow/plate.hpp"
 #include "flow/shape_field.hpp"
@@ -122,7 +123,7 @@ struct FeatureTracker::Impl {
   cv::Mat first_seeded;
   double full_scale = 0.0;  // code of full scale of the sequence's frames, set by the first frame
   cv::Mat current_f, current_u8, previous_u8, mask, match_mask, birth_mask, eigen, eigen_scratch;
-  cv::Mat erosion_scratch;
+  MatchMaskScratch erosion_scratch;
   cv::Mat match_f;       // what subsets are matched in: current_f, smoothed by prefilter_sigma_px
   cv::Mat match_spline;  // match_f's cubic B-spline coefficients over the ROI (B-spline interpolation)
   // What the subsets read the current frame from: match_f's pixels (Keys) or its spline coefficients.
@@ -227,6 +228,7 @@ struct FeatureTracker::Impl {
   void release_key(int key);
   bool create_track(Vec2 position, Vec2 reference, const Mat2d& birth, Vec2 velocity, int key,
                     TrackStatus status);
+  void build_birth_mask();
   void seed_grid();
   void predict_and_match();
   void collect_alive();

@@ -5,6 +5,8 @@
 
 #include <random>
 
+#include "flow/subset.hpp"
+
 namespace tirstrain::flow {
 namespace {
 
@@ -59,6 +61,55 @@ TEST(MaskErosion, FullAndEmptyMasksAndAView) {
   EXPECT_EQ(big.at<std::uint8_t>(0, 0), 9);
   EXPECT_EQ(cv::countNonZero(view != reference_erosion(full, 6)), 0);
   EXPECT_EQ(view.data, big.ptr<std::uint8_t>(30) + 20);
+}
+
+// The composition the match mask is built from, with the image's edge counted as a border.
+cv::Mat eroded_with_the_edge_as_border(const cv::Mat& mask, int r) {
+  cv::Mat rect;
+  erode_for_matching(mask, rect);
+  return reference_erosion(rect, r);
+}
+
+cv::Mat match_mask_of(const cv::Mat& mask, cv::Rect box, int r) {
+  cv::Mat out(mask.size(), CV_8U, cv::Scalar(0));
+  cv::Mat view = out(box);
+  MatchMaskScratch scratch;
+  erode_contact_for_matching(mask, box, r, scratch, view);
+  return out;
+}
+
+TEST(MatchMask, AContactInsideTheFrameIsErodedByTheExclusionAndTheKernel) {
+  cv::Mat mask = cv::Mat::zeros(120, 160, CV_8U);
+  cv::ellipse(mask, cv::Point(80, 60), cv::Size(45, 35), 20.0, 0, 360, cv::Scalar(1), cv::FILLED);
+  const cv::Rect box = cv::Rect(20, 10, 120, 100);  // past the contact by more than 14 + 3 px
+  const cv::Mat out = match_mask_of(mask, box, 14);
+  EXPECT_EQ(cv::countNonZero(out != eroded_with_the_edge_as_border(mask, 14)), 0);
+  EXPECT_GT(cv::countNonZero(out), 0);
+}
+
+TEST(MatchMask, TheImagesEdgeKeepsOnlyTheKernelsReach) {
+  // The whole frame in contact: everything but the 2 px the interpolation kernel needs inside the edge.
+  const cv::Mat full(90, 130, CV_8U, cv::Scalar(1));
+  const cv::Mat out = match_mask_of(full, cv::Rect(0, 0, 130, 90), 14);
+  EXPECT_EQ(cv::countNonZero(out), (90 - 4) * (130 - 4));
+  EXPECT_EQ(out.at<std::uint8_t>(2, 2), 1);
+  EXPECT_EQ(out.at<std::uint8_t>(1, 60), 0);
+  // A contact running off the left edge: eroded by 14 px from its own border, by 2 px from the edge.
+  cv::Mat mask = cv::Mat::zeros(90, 130, CV_8U);
+  cv::rectangle(mask, cv::Rect(0, 20, 80, 50), cv::Scalar(1), cv::FILLED);
+  const cv::Mat cut = match_mask_of(mask, cv::Rect(0, 0, 110, 90), 14);
+  const int row = 45;  // the middle of the band: its first and last kept pixels
+  int first = -1, last = -1;
+  for (int x = 0; x < 130; ++x)
+    if (cut.at<std::uint8_t>(row, x)) {
+      if (first < 0) first = x;
+      last = x;
+    }
+  EXPECT_EQ(first, 2);
+  EXPECT_EQ(last, 79 - 2 - 14);  // the 5 x 5 kernel's 2 px, then the 14 px ellipse
+  // Off the edge, the same as counting the edge as a border.
+  const cv::Mat reference = eroded_with_the_edge_as_border(mask, 14);
+  EXPECT_EQ(cv::countNonZero(cut(cv::Rect(40, 0, 90, 90)) != reference(cv::Rect(40, 0, 90, 90))), 0);
 }
 
 }  // namespace

