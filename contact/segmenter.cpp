@@ -18,6 +18,7 @@
 #include "contact/ridge_period.hpp"
 #include "core/error.hpp"
 #include "core/full_scale.hpp"
+#include "core/image_noise.hpp"
 
 namespace tirstrain::contact {
 namespace {
@@ -325,6 +326,19 @@ ContactResult ContactSegmenter::segment_small_contact(const cv::Mat& image, cons
 // texture energy and the contact / no contact decision, the textured regions joined into a coarse hull,
 // polarity, the level edge prepared (flat field, border averaging, merged level), the outline refined along
 // rays and repaired, the ellipse, the ridge labels' centre, size and shape, the orientation field.
+double ContactSegmenter::region_noise_energy(const RegionView& view, double period_w) {
+  if (period_w != noise_energy_period_w_) {
+    noise_energy_per_sigma_ = noise_energy_per_sigma(period_w);
+    noise_energy_period_w_ = period_w;
+  }
+  cv::Mat counted;
+  if (view.excluded_w.area() > 0) {
+    counted = cv::Mat(buf_.work.size(), CV_8U, cv::Scalar(1));
+    counted(view.excluded_w).setTo(0);
+  }
+  return noise_energy_per_sigma_ * immerkaer_noise_sigma(buf_.work, counted);
+}
+
 ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect region, bool* left_region) {
   const int block_px = std::max(1, options_.block_px);
   ContactResult result = empty_result(image.size(), block_px);
@@ -349,9 +363,17 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
   ridge_texture_energy(buf_.work, period_w, view.excluded_w, buf_.texture);
   const OtsuSplit split = otsu(buf_.texture.energy);
   record_texture(split, result);
-  if (split.mean_high < options_.min_energy || result.energy_ratio < options_.min_energy_ratio)
-    return no_contact(result, saturated_flag);
-  label_texture_regions(buf_.texture.energy, split.threshold, buf_.regions);
+  if (split.mean_high < options_.min_energy) return no_contact(result, saturated_flag);
+  float threshold = split.threshold;
+  if (result.energy_ratio < options_.min_energy_ratio) {
+    // Otsu's low class is no background: either there is no contact, or the contact fills the region and
+    // both classes are ridges. The low class against what the region's own noise gives decides, by the
+    // same ratio a background would have to keep below the texture.
+    const double noise_energy = region_noise_energy(view, period_w);
+    if (split.mean_low < options_.min_energy_ratio * noise_energy) return no_contact(result, saturated_flag);
+    threshold = static_cast<float>(options_.min_energy_ratio * noise_energy);
+  }
+  label_texture_regions(buf_.texture.energy, threshold, buf_.regions);
   const double mm2_per_working_px = (f * f) / (options_.px_per_mm * options_.px_per_mm);
   if (buf_.regions.largest == 0 || buf_.regions.largest_area * mm2_per_working_px < options_.min_area_mm2)
     return no_contact(result, saturated_flag);

@@ -148,6 +148,9 @@ class ContactSegmenter {
   ContactResult segment_small_contact(const cv::Mat& image, const cv::Rect& box_px,
                                       std::uint32_t multiple_blobs);
   void update_region(const ContactResult& result, const cv::Rect& frame);
+  // The texture energy the working image's own pixel noise gives (Immerkær's σ, outside the excluded band,
+  // times noise_energy_per_sigma at this period, computed once per period).
+  double region_noise_energy(const RegionView& view, double period_w);
 
   SegmenterOptions options_;
   std::optional<double> period_px_;
@@ -157,6 +160,7 @@ class ContactSegmenter {
   cv::Rect roi_;        // region tracked from the last frame (empty: whole frame)
   cv::Size roi_frame_;  // frame size it belongs to
   int frames_since_full_ = 0;
+  double noise_energy_period_w_ = 0.0, noise_energy_per_sigma_ = 0.0;
   Buffers buf_;
 };
 

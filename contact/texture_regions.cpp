@@ -72,6 +72,18 @@ void ridge_texture_energy(const cv::Mat& work, double period_w, const cv::Rect& 
   close_then_open(images.energy, close_k, open_k, images.scratch, images.energy);
 }
 
+double noise_energy_per_sigma(double period_w) {
+  // Wide enough for a few hundred independent closings and openings at the largest period the working
+  // resolution gives (about 8 working pixels per period).
+  const int side = std::max(128, static_cast<int>(std::ceil(24.0 * period_w)));
+  cv::Mat noise(side, side, CV_32F);
+  cv::RNG rng(0x7e57);
+  rng.fill(noise, cv::RNG::NORMAL, 0.0, 1.0);
+  TextureImages images;
+  ridge_texture_energy(noise, period_w, cv::Rect(), images);
+  return cv::mean(images.energy)[0];
+}
+
 void label_texture_regions(const cv::Mat& energy, float threshold, TextureRegions& regions) {
   cv::compare(energy, threshold, regions.mask, cv::CMP_GT);
   regions.count = cv::connectedComponentsWithStats(regions.mask, regions.labels, regions.stats,

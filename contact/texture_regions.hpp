@@ -30,6 +30,10 @@ struct TextureImages {
 void ridge_texture_energy(const cv::Mat& work, double period_w, const cv::Rect& excluded_w,
                           TextureImages& images);
 
+// The mean texture energy white noise of σ = 1 gives at this period (ridge_texture_energy on a fixed-seed
+// noise image): what a frame's own noise contributes, its measured σ times this.
+double noise_energy_per_sigma(double period_w);
+
 // The connected regions of energy above a threshold (8-connected), and the largest of them.
 struct TextureRegions {
   cv::Mat labels, stats, centroids;  // as cv::connectedComponentsWithStats gives them

@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <numbers>
 
+#include "core/image_noise.hpp"
 #include "flow/mask_erosion.hpp"
 
 namespace tirstrain::flow {
@@ -59,13 +59,8 @@ TextureQuality measure_texture(const cv::Mat& image, const cv::Mat& mask, double
   q.pixels = cv::countNonZero(interior);
   if (q.pixels == 0) return q;
 
-  // Immerkær (1996): for white noise of σ, E|I * N| = 6 σ √(2/π) with N = [1 −2 1; −2 4 −2; 1 −2 1].
-  const cv::Matx33f kernel(1, -2, 1, -2, 4, -2, 1, -2, 1);
-  cv::Mat response;
   const cv::Mat view = image(box);
-  cv::filter2D(view, response, CV_32F, kernel, cv::Point(-1, -1), 0.0, cv::BORDER_REPLICATE);
-  const double mean_abs = cv::mean(cv::abs(response), interior)[0];
-  q.noise_sigma = mean_abs * std::sqrt(0.5 * std::numbers::pi) / 6.0;
+  q.noise_sigma = immerkaer_noise_sigma(view, interior);
 
   cv::Mat fine, coarse;
   cv::GaussianBlur(view, fine, cv::Size(), ridge_period_px / 8.0, 0.0, cv::BORDER_REPLICATE);
