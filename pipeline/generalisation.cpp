@@ -266,6 +266,7 @@ std::vector<GeneralisationResult> run_generalisation_suite(
         std::vector<cv::Mat> frames;
         for (int k = 0; k < sequence.frames(); ++k)
           frames.push_back(sequence.add_noise(clean[static_cast<std::size_t>(k)], k));
+        if (suite.on_sequence) suite.on_sequence(sequence, frames);
         for (const std::string& preset : suite.presets) {
           results.push_back(run_generalisation(sequence, frames, preset, suite.options));
           if (on_result) on_result(results.back());

@@ -111,6 +111,8 @@ struct GeneralisationSuite {
   std::vector<double> noise_fractions = {0.005, 0.02};
   std::vector<std::string> presets = {"auto", "delhaye2016"};
   GeneralisationOptions options;
+  // Sees each noisy sequence once, before the presets run on it (e.g. to write it out as a recording).
+  std::function<void(const samples::GeneralisationCase&, const std::vector<cv::Mat>&)> on_sequence;
 };
 
 // Every field x texture x noise x preset; each clean sequence is rendered once. `on_result` sees each

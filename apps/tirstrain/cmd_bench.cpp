@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include <fcntl.h>
 #include <algorithm>
@@ -294,10 +295,36 @@ void write_generalisation_csv(const std::vector<pipeline::GeneralisationResult>&
   chirp.commit();
 }
 
+// A sequence as a recording `tirstrain process` or `track` reads: OUT/recordings/CASE_TEXTURE_NOISE/ with
+// frames/NNNNNN.png (16-bit) and frames.csv (index, t_s at 100 frames/s), no scene.
+void write_recording(const fs::path& out, const samples::GeneralisationCase& sequence,
+                     const std::vector<cv::Mat>& frames) {
+  const samples::GeneralisationConfig& c = sequence.config();
+  char name[96];
+  std::snprintf(name, sizeof name, "%s_%s_%g", samples::to_string(c.field).c_str(),
+                samples::to_string(c.texture).c_str(), 100.0 * c.noise_fraction);
+  const fs::path dir = out / "recordings" / name;
+  fs::create_directories(dir / "frames");
+  CsvWriter times((dir / "frames.csv").string(), {"index", "t_s"});
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    char file[32];
+    std::snprintf(file, sizeof file, "%06zu.png", k);
+    if (!cv::imwrite((dir / "frames" / file).string(), frames[k]))
+      throw Error("cannot write the frame", {.file = (dir / "frames" / file).string()});
+    times.row_text({std::to_string(k), format_double(0.01 * static_cast<double>(k))});
+  }
+  times.commit();
+}
+
 // `--suite generalisation`: the tracker alone on exact-truth textures and fields it was not tuned on.
 void run_generalisation_bench(const fs::path& out, bool quick, const std::vector<std::string>& presets,
-                              const std::vector<std::string>& cases) {
+                              const std::vector<std::string>& cases, bool recordings) {
   pipeline::GeneralisationSuite suite;
+  if (recordings)
+    suite.on_sequence = [&out](const samples::GeneralisationCase& sequence,
+                               const std::vector<cv::Mat>& frames) {
+      write_recording(out, sequence, frames);
+    };
   suite.small = quick;
   if (!presets.empty()) suite.presets = presets;
   if (!cases.empty()) {
@@ -323,7 +350,8 @@ const std::vector<std::string>& bench_output_names() {
                                                  "trials",
                                                  "generalisation.csv",
                                                  "generalisation_frames.csv",
-                                                 "generalisation_chirp.csv"};
+                                                 "generalisation_chirp.csv",
+                                                 "recordings"};
   return names;
 }
 
@@ -345,7 +373,7 @@ struct BenchArgs {
   std::string out = "bench-output", scenes_dir = TIRSTRAIN_SCENES_DIR, suite = "pipeline";
   std::vector<std::string> scenes, configs, cases;
   int repeats = 3;
-  bool quick = false, fresh = false;
+  bool quick = false, fresh = false, recordings = false;
 };
 
 // The configurations named (all when none is), refusing an unknown name.
@@ -589,6 +617,8 @@ void add_bench_command(CLI::App& app) {
       "(FeatureTracker::track).\n"
       "Writes OUT/generalisation.csv, generalisation_frames.csv (per frame) and generalisation_chirp.csv\n"
       "(the chirp's windows). With --quick: the small test sizes (192x128, chirp 512x96), a few seconds.\n"
+      "With --recordings: each sequence also as a recording, OUT/recordings/CASE_TEXTURE_NOISE/ (frames/,\n"
+      "frames.csv; no scene), for `tirstrain process` or `track` (the fields: docs/generalisation.md).\n"
       "Example: tirstrain bench --suite generalisation --out gen-output");
   sub->add_option("--out", args->out,
                   "Output folder (default bench-output; replaced as a whole when the run completes, its "
@@ -608,6 +638,8 @@ void add_bench_command(CLI::App& app) {
       ->check(CLI::IsMember({"pipeline", "generalisation"}));
   sub->add_option("--cases", args->cases, "With --suite generalisation: the cases to run (default: all)")
       ->delimiter(',');
+  sub->add_flag("--recordings", args->recordings,
+                "With --suite generalisation: also write each sequence as a recording (OUT/recordings/)");
   sub->callback([args] {
     // Built in "<out>.partial" and swapped in whole: a failed or killed run leaves the earlier output as it
     // was.
@@ -615,7 +647,7 @@ void add_bench_command(CLI::App& app) {
     StagingDirectory staging(args->out);
     const fs::path out(staging.path());
     if (args->suite == "generalisation") {
-      run_generalisation_bench(out, args->quick, args->configs, args->cases);
+      run_generalisation_bench(out, args->quick, args->configs, args->cases, args->recordings);
     } else {
       if (!args->fresh) carry_over_trials(args->out, out);
       run_pipeline_bench(*args, out, staging.folder());

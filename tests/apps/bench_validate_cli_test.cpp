@@ -131,6 +131,28 @@ TEST(BenchCli, GeneralisationSuiteWritesOneRowPerCaseTextureNoiseAndPreset) {
   EXPECT_NE(bad_config.output.find("fastest"), std::string::npos) << bad_config.output;
 }
 
+TEST(BenchCli, GeneralisationSequencesAsRecordingsThatProcessReads) {
+  // The stretch at its test size written out as recordings (2 textures x 2 noise levels), each read back
+  // by `process` with no scene: the fingerprint's ridges fill the frame, so every frame is in contact.
+  const std::string out = fresh_dir("bench_recordings");
+  const auto run = run_cli(
+      "bench --suite generalisation --quick --cases stretch --configs auto --recordings --out " + out);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const fs::path recordings = fs::path(out) / "recordings";
+  for (const char* name :
+       {"stretch_speckle_0.5", "stretch_speckle_2", "stretch_fingerprint_0.5", "stretch_fingerprint_2"}) {
+    EXPECT_TRUE(fs::exists(recordings / name / "frames.csv")) << name;
+    EXPECT_EQ(std::distance(fs::directory_iterator(recordings / name / "frames"), fs::directory_iterator{}),
+              6)
+        << name;
+  }
+  const std::string result = fresh_dir("bench_recordings_process");
+  const auto process = run_cli("process " + (recordings / "stretch_fingerprint_0.5").string() + " --out " +
+                               result + " --overlay none");
+  ASSERT_EQ(process.exit_code, 0) << process.output;
+  EXPECT_NE(process.output.find("processed 6 frames (6 with contact)"), std::string::npos) << process.output;
+}
+
 // The one data row of a bench.csv, by column name.
 std::map<std::string, std::string> single_row(const std::string& csv_path) {
   std::ifstream csv(csv_path);
