@@ -311,6 +311,7 @@ class ProcessRun {
     update_time_source(*source_, time_source_, warn());
     if (!trial_) throw Error("no frame of the input could be decoded", {.file = options_.input});
     finish_stages(scene_, *trial_, rows_, plan_.stages, options_);
+    warn_if_no_contact();
     // Outputs in order of increasing importance; result.h5 last, so its presence means a complete run.
     if (const std::string name = overlay_->finish(); !name.empty())
       report_.outputs.push_back((final_out() / name).string());
@@ -327,6 +328,17 @@ class ProcessRun {
       report_.warnings.push_back(message);
       if (!options_.quiet) std::fprintf(options_.log, "tirstrain: warning: %s\n", message.c_str());
     };
+  }
+  // A recording without a fingertip in view (or of a texture with no ridges, a DIC speckle) gives an empty
+  // result that must not pass for a measurement of nothing moving.
+  void warn_if_no_contact() {
+    const std::vector<std::string> stages = stage_names();
+    if (report_.frames == 0 || report_.frames_with_contact > 0 ||
+        std::find(stages.begin(), stages.end(), "contact") == stages.end())
+      return;
+    warn()(
+        "no frame shows ridge texture in contact, so nothing was tracked; `tirstrain track` follows any "
+        "texture (a speckle, say) without a contact");
   }
   void note(const std::string& message) const {
     if (!options_.quiet) std::fprintf(options_.log, "tirstrain: %s\n", message.c_str());

@@ -151,6 +151,15 @@ TEST(BenchCli, GeneralisationSequencesAsRecordingsThatProcessReads) {
                                result + " --overlay none");
   ASSERT_EQ(process.exit_code, 0) << process.output;
   EXPECT_NE(process.output.find("processed 6 frames (6 with contact)"), std::string::npos) << process.output;
+  // The speckle has no ridges: no contact, and the run says so rather than passing for a still skin.
+  const std::string speckle = fresh_dir("bench_recordings_speckle");
+  const auto none = run_cli("process " + (recordings / "stretch_speckle_0.5").string() + " --out " + speckle +
+                            " --overlay none");
+  ASSERT_EQ(none.exit_code, 0) << none.output;
+  EXPECT_NE(none.output.find("processed 6 frames (0 with contact)"), std::string::npos) << none.output;
+  EXPECT_NE(none.output.find("warning: no frame shows ridge texture in contact"), std::string::npos)
+      << none.output;
+  EXPECT_NE(read_text(speckle + "/summary.json").find("tirstrain track"), std::string::npos);
 }
 
 // The one data row of a bench.csv, by column name.
