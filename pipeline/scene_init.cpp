@@ -68,11 +68,12 @@ SceneSurvey survey_recording(const SceneInitOptions& options) {
     if (survey.first_contact_frame < 0) survey.first_contact_frame = frame->index;
     if (r.polarity < 0) ++dark;
     if (r.polarity > 0) ++bright;
-    if (r.area_mm2 > survey.largest_area_mm2 && r.ellipse) {
+    if (r.area_mm2 > survey.largest_area_mm2) {
       survey.largest_area_mm2 = r.area_mm2;
       survey.largest_contact_frame = frame->index;
-      survey.largest_semi_axes_px[0] = r.ellipse->semi_major_px;
-      survey.largest_semi_axes_px[1] = r.ellipse->semi_minor_px;
+      survey.largest_semi_axes_px[0] = r.ellipse ? r.ellipse->semi_major_px : 0.0;
+      survey.largest_semi_axes_px[1] = r.ellipse ? r.ellipse->semi_minor_px : 0.0;
+      survey.largest_touches_edge = (r.status & contact::kTouchesEdge) != 0;
     }
   }
   if (!segmenter) throw Error("no frame of the input could be decoded", {.file = options.input});
@@ -99,9 +100,14 @@ std::string scene_init_text(const SceneSurvey& s, const std::string& input) {
   if (s.first_contact_frame >= 0) {
     out << "# Contact: first in frame " << s.first_contact_frame << "; largest in frame "
         << s.largest_contact_frame << ", " << number(s.largest_area_mm2)
-        << " mm2 at the placeholder px_per_mm (ellipse semi-axes "
-        << number(s.largest_semi_axes_px[0], "%.1f") << " x " << number(s.largest_semi_axes_px[1], "%.1f")
-        << " px).\n";
+        << " mm2 at the placeholder px_per_mm";
+    if (s.largest_semi_axes_px[0] > 0.0)
+      out << " (ellipse semi-axes " << number(s.largest_semi_axes_px[0], "%.1f") << " x "
+          << number(s.largest_semi_axes_px[1], "%.1f") << " px)";
+    else
+      out << " (no ellipse: too little of its outline is inside the frame)";
+    if (s.largest_touches_edge) out << ", cut by the frame's edge";
+    out << ".\n";
   } else {
     out << "# Contact: none seen in these frames.\n";
   }

@@ -31,7 +31,8 @@ struct SceneSurvey {
   std::int64_t first_contact_frame = -1;
   double largest_area_mm2 = 0.0;  // at the default px_per_mm
   std::int64_t largest_contact_frame = -1;
-  double largest_semi_axes_px[2] = {0.0, 0.0};
+  double largest_semi_axes_px[2] = {0.0, 0.0};  // 0 when that contact has no ellipse
+  bool largest_touches_edge = false;            // cut by the frame's edge (or the excluded band)
 };
 
 // Reads the recording and surveys it; throws Error naming the input when no frame can be decoded.

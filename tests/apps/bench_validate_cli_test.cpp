@@ -151,6 +151,15 @@ TEST(BenchCli, GeneralisationSequencesAsRecordingsThatProcessReads) {
                                result + " --overlay none");
   ASSERT_EQ(process.exit_code, 0) << process.output;
   EXPECT_NE(process.output.find("processed 6 frames (6 with contact)"), std::string::npos) << process.output;
+  // scene init describes that contact as it is: no ellipse, cut by the frame.
+  const std::string scene = fresh_dir("bench_recordings_scene.yaml");
+  const auto init =
+      run_cli("scene init " + (recordings / "stretch_fingerprint_0.5").string() + " --out " + scene);
+  ASSERT_EQ(init.exit_code, 0) << init.output;
+  EXPECT_NE(read_text(scene).find("(no ellipse: too little of its outline is inside the frame), cut by the "
+                                  "frame's edge"),
+            std::string::npos)
+      << read_text(scene);
   // The speckle has no ridges: no contact, and the run says so rather than passing for a still skin.
   const std::string speckle = fresh_dir("bench_recordings_speckle");
   const auto none = run_cli("process " + (recordings / "stretch_speckle_0.5").string() + " --out " + speckle +
