@@ -322,10 +322,6 @@ ContactResult ContactSegmenter::segment_small_contact(const cv::Mat& image, cons
   return fine;
 }
 
-// The steps of one segmentation, in order (docs/contact.md, "The steps of one frame"): working image,
-// texture energy and the contact / no contact decision, the textured regions joined into a coarse hull,
-// polarity, the level edge prepared (flat field, border averaging, merged level), the outline refined along
-// rays and repaired, the ellipse, the ridge labels' centre, size and shape, the orientation field.
 double ContactSegmenter::region_noise_energy(const RegionView& view, double period_w) {
   if (period_w != noise_energy_period_w_) {
     noise_energy_per_sigma_ = noise_energy_per_sigma(period_w);
@@ -339,6 +335,10 @@ double ContactSegmenter::region_noise_energy(const RegionView& view, double peri
   return noise_energy_per_sigma_ * immerkaer_noise_sigma(buf_.work, counted);
 }
 
+// The steps of one segmentation, in order (docs/contact.md, "The steps of one frame"): working image,
+// texture energy and the contact / no contact decision, the textured regions joined into a coarse hull,
+// polarity, the level edge prepared (flat field, border averaging, merged level), the outline refined along
+// rays and repaired, the ellipse, the ridge labels' centre, size and shape, the orientation field.
 ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect region, bool* left_region) {
   const int block_px = std::max(1, options_.block_px);
   ContactResult result = empty_result(image.size(), block_px);
