@@ -179,6 +179,8 @@ class Subset {
   // other shape parameters eliminated), normalised by the texture's energy: large across the ridges, small
   // along them.
   const Eigen::Matrix2d& translation_information() const { return information_; }
+  // Σ f² over the subset's pixels (each minus the subset's mean): what the informations are normalised by.
+  double reference_energy() const { return sum_ff_; }
   // The same with the shape fixed (the Hessian's translation block, normalised alike): what a
   // translation_only match pins down.
   const Eigen::Matrix2d& fixed_shape_information() const { return fixed_information_; }

@@ -359,6 +359,7 @@ void FeatureTracker::start(const cv::Mat& image, const cv::Mat& contact_mask, do
     m.jump.correlation.set_reference(m.jump.previous);
   }
   m.add_key_frame();
+  m.size_main_subsets_for_affine_test();
   // The measured outline moves by a pixel or two from frame to frame: only skin this far beyond where frame
   // 0 seeded counts as a contact that grew.
   constexpr int kGrowthTolerancePx = 4;
@@ -516,6 +517,11 @@ const TextureQuality& FeatureTracker::texture() const {
 bool FeatureTracker::low_snr_texture() const {
   return impl_->low_snr;
 }
+
+const MainSubsetSizing& FeatureTracker::main_subset_sizing() const {
+  return impl_->sizing;
+}
+
 std::optional<Vec2> FeatureTracker::plate_displacement_px() const {
   if (!impl_->plate) return std::nullopt;
   return impl_->plate->displacement_px();

@@ -111,6 +111,17 @@ struct FrameStats {
   int local_fit = 0;        // tracks reporting a local fit of their neighbours' matches (flow/local_fit.hpp)
 };
 
+// Frame 0's sizing of the main subsets for the moving frame's affine test (docs/flow.md, "Frame 0"): the
+// non-affine motion the test could not see, predicted from frame 0's texture and noise, at the preset's
+// radius and at the radius in effect.
+struct MainSubsetSizing {
+  int preset_radius_px = 0;
+  int radius_px = 0;
+  double predicted_hidden_px = std::numeric_limits<double>::quiet_NaN();        // at preset_radius_px
+  double predicted_hidden_after_px = std::numeric_limits<double>::quiet_NaN();  // at radius_px
+  bool grown() const { return radius_px > preset_radius_px; }
+};
+
 class PlateTracker;
 
 class FeatureTracker {
@@ -141,6 +152,7 @@ class FeatureTracker {
   // drop to the low-SNR configuration.
   const TextureQuality& texture() const;
   bool low_snr_texture() const;
+  const MainSubsetSizing& main_subset_sizing() const;
   // Plate displacement since frame 0 (median over the pattern's subsets); nullopt without a pattern ROI.
   std::optional<Vec2> plate_displacement_px() const;
   // How this frame's plate displacement was obtained (a flow/plate.hpp PlateStatus); nullopt without a

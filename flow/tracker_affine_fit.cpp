@@ -1,5 +1,7 @@
 // The frame's affine fit: where one affine motion describes this frame's matches within their predicted
 // noise and without spatial structure, it stands in for each match that lies within its own noise of it.
+#include <opencv2/imgproc.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
@@ -37,7 +39,71 @@ double hidden_motion_px(const std::vector<OwnMatch>& tested, double max_chi2_per
   return upper_median_in_place(sigma) * std::sqrt(std::max(max_chi2_per_dof - 1.0, 0.0));
 }
 
+// The standard deviation of white pixel noise after OpenCV's Gaussian of σ (its kernel for float images),
+// per unit of the noise before: the 2-D kernel's Σ w² is the 1-D one's squared.
+double gaussian_noise_gain(double sigma_px) {
+  if (sigma_px <= 0.0) return 1.0;
+  const int side = std::max(3, (static_cast<int>(std::lround(sigma_px * 8.0 + 1.0)) | 1));
+  const cv::Mat kernel = cv::getGaussianKernel(side, sigma_px, CV_64F);
+  return kernel.dot(kernel);
+}
+
 }  // namespace
+
+// What the test's χ² bound would let through on frame 0's texture: each sampled subset's predicted
+// covariance (predicted_match_covariance, with the zncc that the frame's own noise in both frames gives,
+// 1 − zncc = σ² n / Σf²) put through hidden_motion_px.
+double FeatureTracker::Impl::predicted_hidden_px(int radius_px) const {
+  const AnchorImage& anchor = keys[0]->anchor;
+  const TrackerOptions::MainMatch& main = settings.main_match;
+  const double noise = texture.noise_sigma * gaussian_noise_gain(main.prefilter_sigma_px);
+  const double correlated = correlated_pixels(main.prefilter_sigma_px, main.subset_stride);
+  const int side = 2 * (radius_px / main.subset_stride) + 1;
+  // About a hundred subsets, on a lattice over the contact.
+  const double area = std::max(1, cv::countNonZero(match_mask));
+  const int step =
+      std::max(static_cast<int>(settings.seeding.grid_step_px), static_cast<int>(std::sqrt(area / 100.0)));
+  std::vector<OwnMatch> sampled;
+  Subset subset;
+  for (int y = radius_px; y < size.height - radius_px; y += step)
+    for (int x = radius_px; x < size.width - radius_px; x += step) {
+      if (!match_mask.at<std::uint8_t>(y, x)) continue;
+      if (!subset.build(anchor, {x, y}, radius_px, main.subset_stride, main.shape, side * side / 3)) continue;
+      const double n = static_cast<double>(subset.pixel_count());
+      const double zncc = 1.0 - noise * noise * n / subset.reference_energy();
+      OwnMatch m;
+      m.covariance_px2 = predicted_match_covariance(zncc, subset.pixel_count(),
+                                                    subset.translation_information(), correlated);
+      sampled.push_back(m);
+    }
+  return hidden_motion_px(sampled, settings.affine_fit.max_chi2_per_dof);
+}
+
+// A subset about one ridge period wide pins its translation along the ridges only through their curvature:
+// on a noisy texture the test of step 5 then cannot see a non-affine motion of max_hidden_px, and no fit may
+// stand in. The main subsets grow (up to the rounds' width) until it can; where even that width would not do,
+// they keep the preset's size, as growing would only cost resolution.
+void FeatureTracker::Impl::size_main_subsets_for_affine_test() {
+  TrackerOptions::MainMatch& main = settings.main_match;
+  sizing = MainSubsetSizing{};
+  sizing.preset_radius_px = sizing.radius_px = main.subset_radius_px;
+  if (!settings.refine || !settings.affine_fit.enabled || !settings.texture.adapt ||
+      settings.pinned.subset_radius || texture.pixels == 0 || !keys[0])
+    return;
+  const double target_px = settings.affine_fit.max_hidden_px;
+  sizing.predicted_hidden_px = sizing.predicted_hidden_after_px = predicted_hidden_px(main.subset_radius_px);
+  const int widest = std::max(main.subset_radius_px, settings.rounds.subset_radius_px);
+  if (!(sizing.predicted_hidden_px > target_px) || widest == main.subset_radius_px ||
+      !(predicted_hidden_px(widest) <= target_px))
+    return;
+  // The noise falls about as the subset's side grows: start there, and widen until the prediction passes.
+  const double side = (2.0 * main.subset_radius_px + 1.0) * sizing.predicted_hidden_px / target_px;
+  int radius = std::clamp(static_cast<int>(std::ceil(0.5 * (side - 1.0))), main.subset_radius_px + 1, widest);
+  double hidden_px = predicted_hidden_px(radius);
+  while (radius < widest && !(hidden_px <= target_px)) hidden_px = predicted_hidden_px(++radius);
+  main.subset_radius_px = sizing.radius_px = radius;
+  sizing.predicted_hidden_after_px = hidden_px;
+}
 
 // A second main match of a track whose own matches disagree with the fit, started from the fit's position:
 // its subset against the anchor again, so that a match that converged beside the answer (along its ridges, or

@@ -1,5 +1,6 @@
 #include "pipeline/tracking_report.hpp"
 
+#include <cmath>
 #include <cstdio>
 
 namespace tirstrain::pipeline {
@@ -42,6 +43,20 @@ nlohmann::json tracking_settings_json(const flow::TrackerOptions& s) {
       {"adapt_to_texture", s.texture.adapt}};
 }
 
+namespace {
+
+// Frame 0's sizing of the main subsets for the affine test: what the test could not see at the preset's
+// radius and at the radius in effect (NaN: not predicted, JSON null).
+nlohmann::json sizing_json(const flow::MainSubsetSizing& sizing) {
+  const auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
+  return {{"preset_radius_px", sizing.preset_radius_px},
+          {"radius_px", sizing.radius_px},
+          {"predicted_hidden_px", number(sizing.predicted_hidden_px)},
+          {"predicted_hidden_after_px", number(sizing.predicted_hidden_after_px)}};
+}
+
+}  // namespace
+
 nlohmann::json texture_json(const flow::FeatureTracker& tracker) {
   const flow::TextureQuality& q = tracker.texture();
   return {{"snr", q.snr},
@@ -50,6 +65,7 @@ nlohmann::json texture_json(const flow::FeatureTracker& tracker) {
           {"coherence", q.coherence},
           {"ridges", q.ridges},
           {"low_snr_texture", tracker.low_snr_texture()},
+          {"main_subsets_for_affine_test", sizing_json(tracker.main_subset_sizing())},
           {"note", texture_note(tracker)}};
 }
 
@@ -70,7 +86,18 @@ std::string texture_note(const flow::FeatureTracker& tracker) {
                   "ridges (coherence %.2f), SNR %.1f: subsets of radius %d px, smoothing sigma %.1f px%s",
                   q.coherence, q.snr, s.main_match.subset_radius_px, s.main_match.prefilter_sigma_px,
                   tracker.low_snr_texture() ? ", low-SNR subsets" : "");
-  return text;
+  std::string note = text;
+  const flow::MainSubsetSizing& sizing = tracker.main_subset_sizing();
+  if (sizing.grown()) {
+    std::snprintf(text, sizeof text,
+                  "; main subsets grown from %d to %d px so that the affine test sees %.3f px (predicted "
+                  "%.3f px unseen at %d px, %.3f px at %d px)",
+                  sizing.preset_radius_px, sizing.radius_px, s.affine_fit.max_hidden_px,
+                  sizing.predicted_hidden_px, sizing.preset_radius_px, sizing.predicted_hidden_after_px,
+                  sizing.radius_px);
+    note += text;
+  }
+  return note;
 }
 
 }  // namespace tirstrain::pipeline

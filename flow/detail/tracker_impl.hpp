@@ -132,6 +132,7 @@ struct FeatureTracker::Impl {
   }
   TextureQuality texture;
   bool low_snr = false;
+  MainSubsetSizing sizing;
   cv::Rect roi;
   std::vector<cv::Mat> previous_pyramid, current_pyramid;
 
@@ -299,6 +300,11 @@ struct FeatureTracker::Impl {
   double second_look_distance2(const TrackState& st, Vec2 on_fit) const;
   AffineFitMembers affine_fit_members() const;
   void place_on_affine_fit(const RestTest& test, const std::vector<int>& members);
+  // Frame 0: the non-affine motion the affine test could not see with main subsets of radius `radius_px`
+  // (predicted from frame 0's texture and noise), and the main subsets grown until it can see
+  // affine_fit.max_hidden_px.
+  double predicted_hidden_px(int radius_px) const;
+  void size_main_subsets_for_affine_test();
   double ridge_reach_px() const { return 0.25 * settings.prediction.window_px; }
   // The global shift's images are reduced by 2 or 4 while the ridges stay at least 5 px apart there.
   int high_pass_factor() const {
