@@ -1,5 +1,7 @@
 #include "flow/phase_correlation.hpp"
 
+#include "core/archive.hpp"
+
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -7,6 +9,10 @@
 #include <cmath>
 
 namespace tirstrain::flow {
+
+void PhaseCorrelator::archive(Archive& a) {
+  a(size_, window_, reference_spectrum_, last_spectrum_, has_last_);
+}
 namespace {
 
 // The magnitudes of a packed (CCS) spectrum in the layout OpenCV's phase correlation divides by (with

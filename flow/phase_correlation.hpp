@@ -6,6 +6,10 @@
 // 9 % of the tracker's instructions on the 640×512 goal trial).
 #include <opencv2/core.hpp>
 
+namespace tirstrain {
+class Archive;
+}
+
 namespace tirstrain::flow {
 
 class PhaseCorrelator {
@@ -22,6 +26,8 @@ class PhaseCorrelator {
   // The image last passed to correlate() becomes the reference, its spectrum reused. False (and nothing
   // changes) when nothing was correlated since the reference was set.
   bool adopt_last_as_reference();
+  // Its state in a checkpoint (core/archive.hpp).
+  void archive(Archive& a);
 
  private:
   // The windowed image zero-padded to the transform's size, and its spectrum (packed CCS, real output).

@@ -1,5 +1,7 @@
 #include "flow/plate.hpp"
 
+#include "core/archive.hpp"
+
 #include <optional>
 
 #include <opencv2/imgproc.hpp>
@@ -16,6 +18,17 @@
 #include "flow/phase_correlation.hpp"
 
 namespace tirstrain::flow {
+
+void PlateTracker::archive(Archive& a) {
+  a(settings_, roi_, smoothed_, band_mask_, band_, subsets_, hann_, band_correlation_, mosaic_sum_,
+    mosaic_count_, mosaic_mean_, mosaic_mask_, mean_origin_, origin_x_, origin_y_, displacement_px_,
+    velocity_px_per_s_, time_s_, interval_s_, status_, base_px_, base_time_s_, ok_, used_);
+}
+
+void PlateTracker::rebuild_previous_pyramid(const cv::Mat& previous_image_u8) {
+  cv::buildOpticalFlowPyramid(previous_image_u8(roi_), previous_pyramid_,
+                              cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels);
+}
 namespace {
 
 // Zero-count margin kept around the mosaic's data: the bicubic sampler needs 2 px beyond a sample, and

@@ -26,6 +26,10 @@
 #include "flow/phase_correlation.hpp"
 #include "flow/subset.hpp"
 
+namespace tirstrain {
+class Archive;
+}
+
 namespace tirstrain::flow {
 
 // How a frame's plate displacement was obtained; written per frame as /plate/status.
@@ -76,6 +80,10 @@ class PlateTracker {
   bool ok() const { return ok_; }
   PlateStatus status() const { return status_; }
   int subsets_used() const { return used_; }
+  // Its state in a checkpoint (core/archive.hpp). The previous frame's LK pyramid is not in it: LK reads
+  // past a pyramid level's edge into the frame it was cut from, so it is built again from that frame.
+  void archive(Archive& a);
+  void rebuild_previous_pyramid(const cv::Mat& previous_image_u8);
 
  private:
   // Subsets on the grid over the band of `image` (band coordinates).

@@ -7,8 +7,10 @@
 #include <cmath>
 #include <cstddef>
 
+#include "core/archive.hpp"
 #include "core/error.hpp"
 #include "flow/bicubic.hpp"
+#include "flow/detail/eigen_archive.hpp"
 
 namespace tirstrain::flow {
 namespace {
@@ -200,6 +202,16 @@ bool translation_step_of(const Eigen::Matrix2d& h, const Eigen::Vector2d& b, Eig
 
 bool sample_bicubic(const cv::Mat& image, double x, double y, float& value) {
   return detail::Sampler(image, cv::Mat()).sample(x, y, value);
+}
+
+void AnchorImage::archive(Archive& a) {
+  a(image_, gx_, gy_, mask_);
+}
+
+void Subset::archive(Archive& a) {
+  a.layout(sizeof(Pixel), "subset pixel");
+  a(points_, count_, centre_, first_, radius_px_, stride_, mean_, shape_, hessian_, hessian_inverse_, sum_j_,
+    sum_jf_, sum_ff_, information_, fixed_information_);
 }
 
 void AnchorImage::assign(const cv::Mat& image, const cv::Mat& mask) {

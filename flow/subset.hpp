@@ -18,6 +18,10 @@
 #include "flow/bspline.hpp"
 #include "flow/pixel_classes.hpp"
 
+namespace tirstrain {
+class Archive;
+}
+
 namespace tirstrain::flow {
 
 namespace detail {
@@ -67,6 +71,8 @@ class AnchorImage {
   const cv::Mat& gx() const { return gx_; }
   const cv::Mat& gy() const { return gy_; }
   const cv::Mat& mask() const { return mask_; }
+  // Its state in a checkpoint (core/archive.hpp).
+  void archive(Archive& a);
 
  private:
   cv::Mat image_, gx_, gy_, mask_;
@@ -206,6 +212,8 @@ class Subset {
   // ZNCC of the subset against `current` at `warp`, without iterating.
   double correlation(const cv::Mat& current, const cv::Mat& current_mask, const Warp& warp,
                      Interpolation kernel = Interpolation::kKeys) const;
+  // Its state in a checkpoint (core/archive.hpp).
+  void archive(Archive& a);
 
  private:
   struct Pixel {

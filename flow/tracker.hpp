@@ -153,6 +153,11 @@ class FeatureTracker {
   const TextureQuality& texture() const;
   bool low_snr_texture() const;
   const MainSubsetSizing& main_subset_sizing() const;
+  // The whole state after the last frame, as a checkpoint (core/archive.hpp), and that state put back into a
+  // tracker made with the same settings and plate band: the next track() then gives what it would have
+  // given on the tracker that wrote it. Throws Error for a checkpoint from another build.
+  std::vector<char> checkpoint() const;
+  void restore(const std::vector<char>& snapshot);
   // Plate displacement since frame 0 (median over the pattern's subsets); nullopt without a pattern ROI.
   std::optional<Vec2> plate_displacement_px() const;
   // How this frame's plate displacement was obtained (a flow/plate.hpp PlateStatus); nullopt without a

@@ -213,6 +213,8 @@ struct FeatureTracker::Impl {
     std::vector<int> to_match, skipped;
   } schedule;
 
+  // The state a checkpoint holds (flow/tracker_checkpoint.cpp).
+  void archive(Archive& a);
   void check_input(const cv::Mat& image, const cv::Mat& contact_mask) const;
   void begin_frame(const cv::Mat& image, const cv::Mat& contact_mask);
   void refine_matches();
