@@ -28,6 +28,10 @@
 #include "flow/settings.hpp"
 #include "flow/texture.hpp"
 
+namespace tirstrain {
+class Archive;
+}
+
 namespace tirstrain::flow {
 
 // Written per frame and track as /tracks/status. Values < 10 are live tracks; ≥ 10 say why a track was
@@ -124,6 +128,9 @@ struct MainSubsetSizing {
 
 class PlateTracker;
 
+// The settings in a checkpoint (core/archive.hpp).
+void archive(Archive& a, TrackerOptions& settings);
+
 class FeatureTracker {
  public:
   // `plate_roi`: the band of the image showing the pattern printed on the glass
@@ -158,6 +165,8 @@ class FeatureTracker {
   // given on the tracker that wrote it. Throws Error for a checkpoint from another build.
   std::vector<char> checkpoint() const;
   void restore(const std::vector<char>& snapshot);
+  // The same state written into, or read back from, a larger snapshot (a pipeline stage's).
+  void archive(Archive& a);
   // Plate displacement since frame 0 (median over the pattern's subsets); nullopt without a pattern ROI.
   std::optional<Vec2> plate_displacement_px() const;
   // How this frame's plate displacement was obtained (a flow/plate.hpp PlateStatus); nullopt without a

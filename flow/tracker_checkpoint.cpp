@@ -46,23 +46,28 @@ void FeatureTracker::Impl::archive(Archive& a) {
     m.jump.previous, m.jump.correlation, m.rest.active, m.rest.sum, m.rest.mask, m.rest.count);
 }
 
+void FeatureTracker::archive(Archive& a) {
+  Impl& m = *impl_;
+  if (!a.reading() && m.frame < 0) throw Error("FeatureTracker: a checkpoint asked for before start");
+  m.archive(a);
+  if (!a.reading()) return;
+  // The previous frame's pyramids are built again from the frame they were cut from (LK reads past a
+  // level's edge into it).
+  if (!m.previous_u8.empty()) m.build_pyramid(m.previous_u8, m.previous_pyramid);
+  if (m.plate && !m.previous_u8.empty()) m.plate->rebuild_previous_pyramid(m.previous_u8);
+}
+
 std::vector<char> FeatureTracker::checkpoint() const {
-  if (impl_->frame < 0) throw Error("FeatureTracker::checkpoint called before start");
   Archive a = Archive::for_writing();
   // Writing reads the state only.
-  const_cast<Impl&>(*impl_).archive(a);
+  const_cast<FeatureTracker&>(*this).archive(a);
   return a.bytes();
 }
 
 void FeatureTracker::restore(const std::vector<char>& snapshot) {
   Archive a = Archive::for_reading(snapshot);
-  Impl& m = *impl_;
-  m.archive(a);
+  archive(a);
   a.expect_end();
-  // The previous frame's pyramids are built again from the frame they were cut from (LK reads past a
-  // level's edge into it).
-  if (!m.previous_u8.empty()) m.build_pyramid(m.previous_u8, m.previous_pyramid);
-  if (m.plate && !m.previous_u8.empty()) m.plate->rebuild_previous_pyramid(m.previous_u8);
 }
 
 }  // namespace tirstrain::flow
