@@ -1,5 +1,7 @@
 #include "contact/segmenter.hpp"
 
+#include "core/archive.hpp"
+
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -21,6 +23,11 @@
 #include "core/image_noise.hpp"
 
 namespace tirstrain::contact {
+
+void ContactSegmenter::archive(Archive& a) {
+  a(period_px_, period_measured_, factor_, small_contact_pass_, roi_, roi_frame_, frames_since_full_,
+    noise_energy_period_w_, noise_energy_per_sigma_);
+}
 namespace {
 
 // A result with the orientation field's blocks all 0 (what every result starts from).

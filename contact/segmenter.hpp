@@ -61,6 +61,10 @@
 #include "contact/texture_regions.hpp"
 #include "contact/working_image.hpp"
 
+namespace tirstrain {
+class Archive;
+}
+
 namespace tirstrain::contact {
 
 // Per-frame contact status: bit flags; 0 is a clean measurement. Written as /contact/status.
@@ -113,6 +117,9 @@ struct ContactResult {
 class ContactSegmenter {
  public:
   explicit ContactSegmenter(SegmenterOptions options = {});
+  // What it carries from frame to frame (the period, the tracked region), in a checkpoint
+  // (core/archive.hpp); the options are the caller's to give again.
+  void archive(Archive& a);
 
   // `image`: CV_8UC1, CV_16UC1 or CV_32FC1 (0..1). Never throws for image content; throws Error for a wrong
   // image type.

@@ -64,6 +64,15 @@ void archive(Archive& a, T& value) {
 }
 
 void archive(Archive& a, std::string& value);
+
+template <typename T, int M, int N>
+void archive(Archive& a, cv::Matx<T, M, N>& value) {
+  a.raw(value.val, sizeof value.val);
+}
+template <typename T, int N>
+void archive(Archive& a, cv::Vec<T, N>& value) {
+  a.raw(value.val, sizeof value.val);
+}
 // Type, size and pixels (a continuous copy); an empty Mat stays empty.
 void archive(Archive& a, cv::Mat& value);
 

@@ -79,13 +79,19 @@ std::string recorded_path(std::string text, const std::vector<StagedFolder>& fol
   return text;
 }
 
-StagingDirectory::StagingDirectory(const std::string& final_path)
+StagingDirectory::StagingDirectory(const std::string& final_path) : StagingDirectory(final_path, false) {}
+
+StagingDirectory::StagingDirectory(const std::string& final_path, bool adopt_existing)
     : final_path_(fs::path(final_path).lexically_normal().string()) {
   while (final_path_.size() > 1 && final_path_.back() == '/') final_path_.pop_back();
   staging_path_ = final_path_ + ".partial";
   std::error_code ec;
   if (fs::exists(final_path_, ec) && !fs::is_directory(final_path_, ec))
     throw Error("output path exists and is not a directory", {.file = final_path_});
+  if (adopt_existing && fs::is_directory(staging_path_, ec)) {
+    keep_on_failure_ = true;
+    return;
+  }
   fs::remove_all(staging_path_, ec);
   const fs::path parent = fs::path(final_path_).parent_path();
   if (!parent.empty()) fs::create_directories(parent, ec);
@@ -95,7 +101,7 @@ StagingDirectory::StagingDirectory(const std::string& final_path)
 }
 
 StagingDirectory::~StagingDirectory() {
-  if (!committed_) {
+  if (!committed_ && !keep_on_failure_) {
     std::error_code ec;
     fs::remove_all(staging_path_, ec);
   }

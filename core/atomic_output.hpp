@@ -30,6 +30,9 @@ std::string recorded_path(std::string text, const std::vector<StagedFolder>& fol
 class StagingDirectory {
  public:
   explicit StagingDirectory(const std::string& final_path);
+  // `adopt_existing`: an existing "<final_path>.partial" is kept as it is (an interrupted run continued),
+  // and kept too if this run fails in turn, so that it can be continued again.
+  StagingDirectory(const std::string& final_path, bool adopt_existing);
   ~StagingDirectory();
   StagingDirectory(const StagingDirectory&) = delete;
   StagingDirectory& operator=(const StagingDirectory&) = delete;
@@ -43,6 +46,7 @@ class StagingDirectory {
   std::string final_path_;
   std::string staging_path_;
   bool committed_ = false;
+  bool keep_on_failure_ = false;
 };
 
 // Throws Error (key --out) when the folder `dir` exists and holds anything but `own_names` (or leftovers of

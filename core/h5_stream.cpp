@@ -301,6 +301,79 @@ std::int64_t H5Stream::open_or_create(const std::string& name, const H5Shape& ro
   return set;
 }
 
+namespace {
+
+herr_t collect_dataset(hid_t, const char* name, const H5O_info_t* info, void* names) {
+  if (info->type == H5O_TYPE_DATASET)
+    static_cast<std::vector<std::string>*>(names)->push_back(std::string("/") + name);
+  return 0;
+}
+
+}  // namespace
+
+void H5Stream::copy_rows_from(const std::string& source, std::size_t rows) {
+  const hid_t from = H5Fopen(source.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (from < 0) throw Error("cannot open the interrupted run's result file", {.file = source});
+  struct Closer {
+    hid_t file;
+    ~Closer() { H5Fclose(file); }
+  } closer{from};
+  std::vector<std::string> names;
+  if (H5Ovisit2(from, H5_INDEX_NAME, H5_ITER_INC, collect_dataset, &names, H5O_INFO_BASIC) < 0)
+    throw Error("cannot list the interrupted run's result file", {.file = source});
+  for (const std::string& name : names) {
+    Id set(H5Dopen2(from, name.c_str(), H5P_DEFAULT));
+    Id space(H5Dget_space(set));
+    const int rank = H5Sget_simple_extent_ndims(space);
+    if (rank < 1) continue;
+    std::vector<hsize_t> dims(static_cast<std::size_t>(rank)), max_dims(dims.size());
+    H5Sget_simple_extent_dims(space, dims.data(), max_dims.data());
+    if (max_dims[0] != H5S_UNLIMITED) continue;  // written once, at the end
+    Id type(H5Dget_type(set));
+    Id create(H5Dget_create_plist(set));
+    std::vector<hsize_t> chunk(dims.size());
+    if (H5Pget_chunk(create, rank, chunk.data()) != rank)
+      throw Error("internal: a per-frame dataset without chunks", {.file = source, .column = name});
+    std::vector<hsize_t> copied = dims;
+    copied[0] = std::min<hsize_t>(rows, dims[0]);
+    ChunkCache& cache = caches_[name];
+    cache.chunk_bytes = H5Tget_size(type);
+    for (const hsize_t c : chunk) cache.chunk_bytes *= static_cast<std::size_t>(c);
+    cache.chunk_width = rank > 1 && chunk[0] > 1 ? static_cast<std::size_t>(chunk[1]) : 0;
+    const std::size_t width = rank > 1 ? static_cast<std::size_t>(dims[1]) : 1;
+    cache.bytes = cache.needed(rank > 1 ? with_room(width) : 1);
+    cache.slots = cache.slots_needed(width);
+    cache.rows_written = static_cast<std::size_t>(copied[0]);
+    ensure_parent_groups(name);
+    Id to_space(H5Screate_simple(rank, copied.data(), max_dims.data()));
+    Id access(H5Pcreate(H5P_DATASET_ACCESS));
+    H5Pset_chunk_cache(access, cache.slots, cache.bytes, 1.0);
+    const hid_t to = H5Dcreate2(file_, name.c_str(), type, to_space, H5P_DEFAULT, create, access);
+    if (to < 0) fail("cannot create per-frame dataset", name);
+    sets_[name] = to;
+    // A block of frames at a time, as stored.
+    std::size_t row_elements = 1;
+    for (std::size_t i = 1; i < dims.size(); ++i) row_elements *= static_cast<std::size_t>(dims[i]);
+    const hsize_t block = std::max<hsize_t>(1, chunk[0]);
+    std::vector<unsigned char> buffer;
+    for (hsize_t first = 0; first < copied[0]; first += block) {
+      std::vector<hsize_t> start(dims.size(), 0), count = copied;
+      start[0] = first;
+      count[0] = std::min(block, copied[0] - first);
+      buffer.resize(static_cast<std::size_t>(count[0]) * row_elements * H5Tget_size(type));
+      Id memory(H5Screate_simple(rank, count.data(), nullptr));
+      Id in(H5Dget_space(set));
+      H5Sselect_hyperslab(in, H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr);
+      if (H5Dread(set, type, memory, in, H5P_DEFAULT, buffer.data()) < 0)
+        throw Error("cannot read the interrupted run's rows", {.file = source, .column = name});
+      Id out(H5Dget_space(to));
+      H5Sselect_hyperslab(out, H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr);
+      if (H5Dwrite(to, type, memory, out, H5P_DEFAULT, buffer.data()) < 0)
+        fail("cannot write dataset row", name);
+    }
+  }
+}
+
 std::size_t H5Stream::ChunkCache::slots_needed(std::size_t row_width) const {
   const std::size_t columns = chunk_width == 0 ? 1 : (row_width + chunk_width - 1) / chunk_width;
   return prime_at_least(std::max(kMinChunkCacheSlots, columns));

@@ -79,6 +79,11 @@ class H5Stream {
   void attribute(const std::string& object, const std::string& name, const std::string& value);
   void attribute(const std::string& object, const std::string& name, double value);
 
+  // Rows 0 … rows − 1 of every per-frame dataset of the result file `source` (another run's, interrupted),
+  // copied as stored (type, chunks, fill, compression): an interrupted run continues into a fresh file rather
+  // than into one whose last writes were cut off. Datasets written once, and the attributes, are not copied.
+  void copy_rows_from(const std::string& source, std::size_t rows);
+
   // Flushes what is written so far to disk, with `frames_written` in the root attribute of that name: a run
   // killed later leaves a file readable up to there.
   void mark_flushed(std::size_t frames_written);

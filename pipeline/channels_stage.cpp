@@ -377,6 +377,12 @@ class ChannelsStage final : public Stage {
 
   std::string name() const override { return "channels"; }
 
+  // The channel file is read again by start(); what the frames brought is in the checkpoint.
+  void archive(Archive& a) override {
+    a(frame_t_s_, displacement_px_, energy_J_);
+    if (a.reading()) fused_.reset();
+  }
+
   void start(const TrialInfo& info) override {
     keep_history_ = info.keep_history;
     ts::ChannelReadOptions options = config_.read;

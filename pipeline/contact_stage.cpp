@@ -27,6 +27,11 @@ struct ContactRecord {
   std::optional<cv::Point2d> ridge_label_shift_px;
   std::optional<cv::Vec3d> ridge_label_shape_px;
   cv::Mat orientation_rad, coherence;
+
+  void archive(Archive& a) {
+    a(status, area_mm2, hull_px, ellipse, texture_snr, border_averaged, border_band_used,
+      ridge_label_shift_px, ridge_label_shape_px, orientation_rad, coherence);
+  }
 };
 
 class ContactStage final : public Stage {
@@ -42,6 +47,10 @@ class ContactStage final : public Stage {
     const int block = options_.block_px;
     blocks_ =
         cv::Size((info.frame_size.width + block - 1) / block, (info.frame_size.height + block - 1) / block);
+  }
+
+  void archive(Archive& a) override {
+    a(segmenter_, records_, segment_s_, segmented_, dark_votes_, bright_votes_);
   }
 
   void process(FrameContext& context) override {

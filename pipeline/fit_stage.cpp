@@ -42,6 +42,12 @@ class FitStage final : public Stage {
 
   std::string name() const override { return "fit"; }
 
+  // The tracks themselves are the tracking stage's (the next frame points at them again).
+  void archive(Archive& a) override {
+    a.layout(sizeof(fit::ContactEllipse), "contact ellipse");
+    a(ellipses_, has_contact_, t_s_);
+  }
+
   void start(const TrialInfo& info) override { out_ = info.keep_history ? info.out : nullptr; }
 
   void process(FrameContext& context) override {

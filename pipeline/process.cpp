@@ -8,13 +8,16 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <functional>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <memory>
 
 #include "capture/file_sources.hpp"
 #include "capture/frame_source.hpp"
+#include "core/archive.hpp"
 #include "core/atomic_output.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
@@ -33,6 +36,10 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// In the staging folder: the state an interrupted run continues from, and its result file while its
+// flushed rows are copied into a fresh one.
+constexpr const char* kCheckpointName = "checkpoint.bin";
+constexpr const char* kInterruptedResult = "result.h5.interrupted";
 
 // Overlay for people: an MP4 through FFmpeg, or a PNG sequence, written into the run's staging folder.
 // FFmpeg does not report a failed write, so a full disk is checked for when the video is closed.
@@ -75,6 +82,13 @@ class OverlayWriter {
   }
 
   bool enabled() const { return mode_ != OverlayMode::kNone; }
+  // A resumed run's overlay: PNG images go on from `frames`; a video holds only the frames from here on.
+  void continue_after(std::int64_t frames) {
+    count_ = mode_ == OverlayMode::kPng ? frames : 0;
+    std::error_code ec;
+    fs::remove(fs::path(out_dir_) / "overlay.mp4", ec);
+  }
+  bool video() const { return mode_ == OverlayMode::kMp4; }
 
  private:
   void open_video(cv::Size size) {
@@ -215,6 +229,7 @@ struct FrameRows {
     usable.push_back(frame_usable ? 1 : 0);
   }
   std::size_t size() const { return t_s.size(); }
+  void archive(Archive& a) { a(index, device_id, lost_before, t_s, status, usable); }
 };
 
 // Lets each stage finish; where one revises its results (finish() returns true), the stages after it are
@@ -307,6 +322,7 @@ class ProcessRun {
     plan_scene();
     open_input();
     open_outputs();
+    if (resuming_) resume_from_checkpoint();
     read_frames();
     update_time_source(*source_, time_source_, warn());
     if (!trial_) throw Error("no frame of the input could be decoded", {.file = options_.input});
@@ -318,6 +334,8 @@ class ProcessRun {
     write_frames_csv();
     write_summary();
     write_result();
+    std::error_code ec;
+    fs::remove(out() / kCheckpointName, ec);  // the run's own, not a result
     staging_->commit();
     return report_;
   }
@@ -357,6 +375,17 @@ class ProcessRun {
     for (const std::string& line : default_notes_) note(line);
     // Made again once the first frame has told where the pattern band is.
     plan_ = checked_plan(scene_, options_.strict, warn());
+    identity_ = run_identity();
+  }
+
+  // What a checkpoint must have been written by to be continued: the same input, scene and options.
+  std::string run_identity() const {
+    const nlohmann::json j = {{"input", options_.input},
+                              {"scene", scene_to_yaml(scene_)},
+                              {"frame_rate_Hz", options_.frame_rate_Hz ? *options_.frame_rate_Hz : -1.0},
+                              {"strict", options_.strict},
+                              {"overlay", static_cast<int>(options_.overlay)}};
+    return j.dump();
   }
 
   void open_input() {
@@ -373,7 +402,29 @@ class ProcessRun {
 
   // The staging folder, and result.h5 in it from the start: per-frame results go there as frames are done.
   void open_outputs() {
-    staging_ = stage_output(options_, scene_path_);
+    std::string final_dir = fs::path(options_.out_dir).lexically_normal().string();
+    while (final_dir.size() > 1 && final_dir.back() == '/') final_dir.pop_back();
+    const fs::path checkpoint = fs::path(final_dir + ".partial") / kCheckpointName;
+    std::error_code ec;
+    resuming_ = options_.resume && fs::is_regular_file(checkpoint, ec);
+    if (options_.resume && !resuming_)
+      note("no checkpoint of an interrupted run in " + final_dir + ".partial: starting from the first frame");
+    if (!resuming_) {
+      staging_ = stage_output(options_, scene_path_);
+    } else {
+      std::vector<std::string> inputs = input_locations(options_.input);
+      if (scene_path_) inputs.push_back(*scene_path_);
+      check_output_folder(options_.out_dir, inputs);
+      open_checkpoint(checkpoint);  // refused before anything is touched
+      staging_ = std::make_unique<StagingDirectory>(options_.out_dir, true);
+      // The interrupted file's last writes may be cut off: its flushed rows go into a fresh one. A resumed
+      // run that failed before copying them left the file under its new name.
+      if (!fs::exists(out() / kInterruptedResult, ec))
+        fs::rename(out() / "result.h5.partial", out() / kInterruptedResult, ec);
+      if (ec)
+        throw Error("cannot take over the interrupted run's result file: " + ec.message(),
+                    {.file = (out() / "result.h5.partial").string()});
+    }
     h5_ = std::make_unique<H5Stream>((out() / "result.h5").string());
     overlay_ =
         std::make_unique<OverlayWriter>(options_.overlay, staging_->path(), options_.log, options_.quiet);
@@ -383,6 +434,12 @@ class ProcessRun {
     Progress progress("process", source_->frame_count() > 0 ? static_cast<long>(source_->frame_count()) : 1L,
                       options_.quiet, options_.log);
     PrefetchingReader reader(*source_, 4);
+    for (std::int64_t k = 0; k < resumed_from_; ++k)
+      if (!reader.next())
+        throw Error("the input has fewer frames than the interrupted run processed (" +
+                        std::to_string(resumed_from_) + ")",
+                    {.file = options_.input});
+    progress.update(static_cast<long>(report_.frames));
     while (std::optional<capture::Frame> frame = reader.next()) {
       process_frame(*frame);
       ++report_.frames;
@@ -396,11 +453,87 @@ class ProcessRun {
   // incomplete both in result.h5.partial (`complete` 0) and in a summary.json of its own.
   void mark_progress() {
     h5_->mark_flushed(rows_.size());
+    const auto now = std::chrono::steady_clock::now();
+    if (trial_ && (checkpoint_rows_ == 0 || std::chrono::duration<double>(now - last_checkpoint_).count() >=
+                                                options_.checkpoint_every_s)) {
+      write_checkpoint();
+      last_checkpoint_ = now;
+      checkpoint_rows_ = rows_.size();
+    }
     const nlohmann::json partial = {{"complete", false},
                                     {"frames_written", rows_.size()},
+                                    {"resumable_from_frame", checkpoint_rows_},
                                     {"input", recorded(options_.input)},
                                     {"result", "result.h5.partial"}};
     write_text_file((out() / "summary.json").string(), partial.dump(2) + "\n");
+  }
+
+  // What the run carries from frame to frame besides the stages: the frames' rows, the counts and warnings,
+  // the pattern band and the trial's image format.
+  void archive_run(Archive& a, cv::Size& frame_size, int& depth, std::int64_t& expected_frames) {
+    a(rows_, report_.frames, report_.frames_skipped, report_.frames_with_contact, report_.warnings);
+    a(band_.source, band_.roi_px, band_.edge, band_.confidence, band_.margin_px, display_size_);
+    a(frame_size, depth, expected_frames, time_source_);
+  }
+
+  void write_checkpoint() {
+    Archive a = Archive::for_writing();
+    a(identity_);
+    archive_run(a, trial_->frame_size, trial_->depth, trial_->expected_frames);
+    for (auto& stage : plan_.stages) stage->archive(a);
+    AtomicFile file((out() / kCheckpointName).string());
+    file.append(std::string_view(a.bytes().data(), a.bytes().size()));
+    file.commit();
+  }
+
+  // The checkpoint read, and refused unless the same input, scene and options wrote it.
+  void open_checkpoint(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (in.bad()) throw Error("cannot read the checkpoint", {.file = path.string()});
+    checkpoint_.emplace(Archive::for_reading(std::move(bytes)));
+    std::string identity;
+    (*checkpoint_)(identity);
+    if (identity != identity_)
+      throw Error(
+          "the interrupted run was made from another input, scene or options; run without --resume "
+          "to start again (which replaces it)",
+          {.file = path.string()});
+  }
+
+  // The interrupted run's state put back: the stages made and started as at its first usable frame, then
+  // given their state; its flushed rows copied into the fresh result file; its frames skipped in the input
+  // (read_frames).
+  void resume_from_checkpoint() {
+    Archive& a = *checkpoint_;
+    cv::Size frame_size;
+    int depth = CV_8U;
+    std::int64_t expected_frames = -1;
+    archive_run(a, frame_size, depth, expected_frames);
+    if (band_.source == "detected") {
+      scene_.reference_pattern_roi = band_.roi_px;
+      scene_.reference_pattern_margin_px = band_.margin_px;
+    }
+    plan_ = plan_stages(scene_);
+    trial_ = TrialInfo{frame_size, depth, expected_frames, &scene_};
+    trial_->out = h5_.get();
+    for (auto& stage : plan_.stages) stage->start(*trial_);
+    for (auto& stage : plan_.stages) stage->archive(a);
+    a.expect_end();
+    h5_->copy_rows_from((out() / kInterruptedResult).string(), rows_.size());
+    h5_->mark_flushed(rows_.size());  // the checkpoint and the fresh file now agree without the old one
+    checkpoint_.reset();
+    std::error_code ec;
+    fs::remove(out() / kInterruptedResult, ec);
+    resumed_from_ = static_cast<std::int64_t>(rows_.size());
+    checkpoint_rows_ = rows_.size();
+    last_checkpoint_ = std::chrono::steady_clock::now();
+    overlay_->continue_after(resumed_from_);
+    note("resuming the interrupted run after frame " + std::to_string(resumed_from_) +
+         " (its last checkpoint)");
+    if (overlay_->video())
+      warn()("the overlay video of a resumed run shows the frames from " + std::to_string(resumed_from_) +
+             " on only");
   }
 
   // The frame's row of /frames, written with the stages' rows.
@@ -532,6 +665,7 @@ class ProcessRun {
     for (const auto& stage : plan_.stages) stage->summarize(summary);
     summary["warnings"] = nlohmann::json::array();
     for (const std::string& w : report_.warnings) summary["warnings"].push_back(recorded(w));
+    if (resumed_from_ > 0) summary["resumed_from_frame"] = resumed_from_;
     summary["wall_time_s"] =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start_).count();
     summary["outputs"] = {"result.h5", "frames.csv", "summary.json"};
@@ -569,6 +703,13 @@ class ProcessRun {
 
   const ProcessOptions& options_;
   const std::chrono::steady_clock::time_point wall_start_ = std::chrono::steady_clock::now();
+  // Continuing an interrupted run (--resume): from its checkpoint, frames 0 … resumed_from_ − 1 done.
+  std::string identity_;
+  bool resuming_ = false;
+  std::optional<Archive> checkpoint_;  // being read back, until the stages have their state
+  std::int64_t resumed_from_ = 0;
+  std::size_t checkpoint_rows_ = 0;  // frames the last checkpoint holds
+  std::chrono::steady_clock::time_point last_checkpoint_;
   ProcessReport report_;
   std::optional<std::string> scene_path_;
   std::string stages_reason_;

@@ -17,6 +17,7 @@
 
 #include "capture/frame_source.hpp"
 #include "contact/segmenter.hpp"
+#include "core/archive.hpp"
 #include "core/h5_stream.hpp"
 #include "core/overlay_text.hpp"
 #include "core/scene.hpp"
@@ -92,6 +93,10 @@ class Stage {
   // whole trial's scalars (rates by central differences). Per-frame rows are already in `out`.
   virtual void write(H5Stream& out) const = 0;
   virtual void summarize(nlohmann::json& /*summary*/) const {}
+  // Everything process() carries from frame to frame, in a checkpoint (core/archive.hpp), so that an
+  // interrupted run continues where it stopped: written after start() and a number of frames, read back
+  // into a stage made from the same scene and started on the same trial. What start() sets is not in it.
+  virtual void archive(Archive& a) = 0;
 };
 
 // How a stage is made, and which stages it needs before it.

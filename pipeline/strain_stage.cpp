@@ -62,6 +62,11 @@ struct StrainFrame {
   double t_s = kNaN;
 
   // Once written to result.h5 and drawn, only the scalars are kept (frames.csv, summary.json, dU/dt).
+  void archive(Archive& a) {
+    a.layout(sizeof(strain::StickZoneFit), "stick zone fit");
+    a(computed, active, status, stuck, sources, values, counts, energy_J, stick_ratio, stick_zone, t_s);
+  }
+
   void drop_arrays() {
     // Swapped with empty vectors: assigning {} would keep their capacity.
     std::vector<std::int32_t>().swap(active);
@@ -85,6 +90,12 @@ class StrainStage final : public Stage {
   void start(const TrialInfo& info) override {
     keep_history_ = info.keep_history;
     out_ = info.out;
+  }
+
+  void archive(Archive& a) override {
+    a(mesh_, reference_normalization_, reference_has_ellipse_, disk_, reference_px_, current_px_,
+      previous_px_, covariance_px2_, vertex_source_, alive_, incremental_, previous_t_s_, frames_, strain_s_,
+      strained_frames_);
   }
 
   void process(FrameContext& context) override {

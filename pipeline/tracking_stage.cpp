@@ -114,6 +114,21 @@ class TrackingStage final : public Stage {
     remember(frames_, std::move(record), keep_history_);
   }
 
+  // The tracker's state inside the stage's: the tracker is made again with the settings sized on its
+  // reference frame and given back its state.
+  void archive(Archive& a) override {
+    bool started = tracker_ != nullptr;
+    a(started, settings_);
+    if (a.reading())
+      tracker_ =
+          started ? std::make_unique<flow::FeatureTracker>(settings_, scene_.reference_pattern_roi) : nullptr;
+    if (started) tracker_->archive(a);
+    a.layout(sizeof(TrackFrame), "tracking record");
+    a(reference_normalization_, reference_has_ellipse_, reference_row_, reference_frame_index_, frames_,
+      tracker_rows_, track_s_, tracked_frames_, plate_frames_not_matched_, rest_frames_averaged_,
+      rest_frames_on_fit_, affine_fit_frames_, model_track_frames_, fusion_declined_, smoothing_declined_);
+  }
+
   // Smoothing in time (flow/temporal_smoothing.hpp) once the trial is complete, where the settings in effect
   // ask for it: "auto" on noisy texture only (the tracker's low-SNR subsets).
   bool finish() override {

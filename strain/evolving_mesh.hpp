@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "core/archive.hpp"
 #include "core/tensor2.hpp"
 #include "strain/mesh.hpp"
 
@@ -30,6 +31,8 @@ class EvolvingMesh {
   const std::vector<Triangle>& active_triangles() const { return active_triangles_; }
   // Number of re-triangulations so far.
   int rebuilds() const { return rebuilds_; }
+  // Its state in a checkpoint (core/archive.hpp).
+  void archive(Archive& a) { a(alive_, triangles_, index_of_, active_, active_triangles_, rebuilds_); }
 
  private:
   std::vector<std::int32_t> alive_;  // sorted

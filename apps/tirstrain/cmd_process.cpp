@@ -16,7 +16,8 @@ struct ProcessArgs {
   std::optional<double> frame_rate_Hz;
   std::vector<std::string> compute;
   std::int64_t flush_every_frames = 64;
-  bool quiet = false, strict = false, no_scene = false;
+  double checkpoint_every_s = 30.0;
+  bool quiet = false, strict = false, no_scene = false, resume = false;
 };
 
 const char* const kProcessHelp =
@@ -34,7 +35,11 @@ const char* const kProcessHelp =
     "pattern band (along any image edge, or none) found from the images.\n"
     "Writes DIR/result.h5, DIR/frames.csv, DIR/summary.json and DIR/overlay.mp4 (see docs/formats.md),\n"
     "built in DIR.partial and swapped in for DIR only when complete: an earlier result stays whole until\n"
-    "then. DIR must not be, or hold, INPUT or the scene, nor hold files process does not write.";
+    "then. DIR must not be, or hold, INPUT or the scene, nor hold files process does not write.\n"
+    "A run that is interrupted (killed, power lost) leaves DIR.partial with the frames before its last\n"
+    "flush and a checkpoint; --resume continues from there with the same input, scene and options and\n"
+    "gives the result an uninterrupted run gives.\n"
+    "Example: tirstrain process recording/ --out result/   (then, if it was killed: add --resume)";
 
 pipeline::ProcessOptions process_options(const ProcessArgs& args) {
   pipeline::ProcessOptions options;
@@ -54,6 +59,8 @@ pipeline::ProcessOptions process_options(const ProcessArgs& args) {
   options.segmentation_preset = args.segmentation;
   options.strain_mode = args.strain_mode;
   options.flush_every_frames = args.flush_every_frames;
+  options.resume = args.resume;
+  options.checkpoint_every_s = args.checkpoint_every_s;
   return options;
 }
 
@@ -109,6 +116,13 @@ void add_process_command(CLI::App& app) {
                   "Frames between flushes of the partial result (default 64): a run killed later leaves the "
                   "frames before the last flush readable in DIR.partial, marked incomplete")
       ->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 40));
+  sub->add_flag("--resume", args->resume,
+                "Continue the run interrupted in DIR.partial from its last checkpoint (same input, scene and "
+                "options); without one, start from the first frame");
+  sub->add_option("--checkpoint-every-s", args->checkpoint_every_s,
+                  "Seconds of wall time between checkpoints for --resume, written with a flush (default 30; "
+                  "the first flush always writes one; 0: every flush)")
+      ->check(CLI::Range(0.0, 1e9));
   sub->add_option("--overlay", args->overlay, "Overlay for viewing: mp4 (default), png (DIR/overlay/), none")
       ->check(CLI::IsMember({"mp4", "png", "none"}));
   sub->callback([args] { run_process_command(*args); });

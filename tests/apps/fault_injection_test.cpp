@@ -404,6 +404,101 @@ TEST(Faults, ProcessKilledMidRunLeavesItsFlushedFramesReadableAndMarkedIncomplet
   EXPECT_EQ(differing, 0);
 }
 
+// Every dataset of a result file (groups walked down to their datasets).
+std::vector<std::string> datasets_of(const H5Reader& file, const std::string& group = "/") {
+  std::vector<std::string> names;
+  for (const std::string& member : file.members(group)) {
+    const std::string name = (group == "/" ? "" : group) + "/" + member;
+    bool is_group = false;
+    try {
+      file.members(name);
+      is_group = true;
+    } catch (const std::exception&) {
+    }
+    if (is_group) {
+      for (const std::string& inner : datasets_of(file, name)) names.push_back(inner);
+    } else {
+      names.push_back(name);
+    }
+  }
+  return names;
+}
+
+// Killed once its first checkpoint is on disk, then resumed: result.h5 holds every dataset the
+// uninterrupted run writes with every value equal (NaN where it has NaN), and frames.csv is the same byte for
+// byte. With channels and the model fit, so that every stage is continued.
+TEST(Faults, ProcessKilledThenResumedGivesTheUninterruptedResult) {
+  const fs::path dir = testing::scratch_dir("faults", "resume");
+  const fs::path reference = dir / "reference", out = dir / "out", staged = dir / "out.partial";
+  std::vector<std::string> args = process_args(reference);
+  args.insert(args.end(), {"--overlay", "none", "--flush-every-frames", "3", "--checkpoint-every-s", "0",
+                           "--compute", "channels", "fit"});
+  const CliRun complete = run_cli(args);
+  ASSERT_EQ(complete.exit_code, 0) << complete.output;
+  args[3] = out.string();
+  // Its summary is written right after its first checkpoint.
+  const CliRun killed = run_cli(args, {.kill_once_exists = staged / "summary.json"});
+  ASSERT_TRUE(killed.killed) << "the run ended before it was killed: " << killed.output;
+  ASSERT_TRUE(fs::exists(staged / "checkpoint.bin"));
+  std::ifstream partial_summary(staged / "summary.json");
+  const auto resumable = nlohmann::json::parse(partial_summary).at("resumable_from_frame").get<int>();
+  EXPECT_GE(resumable, 3);
+  EXPECT_LT(resumable, 12);
+
+  args.push_back("--resume");
+  const CliRun resumed = run_cli(args);
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.output;
+  EXPECT_FALSE(fs::exists(staged));
+  EXPECT_FALSE(fs::exists(out / "checkpoint.bin"));
+  std::ifstream summary_file(out / "summary.json");
+  const nlohmann::json summary = nlohmann::json::parse(summary_file);
+  EXPECT_TRUE(summary.at("complete").get<bool>());
+  const int resumed_from = summary.at("resumed_from_frame").get<int>();
+  EXPECT_GE(resumed_from, resumable);
+  std::cout << "  resumed after frame " << resumed_from << " of 12\n";
+
+  const H5Reader whole((reference / "result.h5").string()), continued((out / "result.h5").string());
+  const std::vector<std::string> names = datasets_of(whole);
+  EXPECT_EQ(datasets_of(continued), names);
+  int compared = 0, differing = 0;
+  for (const std::string& name : names) {
+    H5Shape a_shape, b_shape;
+    const std::vector<double> a = whole.read_doubles(name, &a_shape);
+    const std::vector<double> b = continued.read_doubles(name, &b_shape);
+    ASSERT_EQ(a_shape, b_shape) << name;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      const bool same = a[i] == b[i] || (std::isnan(a[i]) && std::isnan(b[i]));
+      differing += !same;
+      if (!same && differing < 5) ADD_FAILURE() << name << "[" << i << "]: " << a[i] << " against " << b[i];
+    }
+    ++compared;
+  }
+  EXPECT_EQ(differing, 0);
+  EXPECT_GT(compared, 40);  // /frames, /contact, /tracks, /plate, /mesh, /strain, /energy, /channels, /fit
+  EXPECT_EQ(read_bytes(out / "frames.csv"), read_bytes(reference / "frames.csv"));
+}
+
+TEST(Faults, ResumeRefusesAnInterruptedRunOfOtherOptionsAndKeepsIt) {
+  const fs::path dir = testing::scratch_dir("faults", "resume_other");
+  const fs::path out = dir / "out", staged = dir / "out.partial";
+  std::vector<std::string> args = process_args(out);
+  args.insert(args.end(), {"--overlay", "none", "--flush-every-frames", "3", "--checkpoint-every-s", "0"});
+  const CliRun killed = run_cli(args, {.kill_once_exists = staged / "summary.json"});
+  ASSERT_TRUE(killed.killed) << killed.output;
+  ASSERT_TRUE(fs::exists(staged / "checkpoint.bin"));
+  const auto before = snapshot(staged);
+  std::vector<std::string> other = args;
+  other.insert(other.end(), {"--preset", "delhaye2016", "--resume"});
+  const CliRun refused = run_cli(other);
+  EXPECT_EQ(refused.exit_code, 1) << refused.output;
+  EXPECT_TRUE(mentions(refused.output, "another input, scene or options")) << refused.output;
+  EXPECT_EQ(snapshot(staged), before);  // the interrupted run, untouched, can still be resumed
+  args.push_back("--resume");
+  const CliRun resumed = run_cli(args);
+  EXPECT_EQ(resumed.exit_code, 0) << resumed.output;
+  EXPECT_TRUE(fs::exists(out / "result.h5"));
+}
+
 TEST(Faults, SynthKilledAnywhereLeavesTheEarlierTrial) {
   const fs::path dir = testing::scratch_dir("faults", "kill_synth");
   const fs::path out = dir / "trial";
