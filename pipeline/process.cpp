@@ -40,6 +40,8 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // flushed rows are copied into a fresh one.
 constexpr const char* kCheckpointName = "checkpoint.bin";
 constexpr const char* kInterruptedResult = "result.h5.interrupted";
+// The largest share of a run's wall time that writing checkpoints may take.
+constexpr double kCheckpointShare = 0.02;
 
 // Overlay for people: an MP4 through FFmpeg, or a PNG sequence, written into the run's staging folder.
 // FFmpeg does not report a failed write, so a full disk is checked for when the video is closed.
@@ -454,10 +456,14 @@ class ProcessRun {
   void mark_progress() {
     h5_->mark_flushed(rows_.size());
     const auto now = std::chrono::steady_clock::now();
-    if (trial_ && (checkpoint_rows_ == 0 || std::chrono::duration<double>(now - last_checkpoint_).count() >=
-                                                options_.checkpoint_every_s)) {
+    const double since_s = std::chrono::duration<double>(now - last_checkpoint_).count();
+    // A checkpoint grows with the trial (every track and record made so far): spaced so that writing them
+    // takes at most kCheckpointShare of the run, however long it gets.
+    const double interval_s = std::max(options_.checkpoint_every_s, checkpoint_cost_s_ / kCheckpointShare);
+    if (trial_ && (checkpoint_rows_ == 0 || since_s >= interval_s)) {
       write_checkpoint();
-      last_checkpoint_ = now;
+      last_checkpoint_ = std::chrono::steady_clock::now();
+      checkpoint_cost_s_ = std::chrono::duration<double>(last_checkpoint_ - now).count();
       checkpoint_rows_ = rows_.size();
     }
     const nlohmann::json partial = {{"complete", false},
@@ -710,6 +716,7 @@ class ProcessRun {
   std::int64_t resumed_from_ = 0;
   std::size_t checkpoint_rows_ = 0;  // frames the last checkpoint holds
   std::chrono::steady_clock::time_point last_checkpoint_;
+  double checkpoint_cost_s_ = 0.0;  // how long the last one took to write
   ProcessReport report_;
   std::optional<std::string> scene_path_;
   std::string stages_reason_;

@@ -45,9 +45,10 @@ struct ProcessOptions {
   // Frames between flushes of the partial result: a run killed later leaves every frame before the last
   // flush readable in OUT.partial (result.h5.partial, summary.json `complete: false`). ≥ 1.
   std::int64_t flush_every_frames = 64;
-  // Continue the run interrupted in OUT.partial from its last checkpoint (written with a flush, at most
-  // every checkpoint_every_s of wall time, and with the first) instead of from the first frame: the same
-  // input, scene and options, or an error. Without a checkpoint there, the run starts from the first frame.
+  // Continue the run interrupted in OUT.partial from its last checkpoint (written with the first flush, then
+  // with a flush once checkpoint_every_s of wall time and 50 times the last one's writing time have passed,
+  // so that they take at most 2 % of the run) instead of from the first frame: the same input, scene and
+  // options, or an error. Without a checkpoint there, the run starts from the first frame.
   bool resume = false;
   double checkpoint_every_s = 30.0;
   std::FILE* log = stderr;  // warnings and progress

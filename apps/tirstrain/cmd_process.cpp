@@ -120,8 +120,9 @@ void add_process_command(CLI::App& app) {
                 "Continue the run interrupted in DIR.partial from its last checkpoint (same input, scene and "
                 "options); without one, start from the first frame");
   sub->add_option("--checkpoint-every-s", args->checkpoint_every_s,
-                  "Seconds of wall time between checkpoints for --resume, written with a flush (default 30; "
-                  "the first flush always writes one; 0: every flush)")
+                  "Least seconds of wall time between checkpoints for --resume, written with a flush "
+                  "(default 30; the first flush always writes one; they are also spaced by 50 times the "
+                  "last one's writing time, so that they take at most 2 % of the run)")
       ->check(CLI::Range(0.0, 1e9));
   sub->add_option("--overlay", args->overlay, "Overlay for viewing: mp4 (default), png (DIR/overlay/), none")
       ->check(CLI::IsMember({"mp4", "png", "none"}));
