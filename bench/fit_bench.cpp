@@ -84,10 +84,11 @@ void print_frames(const std::vector<FrameFit>& fits, const Truth& t) {
     const FrameFit& f = fits[i];
     const double limit = t.mu * t.p_N[i];
     std::printf(
-        "%3zu %-12s Q/muP %.3f fit %.3f  c/a %.3f fit %.3f  a %.3f  muP_fit/muP %.3f  dir %.2f  rms %.3f\n",
+        "%3zu %-12s Q/muP %.3f fit %.3f  c/a %.3f fit %.3f  a %.3f  muP_fit/muP %.3f  dir %.2f  rms %.3f%s\n",
         i, fitted(f) ? tirstrain::fit::field_model_name(f.model) : tirstrain::fit::fit_status_name(f.status),
         t.q_N[i] / limit, f.tangential_N.value / limit, t.c_m[i] * 1e3 / a_mm, f.c_mm.value / a_mm,
-        f.a_mm.value / a_mm, f.limit_N.value / limit, f.direction_deg.value, f.residual_rms_px);
+        f.a_mm.value / a_mm, f.limit_N.value / limit, f.direction_deg.value, f.residual_rms_px,
+        f.limit_from_trial ? "  (trial's muP)" : "");
   }
 }
 
@@ -95,7 +96,7 @@ void print_frames(const std::vector<FrameFit>& fits, const Truth& t) {
 
 int main(int argc, char** argv) {
   if (argc < 3) {
-    std::fprintf(stderr, "usage: fit_bench TRIAL_DIR RESULT_DIR [--threads N]\n");
+    std::fprintf(stderr, "usage: fit_bench TRIAL_DIR RESULT_DIR [--threads N] [--frames] [--frame-limit]\n");
     return 2;
   }
   try {
@@ -105,11 +106,13 @@ int main(int argc, char** argv) {
       const std::string arg = argv[i];
       if (arg == "--threads" && i + 1 < argc) options.frame_threads = std::stoi(argv[++i]);
       if (arg == "--frames") verbose = true;
+      if (arg == "--frame-limit") options.trial_limit = false;
     }
     const Truth truth = read_truth(argv[1]);
     const tirstrain::fit::ResultForFit result = tirstrain::fit::read_result_for_fit(argv[2]);
     const auto start = std::chrono::steady_clock::now();
-    const std::vector<FrameFit> fits = tirstrain::fit::fit_result(result, options);
+    const tirstrain::fit::FitRun run = tirstrain::fit::fit_result(result, options);
+    const std::vector<FrameFit>& fits = run.frames;
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     double tracks = 0.0;
     int fitted_frames = 0;
@@ -129,6 +132,14 @@ int main(int argc, char** argv) {
         e.loaded, e.loaded_unfitted, e.loaded ? std::sqrt(e.c_sum2 / e.loaded) : NAN,
         e.loaded ? std::sqrt(e.q_sum2 / e.loaded) : NAN, e.dir_max);
     std::printf("rest frames %d max |Q_fit|/muP %.4f\n", e.rest, e.rest_max);
+    int from_trial = 0;
+    for (const FrameFit& f : fits) from_trial += f.limit_from_trial ? 1 : 0;
+    if (run.trial_limit)
+      std::printf("trial limit %.5f N (sd %.5f, %d frames; true muP at frame 0 %.5f), held in %d frames\n",
+                  run.trial_limit->limit_N, run.trial_limit->sd_N, run.trial_limit->frames,
+                  truth.mu * (truth.p_N.empty() ? NAN : truth.p_N[0]), from_trial);
+    else
+      std::printf("trial limit: none\n");
     if (verbose) print_frames(fits, truth);
   } catch (const std::exception& ex) {
     std::fprintf(stderr, "fit_bench: %s\n", ex.what());

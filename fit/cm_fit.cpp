@@ -24,6 +24,8 @@ constexpr double kPi = std::numbers::pi;
 constexpr int kStickParams = 5;
 constexpr int kPartialParams = 6;
 constexpr int kSlipParams = 5;
+// Partial slip with μP held at the trial's: [cx, cy, theta, a, k]; s follows from a (s = L / a², below).
+constexpr int kKnownLimitParams = 5;
 
 // The area-preserving map M that takes the segmented ellipse onto the circle of radius √(a₁a₂), row-major.
 struct Normaliser {
@@ -43,13 +45,15 @@ Normaliser normaliser(const ContactEllipse& e) {
   return n;
 }
 
-// One track's residual (model − measured), px, for field F.
-template <FieldModel F>
+// One track's residual (model − measured), px, for field F. Partial slip with `Known` holds μP fixed at
+// `known_limit` L: s = L / a² (μP = (2π/3) G s a², so L = 3μP / (2π G) in px², see known_limit_px2).
+template <FieldModel F, bool Known = false>
 struct TrackResidual {
   double qx, qy;  // M X
   double ux, uy;  // measured displacement
   Normaliser n;
   double nu;
+  double known_limit = 0.0;
 
   template <typename T>
   bool operator()(const T* p, T* r) const {
@@ -64,7 +68,11 @@ struct TrackResidual {
     if constexpr (F == FieldModel::full_stick) {
       full_stick_px(xl, yl, p[3], p[4], nu, wx, wy);
     } else if constexpr (F == FieldModel::partial_slip) {
-      partial_slip_px(xl, yl, p[3], p[4], p[5], nu, wx, wy);
+      if constexpr (Known) {
+        partial_slip_px(xl, yl, p[3], p[4], T(known_limit) / (p[3] * p[3]), nu, wx, wy);
+      } else {
+        partial_slip_px(xl, yl, p[3], p[4], p[5], nu, wx, wy);
+      }
     } else {
       partial_slip_px(xl, yl, p[3], T(0.0), p[4], nu, wx, wy);
     }
@@ -139,28 +147,29 @@ struct Bounds {
 
 template <FieldModel F, int P>
 void add_residuals(ceres::Problem& problem, const Samples& s, const Normaliser& n, double nu, double* p,
-                   const FitOptions& options) {
+                   const FitOptions& options, double known_limit) {
   if (options.radius_prior_sd > 0.0) {
     const double weight = options.prior_noise_px / (options.radius_prior_sd * s.a_seg_px);
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<ContactPrior, 3, P>(
                                  new ContactPrior{s.cx_px, s.cy_px, s.a_seg_px, weight}),
                              nullptr, p);
   }
+  constexpr bool known = F == FieldModel::partial_slip && P == kKnownLimitParams;
   for (std::size_t i = 0; i < s.q.size(); ++i) {
-    auto* cost = new ceres::AutoDiffCostFunction<TrackResidual<F>, 2, P>(
-        new TrackResidual<F>{s.q[i].x, s.q[i].y, s.u[i].x, s.u[i].y, n, nu});
+    auto* cost = new ceres::AutoDiffCostFunction<TrackResidual<F, known>, 2, P>(
+        new TrackResidual<F, known>{s.q[i].x, s.q[i].y, s.u[i].x, s.u[i].y, n, nu, known_limit});
     problem.AddResidualBlock(cost, new ceres::HuberLoss(options.loss_scale_px), p);
   }
 }
 
 template <FieldModel F, int P>
 Solved solve_field(const Samples& s, const Normaliser& n, double nu, std::vector<double> start,
-                   const Bounds& bounds, const FitOptions& options) {
+                   const Bounds& bounds, const FitOptions& options, double known_limit = 0.0) {
   ceres::Problem problem;
   Solved out;
   out.p = std::move(start);
   double* p = out.p.data();
-  add_residuals<F, P>(problem, s, n, nu, p, options);
+  add_residuals<F, P>(problem, s, n, nu, p, options, known_limit);
   for (int j = 0; j < P; ++j) {
     if (std::isfinite(bounds.lower[j])) problem.SetParameterLowerBound(p, j, bounds.lower[j]);
     if (std::isfinite(bounds.upper[j])) problem.SetParameterUpperBound(p, j, bounds.upper[j]);
@@ -184,10 +193,10 @@ Solved solve_field(const Samples& s, const Normaliser& n, double nu, std::vector
 // (a parameter the data do not determine, e.g. c/a at c = a) is a status, not a log line.
 template <FieldModel F, int P>
 void compute_covariance(Solved& fit, const Samples& s, const Normaliser& n, double nu,
-                        const FitOptions& options, double shared) {
+                        const FitOptions& options, double shared, double known_limit = 0.0) {
   ceres::Problem problem;
   std::vector<double> p = fit.p;
-  add_residuals<F, P>(problem, s, n, nu, p.data(), options);
+  add_residuals<F, P>(problem, s, n, nu, p.data(), options, known_limit);
   ceres::CRSMatrix j;
   ceres::Problem::EvaluateOptions eo;
   eo.num_threads = options.threads;
@@ -296,6 +305,31 @@ Fits solve_loaded_fields(const Samples& s, const Normaliser& n, const Start& g, 
   return f;
 }
 
+// L = 3μP / (2π G) in px²: the known limit as TrackResidual holds it.
+double known_limit_px2(const TrialLimit& limit, double m_per_px, double shear_Pa) {
+  return 3.0 * limit.limit_N / (2.0 * kPi * shear_Pa * m_per_px * m_per_px);
+}
+
+// Partial slip at the known limit L, started where its stick zone shifts as far as the stick field's
+// (s (1 − k²) = 2A with s = L / a²) and where the free partial-slip fit put c; the better of the two.
+Solved solve_known_limit(const Samples& s, const Normaliser& n, const Start& g, double nu, const Fits& f,
+                         double known_limit, const FitOptions& options) {
+  Bounds b = geometry_bounds(g, kKnownLimitParams);
+  b.upper[4] = 1.0;
+  const std::vector<double>& st = f.stick.p;
+  const double s_known = known_limit / (st[3] * st[3]);
+  const double k_shift = std::sqrt(std::clamp(1.0 - 2.0 * std::max(st[4], 0.0) / s_known, 0.0, 1.0));
+  Solved best;
+  bool first = true;
+  for (const double k : {std::clamp(k_shift, 0.05, 0.98), std::clamp(f.partial.p[4], 0.05, 0.98)}) {
+    Solved p = solve_field<FieldModel::partial_slip, kKnownLimitParams>(
+        s, n, nu, {st[0], st[1], st[2], st[3], k}, b, options, known_limit);
+    if (first || p.cost < best.cost) best = std::move(p);
+    first = false;
+  }
+  return best;
+}
+
 // Residuals that neighbours share are not independent evidence: with each track sharing its residual with
 // `shared` tracks' worth of neighbours, the likelihood holds n / shared independent residuals.
 void set_criteria(FrameFit& out, FieldModel m, double cost, int params, std::size_t residuals,
@@ -365,9 +399,12 @@ double shared_residuals_of(const FrameObservations& obs, const Samples& s, const
 // share, and counted as independent they make any loaded field's few parameters look worth their cost.
 // Among the loaded fields the criteria count every residual: there the residuals' spatial correlation is
 // mostly the fields' own misfit, and discounting it would discard the slip annulus' evidence.
-FieldModel choose_model(const FrameFit& out, const std::array<double, kFieldModels>& rest_bic) {
-  int loaded = static_cast<int>(FieldModel::full_stick);
-  for (int m = loaded + 1; m < kFieldModels; ++m)
+// Without `stick_allowed` (a known limit), the loaded field is partial or full slip.
+FieldModel choose_model(const FrameFit& out, const std::array<double, kFieldModels>& rest_bic,
+                        bool stick_allowed) {
+  const int first = static_cast<int>(stick_allowed ? FieldModel::full_stick : FieldModel::partial_slip);
+  int loaded = first;
+  for (int m = first + 1; m < kFieldModels; ++m)
     if (out.bic[m] < out.bic[loaded]) loaded = m;
   const int rest = static_cast<int>(FieldModel::rest);
   for (int m = rest + 1; m < kFieldModels; ++m)
@@ -435,6 +472,19 @@ void report_slip(FrameFit& out, const Solved& s, const Units& u, bool partial) {
   }
 }
 
+// Partial slip at the trial's μP: Q = μP (1 − k³), its SD from k's and μP's.
+void report_known_limit(FrameFit& out, const Solved& s, const Units& u, const TrialLimit& limit) {
+  report_geometry(out, s, u);
+  const double mm_per_px = 1e3 * u.m_per_px;
+  const double a_px = s.p[3], k = s.p[4];
+  out.c_mm = {k * a_px * mm_per_px, mm_per_px * delta_sd(s.cov, {0, 0, 0, k, a_px})};
+  const double mu_p = limit.limit_N;
+  out.tangential_N = {mu_p * (1.0 - k * k * k),
+                      std::hypot(3.0 * mu_p * k * k * param_sd(s, 4), (1.0 - k * k * k) * limit.sd_N)};
+  out.limit_N = {mu_p, limit.sd_N};
+  out.limit_from_trial = true;
+}
+
 void report_rest(FrameFit& out) {
   out.centre_x_px = out.centre_y_px = out.direction_deg = out.a_mm = out.c_mm = {kNaN, kNaN};
   out.tangential_N = {0.0, 0.0};
@@ -443,12 +493,19 @@ void report_rest(FrameFit& out) {
 
 // measured − model per used track, and the RMS of its length.
 template <FieldModel F>
-void fill_residuals(FrameFit& out, const Samples& s, const Normaliser& n, double nu, const Solved& fit) {
+void fill_residuals(FrameFit& out, const Samples& s, const Normaliser& n, double nu, const Solved& fit,
+                    double known_limit = 0.0) {
   double sum = 0.0;
   for (std::size_t i = 0; i < s.q.size(); ++i) {
     double r[2] = {-s.u[i].x, -s.u[i].y};
-    if constexpr (F != FieldModel::rest)
+    if constexpr (F == FieldModel::partial_slip) {
+      if (known_limit > 0.0)
+        TrackResidual<F, true>{s.q[i].x, s.q[i].y, s.u[i].x, s.u[i].y, n, nu, known_limit}(fit.p.data(), r);
+      else
+        TrackResidual<F>{s.q[i].x, s.q[i].y, s.u[i].x, s.u[i].y, n, nu}(fit.p.data(), r);
+    } else if constexpr (F != FieldModel::rest) {
       TrackResidual<F>{s.q[i].x, s.q[i].y, s.u[i].x, s.u[i].y, n, nu}(fit.p.data(), r);
+    }
     out.residual_px[s.index[i]] = {-r[0], -r[1]};
     sum += r[0] * r[0] + r[1] * r[1];
   }
@@ -483,13 +540,31 @@ FrameFit unfitted(FitStatus status, std::size_t tracks) {
   return out;
 }
 
+// The 90th percentile of the used tracks' distance from the fitted centre, over the fitted a.
+double tracked_radius(const Samples& s, const Normaliser& n, const Solved& fit) {
+  const double cx = n.m[0] * fit.p[0] + n.m[1] * fit.p[1], cy = n.m[2] * fit.p[0] + n.m[3] * fit.p[1];
+  std::vector<double> r;
+  r.reserve(s.q.size());
+  for (const Vec2& q : s.q) r.push_back(std::hypot(q.x - cx, q.y - cy) / fit.p[3]);
+  const std::size_t at = (r.size() * 9) / 10;
+  std::nth_element(r.begin(), r.begin() + static_cast<std::ptrdiff_t>(at), r.end());
+  return r[at];
+}
+
+// The partial-slip slot's fit: free, or at the trial's limit (`known_limit` > 0).
+struct PartialChoice {
+  const TrialLimit* limit = nullptr;
+  double known_limit = 0.0;
+};
+
 void report_chosen(FrameFit& out, Fits& f, const Samples& s, const Normaliser& n, double nu, const Units& u,
-                   const FitOptions& options) {
+                   const FitOptions& options, const PartialChoice& partial) {
   const Solved* chosen = nullptr;
   switch (out.model) {
     case FieldModel::rest:
       report_rest(out);
       fill_residuals<FieldModel::rest>(out, s, n, nu, f.stick);
+      out.tracked_radius = kNaN;
       return;
     case FieldModel::full_stick:
       compute_covariance<FieldModel::full_stick, kStickParams>(f.stick, s, n, nu, options,
@@ -499,10 +574,16 @@ void report_chosen(FrameFit& out, Fits& f, const Samples& s, const Normaliser& n
       chosen = &f.stick;
       break;
     case FieldModel::partial_slip:
-      compute_covariance<FieldModel::partial_slip, kPartialParams>(f.partial, s, n, nu, options,
-                                                                   out.shared_residuals);
-      report_slip(out, f.partial, u, true);
-      fill_residuals<FieldModel::partial_slip>(out, s, n, nu, f.partial);
+      if (partial.limit) {
+        compute_covariance<FieldModel::partial_slip, kKnownLimitParams>(
+            f.partial, s, n, nu, options, out.shared_residuals, partial.known_limit);
+        report_known_limit(out, f.partial, u, *partial.limit);
+      } else {
+        compute_covariance<FieldModel::partial_slip, kPartialParams>(f.partial, s, n, nu, options,
+                                                                     out.shared_residuals);
+        report_slip(out, f.partial, u, true);
+      }
+      fill_residuals<FieldModel::partial_slip>(out, s, n, nu, f.partial, partial.known_limit);
       chosen = &f.partial;
       break;
     case FieldModel::full_slip:
@@ -512,6 +593,7 @@ void report_chosen(FrameFit& out, Fits& f, const Samples& s, const Normaliser& n
       chosen = &f.slip;
       break;
   }
+  out.tracked_radius = tracked_radius(s, n, *chosen);
   if (chosen->cov.empty()) out.status = FitStatus::no_covariance;
 }
 
@@ -531,7 +613,7 @@ const char* fit_status_name(FitStatus s) {
   return "unknown";
 }
 
-FrameFit fit_frame(const FrameObservations& obs, const FitOptions& options) {
+FrameFit fit_frame(const FrameObservations& obs, const FitOptions& options, const TrialLimit* limit) {
   validate(obs);
   const std::size_t tracks = obs.reference_px.size();
   if (!obs.has_contact || !usable_ellipse(obs.contact)) return unfitted(FitStatus::no_contact, tracks);
@@ -548,9 +630,20 @@ FrameFit fit_frame(const FrameObservations& obs, const FitOptions& options) {
   out.residual_px.assign(tracks, {kNaN, kNaN});
   const std::size_t residuals = 2 * s.q.size();
   out.shared_residuals = shared_residuals_of(obs, s, n, nu, f.partial);
-  const std::array<double, kFieldModels> costs = {rest_cost(s, options.loss_scale_px), f.stick.cost,
-                                                  f.partial.cost, f.slip.cost};
-  const std::array<int, kFieldModels> params = {0, kStickParams, kPartialParams, kSlipParams};
+  std::array<double, kFieldModels> costs = {rest_cost(s, options.loss_scale_px), f.stick.cost, f.partial.cost,
+                                            f.slip.cost};
+  std::array<int, kFieldModels> params = {0, kStickParams, kPartialParams, kSlipParams};
+  const Units u{1e-3 / obs.px_per_mm, obs.young_Pa / (2.0 * (1.0 + obs.poisson))};
+  PartialChoice partial;
+  const bool has_limit = limit != nullptr && limit->limit_N > 0.0;
+  if (has_limit) {
+    // Partial slip at the trial's μP takes the partial-slip slot.
+    const double known = known_limit_px2(*limit, u.m_per_px, u.shear_Pa);
+    f.partial = solve_known_limit(s, n, g, nu, f, known, options);
+    costs[static_cast<int>(FieldModel::partial_slip)] = f.partial.cost;
+    params[static_cast<int>(FieldModel::partial_slip)] = kKnownLimitParams;
+    partial = {limit, known};
+  }
   FrameFit shared;
   for (int m = 0; m < kFieldModels; ++m) {
     const auto model = static_cast<FieldModel>(m);
@@ -559,9 +652,8 @@ FrameFit fit_frame(const FrameObservations& obs, const FitOptions& options) {
     set_criteria(shared, model, costs[static_cast<std::size_t>(m)], params[static_cast<std::size_t>(m)],
                  residuals, out.shared_residuals);
   }
-  out.model = choose_model(out, shared.bic);
-  const Units u{1e-3 / obs.px_per_mm, obs.young_Pa / (2.0 * (1.0 + obs.poisson))};
-  report_chosen(out, f, s, n, nu, u, options);
+  out.model = choose_model(out, shared.bic, !has_limit);
+  report_chosen(out, f, s, n, nu, u, options, partial);
   return out;
 }
 

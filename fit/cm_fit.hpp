@@ -4,7 +4,8 @@
 // tangential load), full stick, partial slip, full slip (c = 0) — each a robust (Huber) Ceres fit of the
 // contact centre, the load direction, the contact radius a and the load scale (and c/a for partial slip);
 // AIC and BIC on the robust cost choose the field. An elliptical contact is fitted in the frame that maps the
-// segmented ellipse onto a circle of the same area (the convention of tirstrain synth's truth).
+// segmented ellipse onto a circle of the same area (the convention of tirstrain synth's truth). Given the
+// trial's μP (fit/fit_result.hpp, trial_limit), partial slip is fitted with μP held there.
 #include <array>
 #include <cstdint>
 #include <vector>
@@ -76,10 +77,29 @@ struct FrameFit {
   double shared_residuals = 1.0;
   std::array<double, kFieldModels> aic{}, bic{};  // by FieldModel value
   std::vector<Vec2> residual_px;  // measured − model per input track; NaN for tracks not used
+  // The used tracks' 90th-percentile distance from the fitted centre, in units of the fitted a (NaN at rest):
+  // how far out the frame is observed, and so whether its slip annulus is.
+  double tracked_radius = 0.0;
+  // Partial slip with μP held at the trial's (TrialLimit) rather than fitted: c then follows from the stick
+  // zone's shift, which the tracks see even where the annulus lies beyond them.
+  bool limit_from_trial = false;
+};
+
+// The trial's friction limit μP, measured on its frames whose slip annulus the tracks resolve
+// (fit/fit_result.hpp, trial_limit).
+struct TrialLimit {
+  double limit_N = 0.0;
+  double sd_N = 0.0;
+  int frames = 0;  // frames it was measured on
 };
 
 // Fits one frame. Throws nothing for data problems (they are statuses); invalid calibration or tissue
 // (non-positive px_per_mm or E, nu outside (−1, 0.5)) throws Error.
-FrameFit fit_frame(const FrameObservations& obs, const FitOptions& options);
+//
+// With `limit`, partial slip is fitted with μP held at the trial's, and full stick (the μP → ∞ limit of
+// partial slip, which the trial's own frames contradict) is no longer a candidate: a frame is at rest, in
+// partial slip at the trial's μP, or in full slip. Its criteria are still reported.
+FrameFit fit_frame(const FrameObservations& obs, const FitOptions& options,
+                   const TrialLimit* limit = nullptr);
 
 }  // namespace tirstrain::fit

@@ -1,5 +1,6 @@
 #include "fit/fit_result.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <filesystem>
@@ -11,6 +12,7 @@
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/h5_file.hpp"
+#include "core/median.hpp"
 #include "core/scene.hpp"
 #include "fit/fit_plots.hpp"
 
@@ -90,6 +92,7 @@ std::vector<std::string> csv_header() {
   for (const char* q : {"tangential_channel_N", "residual_rms_px", "aic", "bic"}) h.emplace_back(q);
   for (const char* c : {"aic_", "bic_"})
     for (const char* m : kModelNames) h.push_back(std::string(c) + m);
+  for (const char* q : {"tracked_radius", "limit_from_trial"}) h.emplace_back(q);
   return h;
 }
 
@@ -113,6 +116,8 @@ std::vector<std::string> csv_row(std::size_t i, const ResultForFit& r, const Fra
   row.push_back(ok ? cell(f.bic[m]) : "");
   for (const auto* crit : {&f.aic, &f.bic})
     for (int k = 0; k < kFieldModels; ++k) row.push_back(cell((*crit)[k]));
+  row.push_back(ok ? cell(f.tracked_radius) : "");
+  row.push_back(ok ? (f.limit_from_trial ? "1" : "0") : "");
   return row;
 }
 
@@ -136,8 +141,8 @@ void write_estimate(H5Writer& h5, const std::string& name, const std::vector<Fra
 void write_per_frame(H5Writer& h5, const ResultForFit& r, const std::vector<FrameFit>& fits) {
   const std::size_t n = fits.size();
   std::vector<std::int64_t> frame(n);
-  std::vector<std::int32_t> status(n), model(n), tracks(n);
-  std::vector<double> rms(n), shared(n), aic(n), bic(n), aic_all, bic_all;
+  std::vector<std::int32_t> status(n), model(n), tracks(n), from_trial(n);
+  std::vector<double> rms(n), shared(n), aic(n), bic(n), reach(n), aic_all, bic_all;
   for (std::size_t i = 0; i < n; ++i) {
     const FrameFit& f = fits[i];
     const int m = static_cast<int>(f.model);
@@ -149,6 +154,8 @@ void write_per_frame(H5Writer& h5, const ResultForFit& r, const std::vector<Fram
     shared[i] = fitted(f) ? f.shared_residuals : kNaN;
     aic[i] = fitted(f) ? f.aic[m] : kNaN;
     bic[i] = fitted(f) ? f.bic[m] : kNaN;
+    reach[i] = fitted(f) ? f.tracked_radius : kNaN;
+    from_trial[i] = fitted(f) && f.limit_from_trial ? 1 : 0;
     aic_all.insert(aic_all.end(), f.aic.begin(), f.aic.end());
     bic_all.insert(bic_all.end(), f.bic.begin(), f.bic.end());
   }
@@ -163,6 +170,8 @@ void write_per_frame(H5Writer& h5, const ResultForFit& r, const std::vector<Fram
   h5.write("/fit/bic", bic, {n});
   h5.write("/fit/aic_by_model", aic_all, {n, kFieldModels});
   h5.write("/fit/bic_by_model", bic_all, {n, kFieldModels});
+  h5.write("/fit/tracked_radius", reach, {n});
+  h5.write("/fit/limit_from_trial", from_trial, {n});
   if (!r.tangential_channel_N.empty()) h5.write("/fit/tangential_channel_N", r.tangential_channel_N, {n});
 }
 
@@ -184,8 +193,8 @@ void write_residuals(H5Writer& h5, const ResultForFit& r, const std::vector<Fram
   h5.write("/fit/track_reference_px", ref, {k, 2});
 }
 
-void write_h5(const std::string& path, const ResultForFit& r, const std::vector<FrameFit>& fits,
-              const FitOptions& options) {
+void write_h5(const std::string& path, const ResultForFit& r, const FitRun& run, const FitOptions& options) {
+  const std::vector<FrameFit>& fits = run.frames;
   H5Writer h5(path);
   write_per_frame(h5, r, fits);
   const std::pair<const char*, Estimate FrameFit::*> estimates[] = {
@@ -210,6 +219,10 @@ void write_h5(const std::string& path, const ResultForFit& r, const std::vector<
   h5.attribute("/fit", "loss_scale_px", options.loss_scale_px);
   h5.attribute("/fit", "min_tracks", static_cast<double>(options.min_tracks));
   h5.attribute("/fit", "contact_margin", options.contact_margin);
+  h5.attribute("/fit", "trial_limit_N", run.trial_limit ? run.trial_limit->limit_N : kNaN);
+  h5.attribute("/fit", "trial_limit_sd_N", run.trial_limit ? run.trial_limit->sd_N : kNaN);
+  h5.attribute("/fit", "trial_limit_frames",
+               run.trial_limit ? static_cast<double>(run.trial_limit->frames) : 0.0);
   h5.commit();
 }
 
@@ -229,6 +242,28 @@ void check_out_dir(const std::string& out_dir, const ResultForFit& r) {
                       ", which replacing the folder would delete; choose an empty folder or an earlier fit's",
                   {.key = "--out"});
   }
+}
+
+// Frames `frames` of `result` fitted (with `limit` when given) into fits[frame], in parallel.
+void fit_frames_in_parallel(const ResultForFit& result, const RunOptions& options, const TrialLimit* limit,
+                            const std::vector<std::size_t>& frames, std::vector<FrameFit>& fits) {
+  std::atomic<std::size_t> next{0};
+  std::exception_ptr failure;
+  std::atomic<bool> failed{false};
+  auto worker = [&] {
+    for (std::size_t j = next++; j < frames.size() && !failed; j = next++) {
+      try {
+        fits[frames[j]] = fit_frame(result.frame(frames[j]), options.fit, limit);
+      } catch (...) {
+        if (!failed.exchange(true)) failure = std::current_exception();
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < std::max(1, options.frame_threads); ++t) pool.emplace_back(worker);
+  worker();
+  for (std::thread& t : pool) t.join();
+  if (failure) std::rethrow_exception(failure);
 }
 
 }  // namespace
@@ -264,35 +299,65 @@ ResultForFit read_result_for_fit(const std::string& result) {
   return r;
 }
 
-std::vector<FrameFit> fit_result(const ResultForFit& result, const RunOptions& options) {
+FitRun fit_result(const ResultForFit& result, const RunOptions& options) {
+  FitRun run;
+  run.frames = fit_each_frame(result, options);
+  if (options.trial_limit) run.trial_limit = trial_limit(run.frames);
+  if (run.trial_limit) refit_at_trial_limit(result, options, *run.trial_limit, run.frames);
+  return run;
+}
+
+std::vector<FrameFit> fit_each_frame(const ResultForFit& result, const RunOptions& options) {
+  std::vector<std::size_t> all(result.frames());
+  for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
   std::vector<FrameFit> fits(result.frames());
-  std::atomic<std::size_t> next{0};
-  std::exception_ptr failure;
-  std::atomic<bool> failed{false};
-  auto worker = [&] {
-    for (std::size_t i = next++; i < fits.size() && !failed; i = next++) {
-      try {
-        fits[i] = fit_frame(result.frame(i), options.fit);
-      } catch (...) {
-        if (!failed.exchange(true)) failure = std::current_exception();
-      }
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < std::max(1, options.frame_threads); ++t) pool.emplace_back(worker);
-  worker();
-  for (std::thread& t : pool) t.join();
-  if (failure) std::rethrow_exception(failure);
+  fit_frames_in_parallel(result, options, nullptr, all, fits);
   return fits;
 }
 
-void write_fit_outputs(const std::string& out_dir, const ResultForFit& result,
-                       const std::vector<FrameFit>& fits, const FitOptions& options) {
+std::optional<TrialLimit> trial_limit(const std::vector<FrameFit>& fits) {
+  std::vector<double> limits, sds;
+  for (const FrameFit& f : fits) {
+    if (f.status != FitStatus::ok || f.model != FieldModel::partial_slip || f.limit_from_trial) continue;
+    const double c_over_a = f.c_mm.value / f.a_mm.value;
+    if (!(c_over_a >= kResolvedStick && c_over_a <= f.tracked_radius - kResolvedAnnulus)) continue;
+    if (!(std::isfinite(f.limit_N.value) && f.limit_N.value > 0.0 && std::isfinite(f.limit_N.sd))) continue;
+    limits.push_back(f.limit_N.value);
+    sds.push_back(f.limit_N.sd);
+  }
+  if (limits.size() < 2) return std::nullopt;
+  TrialLimit limit;
+  limit.frames = static_cast<int>(limits.size());
+  limit.limit_N = median(limits);
+  std::vector<double> deviation;
+  for (const double v : limits) deviation.push_back(std::abs(v - limit.limit_N));
+  const double spread = std::max(median(sds), 1.4826 * median(deviation));
+  limit.sd_N = spread / std::sqrt(static_cast<double>(limits.size()));
+  return limit;
+}
+
+bool refits_at_trial_limit(const FrameFit& fit) {
+  return (fit.status == FitStatus::ok || fit.status == FitStatus::no_covariance) &&
+         (fit.model == FieldModel::full_stick || fit.model == FieldModel::partial_slip) &&
+         !fit.limit_from_trial;
+}
+
+std::vector<std::size_t> refit_at_trial_limit(const ResultForFit& result, const RunOptions& options,
+                                              const TrialLimit& limit, std::vector<FrameFit>& fits) {
+  std::vector<std::size_t> frames;
+  for (std::size_t i = 0; i < fits.size(); ++i)
+    if (refits_at_trial_limit(fits[i])) frames.push_back(i);
+  fit_frames_in_parallel(result, options, &limit, frames, fits);
+  return frames;
+}
+
+void write_fit_outputs(const std::string& out_dir, const ResultForFit& result, const FitRun& fits,
+                       const FitOptions& options) {
   check_out_dir(out_dir, result);
   StagingDirectory staging(out_dir);
-  write_csv((fs::path(staging.path()) / "fit.csv").string(), result, fits);
+  write_csv((fs::path(staging.path()) / "fit.csv").string(), result, fits.frames);
   write_h5((fs::path(staging.path()) / "fit.h5").string(), result, fits, options);
-  write_fit_plots(staging.path(), result, fits);
+  write_fit_plots(staging.path(), result, fits.frames);
   staging.commit();
 }
 

@@ -3,6 +3,7 @@
 // frame (fit/cm_fit.hpp), and write fit.csv and fit.h5 into an output folder that appears complete or not at
 // all. Layout: docs/formats.md "Model fit".
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,14 +37,45 @@ ResultForFit read_result_for_fit(const std::string& result);
 struct RunOptions {
   FitOptions fit;         // per-frame fit settings
   int frame_threads = 2;  // frames fitted in parallel (default 2)
+  bool trial_limit =
+      true;  // μP measured on the trial and held in its stick and partial-slip frames (default on)
 };
 
-// Fits every frame; frames are independent and fitted in parallel.
-std::vector<FrameFit> fit_result(const ResultForFit& result, const RunOptions& options);
+// A trial's fits: one per frame, and the trial's μP when it was measured and used.
+struct FitRun {
+  std::vector<FrameFit> frames;
+  std::optional<TrialLimit> trial_limit;
+};
+
+// Fits every frame in two passes: each frame on its own (fit_each_frame), then, when the trial's μP can be
+// measured (trial_limit) and options.trial_limit is on, the frames in stick or partial slip again with it
+// (refit_at_trial_limit).
+FitRun fit_result(const ResultForFit& result, const RunOptions& options);
+
+// Each frame on its own; frames are independent and fitted in parallel.
+std::vector<FrameFit> fit_each_frame(const ResultForFit& result, const RunOptions& options);
+
+// The trial's friction limit μP from the frames fitted on their own in partial slip whose annulus and stick
+// zone the tracks both resolve: kResolvedStick ≤ c/a ≤ tracked_radius − kResolvedAnnulus. A frame nearer
+// gross slip (a stick zone too small to hold tracks) measures the sliding friction rather than the static
+// limit that sets the annulus. The median of their μP; its SD the larger of the frames' median SD and their
+// scatter (1.4826 MAD), over √frames. None with fewer than two such frames.
+std::optional<TrialLimit> trial_limit(const std::vector<FrameFit>& fits);
+inline constexpr double kResolvedAnnulus = 0.25;
+inline constexpr double kResolvedStick = 0.2;
+
+// Whether a frame fitted on its own is fitted again at the trial's limit: stick or partial slip (below the
+// limit; frames in full slip are at it).
+bool refits_at_trial_limit(const FrameFit& fit);
+
+// The frames of `fits` (one per frame of `result`) that refits_at_trial_limit takes, fitted again with
+// `limit`, in parallel, in place. Returns their indices.
+std::vector<std::size_t> refit_at_trial_limit(const ResultForFit& result, const RunOptions& options,
+                                              const TrialLimit& limit, std::vector<FrameFit>& fits);
 
 // Writes OUT/fit.csv and OUT/fit.h5, staged in OUT.partial and swapped in. Refuses an OUT that holds the
 // result (the input is never touched).
-void write_fit_outputs(const std::string& out_dir, const ResultForFit& result,
-                       const std::vector<FrameFit>& fits, const FitOptions& options);
+void write_fit_outputs(const std::string& out_dir, const ResultForFit& result, const FitRun& fits,
+                       const FitOptions& options);
 
 }  // namespace tirstrain::fit

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -33,6 +34,7 @@ struct FitRow {
   std::int32_t model = kNotFitted;
   double c_mm = kNaN;
   double tangential_N = kNaN;
+  bool limit_from_trial = false;
 };
 
 class FitStage final : public Stage {
@@ -64,14 +66,20 @@ class FitStage final : public Stage {
     if (context.tracking) tracks_ = context.tracking->tracks;
   }
 
-  // The tracks are final once the tracking stage has finished: every frame is fitted now.
+  // The tracks are final once the tracking stage has finished: every frame is fitted now, in the two passes
+  // of fit::fit_result (each frame on its own; then, with the trial's μP, its stick and partial-slip frames).
   bool finish() override {
     rows_.assign(ellipses_.size(), FitRow{});
     if (!out_) return false;
     const auto start = std::chrono::steady_clock::now();
     const fit::ResultForFit whole = trial_without_positions();
+    std::vector<fit::FrameFit> first_pass(rows_.size());
     for (std::size_t first = 0; first < rows_.size(); first += kBlockFrames)
-      fit_block(whole, first, std::min(rows_.size(), first + kBlockFrames));
+      fit_block(whole, first, std::min(rows_.size(), first + kBlockFrames), first_pass);
+    if (options_.trial_limit) trial_limit_ = fit::trial_limit(first_pass);
+    if (trial_limit_)
+      for (std::size_t first = 0; first < rows_.size(); first += kBlockFrames)
+        refit_block(whole, first, std::min(rows_.size(), first + kBlockFrames), first_pass);
     fit_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return false;
   }
@@ -98,12 +106,17 @@ class FitStage final : public Stage {
     out.attribute("/fit", "loss_scale_px", options_.fit.loss_scale_px);
     out.attribute("/fit", "min_tracks", static_cast<double>(options_.fit.min_tracks));
     out.attribute("/fit", "contact_margin", options_.fit.contact_margin);
+    out.attribute("/fit", "trial_limit_N", trial_limit_ ? trial_limit_->limit_N : kNaN);
+    out.attribute("/fit", "trial_limit_sd_N", trial_limit_ ? trial_limit_->sd_N : kNaN);
+    out.attribute("/fit", "trial_limit_frames",
+                  trial_limit_ ? static_cast<double>(trial_limit_->frames) : 0.0);
   }
 
   void summarize(nlohmann::json& summary) const override {
     std::array<int, fit::kFieldModels> by_model{};
-    int not_fitted = 0;
+    int not_fitted = 0, from_trial = 0;
     for (const FitRow& r : rows_) {
+      from_trial += r.limit_from_trial ? 1 : 0;
       if (r.model == kNotFitted)
         ++not_fitted;
       else
@@ -115,6 +128,10 @@ class FitStage final : public Stage {
     summary["fit"] = {
         {"frames_by_model", by_name},
         {"frames_not_fitted", not_fitted},
+        {"trial_limit_N", trial_limit_ ? nlohmann::json(trial_limit_->limit_N) : nlohmann::json()},
+        {"trial_limit_sd_N", trial_limit_ ? nlohmann::json(trial_limit_->sd_N) : nlohmann::json()},
+        {"trial_limit_frames", trial_limit_ ? trial_limit_->frames : 0},
+        {"frames_limit_from_trial", from_trial},
         {"fit_ms_per_frame", rows_.empty() ? 0.0 : 1e3 * fit_s_ / static_cast<double>(rows_.size())}};
   }
 
@@ -132,8 +149,8 @@ class FitStage final : public Stage {
     return r;
   }
 
-  // Frames [first, last): their tracks read back from result.h5, fitted in parallel, written as rows.
-  void fit_block(const fit::ResultForFit& whole, std::size_t first, std::size_t last) {
+  // Frames [first, last) of the trial with their tracks read back from result.h5.
+  fit::ResultForFit read_block(const fit::ResultForFit& whole, std::size_t first, std::size_t last) const {
     fit::ResultForFit block = whole;
     const std::size_t n = last - first, k = whole.tracks();
     block.t_s.assign(t_s_.begin() + static_cast<std::ptrdiff_t>(first),
@@ -144,21 +161,49 @@ class FitStage final : public Stage {
                              has_contact_.begin() + static_cast<std::ptrdiff_t>(last));
     block.position_px =
         k == 0 ? std::vector<double>() : out_->read_block("/tracks/position_px", {first, 0, 0}, {n, k, 2});
+    return block;
+  }
+
+  // Frames [first, last) fitted each on its own, in parallel, written as rows and kept (without their
+  // residuals) in `first_pass`.
+  void fit_block(const fit::ResultForFit& whole, std::size_t first, std::size_t last,
+                 std::vector<fit::FrameFit>& first_pass) {
+    const fit::ResultForFit block = read_block(whole, first, last);
+    const std::size_t n = last - first, k = whole.tracks();
     std::vector<fit::FrameFit> fits;
     if (k > 0) {
-      fits = fit::fit_result(block, options_);
+      fits = fit::fit_each_frame(block, options_);
     } else {  // no track to fit (the tracker never started)
       fits.resize(n);
       for (std::size_t i = 0; i < n; ++i)
         fits[i].status = block.has_contact[i] ? fit::FitStatus::too_few_tracks : fit::FitStatus::no_contact;
     }
     for (std::size_t i = 0; i < n; ++i) {
-      const fit::FrameFit& f = fits[i];
-      write_row(first + i, f, k);
-      rows_[first + i] = {static_cast<std::int32_t>(f.status),
-                          fitted(f) ? static_cast<std::int32_t>(f.model) : kNotFitted,
-                          fitted(f) ? f.c_mm.value : kNaN, fitted(f) ? f.tangential_N.value : kNaN};
+      write_frame(first + i, fits[i], k);
+      first_pass[first + i] = std::move(fits[i]);
+      first_pass[first + i].residual_px = {};
     }
+  }
+
+  // The frames of [first, last) in stick or partial slip fitted again at the trial's μP; their rows
+  // rewritten.
+  void refit_block(const fit::ResultForFit& whole, std::size_t first, std::size_t last,
+                   const std::vector<fit::FrameFit>& first_pass) {
+    if (std::none_of(first_pass.begin() + static_cast<std::ptrdiff_t>(first),
+                     first_pass.begin() + static_cast<std::ptrdiff_t>(last), fit::refits_at_trial_limit))
+      return;
+    const fit::ResultForFit block = read_block(whole, first, last);
+    std::vector<fit::FrameFit> fits(first_pass.begin() + static_cast<std::ptrdiff_t>(first),
+                                    first_pass.begin() + static_cast<std::ptrdiff_t>(last));
+    for (const std::size_t i : fit::refit_at_trial_limit(block, options_, *trial_limit_, fits))
+      write_frame(first + i, fits[i], whole.tracks());
+  }
+
+  void write_frame(std::size_t r, const fit::FrameFit& f, std::size_t k) {
+    write_row(r, f, k);
+    rows_[r] = {static_cast<std::int32_t>(f.status),
+                fitted(f) ? static_cast<std::int32_t>(f.model) : kNotFitted, fitted(f) ? f.c_mm.value : kNaN,
+                fitted(f) ? f.tangential_N.value : kNaN, fitted(f) && f.limit_from_trial};
   }
 
   void write_row(std::size_t r, const fit::FrameFit& f, std::size_t k) const {
@@ -183,6 +228,11 @@ class FitStage final : public Stage {
     }
     out.write_row("/fit/aic_by_model", r, std::span<const double>(aic), {fit::kFieldModels}, kNaN);
     out.write_row("/fit/bic_by_model", r, std::span<const double>(bic), {fit::kFieldModels}, kNaN);
+    const double reach = ok ? f.tracked_radius : kNaN;
+    out.write_row("/fit/tracked_radius", r, std::span<const double>(&reach, 1), {}, kNaN);
+    const std::int32_t from_trial = ok && f.limit_from_trial ? 1 : 0;
+    out.write_row("/fit/limit_from_trial", r, std::span<const std::int32_t>(&from_trial, 1), {},
+                  std::int32_t{0});
     write_estimates(r, f, ok);
     std::vector<float> residual(2 * k, kNaNf);
     for (std::size_t j = 0; j < k && j < f.residual_px.size(); ++j) {
@@ -215,6 +265,7 @@ class FitStage final : public Stage {
   std::vector<std::uint8_t> has_contact_;
   std::vector<double> t_s_;
   std::vector<FitRow> rows_;
+  std::optional<fit::TrialLimit> trial_limit_;
   double fit_s_ = 0.0;
 };
 

@@ -16,6 +16,7 @@ void add_fit_command(CLI::App& app) {
     std::string result;
     std::string out;
     fit::RunOptions run;
+    bool frame_limit = false;
     bool quiet = false;
   };
   auto options = std::make_shared<Options>();
@@ -26,6 +27,9 @@ void add_fit_command(CLI::App& app) {
       "Each frame's tracked displacements inside the contact are fitted (Ceres, Huber loss) with four "
       "fields:\n"
       "rest (no tangential load), full stick, partial slip and full slip (c = 0); the lowest BIC is chosen.\n"
+      "Then the trial's muP, measured on the frames whose slip annulus the tracks resolve, is held in the\n"
+      "frames in stick or partial slip: their c follows from the stick zone's shift where the annulus lies\n"
+      "beyond the tracks (fit.csv limit_from_trial; --frame-limit fits muP on each frame instead).\n"
       "Reports the contact centre, load direction, a, c, Q = tangential_N and mu*P = limit_N (from the\n"
       "scene's tissue E, nu) with SDs, AIC/BIC of every field and the residuals per track. Needs a result\n"
       "processed with the tracking stage. Writes DIR/fit.csv and DIR/fit.h5 (docs/formats.md, \"Model "
@@ -46,17 +50,24 @@ void add_fit_command(CLI::App& app) {
       ->check(CLI::Range(7, 1000000));
   sub->add_option("--threads", options->run.frame_threads, "Frames fitted in parallel (default 2)")
       ->check(CLI::Range(1, 256));
+  sub->add_flag(
+      "--frame-limit", options->frame_limit,
+      "Fit muP on every frame on its own rather than hold the trial's in its stick and partial-slip "
+      "frames");
   sub->add_flag("--quiet,-q", options->quiet, "No summary output");
   sub->callback([options] {
     const auto start = std::chrono::steady_clock::now();
+    options->run.trial_limit = !options->frame_limit;
     const fit::ResultForFit result = fit::read_result_for_fit(options->result);
-    const std::vector<fit::FrameFit> fits = fit::fit_result(result, options->run);
+    const fit::FitRun run = fit::fit_result(result, options->run);
+    const std::vector<fit::FrameFit>& fits = run.frames;
     const double fit_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    fit::write_fit_outputs(options->out, result, fits, options->run.fit);
+    fit::write_fit_outputs(options->out, result, run, options->run.fit);
     if (options->quiet) return;
     std::array<int, fit::kFieldModels> by_model{};
-    int unfitted = 0;
+    int unfitted = 0, from_trial = 0;
     for (const fit::FrameFit& f : fits) {
+      from_trial += f.limit_from_trial ? 1 : 0;
       if (f.status == fit::FitStatus::no_contact || f.status == fit::FitStatus::too_few_tracks)
         ++unfitted;
       else
@@ -64,8 +75,16 @@ void add_fit_command(CLI::App& app) {
     }
     std::cout << "fitted " << fits.size() - unfitted << " of " << fits.size() << " frames in " << fit_s
               << " s: rest " << by_model[0] << ", full stick " << by_model[1] << ", partial slip "
-              << by_model[2] << ", full slip " << by_model[3] << "; not fitted " << unfitted << "\nwrote "
-              << options->out << "/fit.csv and fit.h5\n";
+              << by_model[2] << ", full slip " << by_model[3] << "; not fitted " << unfitted << "\n";
+    if (run.trial_limit)
+      std::cout << "the trial's μP " << run.trial_limit->limit_N << " ± " << run.trial_limit->sd_N
+                << " N (measured on " << run.trial_limit->frames << " frames) held in " << from_trial
+                << " frames in stick or partial slip: their c follows from the stick zone's shift\n";
+    else if (options->run.trial_limit)
+      std::cout
+          << "the trial's μP not measured (fewer than two frames resolve a slip annulus): μP fitted per "
+             "frame\n";
+    std::cout << "wrote " << options->out << "/fit.csv and fit.h5\n";
   });
 }
 

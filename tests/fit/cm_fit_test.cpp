@@ -4,10 +4,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <iostream>
 #include <numbers>
+#include <optional>
 #include <random>
 
 #include "fit/cm_fit.hpp"
+#include "fit/fit_result.hpp"
 #include "model/cattaneo_mindlin.hpp"
 
 namespace tirstrain::fit {
@@ -77,6 +80,7 @@ struct Scenario {
   double grid_px = 16.0;       // track spacing
   double ellipse_ratio = 1.0;  // semi-minor / semi-major of the contact (area kept)
   double ellipse_angle_rad = 0.0;
+  double tracked_to = 0.97;  // tracks out to this share of the contact's radius
 };
 
 struct Synthetic {
@@ -108,7 +112,7 @@ Synthetic synthesise(const Scenario& sc) {
   for (double dy = -a1; dy <= a1; dy += sc.grid_px) {
     for (double dx = -a1; dx <= a1; dx += sc.grid_px) {
       const double along = (co * dx + si * dy) / a1, across = (-si * dx + co * dy) / a2;
-      if (along * along + across * across > 0.97 * 0.97) continue;
+      if (along * along + across * across > sc.tracked_to * sc.tracked_to) continue;
       if (coin(rng) < sc.missing) continue;
       // M (X − C): onto the circle of radius a.
       const double mx = co * (along * a_px) - si * (across * a_px);
@@ -201,6 +205,47 @@ TEST(CmFit, RestFrameIsNoLoad) {
   EXPECT_EQ(f.model, FieldModel::rest);
   EXPECT_EQ(f.tangential_N.value, 0.0);
   EXPECT_LT(f.bic[0], f.bic[1]);
+}
+
+// Tracks out to 0.8 a only, as tracking stops short of a contact's fading border. At Q/μP = 0.3 the slip
+// annulus (c = 0.89 a) lies beyond every track: the frame alone cannot tell its c. Frames at 0.9–0.97 of the
+// limit resolve their annulus and stick zone; the trial's μP measured on them gives the first frame's c from
+// its stick zone's shift.
+TEST(CmFit, TrialLimitGivesTheStickRadiusWhereTheAnnulusIsNotTracked) {
+  Scenario sc;
+  sc.noise_px = 0.05;
+  sc.tracked_to = 0.8;
+  std::vector<FrameFit> fits;
+  for (const double q : {0.3, 0.9, 0.95, 0.97, 0.0}) {
+    sc.q_over_limit = q;
+    fits.push_back(fit_frame(synthesise(sc).obs, FitOptions{}));
+  }
+  const std::optional<TrialLimit> limit = trial_limit(fits);
+  ASSERT_TRUE(limit.has_value());
+  sc.q_over_limit = 0.3;
+  const Synthetic t = synthesise(sc);
+  EXPECT_EQ(limit->frames, 3);
+  EXPECT_NEAR(limit->limit_N / t.limit_N, 1.0, 0.02);
+  EXPECT_GT(limit->sd_N, 0.0);
+
+  const FrameFit alone = fits[0];
+  const FrameFit held = fit_frame(t.obs, FitOptions{}, &*limit);
+  std::cout << "  Q/muP 0.3, c/a " << t.c_mm / t.a_mm << ": on its own " << field_model_name(alone.model)
+            << " c/a " << alone.c_mm.value / t.a_mm << "; at the trial's muP c/a " << held.c_mm.value / t.a_mm
+            << " +- " << held.c_mm.sd / t.a_mm << ", Q/muP " << held.tangential_N.value / t.limit_N << "\n";
+  EXPECT_GT(std::abs(alone.c_mm.value - t.c_mm) / t.a_mm, 0.03);  // the case is one the frame cannot settle
+  ASSERT_EQ(held.status, FitStatus::ok);
+  EXPECT_EQ(held.model, FieldModel::partial_slip);
+  EXPECT_TRUE(held.limit_from_trial);
+  EXPECT_NEAR(held.c_mm.value / t.a_mm, t.c_mm / t.a_mm, 0.01);
+  EXPECT_NEAR(held.tangential_N.value / t.limit_N, 0.3, 0.02);
+  EXPECT_EQ(held.limit_N.value, limit->limit_N);
+  EXPECT_TRUE(std::isfinite(held.c_mm.sd) && held.c_mm.sd > 0.0);
+  // The rest frame stays at rest, and frames in full slip do not measure the limit.
+  EXPECT_EQ(
+      fit_frame(synthesise(Scenario{.q_over_limit = 0.0, .noise_px = 0.05}).obs, FitOptions{}, &*limit).model,
+      FieldModel::rest);
+  EXPECT_FALSE(trial_limit({fits[4], fits[0]}).has_value());
 }
 
 // Noise that neighbours share, as overlapping subsets make it: each track's is the mean of the white noise

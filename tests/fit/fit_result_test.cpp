@@ -81,7 +81,8 @@ TEST(FitResult, WritesCsvAndH5) {
   const Written truth = write_result(base + "/result");
   const ResultForFit r = read_result_for_fit(base + "/result");
   ASSERT_EQ(r.frames(), 3u);
-  const std::vector<FrameFit> fits = fit_result(r, RunOptions{});
+  const FitRun fits = fit_result(r, RunOptions{});
+  EXPECT_FALSE(fits.trial_limit.has_value());  // one loaded frame cannot measure the trial's μP
   write_fit_outputs(base + "/fit", r, fits, FitOptions{});
 
   const std::vector<std::string> csv = lines(base + "/fit/fit.csv");
@@ -94,6 +95,9 @@ TEST(FitResult, WritesCsvAndH5) {
   const H5Reader h5(base + "/fit/fit.h5");
   const std::vector<std::int64_t> model = h5.read_integers("/fit/model");
   EXPECT_EQ(model, (std::vector<std::int64_t>{-1, 0, 2}));
+  EXPECT_EQ(h5.read_integers("/fit/limit_from_trial"), (std::vector<std::int64_t>{0, 0, 0}));
+  EXPECT_GT(h5.read_doubles("/fit/tracked_radius")[2], 0.8);           // tracks out to the contact's border
+  EXPECT_TRUE(std::isnan(h5.read_doubles("/fit/tracked_radius")[1]));  // rest
   const std::vector<double> q = h5.read_doubles("/fit/tangential_N");
   EXPECT_NEAR(q[2], truth.q_N, 0.02 * truth.limit_N);
   EXPECT_NEAR(h5.read_doubles("/fit/direction_deg")[2], 45.0, 0.5);
@@ -116,7 +120,7 @@ TEST(FitResult, RefusesAnOutputHoldingTheResult) {
   write_result(base + "/result");
   const auto before = fs::file_size(base + "/result/result.h5");
   const ResultForFit r = read_result_for_fit(base + "/result");
-  const std::vector<FrameFit> none(r.frames());
+  const FitRun none{std::vector<FrameFit>(r.frames()), std::nullopt};
   EXPECT_THROW(write_fit_outputs(base + "/result", r, none, FitOptions{}), Error);
   EXPECT_THROW(write_fit_outputs(base, r, none, FitOptions{}), Error);
   EXPECT_EQ(fs::file_size(base + "/result/result.h5"), before);
