@@ -66,13 +66,25 @@ void read_scene(const H5Reader& h5, ResultForFit& r) {
   r.poisson = scene.tissue.poisson;
 }
 
-void read_channel(const H5Reader& h5, ResultForFit& r) {
-  const std::string name = "/channels/at_frames/tangential_force_N";
-  if (!h5.has(name) || !h5.has("/channels/at_frames/in_span")) return;
-  r.tangential_channel_N = h5.read_doubles(name);
+// A force channel at the frames (NaN outside its span); empty when the result has none.
+std::vector<double> channel_at_frames(const H5Reader& h5, const std::string& name) {
+  if (!h5.has(name) || !h5.has("/channels/at_frames/in_span")) return {};
+  std::vector<double> v = h5.read_doubles(name);
   const std::vector<double> in_span = h5.read_doubles("/channels/at_frames/in_span");
-  for (std::size_t i = 0; i < r.tangential_channel_N.size() && i < in_span.size(); ++i)
-    if (in_span[i] == 0.0) r.tangential_channel_N[i] = kNaN;
+  for (std::size_t i = 0; i < v.size() && i < in_span.size(); ++i)
+    if (in_span[i] == 0.0) v[i] = kNaN;
+  return v;
+}
+
+void read_channel(const H5Reader& h5, ResultForFit& r) {
+  r.tangential_channel_N = channel_at_frames(h5, "/channels/at_frames/tangential_force_N");
+  r.normal_channel_N = channel_at_frames(h5, "/channels/at_frames/normal_force_N");
+}
+
+// μ = fitted μP over the measured normal load, where both exist.
+double friction(const ResultForFit& r, std::size_t i, const FrameFit& f) {
+  if (i >= r.normal_channel_N.size() || !(r.normal_channel_N[i] > 0.0)) return kNaN;
+  return f.limit_N.value / r.normal_channel_N[i];
 }
 
 // Cells: full precision, empty where the value does not exist.
@@ -92,7 +104,8 @@ std::vector<std::string> csv_header() {
   for (const char* q : {"tangential_channel_N", "residual_rms_px", "aic", "bic"}) h.emplace_back(q);
   for (const char* c : {"aic_", "bic_"})
     for (const char* m : kModelNames) h.push_back(std::string(c) + m);
-  for (const char* q : {"tracked_radius", "limit_from_trial"}) h.emplace_back(q);
+  for (const char* q : {"tracked_radius", "limit_from_trial", "normal_channel_N", "friction"})
+    h.emplace_back(q);
   return h;
 }
 
@@ -118,6 +131,8 @@ std::vector<std::string> csv_row(std::size_t i, const ResultForFit& r, const Fra
     for (int k = 0; k < kFieldModels; ++k) row.push_back(cell((*crit)[k]));
   row.push_back(ok ? cell(f.tracked_radius) : "");
   row.push_back(ok ? (f.limit_from_trial ? "1" : "0") : "");
+  row.push_back(r.normal_channel_N.empty() ? "" : cell(r.normal_channel_N[i]));
+  row.push_back(ok ? cell(friction(r, i, f)) : "");
   return row;
 }
 
@@ -173,6 +188,12 @@ void write_per_frame(H5Writer& h5, const ResultForFit& r, const std::vector<Fram
   h5.write("/fit/tracked_radius", reach, {n});
   h5.write("/fit/limit_from_trial", from_trial, {n});
   if (!r.tangential_channel_N.empty()) h5.write("/fit/tangential_channel_N", r.tangential_channel_N, {n});
+  if (!r.normal_channel_N.empty()) {
+    std::vector<double> mu(n);
+    for (std::size_t i = 0; i < n; ++i) mu[i] = fitted(fits[i]) ? friction(r, i, fits[i]) : kNaN;
+    h5.write("/fit/normal_channel_N", r.normal_channel_N, {n});
+    h5.write("/fit/friction", mu, {n});
+  }
 }
 
 void write_residuals(H5Writer& h5, const ResultForFit& r, const std::vector<FrameFit>& fits) {

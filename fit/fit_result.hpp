@@ -24,6 +24,7 @@ struct ResultForFit {
   double young_Pa = 0.0;
   double poisson = 0.0;
   std::vector<double> tangential_channel_N;  // [N] (NaN outside the channel's span); empty: no channel
+  std::vector<double> normal_channel_N;      // [N] likewise: the normal load P, whence μ = fitted μP / P
 
   std::size_t frames() const { return t_s.size(); }
   std::size_t tracks() const { return reference_px.size(); }

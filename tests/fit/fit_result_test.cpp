@@ -60,6 +60,7 @@ Written write_result(const std::string& dir) {
   h5.write("/tracks/position_px", pos, {3, k, 2});
   // A force channel that starts after frame 0.
   h5.write("/channels/at_frames/tangential_force_N", std::vector<double>{0.0, 0.01, 0.98}, {3});
+  h5.write("/channels/at_frames/normal_force_N", std::vector<double>{0.0, 2.0, 2.0}, {3});
   h5.write("/channels/at_frames/in_span", std::vector<std::uint8_t>{0, 1, 1}, {3});
   Scene scene;
   scene.px_per_mm = kPxPerMm;
@@ -104,6 +105,9 @@ TEST(FitResult, WritesCsvAndH5) {
   const std::vector<double> channel = h5.read_doubles("/fit/tangential_channel_N");
   EXPECT_TRUE(std::isnan(channel[0]));  // outside the channel's span
   EXPECT_EQ(channel[2], 0.98);
+  // μ from the fitted μP and the measured normal load (the model's μ is 1).
+  EXPECT_NEAR(h5.read_doubles("/fit/friction")[2], 1.0, 0.05);
+  EXPECT_TRUE(std::isnan(h5.read_doubles("/fit/friction")[1]));  // rest: no μP
   H5Shape shape;
   h5.read_doubles("/fit/residual_px", &shape);
   EXPECT_EQ(shape, (H5Shape{3, r.tracks(), 2}));
