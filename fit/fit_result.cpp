@@ -346,7 +346,7 @@ std::optional<TrialLimit> trial_limit(const std::vector<FrameFit>& fits) {
     limits.push_back(f.limit_N.value);
     sds.push_back(f.limit_N.sd);
   }
-  if (limits.size() < 2) return std::nullopt;
+  if (limits.empty()) return std::nullopt;
   TrialLimit limit;
   limit.frames = static_cast<int>(limits.size());
   limit.limit_N = median(limits);

@@ -60,7 +60,7 @@ std::vector<FrameFit> fit_each_frame(const ResultForFit& result, const RunOption
 // zone the tracks both resolve: kResolvedStick ≤ c/a ≤ tracked_radius − kResolvedAnnulus. A frame nearer
 // gross slip (a stick zone too small to hold tracks) measures the sliding friction rather than the static
 // limit that sets the annulus. The median of their μP; its SD the larger of the frames' median SD and their
-// scatter (1.4826 MAD), over √frames. None with fewer than two such frames.
+// scatter (1.4826 MAD), over √frames. None without such a frame.
 std::optional<TrialLimit> trial_limit(const std::vector<FrameFit>& fits);
 inline constexpr double kResolvedAnnulus = 0.25;
 inline constexpr double kResolvedStick = 0.2;

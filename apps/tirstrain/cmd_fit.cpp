@@ -82,7 +82,7 @@ void add_fit_command(CLI::App& app) {
                 << " frames in stick or partial slip: their c follows from the stick zone's shift\n";
     else if (options->run.trial_limit)
       std::cout
-          << "the trial's μP not measured (fewer than two frames resolve a slip annulus): μP fitted per "
+          << "the trial's μP not measured (no frame resolves its slip annulus and stick zone): μP fitted per "
              "frame\n";
     std::cout << "wrote " << options->out << "/fit.csv and fit.h5\n";
   });
