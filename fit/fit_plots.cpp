@@ -80,8 +80,11 @@ void write_residual_map(const std::string& path, const std::string& moment, long
   write_heatmap_png(path, grid, o);
 }
 
-// μP of the trial: the median over the frames that determine it.
+// μP of the trial: the one the fit held (fit/fit_result.hpp, trial_limit), else the median over the frames
+// that determine it.
 double friction_limit_N(const std::vector<FrameFit>& fits) {
+  for (const FrameFit& f : fits)
+    if (f.limit_from_trial && std::isfinite(f.limit_N.value)) return f.limit_N.value;
   std::vector<double> v;
   for (const FrameFit& f : fits)
     if (loaded(f) && std::isfinite(f.limit_N.value)) v.push_back(f.limit_N.value);
@@ -117,6 +120,8 @@ void write_time_plot(const std::string& path, const ResultForFit& r, const std::
   const Axes ax{cv::Rect(60, 40, 620, 320), r.t_s.front(), r.t_s.back()};
   draw_axes(img, ax);
   const double limit = friction_limit_N(fits);
+  const bool held =
+      std::any_of(fits.begin(), fits.end(), [](const FrameFit& f) { return f.limit_from_trial; });
   const cv::Scalar blue(200, 80, 0), green(40, 160, 40), red(0, 0, 220);
   for (std::size_t i = 0; i < fits.size(); ++i) {
     const FrameFit& f = fits[i];
@@ -133,7 +138,9 @@ void write_time_plot(const std::string& path, const ResultForFit& r, const std::
   cv::putText(img, "Q / muP", {200, 25}, cv::FONT_HERSHEY_SIMPLEX, 0.5, green, 1);
   cv::putText(img, "(1 - Q/muP)^(1/3)", {310, 25}, cv::FONT_HERSHEY_SIMPLEX, 0.5, red, 1);
   cv::putText(img,
-              std::isfinite(limit) ? cv::format("muP = %.3f N (median of fits)", limit) : "muP undetermined",
+              std::isfinite(limit)
+                  ? cv::format("muP = %.3f N (%s)", limit, held ? "the trial's, held" : "median of fits")
+                  : "muP undetermined",
               {60, 400}, cv::FONT_HERSHEY_SIMPLEX, 0.5, {0, 0, 0}, 1);
   std::vector<unsigned char> png;
   if (!cv::imencode(".png", img, png)) throw Error("cannot encode the plot", {.file = path});
