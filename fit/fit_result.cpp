@@ -358,8 +358,7 @@ std::optional<TrialLimit> trial_limit(const std::vector<FrameFit>& fits) {
 }
 
 bool refits_at_trial_limit(const FrameFit& fit) {
-  return (fit.status == FitStatus::ok || fit.status == FitStatus::no_covariance) &&
-         (fit.model == FieldModel::full_stick || fit.model == FieldModel::partial_slip) &&
+  return fitted(fit) && (fit.model == FieldModel::full_stick || fit.model == FieldModel::partial_slip) &&
          !fit.limit_from_trial;
 }
 
