@@ -14,9 +14,6 @@ namespace {
 // A floor on a match's predicted noise (px): the correlation of noise-free frames says nothing finer.
 constexpr double kNoiseFloorPx = 1e-3;
 
-using Mat6 = Eigen::Matrix<double, 6, 6>;
-using Vec6 = Eigen::Matrix<double, 6, 1>;
-
 // One match as the fits read it: its displacement and its weight (inverse covariance).
 struct Sample {
   Vec2 reference_px;
@@ -41,6 +38,12 @@ std::vector<Sample> samples_of(const std::vector<OwnMatch>& matches) {
   return samples;
 }
 
+// One thread's buffers for a match's neighbours.
+struct NeighbourBuffers {
+  std::vector<std::pair<double, int>> near, scratch;  // (squared distance, index)
+  std::vector<std::size_t> start;
+};
+
 // Matches by cell of side `cell_px` over their reference positions, for the neighbours within one cell.
 class CellIndex {
  public:
@@ -61,20 +64,36 @@ class CellIndex {
       if (samples[i].usable) cells_[cell_of(samples[i].reference_px)].push_back(static_cast<int>(i));
   }
 
-  // (squared distance, index) of every usable match within `radius_px` of `p`, nearest first.
-  void within(const std::vector<Sample>& samples, Vec2 p, double radius_px,
-              std::vector<std::pair<double, int>>& out) const {
-    out.clear();
+  // (squared distance, index) of every usable match within the largest of `radii_px` (ascending) of `p`,
+  // grouped by the smallest radius each lies within, smaller first: a window's fit does not depend on the
+  // order of its matches, so no finer order is needed. Into `buffers.near`.
+  void within(const std::vector<Sample>& samples, Vec2 p, const std::vector<double>& radii_px,
+              NeighbourBuffers& buffers) const {
+    std::vector<std::pair<double, int>>& scratch = buffers.scratch;
+    std::vector<std::pair<double, int>>& out = buffers.near;
+    scratch.clear();
     const int cx = static_cast<int>((p.x - min_x_) / cell_), cy = static_cast<int>((p.y - min_y_) / cell_);
-    const double r2 = radius_px * radius_px;
+    const double r2 = radii_px.back() * radii_px.back();
     for (int y = std::max(0, cy - 1); y <= std::min(rows_ - 1, cy + 1); ++y)
       for (int x = std::max(0, cx - 1); x <= std::min(cols_ - 1, cx + 1); ++x)
         for (int j : cells_[static_cast<std::size_t>(y * cols_ + x)]) {
           const Vec2 q = samples[static_cast<std::size_t>(j)].reference_px;
           const double d2 = (q.x - p.x) * (q.x - p.x) + (q.y - p.y) * (q.y - p.y);
-          if (d2 <= r2) out.emplace_back(d2, j);
+          if (d2 <= r2) scratch.emplace_back(d2, j);
         }
-    std::sort(out.begin(), out.end());
+    // A counting sort by window.
+    const std::size_t windows = radii_px.size();
+    const auto window_of = [&](double d2) {
+      std::size_t w = 0;
+      while (w + 1 < windows && d2 > radii_px[w] * radii_px[w]) ++w;
+      return w;
+    };
+    std::vector<std::size_t>& start = buffers.start;
+    start.assign(windows + 1, 0);
+    for (const auto& e : scratch) ++start[window_of(e.first) + 1];
+    for (std::size_t w = 0; w < windows; ++w) start[w + 1] += start[w];
+    out.resize(scratch.size());
+    for (const auto& e : scratch) out[start[window_of(e.first)]++] = e;
   }
 
  private:
@@ -87,20 +106,39 @@ class CellIndex {
   std::vector<std::vector<int>> cells_;
 };
 
-// The weighted least-squares normal equations of the affine field d(X) = c + B (X − X_i) / scale, built
-// up one match at a time (the window grows by adding the next nearest matches).
-class AffineAccumulator {
+// The weighted least-squares normal equations of a polynomial field in (X − X_i) / scale, built up one
+// match at a time (the window grows by adding the next nearest matches). K basis functions per component:
+// 3 for an affine field d(X) = c + B (X − X_i) / scale, 6 with the second-order terms as well.
+template <int K>
+class PolynomialAccumulator {
  public:
-  AffineAccumulator(Vec2 centre, double scale_px, double correlation_side_px)
+  static constexpr int kParameters = 2 * K;
+  using Matrix = Eigen::Matrix<double, kParameters, kParameters>;
+  using Vector = Eigen::Matrix<double, kParameters, 1>;
+
+  PolynomialAccumulator(Vec2 centre, double scale_px, double correlation_side_px)
       : centre_(centre), scale_(scale_px), side_(correlation_side_px) {}
 
   void add(const Sample& s) {
     const double dx = s.reference_px.x - centre_.x, dy = s.reference_px.y - centre_.y;
-    const double a[3] = {1.0, dx / scale_, dy / scale_};
+    const double u = dx / scale_, v = dy / scale_;
+    const double a[6] = {1.0, u, v, u * u, u * v, v * v};
     const Eigen::Vector2d wd = s.weight * s.displacement_px;
-    for (int p = 0; p < 3; ++p) {
-      for (int q = 0; q < 3; ++q) normal_.block<2, 2>(2 * p, 2 * q) += a[p] * a[q] * s.weight;
-      rhs_.segment<2>(2 * p) += a[p] * wd;
+    const double w00 = s.weight(0, 0), w01 = s.weight(0, 1), w11 = s.weight(1, 1);
+    // The lower triangle only (the solver reads no more): a weight matrix is symmetric.
+    for (int p = 0; p < K; ++p) {
+      for (int q = 0; q < p; ++q) {
+        const double aa = a[p] * a[q];
+        normal_(2 * p, 2 * q) += aa * w00;
+        normal_(2 * p, 2 * q + 1) += aa * w01;
+        normal_(2 * p + 1, 2 * q) += aa * w01;
+        normal_(2 * p + 1, 2 * q + 1) += aa * w11;
+      }
+      const double aa = a[p] * a[p];
+      normal_(2 * p, 2 * p) += aa * w00;
+      normal_(2 * p + 1, 2 * p) += aa * w01;
+      normal_(2 * p + 1, 2 * p + 1) += aa * w11;
+      rhs_.template segment<2>(2 * p) += a[p] * wd;
     }
     energy_ += s.displacement_px.dot(wd);
     ++count_;
@@ -112,29 +150,38 @@ class AffineAccumulator {
   // Σ_j of the overlap of match j's subset with the centre's: how many matches' worth of noise it shares.
   double shared_noise() const { return correlation_; }
 
-  // The solved fit: parameters and the inverse normal matrix (the parameters' covariance for independent
-  // matches), and the residual χ².
+  // The solved fit: parameters, the inverse normal matrix (the parameters' covariance for independent
+  // matches: all of it when asked for, else its top-left 2×2, the value's at the centre) and the residual χ².
   struct Solution {
-    Vec6 theta;
-    Mat6 inverse;
+    Vector theta;
+    Matrix inverse;
+    Eigen::Matrix2d centre_covariance;
     double rss = 0.0;
     int dof = 0;
   };
-  bool solve_all(Solution& out) const {
-    const Eigen::LDLT<Mat6> ldlt(normal_);
+  bool solve_all(Solution& out, bool full_inverse = false) const {
+    const Eigen::LDLT<Matrix, Eigen::Lower> ldlt(normal_);
     if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-10)) return false;
     out.theta = ldlt.solve(rhs_);
-    out.inverse = ldlt.solve(Mat6::Identity());
+    if (full_inverse) {
+      out.inverse = ldlt.solve(Matrix::Identity());
+      out.centre_covariance = out.inverse.template topLeftCorner<2, 2>();
+    } else {
+      const Eigen::Matrix<double, kParameters, 2> columns =
+          ldlt.solve(Eigen::Matrix<double, kParameters, 2>::Identity());
+      out.centre_covariance = columns.template topRows<2>();
+    }
     out.rss = std::max(0.0, energy_ - out.theta.dot(rhs_));
-    out.dof = 2 * count_ - 6;
-    return out.theta.allFinite() && out.inverse.allFinite();
+    out.dof = 2 * count_ - kParameters;
+    return out.theta.allFinite() && out.centre_covariance.allFinite() &&
+           (!full_inverse || out.inverse.allFinite());
   }
 
  private:
   Vec2 centre_;
   double scale_, side_;
-  Mat6 normal_ = Mat6::Zero();
-  Vec6 rhs_ = Vec6::Zero();
+  Matrix normal_ = Matrix::Zero();
+  Vector rhs_ = Vector::Zero();
   double energy_ = 0.0, correlation_ = 0.0;
   int count_ = 0;
 };
@@ -152,6 +199,8 @@ bool residuals_are_noise(double rss, int dof, double shared, double z, double& c
 
 // The affine fit of every match in the frame: the widest window of all, tried where the local windows
 // reached their largest radius.
+using AffineAccumulator = PolynomialAccumulator<3>;
+
 struct FrameFit {
   bool valid = false;
   Vec2 centre;
@@ -185,7 +234,7 @@ struct FrameFit {
     AffineAccumulator all(centre, scale_px, correlation_side_px);
     for (const Sample& s : samples)
       if (s.usable) all.add(s);
-    valid = all.solve_all(solution);
+    valid = all.solve_all(solution, true);
   }
 
   // How far from X the frame's matches reach: the window the frame's fit covers, seen from X.
@@ -216,17 +265,21 @@ struct Estimate {
   Eigen::Matrix2d covariance;
 };
 
-// The widest window that agrees with every finer estimate and whose residuals are noise, for match i.
+// The widest window that agrees with every finer estimate and whose residuals are noise, for match i; the
+// local fits have K basis functions per component.
+template <int K>
 LocalFit fit_one(const std::vector<Sample>& samples, std::size_t i, const CellIndex& index,
-                 const FrameFit* frame, const LocalFitOptions& options,
-                 std::vector<std::pair<double, int>>& near) {
+                 const FrameFit* frame, const LocalFitOptions& options, NeighbourBuffers& buffers) {
   const Sample& own = samples[i];
   LocalFit out;
   out.displacement_px = {own.displacement_px.x(), own.displacement_px.y()};
   out.covariance_px2 = own.covariance_px2;
   if (!own.usable || options.radii_px.empty()) return out;
-  index.within(samples, own.reference_px, options.radii_px.back(), near);
-  AffineAccumulator accumulator(own.reference_px, options.radii_px.back(), options.correlation_side_px);
+  index.within(samples, own.reference_px, options.radii_px, buffers);
+  const std::vector<std::pair<double, int>>& near = buffers.near;
+  PolynomialAccumulator<K> accumulator(own.reference_px, options.radii_px.back(),
+                                       options.correlation_side_px);
+  const int min_tracks = std::max(options.min_tracks, PolynomialAccumulator<K>::kParameters);
   std::vector<Estimate> finer{{own.displacement_px, own.covariance_px2}};
   std::size_t next = 0;
   // A wider estimate is kept when it agrees with every finer one (the own match included).
@@ -254,12 +307,12 @@ LocalFit fit_one(const std::vector<Sample>& samples, std::size_t i, const CellIn
         options.radii_px[static_cast<std::size_t>(w)] * options.radii_px[static_cast<std::size_t>(w)];
     while (next < near.size() && near[next].first <= r2)
       accumulator.add(samples[static_cast<std::size_t>(near[next++].second)]);
-    AffineAccumulator::Solution solution;
-    if (accumulator.count() < options.min_tracks || !accumulator.solve_all(solution)) continue;
+    typename PolynomialAccumulator<K>::Solution solution;
+    if (accumulator.count() < min_tracks || !accumulator.solve_all(solution)) continue;
     // A mean over n matches that share noise is quieter than n independent ones by the overlap it counts.
     const double shared =
         std::clamp(accumulator.shared_noise(), 1.0, static_cast<double>(accumulator.count()));
-    const Estimate fit{solution.theta.head<2>(), shared * solution.inverse.topLeftCorner<2, 2>()};
+    const Estimate fit{solution.theta.template head<2>(), shared * solution.centre_covariance};
     double chi2 = 0.0, worst = 0.0;
     if (!residuals_are_noise(solution.rss, solution.dof, shared, options.residual_quantile_z, chi2))
       return out;
@@ -291,10 +344,13 @@ std::vector<LocalFit> choose_local_fits(const std::vector<OwnMatch>& matches,
   const CellIndex index(samples, std::max(1.0, reach));
   const FrameFit frame(samples, options.correlation_side_px);
   cv::parallel_for_(cv::Range(0, static_cast<int>(matches.size())), [&](const cv::Range& range) {
-    std::vector<std::pair<double, int>> near;
+    NeighbourBuffers buffers;
     for (int i = range.start; i < range.end; ++i)
-      fits[static_cast<std::size_t>(i)] = fit_one(samples, static_cast<std::size_t>(i), index,
-                                                  options.whole_frame ? &frame : nullptr, options, near);
+      fits[static_cast<std::size_t>(i)] =
+          options.order == 2 ? fit_one<6>(samples, static_cast<std::size_t>(i), index,
+                                          options.whole_frame ? &frame : nullptr, options, buffers)
+                             : fit_one<3>(samples, static_cast<std::size_t>(i), index,
+                                          options.whole_frame ? &frame : nullptr, options, buffers);
   });
   return fits;
 }

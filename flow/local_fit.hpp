@@ -4,7 +4,8 @@
 // A subset small enough to follow a field that varies over a few ridge periods is noisy where the field is
 // smooth; a large window is quiet there and wrong where the field bends. Which one a place needs is not
 // known in advance and differs across the frame (a creep under a hold, a slip annulus at the rim). For
-// every track, local affine fits of its neighbours' displacements over growing windows are compared with
+// every track, local polynomial fits (second order, or affine) of its neighbours' displacements over growing
+// windows are compared with
 // each other and with the track's own match, and the widest window is kept whose fit (a) agrees with every
 // smaller window's fit and with the own match within their predicted noise (the intersection of confidence
 // intervals rule of local polynomial approximation) and (b) describes the matches inside it within their
@@ -35,8 +36,12 @@ struct LocalFitOptions {
   double correlation_side_px = 27.0;
   // After the largest radius, the affine fit of every match in the frame is tried as the widest window.
   bool whole_frame = true;
-  // A window needs at least this many matches (an affine fit has 6 parameters in 2 n equations).
+  // A window needs at least this many matches (an affine fit has 6 parameters in 2 n equations), and at
+  // least as many as the fit has parameters.
   int min_tracks = 6;
+  // The local fits' polynomial order: 2 (default) with the second-order terms, so a field that bends
+  // smoothly is followed over wider windows before the scales disagree; 1 affine.
+  int order = 2;
 };
 
 // What one track reports.

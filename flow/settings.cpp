@@ -136,6 +136,7 @@ void apply_automatic(TrackerOptions& s, const SceneHints& hints) {
   s.texture.adapt = true;
   s.rest.average_frames = 16;
   s.smoothing.mode = "auto";
+  s.local_fit.enabled = true;
 }
 
 }  // namespace
@@ -246,6 +247,7 @@ void parse_local_fit(YamlSection& t, TrackerOptions::LocalFit& o) {
   o.enabled = t.boolean("local_fit", o.enabled);
   o.max_radius_px = t.number("local_fit_max_radius_px", o.max_radius_px, 0.0, 10000.0);
   o.agreement_chi2 = t.number("local_fit_agreement_chi2", o.agreement_chi2, 0.1, 1e6);
+  o.order = integer(t, "local_fit_order", o.order, 1, 2);
 }
 
 void parse_affine_fit(YamlSection& t, TrackerOptions::AffineFit& o) {
@@ -410,6 +412,7 @@ void TrackerOptions::Fusion::check() const {
 void TrackerOptions::LocalFit::check() const {
   if (!(max_radius_px >= 0.0)) fail("local_fit_max_radius_px", "must not be negative");
   if (!(agreement_chi2 > 0.0)) fail("local_fit_agreement_chi2", "must be positive");
+  if (order != 1 && order != 2) fail("local_fit_order", "must be 1 (affine) or 2 (second order)");
 }
 
 void TrackerOptions::AffineFit::check() const {

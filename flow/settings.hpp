@@ -137,14 +137,17 @@ struct TrackerOptions {
     void check() const;
   } fusion;
 
-  // Spatially adaptive averaging (flow/local_fit.hpp): a track reports the local affine fit of its
+  // Spatially adaptive averaging (flow/local_fit.hpp): a track reports the local polynomial fit of its
   // neighbours' matches over the widest window that agrees, within their predicted noise, with every
-  // smaller window and with its own match; where none does it keeps its own match. Off by default: on the
-  // Cattaneo–Mindlin trials it smooths the slip annulus' kink that the model fit reads c from.
+  // smaller window and with its own match; where none does it keeps its own match. On in the automatic
+  // preset, off by default and in `delhaye2016`.
   struct LocalFit {
-    bool enabled = false;          // `local_fit`: default false
+    bool enabled = false;          // `local_fit`: default false (the automatic preset: true)
     double max_radius_px = 0.0;    // `local_fit_max_radius_px`: widest window, px; 0 = 8 grid steps
     double agreement_chi2 = 9.21;  // `local_fit_agreement_chi2`: χ²(2) bound of every comparison; 9.21 (99 %)
+    // `local_fit_order`: 2 (default) fits the second-order terms as well, so a smoothly bending field (a
+    // Hertz load, a chirp) is followed over wide windows without the bias an affine fit has there; 1 affine
+    int order = 2;
     void check() const;
   } local_fit;
 

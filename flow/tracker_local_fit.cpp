@@ -19,6 +19,7 @@ LocalFitOptions FeatureTracker::Impl::local_fit_options() const {
   for (double r = 1.5 * step; r < largest * (1.0 + 1e-9); r *= std::sqrt(2.0)) o.radii_px.push_back(r);
   if (o.radii_px.empty() || o.radii_px.back() < largest) o.radii_px.push_back(largest);
   o.agreement_chi2 = settings.local_fit.agreement_chi2;
+  o.order = settings.local_fit.order;
   const int radius = settings.rounds.enabled
                          ? std::max(settings.main_match.subset_radius_px, settings.rounds.subset_radius_px)
                          : settings.main_match.subset_radius_px;

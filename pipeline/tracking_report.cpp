@@ -35,6 +35,7 @@ nlohmann::json tracking_settings_json(const flow::TrackerOptions& s) {
        s.main_match.solver.interpolation == flow::Interpolation::kCubicBSpline ? "cubic_bspline" : "keys"},
       {"local_fit", s.local_fit.enabled},
       {"local_fit_agreement_chi2", s.local_fit.agreement_chi2},
+      {"local_fit_order", s.local_fit.order},
       {"affine_fit", s.affine_fit.enabled},
       {"affine_fit_max_chi2_per_dof", s.affine_fit.max_chi2_per_dof},
       {"affine_fit_max_correlation_z", s.affine_fit.max_correlation_z},

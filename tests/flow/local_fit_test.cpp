@@ -111,6 +111,35 @@ TEST(LocalFit, LongWaveIsAveragedAndFollowed) {
   EXPECT_LT(rms_error(f, fits), 0.5 * sigma);
 }
 
+TEST(LocalFit, SecondOrderFollowsABendingFieldWhereAnAffineFitStops) {
+  // A Hertz-like bowl, u = 0.4 px ((X − 195) / 195)², v = 0, over 400 × 200 px with 0.02 px of noise: an
+  // affine window sees its curvature (0.4 px over the half-width) once it spans a few grid steps and stops
+  // there, while the second-order windows describe it exactly and grow to the widest radius.
+  const double sigma = 0.02;
+  const Field f = grid_field(40, 20, sigma, [](Vec2 X) {
+    const double s = (X.x - 195.0) / 195.0;
+    return Vec2{0.4 * s * s, 0.0};
+  });
+  LocalFitOptions affine = options_without_shared_noise();
+  affine.order = 1;
+  LocalFitOptions second = options_without_shared_noise();
+  second.order = 2;
+  const std::vector<LocalFit> by_affine = choose_local_fits(f.matches, affine);
+  const std::vector<LocalFit> by_second = choose_local_fits(f.matches, second);
+  const double affine_rms = rms_error(f, by_affine), second_rms = rms_error(f, by_second);
+  std::printf("bowl: affine %.4f px, second order %.4f px (noise %.3f)\n", affine_rms, second_rms, sigma);
+  EXPECT_LT(second_rms, 0.35 * sigma);
+  EXPECT_LT(second_rms, 0.8 * affine_rms);
+  // The wider windows are what lowers it: the median chosen radius, second order against affine.
+  const auto median_radius = [](std::vector<LocalFit> fits) {
+    std::vector<double> r;
+    for (const LocalFit& fit : fits) r.push_back(fit.radius_px);
+    std::nth_element(r.begin(), r.begin() + static_cast<std::ptrdiff_t>(r.size() / 2), r.end());
+    return r[r.size() / 2];
+  };
+  EXPECT_GT(median_radius(by_second), median_radius(by_affine));
+}
+
 TEST(LocalFit, StepIsNotSmearedAcrossItsEdge) {
   // Two rigid halves 0.3 px apart across y = 95: the tracks near the edge keep windows that do not reach
   // across it (or their own match); none is pulled beyond its noise.
