@@ -44,7 +44,7 @@ struct NeighbourBuffers {
   std::vector<std::size_t> start;
 };
 
-// Matches by cell of side `cell_px` over their reference positions, for the neighbours within one cell.
+// Matches by cell of side `cell_px` over their reference positions, for the neighbours within a radius.
 class CellIndex {
  public:
   CellIndex(const std::vector<Sample>& samples, double cell_px) : cell_(cell_px) {
@@ -74,8 +74,9 @@ class CellIndex {
     scratch.clear();
     const int cx = static_cast<int>((p.x - min_x_) / cell_), cy = static_cast<int>((p.y - min_y_) / cell_);
     const double r2 = radii_px.back() * radii_px.back();
-    for (int y = std::max(0, cy - 1); y <= std::min(rows_ - 1, cy + 1); ++y)
-      for (int x = std::max(0, cx - 1); x <= std::min(cols_ - 1, cx + 1); ++x)
+    const int reach = static_cast<int>(std::ceil(radii_px.back() / cell_));
+    for (int y = std::max(0, cy - reach); y <= std::min(rows_ - 1, cy + reach); ++y)
+      for (int x = std::max(0, cx - reach); x <= std::min(cols_ - 1, cx + reach); ++x)
         for (int j : cells_[static_cast<std::size_t>(y * cols_ + x)]) {
           const Vec2 q = samples[static_cast<std::size_t>(j)].reference_px;
           const double d2 = (q.x - p.x) * (q.x - p.x) + (q.y - p.y) * (q.y - p.y);
@@ -160,16 +161,21 @@ class PolynomialAccumulator {
     int dof = 0;
   };
   bool solve_all(Solution& out, bool full_inverse = false) const {
-    const Eigen::LDLT<Matrix, Eigen::Lower> ldlt(normal_);
-    if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-10)) return false;
-    out.theta = ldlt.solve(rhs_);
+    const Eigen::LLT<Matrix, Eigen::Lower> llt(normal_);
+    if (llt.info() != Eigen::Success || !(llt.rcond() > 1e-10)) return false;
     if (full_inverse) {
-      out.inverse = ldlt.solve(Matrix::Identity());
+      out.theta = llt.solve(rhs_);
+      out.inverse = llt.solve(Matrix::Identity());
       out.centre_covariance = out.inverse.template topLeftCorner<2, 2>();
     } else {
-      const Eigen::Matrix<double, kParameters, 2> columns =
-          ldlt.solve(Eigen::Matrix<double, kParameters, 2>::Identity());
-      out.centre_covariance = columns.template topRows<2>();
+      // One solve for the parameters and the value's two columns of the inverse.
+      Eigen::Matrix<double, kParameters, 3> right = Eigen::Matrix<double, kParameters, 3>::Zero();
+      right.col(0) = rhs_;
+      right(0, 1) = 1.0;
+      right(1, 2) = 1.0;
+      const Eigen::Matrix<double, kParameters, 3> solved = llt.solve(right);
+      out.theta = solved.col(0);
+      out.centre_covariance = solved.template block<2, 2>(0, 1);
     }
     out.rss = std::max(0.0, energy_ - out.theta.dot(rhs_));
     out.dof = 2 * count_ - kParameters;
@@ -341,7 +347,8 @@ std::vector<LocalFit> choose_local_fits(const std::vector<OwnMatch>& matches,
   std::vector<LocalFit> fits(matches.size());
   if (matches.empty()) return fits;
   const double reach = options.radii_px.empty() ? 1.0 : options.radii_px.back();
-  const CellIndex index(samples, std::max(1.0, reach));
+  // Cells of half the widest radius: the 5 × 5 cells scanned cover 6.25 r² for a disc of 3.14 r².
+  const CellIndex index(samples, std::max(1.0, 0.5 * reach));
   const FrameFit frame(samples, options.correlation_side_px);
   cv::parallel_for_(cv::Range(0, static_cast<int>(matches.size())), [&](const cv::Range& range) {
     NeighbourBuffers buffers;
