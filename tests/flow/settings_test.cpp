@@ -134,6 +134,13 @@ TEST(Settings, SceneSectionOverridesPreset) {
   EXPECT_EQ(smooth.smoothing.gamma, 2.0);
   EXPECT_THROW(parse_tracking_options(scene_with("{smooth_in_time: sometimes}")), Error);
   EXPECT_THROW(parse_tracking_options(scene_with("{smooth_in_time_gamma: 0}")), Error);
+  // The local fit: second order, on in the automatic preset, off in the paper's; affine on request.
+  EXPECT_TRUE(parse_tracking_options(scene_with("{}")).local_fit.enabled);
+  EXPECT_EQ(parse_tracking_options(scene_with("{}")).local_fit.order, 2);
+  EXPECT_FALSE(parse_tracking_options(scene_with("{}"), "delhaye2016").local_fit.enabled);
+  EXPECT_FALSE(parse_tracking_options(scene_with("{local_fit: false}")).local_fit.enabled);
+  EXPECT_EQ(parse_tracking_options(scene_with("{local_fit_order: 1}")).local_fit.order, 1);
+  EXPECT_THROW(parse_tracking_options(scene_with("{local_fit_order: 3}")), Error);
 }
 
 TEST(Settings, StrictParsingNamesTheKey) {
@@ -166,6 +173,7 @@ TEST(Settings, EachGroupsCheckNamesTheSceneKey) {
       {[](TrackerOptions& o) { o.neighbours.tolerance_px = 0.0; }, "tracking.neighbour_tolerance_px"},
       {[](TrackerOptions& o) { o.fusion.sigma_px = -1.0; }, "tracking.fusion_sigma_px"},
       {[](TrackerOptions& o) { o.local_fit.agreement_chi2 = 0.0; }, "tracking.local_fit_agreement_chi2"},
+      {[](TrackerOptions& o) { o.local_fit.order = 0; }, "tracking.local_fit_order"},
       {[](TrackerOptions& o) { o.affine_fit.max_hidden_px = -0.1; }, "tracking.affine_fit_max_hidden_px"},
       {[](TrackerOptions& o) { o.reanchor.interval_frames = -1; }, "tracking.reanchor_interval_frames"},
       {[](TrackerOptions& o) { o.rest.average_frames = 0; }, "tracking.rest_average_frames"},
