@@ -41,7 +41,7 @@ std::vector<Sample> samples_of(const std::vector<OwnMatch>& matches) {
 // One thread's buffers for a match's neighbours.
 struct NeighbourBuffers {
   std::vector<std::pair<double, int>> near, scratch;  // (squared distance, index)
-  std::vector<std::size_t> start;
+  std::vector<std::size_t> window, start;             // each scratch entry's window; each window's start
 };
 
 // Matches by cell of side `cell_px` over their reference positions, for the neighbours within a radius.
@@ -89,12 +89,14 @@ class CellIndex {
       while (w + 1 < windows && d2 > radii_px[w] * radii_px[w]) ++w;
       return w;
     };
+    std::vector<std::size_t>& window = buffers.window;
     std::vector<std::size_t>& start = buffers.start;
+    window.resize(scratch.size());
     start.assign(windows + 1, 0);
-    for (const auto& e : scratch) ++start[window_of(e.first) + 1];
+    for (std::size_t k = 0; k < scratch.size(); ++k) ++start[(window[k] = window_of(scratch[k].first)) + 1];
     for (std::size_t w = 0; w < windows; ++w) start[w + 1] += start[w];
     out.resize(scratch.size());
-    for (const auto& e : scratch) out[start[window_of(e.first)]++] = e;
+    for (std::size_t k = 0; k < scratch.size(); ++k) out[start[window[k]]++] = scratch[k];
   }
 
  private:
@@ -203,10 +205,10 @@ bool residuals_are_noise(double rss, int dof, double shared, double z, double& c
   return chi2_per_dof <= std::pow(1.0 - h + z * std::sqrt(h), 3);
 }
 
-// The affine fit of every match in the frame: the widest window of all, tried where the local windows
-// reached their largest radius.
 using AffineAccumulator = PolynomialAccumulator<3>;
 
+// The affine fit of every match in the frame: the widest window of all, tried where the local windows
+// reached their largest radius.
 struct FrameFit {
   bool valid = false;
   Vec2 centre;
