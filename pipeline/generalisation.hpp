@@ -87,9 +87,9 @@ struct GeneralisationResult {
 // What `tirstrain track` runs without a scene: the preset from the default hints, births off. Besides the
 // presets, "auto_no_rest" is the automatic preset without its rest handling (rest_average_frames 1: no
 // averaged anchor, no affine fit reported on frames found at rest), to show what that handling costs,
-// "auto_no_affine_fit" the automatic preset without the moving frame's affine fit (affine_fit: false), and
-// "auto_no_local_fit" the automatic preset without its local fit (flow/local_fit.hpp). Throws Error for
-// another name.
+// "auto_no_affine_fit" the automatic preset without the moving frame's affine fit (affine_fit: false),
+// "auto_no_local_fit" the automatic preset without its local fit (flow/local_fit.hpp), and
+// "auto_own_matches" without either (every track reports its own match). Throws Error for another name.
 flow::TrackerOptions generalisation_settings(const std::string& preset);
 const std::vector<std::string>& generalisation_presets();
 

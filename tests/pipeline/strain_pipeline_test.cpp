@@ -692,8 +692,10 @@ TEST(StrainPipeline, SmoothedTracksFeedTheStrainAroundASkippedFrame) {
       } else if (model[at] == 3) {
         ++smoothed_in_place;  // the smoothing landed on the match itself
       }
-      // Unsmoothed: the own match, the fusion, the rest fit or a moving frame's affine fit (0, 1, 2, 5).
-      EXPECT_TRUE(model_off[at] <= 2 || model_off[at] == 5) << "frame " << f << " track " << k;
+      // Unsmoothed: the own match, the fusion, the rest fit, the local fit or a moving frame's affine fit
+      // (0, 1, 2, 4, 5).
+      EXPECT_TRUE(model_off[at] <= 2 || model_off[at] == 4 || model_off[at] == 5)
+          << "frame " << f << " track " << k;
     }
   EXPECT_EQ(finite_skipped, 0);
   EXPECT_LT(smoothed_in_place, moved / 100 + 1);
