@@ -5,13 +5,12 @@
 // smooth; a large window is quiet there and wrong where the field bends. Which one a place needs is not
 // known in advance and differs across the frame (a creep under a hold, a slip annulus at the rim). For
 // every track, local polynomial fits (second order, or affine) of its neighbours' displacements over growing
-// windows are compared with
-// each other and with the track's own match, and the widest window is kept whose fit (a) agrees with every
-// smaller window's fit and with the own match within their predicted noise (the intersection of confidence
-// intervals rule of local polynomial approximation) and (b) describes the matches inside it within their
-// predicted noise (χ² of the residuals). A field that bends inside a window shows as a disagreement
-// between the scales or as residuals above the noise, and stops the window from growing. Where no window
-// passes, the track keeps its own match.
+// windows are compared with each other and with the track's own match, and the widest window is kept whose
+// fit (a) agrees with every smaller window's fit and with the own match within their predicted noise (the
+// intersection of confidence intervals rule of local polynomial approximation) and (b) describes the
+// matches inside it within their predicted noise (χ² of the residuals). A field that bends inside a window
+// shows as a disagreement between the scales or as residuals above the noise, and stops the window from
+// growing. Where no window passes, the track keeps its own match.
 #include <Eigen/Core>
 
 #include <limits>

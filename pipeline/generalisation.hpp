@@ -89,7 +89,8 @@ struct GeneralisationResult {
 // averaged anchor, no affine fit reported on frames found at rest), to show what that handling costs,
 // "auto_no_affine_fit" the automatic preset without the moving frame's affine fit (affine_fit: false),
 // "auto_no_local_fit" the automatic preset without its local fit (flow/local_fit.hpp), and
-// "auto_own_matches" without either (every track reports its own match). Throws Error for another name.
+// "auto_own_matches" without either (no moving frame's affine fit, no local fit; the rest fit and the fusion
+// stay). Throws Error for another name.
 flow::TrackerOptions generalisation_settings(const std::string& preset);
 const std::vector<std::string>& generalisation_presets();
 
