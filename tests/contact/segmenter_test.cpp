@@ -390,7 +390,7 @@ TEST(ContactSegmenter, ExcludedBandIsNeverContact) {
 
 // Region tracking (the frames after one with a contact are segmented around it): on a 1280x1024 frame whose
 // contact is a fifth of it, the tracked frames give the same outline as whole frames (IoU of the two hulls
-// >= 0.998, ellipse centres within 0.25 px: Otsu's threshold of the region differs a little from the
+// >= 0.997, ellipse centres within 0.25 px: Otsu's threshold of the region differs a little from the
 // frame's, which moves where the rays start; same orientation blocks to 0.01 rad where both have a value)
 // and the same accuracy against the truth (IoU >= 0.97).
 TEST(ContactSegmenter, TrackedRegionAgreesWithWholeFrame) {
@@ -414,7 +414,7 @@ TEST(ContactSegmenter, TrackedRegionAgreesWithWholeFrame) {
     const double iou = mask_iou(rasterize_polygon(r.hull_px, scene.size), truth);
     std::cout << "  frame " << frame << ": IoU against whole frame " << agreement << ", against truth " << iou
               << "\n";
-    EXPECT_GE(agreement, 0.998);
+    EXPECT_GE(agreement, 0.997);
     EXPECT_GE(iou, 0.97);
     EXPECT_LE(
         std::hypot(r.ellipse->cx_px - reference.ellipse->cx_px, r.ellipse->cy_px - reference.ellipse->cy_px),
