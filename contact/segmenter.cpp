@@ -143,6 +143,33 @@ void set_outline(RefinedOutline& outline, cv::Point2d centre_px, double period_p
   result.bounding_box_px = box & cv::Rect(0, 0, frame_size.width, frame_size.height);
 }
 
+// The outline of a small contact from its ellipse (SegmenterOptions::small_contact_ellipse_outline):
+// polygons with the ellipse's area (vertices at equal steps of the ellipse's parameter, scaled out by
+// sqrt(2π / (n sin(2π/n))), so that the chords' lost area is given back), dense as the traced outline was.
+void set_outline_from_ellipse(const Ellipse& e, const SegmenterOptions& options, cv::Size frame_size,
+                              ContactResult& result) {
+  const auto polygon = [&e](std::size_t n) {
+    const double step = 2.0 * std::numbers::pi / static_cast<double>(n);
+    const double scale = std::sqrt(step / std::sin(step));
+    const double c = std::cos(e.angle_rad), s = std::sin(e.angle_rad);
+    std::vector<cv::Point2d> points(n);
+    for (std::size_t k = 0; k < n; ++k) {
+      const double u = scale * e.semi_major_px * std::cos(step * k),
+                   v = scale * e.semi_minor_px * std::sin(step * k);
+      points[k] = {e.cx_px + c * u - s * v, e.cy_px + s * u + c * v};
+    }
+    return points;
+  };
+  const std::size_t hull_points = static_cast<std::size_t>(std::max(3, options.hull_points));
+  result.outline_px = polygon(std::max(result.outline_px.size(), 4 * hull_points));
+  result.hull_px = polygon(hull_points);
+  result.area_mm2 =
+      std::numbers::pi * e.semi_major_px * e.semi_minor_px / (options.px_per_mm * options.px_per_mm);
+  const cv::Rect box =
+      cv::boundingRect(std::vector<cv::Point2f>(result.outline_px.begin(), result.outline_px.end()));
+  result.bounding_box_px = box & cv::Rect(0, 0, frame_size.width, frame_size.height);
+}
+
 // Whether a hull point lies clear (by `margin_px`) of the frame's border and of the excluded band.
 bool clear_of_cuts(const cv::Point2d& p, double margin_px, cv::Size frame_size,
                    const std::optional<cv::Rect>& exclude_px) {
@@ -424,6 +451,8 @@ ContactResult ContactSegmenter::segment_region(const cv::Mat& image, cv::Rect re
                                            small_contact, illumination_in_frame(setup.background, view)};
     refine_with_ridge_labels(label_frame, options_, result);
   }
+  if (small_contact && result.ellipse && !(status & kTouchesEdge) && options_.small_contact_ellipse_outline)
+    set_outline_from_ellipse(*result.ellipse, options_, image.size(), result);
   if (result.ellipse) {
     result.normalization = EllipseNormalization(*result.ellipse);
   } else {

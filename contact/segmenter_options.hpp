@@ -97,6 +97,12 @@ struct SegmenterOptions {
   // errs by where the fingerprint's valleys lie along the border, partly independently, so the blend errs
   // less than either. In [0, 1] (0: the level edge's shape); default 0.5.
   double ridge_label_shape_weight = 0.5;
+  // Small contacts (under ridge_label_below_periods in radius, not touching the frame's edge): the reported
+  // outline (hull_px, outline_px, area) is the ellipse's. Between the ridges the border is only bridged,
+  // so the traced outline carries lobes of a few ridge periods whose size (~1 px) is, on a contact of a few
+  // periods, larger than the contact's own departure from its ellipse; the ellipse averages them over the
+  // whole border. Default true.
+  bool small_contact_ellipse_outline = true;
   // The border band's intensity fit (contact/border_band.hpp) for large contacts, with ridge_label_centre:
   // the centre becomes the mean of the brackets' and the fit's, and on frames averaged along the border (too
   // noisy for labels) the fit's alone. The accuracy targets hold on every shipped trial only with it; it

@@ -238,6 +238,7 @@ class ContactStage final : public Stage {
                      {"ridge_label_centre", options_.ridge_label_centre},
                      {"ridge_label_below_periods", options_.ridge_label_below_periods},
                      {"ridge_label_shape_weight", options_.ridge_label_shape_weight},
+                     {"small_contact_ellipse_outline", options_.small_contact_ellipse_outline},
                      {"border_band_centre", options_.border_band_centre},
                      {"downsample", options_.downsample}};
     c["segment_ms_per_frame"] = segmented_ > 0 ? 1e3 * segment_s_ / static_cast<double>(segmented_) : 0.0;
@@ -283,13 +284,14 @@ contact::SegmenterOptions segmenter_options_for(const Scene& scene) {
   }
   // segmentation: {preset: accurate, downsample: 0, flat_field: true, border_average_snr: 20,
   // ridge_label_centre: true, ridge_label_below_periods: 5, ridge_label_shape_weight: 0.5,
-  // border_band_centre: true} — the preset (accurate, balanced or fast: contact::SegmentationPreset) sets the
-  // switches below, and those the scene sets override it one by one; the working-resolution factor (0
-  // automatic from the ridge period, 1 full); the background flat field; the texture SNR below which the edge
-  // is searched on the frame averaged along the border (0: never); the centre from where ridges show near the
-  // border, on large contacts and on those under so many ridge periods in radius (0: none); on those small
-  // ones, the weight of the labels' elongation against the level edge's (0: the level edge's); the border
-  // band's intensity fit for the centre of large contacts. See contact/segmenter.hpp.
+  // border_band_centre: true, small_contact_ellipse_outline: true} — the preset (accurate, balanced or fast:
+  // contact::SegmentationPreset) sets the switches below, and those the scene sets override it one by one;
+  // the working-resolution factor (0 automatic from the ridge period, 1 full); the background flat field; the
+  // texture SNR below which the edge is searched on the frame averaged along the border (0: never); the
+  // centre from where ridges show near the border, on large contacts and on those under so many ridge periods
+  // in radius (0: none); on those small ones, the weight of the labels' elongation against the level edge's
+  // (0: the level edge's); the border band's intensity fit for the centre of large contacts; the small ones'
+  // outline from their ellipse. See contact/segmenter.hpp.
   YamlSection s(scene.segmentation, scene.file, "segmentation");
   const std::string preset = s.choice("preset", "accurate", {"accurate", "balanced", "fast"});
   options = contact::with_preset(options, preset == "fast"       ? contact::SegmentationPreset::fast
@@ -304,6 +306,8 @@ contact::SegmenterOptions segmenter_options_for(const Scene& scene) {
   options.ridge_label_shape_weight =
       s.number("ridge_label_shape_weight", options.ridge_label_shape_weight, 0.0, 1.0);
   options.border_band_centre = s.boolean("border_band_centre", options.border_band_centre);
+  options.small_contact_ellipse_outline =
+      s.boolean("small_contact_ellipse_outline", options.small_contact_ellipse_outline);
   s.finish();
   return options;
 }

@@ -49,6 +49,7 @@ const std::map<std::string, Field>& option_fields() {
       {"ridge_label_centre", &SegmenterOptions::ridge_label_centre},
       {"ridge_label_shape_weight", &SegmenterOptions::ridge_label_shape_weight},
       {"border_band_centre", &SegmenterOptions::border_band_centre},
+      {"small_contact_ellipse_outline", &SegmenterOptions::small_contact_ellipse_outline},
       {"low_contrast", &SegmenterOptions::low_contrast},
   };
   return fields;
