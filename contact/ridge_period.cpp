@@ -12,11 +12,10 @@ namespace tirstrain::contact {
 namespace {
 
 // The ring's radial centre: the centroid of the power summed per ring over ±25 % of the peak's frequency (at
-// least 10 bins),
-// less the straight baseline between the window's ends. A ring's sum is what its ridges carry whatever its
-// radius (the mean per sample falls as 1/f across a ring). The centroid, not the strongest bin: a whorl's
-// ring is asymmetric, its strongest bin a few per cent above its period (the Hankel transform's phase), and
-// split into lobes, while its centroid sits on the period.
+// least 10 bins), less the straight baseline between the window's ends. A ring's sum is what its ridges
+// carry whatever its radius (the mean per sample falls as 1/f across a ring). The centroid, not the
+// strongest bin: a whorl's ring is asymmetric, its strongest bin a few per cent above its period (the Hankel
+// transform's phase), and split into lobes, while its centroid sits on the period.
 double ring_centre(const std::vector<double>& total, int best, int lo, int hi, double bin_width) {
   const auto at = [&](int b) { return total[static_cast<std::size_t>(b)]; };
   const int reach = std::max(10, static_cast<int>(std::lround(0.25 * best)));
