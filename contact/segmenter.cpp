@@ -129,6 +129,12 @@ int measured_polarity(const cv::Mat& work, const cv::Mat& hull_mask, double text
   return 0;
 }
 
+// The outline's bounding box, clipped to the frame.
+cv::Rect clipped_bounding_box(const std::vector<cv::Point2d>& outline_px, cv::Size frame_size) {
+  const cv::Rect box = cv::boundingRect(std::vector<cv::Point2f>(outline_px.begin(), outline_px.end()));
+  return box & cv::Rect(0, 0, frame_size.width, frame_size.height);
+}
+
 // The refined outline repaired (spikes clipped, valleys bridged) and its convex hull as the contact's
 // outline, with its area, resampled hull and bounding box.
 void set_outline(RefinedOutline& outline, cv::Point2d centre_px, double period_px,
@@ -138,36 +144,26 @@ void set_outline(RefinedOutline& outline, cv::Point2d centre_px, double period_p
   result.outline_px = convex_hull(outline.points_px);
   result.area_mm2 = polygon_area_px2(result.outline_px) / (options.px_per_mm * options.px_per_mm);
   result.hull_px = resample_closed_polygon(result.outline_px, options.hull_points);
-  const cv::Rect box =
-      cv::boundingRect(std::vector<cv::Point2f>(result.outline_px.begin(), result.outline_px.end()));
-  result.bounding_box_px = box & cv::Rect(0, 0, frame_size.width, frame_size.height);
+  result.bounding_box_px = clipped_bounding_box(result.outline_px, frame_size);
 }
 
 // The outline of a small contact from its ellipse (SegmenterOptions::small_contact_ellipse_outline):
-// polygons with the ellipse's area (vertices at equal steps of the ellipse's parameter, scaled out by
-// sqrt(2π / (n sin(2π/n))), so that the chords' lost area is given back), dense as the traced outline was.
+// polygons with the ellipse's area (vertices at equal steps of the ellipse's parameter on the ellipse scaled
+// by sqrt(2π / (n sin(2π/n))), so that the chords' lost area is given back), dense as the traced outline was.
 void set_outline_from_ellipse(const Ellipse& e, const SegmenterOptions& options, cv::Size frame_size,
                               ContactResult& result) {
   const auto polygon = [&e](std::size_t n) {
     const double step = 2.0 * std::numbers::pi / static_cast<double>(n);
     const double scale = std::sqrt(step / std::sin(step));
-    const double c = std::cos(e.angle_rad), s = std::sin(e.angle_rad);
-    std::vector<cv::Point2d> points(n);
-    for (std::size_t k = 0; k < n; ++k) {
-      const double u = scale * e.semi_major_px * std::cos(step * k),
-                   v = scale * e.semi_minor_px * std::sin(step * k);
-      points[k] = {e.cx_px + c * u - s * v, e.cy_px + s * u + c * v};
-    }
-    return points;
+    const Ellipse scaled{e.cx_px, e.cy_px, scale * e.semi_major_px, scale * e.semi_minor_px, e.angle_rad};
+    return sample_ellipse(scaled, static_cast<int>(n), 0.0, step * static_cast<double>(n - 1));
   };
   const std::size_t hull_points = static_cast<std::size_t>(std::max(3, options.hull_points));
   result.outline_px = polygon(std::max(result.outline_px.size(), 4 * hull_points));
   result.hull_px = polygon(hull_points);
   result.area_mm2 =
       std::numbers::pi * e.semi_major_px * e.semi_minor_px / (options.px_per_mm * options.px_per_mm);
-  const cv::Rect box =
-      cv::boundingRect(std::vector<cv::Point2f>(result.outline_px.begin(), result.outline_px.end()));
-  result.bounding_box_px = box & cv::Rect(0, 0, frame_size.width, frame_size.height);
+  result.bounding_box_px = clipped_bounding_box(result.outline_px, frame_size);
 }
 
 // Whether a hull point lies clear (by `margin_px`) of the frame's border and of the excluded band.
