@@ -396,6 +396,7 @@ class StrainStage final : public Stage {
     const std::int8_t radius_status = fitted ? static_cast<std::int8_t>(z.status) : std::int8_t{-1};
     out.write_row("/stick/radius_status", r, std::span<const std::int8_t>(&radius_status, 1), {},
                   std::int8_t{-1});
+    one("/stick/tracks_reach_ratio", fitted ? z.reach : kNaN);
     one("/stick/slip_max_px", fitted ? z.max_slip_px : kNaN);
     one("/stick/fit_residual_px", fitted ? z.residual_rms_px : kNaN);
     two("/stick/core_shift_px", fitted ? z.shift_px.x : kNaN, fitted ? z.shift_px.y : kNaN);
@@ -433,9 +434,12 @@ class StrainStage final : public Stage {
         "cattaneo_mindlin_fit: least-squares fit of the Cattaneo-Mindlin slip profile (stuck-core shift "
         "+ slip amplitudes, c/a by 1-D search) to the tracks within stick_fit_extent of the reference "
         "contact ellipse; c = (c/a) * sqrt(semi_major * semi_minor)");
-    out.attribute(
-        "/stick", "radius_status_codes",
-        "0 fitted (c = 0: full slip); 1 no detectable slip (c = a); 2 too few tracks (NaN); -1 not computed");
+    out.attribute("/stick", "radius_status_codes",
+                  "0 fitted (c = 0: full slip); 1 no detectable slip and the stuck core at rest (c = a); 2 "
+                  "too few tracks "
+                  "(NaN); 3 the stuck core moved but no slip shows within the tracks, which reach "
+                  "tracks_reach_ratio of a "
+                  "(NaN: the slip annulus, if any, is not measured); -1 not computed");
     out.attribute("/stick", "contact_radius_mm",
                   reference_has_ellipse_ ? disk_.radius_px / settings_.strain.px_per_mm : kNaN);
     out.attribute("/stick", "fit_extent", settings_.stick_zone.extent);
@@ -451,8 +455,12 @@ class StrainStage final : public Stage {
     std::int64_t valid = 0, excluded = 0, missing = 0;
     double energy_max = 0.0;
     const StrainFrame* last = nullptr;
+    // Frames by what the stick radius is: fitted, c = a at rest, bounded (slip beyond the tracks), unknown.
+    std::map<std::string, int> radius_frames{
+        {"fit", 0}, {"no_slip", 0}, {"slip_beyond_tracks", 0}, {"too_few_points", 0}};
     for (const StrainFrame& f : frames_) {
       if (!f.computed) continue;
+      if (reference_has_ellipse_) ++radius_frames[strain::to_string(f.stick_zone.status)];
       valid += f.counts.valid;
       excluded += f.counts.excluded();
       missing += f.counts.missing_vertex;
@@ -466,6 +474,7 @@ class StrainStage final : public Stage {
     s["strain_energy_last_J"] = last && std::isfinite(last->energy_J) ? last->energy_J : 0.0;
     if (last && std::isfinite(last->stick_ratio)) s["stick_ratio_last"] = last->stick_ratio;
     if (last && std::isfinite(stick_radius_mm(*last))) s["stick_radius_last_mm"] = stick_radius_mm(*last);
+    s["stick_radius_frames"] = radius_frames;
     s["strain_ms_per_frame"] =
         strained_frames_ > 0 ? 1e3 * strain_s_ / static_cast<double>(strained_frames_) : 0.0;
     s["maps"] = {{"cells", settings_.map_cells}, {"reference_has_ellipse", reference_has_ellipse_}};

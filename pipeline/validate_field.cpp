@@ -78,6 +78,15 @@ void read_tracks_and_strain(const H5Reader& h5, ValidatedResult& r) {
   // c from the strain stage's slip-profile fit (older results have only the stuck labels).
   r.c_fit = h5.has("/stick/radius_mm") ? h5.read_doubles("/stick/radius_mm", &shape)
                                        : std::vector<double>(r.frames, kNaN);
+  r.c_reach.assign(r.frames, kNaN);
+  if (h5.has("/stick/tracks_reach_ratio") && h5.has("/stick/radius_status")) {
+    const std::vector<double> reach = h5.read_doubles("/stick/tracks_reach_ratio", &shape);
+    const std::vector<std::int64_t> status = h5.read_integers("/stick/radius_status");
+    const double a_mm = h5.attribute_number("/stick", "contact_radius_mm");
+    for (std::size_t i = 0; i < r.frames && i < reach.size() && i < status.size(); ++i)
+      if (status[i] == static_cast<std::int64_t>(strain::StickZoneStatus::kSlipBeyondTracks))
+        r.c_reach[i] = reach[i] * a_mm;
+  }
   r.reference_row = static_cast<std::size_t>(h5.attribute_number("/tracks", "reference_frame_row"));
 }
 
@@ -439,6 +448,9 @@ void FieldValidation::finish_stick_radius() {
       c_all_error_.add(c_fit[i] - c);
     // Every frame in partial slip, in % of the contact radius.
     if (c > 0.0 && c < a_mm && std::isfinite(c_fit[i])) c_of_a_error_.add(100.0 * (c_fit[i] - c) / a_mm);
+    // Where slip was not seen within the tracks: how far inside their reach the model's slip annulus began,
+    // % of a (> 0: slip the fit did not detect among the outermost tracks).
+    if (std::isfinite(r_.c_reach[i])) c_unseen_.add(100.0 * (r_.c_reach[i] - c) / a_mm);
   }
 }
 
@@ -477,21 +489,37 @@ void FieldValidation::append_rows(std::vector<ErrorStats>& rows) const {
   rows.push_back(c_true_contact_error_.stats("stick_radius_c_true_contact", "model", "", "%"));
   rows.push_back(c_all_error_.stats("stick_radius_c_all_frames", "model", "", "mm"));
   rows.push_back(c_of_a_error_.stats("stick_radius_c_of_a", "model", "", "%"));
+  rows.push_back(c_unseen_.stats("stick_radius_c_beyond_tracks", "tracks reach", "", "%"));
 }
 
 void FieldValidation::write_frames_csv(const std::string& path,
                                        const std::vector<std::array<double, 4>>& contact) const {
-  CsvWriter csv(
-      path, {"index", "t_s", "U_J", "U_truth_J", "U_truth_contact_J", "U_truth_triangle_J", "U_interior_J",
-             "U_truth_interior_J", "stick_ratio", "stick_ratio_truth", "c_mm", "c_labels_mm", "c_model_mm",
-             "displacement_rms_px", "E_xx_rms", "contact_iou", "contact_centre_error_px",
-             "contact_semi_major_error_pct", "contact_semi_minor_error_pct"});
+  CsvWriter csv(path, {"index",
+                       "t_s",
+                       "U_J",
+                       "U_truth_J",
+                       "U_truth_contact_J",
+                       "U_truth_triangle_J",
+                       "U_interior_J",
+                       "U_truth_interior_J",
+                       "stick_ratio",
+                       "stick_ratio_truth",
+                       "c_mm",
+                       "c_unmeasured_reach_mm",
+                       "c_labels_mm",
+                       "c_model_mm",
+                       "displacement_rms_px",
+                       "E_xx_rms",
+                       "contact_iou",
+                       "contact_centre_error_px",
+                       "contact_semi_major_error_pct",
+                       "contact_semi_minor_error_pct"});
   for (std::size_t i = 0; i < r_.frames; ++i) {
     std::vector<std::string> row = {std::to_string(i)};
     for (const double v :
          {r_.t_s[i], r_.energy[i], u_truth_[i], u_truth_contact_[i], u_truth_triangle_[i], u_interior_[i],
-          u_truth_interior_[i], r_.stick_ratio[i], ratio_truth_[i], r_.c_fit[i], c_labels_[i], c_model_[i],
-          disp_rms_[i], exx_rms_[i], contact[i][0], contact[i][1], contact[i][2], contact[i][3]})
+          u_truth_interior_[i], r_.stick_ratio[i], ratio_truth_[i], r_.c_fit[i], r_.c_reach[i], c_labels_[i],
+          c_model_[i], disp_rms_[i], exx_rms_[i], contact[i][0], contact[i][1], contact[i][2], contact[i][3]})
       row.push_back(format_double(v));
     csv.row_text(row);
   }

@@ -32,11 +32,14 @@ struct ValidatedResult {
   std::shared_ptr<const H5Reader> h5;  // open for the per-frame rows
   std::size_t frames = 0, tracks = 0, triangles_count = 0;
   std::vector<double> t_s;
-  std::vector<double> reference;                     // [K, 2]
-  std::vector<double> plate;                         // [N, 2]
-  std::vector<double> triangles;                     // [T, 3] vertex track ids
-  std::string mode, other_mode;                      // strain mode of /strain/total and the other one
-  std::vector<double> energy, stick_ratio, c_fit;    // [N]
+  std::vector<double> reference;                   // [K, 2]
+  std::vector<double> plate;                       // [N, 2]
+  std::vector<double> triangles;                   // [T, 3] vertex track ids
+  std::string mode, other_mode;                    // strain mode of /strain/total and the other one
+  std::vector<double> energy, stick_ratio, c_fit;  // [N]
+  // Where no slip shows within the tracks although the core moved (/stick/radius_status 3): the tracks'
+  // reach × a, mm (NaN on other frames).
+  std::vector<double> c_reach;
   double tolerance_px = 0.0;                         // the stick test's
   std::size_t reference_row = 0;                     // the tracks' reference frame
   std::vector<std::int64_t> contact_status;          // [N]
@@ -100,7 +103,7 @@ class FieldValidation {
   Accumulator energy_triangle_error_, energy_interior_error_, energy_contact_error_;
   std::array<Accumulator, 3> displacement_by_depth_;  // tracks < 0.5, 0.5-1, > 1 mm inside the border
   Accumulator displacement_, displacement_interior_, plate_error_, energy_error_, stick_error_, c_error_,
-      c_label_error_, c_all_error_, c_of_a_error_;
+      c_label_error_, c_all_error_, c_of_a_error_, c_unseen_;
   Accumulator energy_other_error_, energy_increments_error_;
   std::vector<double> c_exact_tracks_, c_true_contact_;
   std::vector<double> u_truth_triangle_, u_interior_, u_truth_interior_;

@@ -194,6 +194,8 @@ const char* to_string(StickZoneStatus status) {
       return "no_slip";
     case StickZoneStatus::kTooFewPoints:
       return "too_few_points";
+    case StickZoneStatus::kSlipBeyondTracks:
+      return "slip_beyond_tracks";
   }
   return "?";
 }
@@ -291,9 +293,13 @@ double max_predicted_slip(const std::vector<Point>& points, const Best& best, do
 // stuck core has moved along the fitted traction (in Cattaneo–Mindlin the core shifts by
 // δ = π(1 − ν/2)(1 − k²)·|A| along A): a tracking bias at rest (a ring of small systematic errors near the
 // border) must not read as slip.
+double significant_px(const StickZoneFit& out, const StickZoneOptions& settings) {
+  return std::max(settings.significance * out.residual_rms_px, settings.min_slip_px);
+}
+
 bool slip_detected(const StickZoneFit& out, const Best& best, const StickZoneOptions& settings) {
   const auto& theta = best.solution.theta;
-  const double floor_px = std::max(settings.significance * out.residual_rms_px, settings.min_slip_px);
+  const double floor_px = significant_px(out, settings);
   const Vec2 t = out.shift_px;
   const double shift = std::hypot(t.x, t.y), amplitude = std::hypot(theta[2], theta[3]);
   const bool core_moved = shift > floor_px && t.x * theta[2] + t.y * theta[3] > 0.5 * shift * amplitude;
@@ -301,12 +307,19 @@ bool slip_detected(const StickZoneFit& out, const Best& best, const StickZoneOpt
          core_moved;
 }
 
+// The largest normalised radius among the fitted points.
+double reach_of(const std::vector<Point>& points) {
+  double reach = 0.0;
+  for (const Point& q : points) reach = std::max(reach, q.rho);
+  return reach;
+}
+
 }  // namespace
 
 StickZoneFit fit_stick_zone(std::span<const Vec2> reference_px, std::span<const Vec2> current_px,
                             const ContactDisk& disk, double poisson, const StickZoneOptions& settings) {
   StickZoneFit out;
-  out.ratio = out.radius_px = out.residual_rms_px = out.max_slip_px = kNaN;
+  out.ratio = out.radius_px = out.residual_rms_px = out.max_slip_px = out.reach = kNaN;
   out.shift_px = out.amplitude_px = {kNaN, kNaN};
   if (!(disk.radius_px > 0.0)) return out;
   Vec2 mean;
@@ -332,6 +345,7 @@ StickZoneFit fit_stick_zone(std::span<const Vec2> reference_px, std::span<const 
   }
   const auto& theta = best.solution.theta;
   out.points = static_cast<int>(points.size());
+  out.reach = reach_of(points);
   out.shift_px = {theta[0] + mean.x, theta[1] + mean.y};
   out.amplitude_px = {theta[2], theta[3]};
   out.residual_rms_px = std::sqrt(best.solution.rss / dof);
@@ -339,6 +353,10 @@ StickZoneFit fit_stick_zone(std::span<const Vec2> reference_px, std::span<const 
   if (slip_detected(out, best, settings)) {
     out.status = StickZoneStatus::kFit;
     out.ratio = best.k;
+  } else if (std::hypot(out.shift_px.x, out.shift_px.y) > significant_px(out, settings)) {
+    out.status = StickZoneStatus::kSlipBeyondTracks;
+    out.ratio = kNaN;
+    out.amplitude_px = {0.0, 0.0};
   } else {
     out.status = StickZoneStatus::kNoSlip;
     out.ratio = 1.0;

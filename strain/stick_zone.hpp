@@ -23,8 +23,12 @@
 // spacing or two is not resolvable anyway). Slip must be detected — the fit lowers the residual of the
 // no-slip fit (offset only) by `chi2_slip` noise variances, its largest predicted slip and the stuck core's
 // shift both exceed `significance` × the residual RMS (and `min_slip_px`), and the core moved along the
-// fitted traction direction (within 60°) — otherwise k = 1 (c = a, e.g. before any tangential load; this
-// assumes the reference frame precedes the tangential load). Too few points give NaN (kTooFewPoints).
+// fitted traction direction (within 60°). Without detected slip, what the tracks say depends on the core:
+// a core that has not moved means no tangential load, k = 1 (c = a; this assumes the reference frame precedes
+// the load); a core that moved means a load whose slip annulus, if any, lies beyond the outermost track
+// (Cattaneo–Mindlin slips at the rim first, as (ρ − c)^(3/2), so a thin annulus hides under the noise even
+// inside the tracks' reach), so k is NaN (kSlipBeyondTracks): the tracks do not measure it. Reporting a there
+// would claim no slip where the slip has only not been seen. Too few points give NaN (kTooFewPoints).
 #include <cstdint>
 #include <span>
 
@@ -58,6 +62,8 @@ enum class StickZoneStatus : std::int8_t {
   kFit = 0,           // k from the fit (k = 0: full slip)
   kNoSlip = 1,        // no detectable slip: k = 1
   kTooFewPoints = 2,  // NaN
+  // The core moved but no slip shows within the tracks: k is NaN (not measured).
+  kSlipBeyondTracks = 3,
 };
 
 struct StickZoneFit {
@@ -73,6 +79,8 @@ struct StickZoneFit {
   double chi2_slip = 0.0;
   double chi2_stick = 0.0;
   int points = 0;
+  // The outermost fitted point's normalised radius |p|: slip beyond it is not seen (NaN without points).
+  double reach = 0.0;
 };
 
 // reference_px / current_px per track; current NaN where the track is not alive.

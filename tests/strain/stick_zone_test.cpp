@@ -1,7 +1,7 @@
 // The stick radius c from a fit of the Cattaneo–Mindlin slip profile (strain/stick_zone.hpp): the basis
 // against model/'s closed forms, c recovered from noisy track displacements on circular and elliptical
-// contacts against the model's c, and the degenerate cases (full slip, no tangential load, rigid motion,
-// too few tracks) giving defined values.
+// contacts against the model's c, and the degenerate cases (full slip, no tangential load, slip beyond the
+// tracks or rigid motion, too few tracks) giving defined values.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -61,9 +61,10 @@ struct Tracks {
 
 // Tracks on an 8 px grid over the contact (ellipse semi-axes in px, major axis at `angle`), displaced by
 // the model field evaluated as samples/ does for an elliptical contact (coordinates mapped onto the disk,
-// displacement unchanged), plus a plate/stuck-core offset, plus Gaussian noise σ per component.
+// displacement unchanged), plus a plate/stuck-core offset, plus Gaussian noise σ per component; only out to
+// `reach` of the normalised radius.
 Tracks make_tracks(const model::CattaneoMindlin* m, double major_px, double minor_px, double angle,
-                   Vec2 extra_px, double sigma_px, unsigned seed) {
+                   Vec2 extra_px, double sigma_px, unsigned seed, double reach = 1.0) {
   const ContactDisk disk = contact_disk({400.0, 300.0}, major_px, minor_px, angle);
   const double a_m = m ? m->hertz().contact_radius_m : 0.0;
   std::mt19937 rng(seed);
@@ -73,7 +74,7 @@ Tracks make_tracks(const model::CattaneoMindlin* m, double major_px, double mino
     for (double x = 400.0 - major_px; x <= 400.0 + major_px; x += 8.0) {
       const double dx = x - 400.0, dy = y - 300.0;
       const Vec2 p{disk.to_disk.xx * dx + disk.to_disk.xy * dy, disk.to_disk.yx * dx + disk.to_disk.yy * dy};
-      if (std::hypot(p.x, p.y) > 1.0) continue;
+      if (std::hypot(p.x, p.y) > reach) continue;
       Vec2 u;
       if (m) u = m->displacement_m(p.x * a_m, p.y * a_m);
       t.reference.push_back({x, y});
@@ -137,21 +138,19 @@ TEST(StickZone, FullSlipGivesZeroRadius) {
   EXPECT_EQ(f.radius_px, 0.0);
 }
 
-// c → a: no tangential load (u = 0), a rigid translation, or a load so small that the slip is below the
-// noise: no detectable slip, c = a exactly, never NaN.
+// c → a: no tangential load (u = 0), or a load so small that neither the slip nor the stuck core's shift
+// rises above the noise: no detectable slip, c = a exactly, never NaN.
 TEST(StickZone, NoTangentialLoadGivesTheContactRadius) {
   const double a_px = 152.0;
   const ContactDisk disk = contact_disk({400.0, 300.0}, a_px, a_px, 0.0);
-  for (const Vec2 shift : {Vec2{0.0, 0.0}, Vec2{3.0, -1.5}}) {
-    for (double sigma : {0.0, 0.042}) {
-      const Tracks t = make_tracks(nullptr, a_px, a_px, 0.0, shift, sigma, 5);
-      const StickZoneFit f = fit_stick_zone(t.reference, t.current, disk, 0.4);
-      EXPECT_EQ(f.status, StickZoneStatus::kNoSlip) << sigma;
-      EXPECT_EQ(f.ratio, 1.0);
-      EXPECT_DOUBLE_EQ(f.radius_px, a_px);
-      EXPECT_NEAR(f.shift_px.x, shift.x, 0.01);
-      EXPECT_NEAR(f.shift_px.y, shift.y, 0.01);
-    }
+  for (double sigma : {0.0, 0.042}) {
+    const Tracks t = make_tracks(nullptr, a_px, a_px, 0.0, {0.0, 0.0}, sigma, 5);
+    const StickZoneFit f = fit_stick_zone(t.reference, t.current, disk, 0.4);
+    EXPECT_EQ(f.status, StickZoneStatus::kNoSlip) << sigma;
+    EXPECT_EQ(f.ratio, 1.0);
+    EXPECT_DOUBLE_EQ(f.radius_px, a_px);
+    EXPECT_NEAR(f.shift_px.x, 0.0, 0.01);
+    EXPECT_NEAR(f.shift_px.y, 0.0, 0.01);
   }
   // Q = 1e-4 μP: c = 0.99997 a and the slip is far below the noise.
   const model::CattaneoMindlin m(params(1e-4, 0.0));
@@ -160,6 +159,36 @@ TEST(StickZone, NoTangentialLoadGivesTheContactRadius) {
   const StickZoneFit f = fit_stick_zone(t.reference, t.current, contact_disk({400.0, 300.0}, a, a, 0.0), 0.4);
   EXPECT_EQ(f.status, StickZoneStatus::kNoSlip);
   EXPECT_NEAR(f.radius_px, m.stick_radius_m() * kPxPerM, 1e-3 * a);
+}
+
+// A core that moved without slip inside the tracks: a rigid motion, or a load whose slip annulus lies beyond
+// the outermost track (Cattaneo–Mindlin slips at the rim first). The tracks cannot tell these apart, so c is
+// not reported as a but bounded: NaN, with the tracks' reach as its lower bound.
+TEST(StickZone, SlipBeyondTheTracksBoundsTheRadiusInsteadOfClaimingNoSlip) {
+  const double a_px = 152.0;
+  const ContactDisk disk = contact_disk({400.0, 300.0}, a_px, a_px, 0.0);
+  for (double sigma : {0.0, 0.042}) {
+    const Tracks t = make_tracks(nullptr, a_px, a_px, 0.0, {3.0, -1.5}, sigma, 5);
+    const StickZoneFit f = fit_stick_zone(t.reference, t.current, disk, 0.4);
+    EXPECT_EQ(f.status, StickZoneStatus::kSlipBeyondTracks) << sigma;
+    EXPECT_TRUE(std::isnan(f.ratio));
+    EXPECT_TRUE(std::isnan(f.radius_px));
+    EXPECT_NEAR(f.shift_px.x, 3.0, 0.01);
+    EXPECT_NEAR(f.shift_px.y, -1.5, 0.01);
+    EXPECT_GT(f.reach, 0.9);  // the tracks fill the fit's extent, 0.95
+    EXPECT_LE(f.reach, 0.95);
+  }
+  // c = 0.9 a with tracks out to 0.8 a only, at the default scene's tracking noise.
+  const double c_over_a = 0.9;
+  const model::CattaneoMindlin m(params(1.0 - c_over_a * c_over_a * c_over_a, 1.5 * std::numbers::pi));
+  const double a = m.hertz().contact_radius_m * kPxPerM;
+  const Tracks t = make_tracks(&m, a, a, 0.0, {0.0, 0.0}, 0.042, 11, 0.8);
+  const StickZoneFit f = fit_stick_zone(t.reference, t.current, contact_disk({400.0, 300.0}, a, a, 0.0), 0.4);
+  EXPECT_EQ(f.status, StickZoneStatus::kSlipBeyondTracks);
+  EXPECT_TRUE(std::isnan(f.radius_px));
+  EXPECT_NEAR(f.shift_px.y, -m.rigid_shift_m() * kPxPerM, 0.02);  // the core follows the plate
+  EXPECT_GT(f.reach, 0.75);
+  EXPECT_LE(f.reach * a, m.stick_radius_m() * kPxPerM);  // the bound holds: reach·a ≤ c
 }
 
 TEST(StickZone, TooFewTracksOrNoContactGiveNaNWithAStatus) {
