@@ -73,6 +73,9 @@ struct Track {
   // the model's position from the own match, in the match's predicted noise (NaN for the own match).
   TrackModel model = TrackModel::kOwnMatch;
   double model_mahalanobis2 = std::numeric_limits<double>::quiet_NaN();
+  // The own match's position this frame, whatever position_px reports (NaN where the track was not matched by
+  // a subset): what a model fit downstream should be given, not another model's smoothing.
+  Vec2 own_position_px{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN()};
   // For a local fit (TrackModel::kLocalFit), the radius of the window it was fitted over, px; NaN otherwise.
   double model_window_px = std::numeric_limits<double>::quiet_NaN();
   // The own match's predicted covariance this frame, px² (xx, xy, yy; flow/model_check.hpp); NaN where the

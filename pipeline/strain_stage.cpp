@@ -114,8 +114,8 @@ class StrainStage final : public Stage {
     const strain::FrameStrain fs = frame_strain(context, record.t_s);
     fill_record(record, fs, reference_frame);
     if (reference_has_ellipse_)
-      record.stick_zone = strain::fit_stick_zone(reference_px_, current_px_, disk_, settings_.strain.poisson,
-                                                 settings_.stick_zone);
+      record.stick_zone = strain::fit_stick_zone(reference_px_, unsmoothed_px_, disk_,
+                                                 settings_.strain.poisson, settings_.stick_zone);
     if (std::isfinite(record.energy_J)) context.strain_energy_J = record.energy_J;
 
     previous_px_ = current_px_;
@@ -199,9 +199,18 @@ class StrainStage final : public Stage {
   }
 
   // Every track's reference position; the alive ones' current position, covariance and source bits.
+  // A track's own match where the local fit stands in for it; otherwise what it reports (the own match, or
+  // the neighbour fusion on low-SNR texture, where a subset slides along its ridges and the fusion is the
+  // better evidence).
+  static Vec2 unsmoothed_position(const flow::Track& t) {
+    const bool own = std::isfinite(t.own_position_px.x) && std::isfinite(t.own_position_px.y);
+    return t.model == flow::TrackModel::kLocalFit && own ? t.own_position_px : t.position_px;
+  }
+
   void gather_vertices(const std::vector<flow::Track>& tracks) {
     reference_px_.resize(tracks.size());
     current_px_.assign(tracks.size(), Vec2{kNaN, kNaN});
+    unsmoothed_px_.assign(tracks.size(), Vec2{kNaN, kNaN});
     covariance_px2_.assign(tracks.size(), {kNaN, kNaN, kNaN});
     vertex_source_.assign(tracks.size(), 0);
     alive_.clear();
@@ -209,6 +218,7 @@ class StrainStage final : public Stage {
       reference_px_[k] = tracks[k].reference_px;
       if (flow::is_alive(tracks[k].status)) {
         current_px_[k] = tracks[k].position_px;
+        unsmoothed_px_[k] = unsmoothed_position(tracks[k]);
         covariance_px2_[k] = tracks[k].covariance_px2;
         vertex_source_[k] = vertex_source(tracks[k]);
         alive_.push_back(static_cast<std::int32_t>(k));
@@ -612,6 +622,9 @@ class StrainStage final : public Stage {
   bool reference_has_ellipse_ = false;
   strain::ContactDisk disk_;
   std::vector<Vec2> reference_px_, current_px_, previous_px_;
+  // The stick fit's input: each track's position without the local fit (flow/local_fit.hpp), whose windows
+  // smooth across the stick zone's edge the fit looks for and round c.
+  std::vector<Vec2> unsmoothed_px_;
   std::vector<strain::PositionCovariance> covariance_px2_;  // per track, this frame's match covariance
   std::vector<std::uint8_t> vertex_source_;                 // per track, kSource* bits this frame
   std::vector<std::int32_t> alive_;
