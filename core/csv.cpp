@@ -48,7 +48,7 @@ std::size_t CsvTable::index_of(const std::string& name) const {
   throw Error("no such column (columns present: " + present + ")", {.file = path, .column = name});
 }
 
-CsvTable read_numeric_csv(const std::string& path) {
+CsvTable read_numeric_csv(const std::string& path, NaNCells nan_cells) {
   std::ifstream in(path);
   if (!in) throw Error("cannot open file for reading", {.file = path});
   CsvTable table;
@@ -89,7 +89,8 @@ CsvTable read_numeric_csv(const std::string& path) {
       const auto result = std::from_chars(begin, end, value);
       if (result.ec != std::errc() || result.ptr != end)
         throw Error("not a number: '" + cell + "'", {.file = path, .row = row, .column = table.names[j]});
-      if (!std::isfinite(value))
+      const bool not_measured = std::isnan(value) && nan_cells == NaNCells::kNotMeasured;
+      if (!std::isfinite(value) && !not_measured)
         throw Error("non-finite value '" + cell + "'", {.file = path, .row = row, .column = table.names[j]});
       table.columns[j].push_back(value);
     }

@@ -22,9 +22,14 @@ struct CsvTable {
   const std::vector<double>& column(const std::string& name) const { return columns[index_of(name)]; }
 };
 
-// Reads a CSV whose first row is a header and whose cells are all numbers. Empty cells, "nan", text and
-// ragged rows are errors naming file, row (1-based, header = row 1) and column.
-CsvTable read_numeric_csv(const std::string& path);
+// What a "nan" cell is: an error (an input's cells must all be numbers), or a value its writer did not have
+// (the per-frame tables `process` writes mark so a value not measured in that frame).
+enum class NaNCells { kError, kNotMeasured };
+
+// Reads a CSV whose first row is a header and whose cells are all numbers. Empty cells, "nan" (unless
+// `nan_cells` allows it), infinities, text and ragged rows are errors naming file, row (1-based, header =
+// row 1) and column.
+CsvTable read_numeric_csv(const std::string& path, NaNCells nan_cells = NaNCells::kError);
 
 // Writes a CSV with full double precision (round-trips exactly) to "<path>.partial" and renames it to
 // <path> on commit(); destroyed uncommitted, it removes the partial file.

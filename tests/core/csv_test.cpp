@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -30,6 +31,19 @@ TEST(Csv, ReadsColumnsByName) {
   ASSERT_EQ(t.rows(), 2u);
   EXPECT_DOUBLE_EQ(t.column("normal_N")[1], -2e-3);
   EXPECT_DOUBLE_EQ(t.column("t_s")[1], 0.001);
+}
+
+// A table `process` wrote marks a value not measured in a frame "nan": read so, it is NaN; infinities
+// and text stay errors.
+TEST(Csv, ReadsNaNCellsOnlyWhenAllowed) {
+  const auto path = write_file("not_measured.csv", "index,c_mm\n0,2.5\n1,nan\n");
+  const CsvTable t = read_numeric_csv(path, NaNCells::kNotMeasured);
+  ASSERT_EQ(t.rows(), 2u);
+  EXPECT_DOUBLE_EQ(t.column("c_mm")[0], 2.5);
+  EXPECT_TRUE(std::isnan(t.column("c_mm")[1]));
+  EXPECT_NE(error_of(path).find("row 3: column 'c_mm': non-finite"), std::string::npos);
+  EXPECT_THROW(read_numeric_csv(write_file("inf.csv", "a\ninf\n"), NaNCells::kNotMeasured), Error);
+  EXPECT_THROW(read_numeric_csv(write_file("text2.csv", "a\nn/a\n"), NaNCells::kNotMeasured), Error);
 }
 
 TEST(Csv, ErrorsNameFileRowAndColumn) {

@@ -638,7 +638,7 @@ TEST(ChannelsStage, EndToEndProcessWithTrackingStrainAndCrossCorrelation) {
   EXPECT_NEAR(t90_s, t90, 2e-3);
   EXPECT_NEAR(work_J / work, 1.0, 0.03);
   // U at t90: the strain stage's per-frame energy (frames.csv) interpolated between the bracketing frames.
-  const CsvTable frames = read_numeric_csv((out / "frames.csv").string());
+  const CsvTable frames = read_numeric_csv((out / "frames.csv").string(), NaNCells::kNotMeasured);
   const auto u = signals::resample_linear(frames.column("t_s"), frames.column("strain_energy_J"), {t90_s});
   EXPECT_NEAR(scalar(h5, "/work/strain_energy_at_t90_J"), u.front(), 1e-12 * std::abs(u.front()));
   EXPECT_GT(u.front(), 0.0);
