@@ -198,7 +198,6 @@ class StrainStage final : public Stage {
                                    : strain::ContactDisk{};
   }
 
-  // Every track's reference position; the alive ones' current position, covariance and source bits.
   // A track's own match where the local fit stands in for it; otherwise what it reports (the own match, or
   // the neighbour fusion on low-SNR texture, where a subset slides along its ridges and the fusion is the
   // better evidence).
@@ -207,6 +206,8 @@ class StrainStage final : public Stage {
     return t.model == flow::TrackModel::kLocalFit && own ? t.own_position_px : t.position_px;
   }
 
+  // Every track's reference position; the alive ones' current and unsmoothed positions, covariance and
+  // source bits.
   void gather_vertices(const std::vector<flow::Track>& tracks) {
     reference_px_.resize(tracks.size());
     current_px_.assign(tracks.size(), Vec2{kNaN, kNaN});
@@ -445,11 +446,10 @@ class StrainStage final : public Stage {
         "+ slip amplitudes, c/a by 1-D search) to the tracks within stick_fit_extent of the reference "
         "contact ellipse; c = (c/a) * sqrt(semi_major * semi_minor)");
     out.attribute("/stick", "radius_status_codes",
-                  "0 fitted (c = 0: full slip); 1 no detectable slip and the stuck core at rest (c = a); 2 "
-                  "too few tracks "
-                  "(NaN); 3 the stuck core moved but no slip shows within the tracks, which reach "
-                  "tracks_reach_ratio of a "
-                  "(NaN: the slip annulus, if any, is not measured); -1 not computed");
+                  "0 fitted (c = 0: full slip); 1 no detectable slip and the stuck core at rest (c = a); "
+                  "2 too few tracks (NaN); 3 the stuck core moved but no slip shows within the tracks, which "
+                  "reach tracks_reach_ratio of a (NaN: the slip annulus, if any, is not measured); "
+                  "-1 not computed");
     out.attribute("/stick", "contact_radius_mm",
                   reference_has_ellipse_ ? disk_.radius_px / settings_.strain.px_per_mm : kNaN);
     out.attribute("/stick", "fit_extent", settings_.stick_zone.extent);
@@ -465,7 +465,8 @@ class StrainStage final : public Stage {
     std::int64_t valid = 0, excluded = 0, missing = 0;
     double energy_max = 0.0;
     const StrainFrame* last = nullptr;
-    // Frames by what the stick radius is: fitted, c = a at rest, bounded (slip beyond the tracks), unknown.
+    // Frames by what the stick radius is: fitted, c = a at rest, not measured (no slip seen although the core
+    // moved), too few tracks.
     std::map<std::string, int> radius_frames{
         {"fit", 0}, {"no_slip", 0}, {"slip_beyond_tracks", 0}, {"too_few_points", 0}};
     for (const StrainFrame& f : frames_) {

@@ -289,14 +289,15 @@ double max_predicted_slip(const std::vector<Point>& points, const Best& best, do
   return max_slip;
 }
 
-// Slip is detected when the fit explains clearly more than the noise, predicts slip well above it, and the
-// stuck core has moved along the fitted traction (in Cattaneo–Mindlin the core shifts by
-// δ = π(1 − ν/2)(1 − k²)·|A| along A): a tracking bias at rest (a ring of small systematic errors near the
-// border) must not read as slip.
+// A slip or a core shift counts when it exceeds this: `significance` × the residual RMS, and `min_slip_px`.
 double significant_px(const StickZoneFit& out, const StickZoneOptions& settings) {
   return std::max(settings.significance * out.residual_rms_px, settings.min_slip_px);
 }
 
+// Slip is detected when the fit explains clearly more than the noise, predicts slip well above it, and the
+// stuck core has moved along the fitted traction (in Cattaneo–Mindlin the core shifts by
+// δ = π(1 − ν/2)(1 − k²)·|A| along A): a tracking bias at rest (a ring of small systematic errors near the
+// border) must not read as slip.
 bool slip_detected(const StickZoneFit& out, const Best& best, const StickZoneOptions& settings) {
   const auto& theta = best.solution.theta;
   const double floor_px = significant_px(out, settings);
