@@ -143,8 +143,12 @@ std::vector<TimeFigure> time_figures(const std::vector<ResultData>& results) {
        "Stick ratio against time",
        "Stuck fraction of the meshed area (a triangle is stuck when its centroid moves with the plate within "
        "the stick tolerance) and the stick radius over the contact radius c/a from the Cattaneo–Mindlin slip "
-       "profile fitted to the tracks (dimensionless).",
-       {{{{"stick ratio", &R::stick_ratio}, {"c/a (stick fit)", &R::stick_radius_ratio}},
+       "profile fitted to the tracks (dimensionless). Where the stuck core moved but no slip showed within "
+       "the tracks, c is not measured (the slip annulus lies beyond the outermost tracks or is too thin for "
+       "the noise): there the outermost tracks' radius over a is drawn instead.",
+       {{{{"stick ratio", &R::stick_ratio},
+          {"c/a (stick fit)", &R::stick_radius_ratio},
+          {"tracks' reach, c not measured", &R::stick_unmeasured_reach}},
          "fraction (dimensionless)"}}},
       {"fit",
        "Model fit against time",

@@ -146,6 +146,13 @@ void read_energy(const H5Reader& h5, ResultData& r) {
 void read_stick(const H5Reader& h5, ResultData& r) {
   r.stick_ratio = optional_series(h5, "/stick/ratio");
   r.stick_radius_ratio = optional_series(h5, "/stick/radius_ratio");
+  if (!h5.has("/stick/tracks_reach_ratio") || !h5.has("/stick/radius_status")) return;
+  constexpr std::int64_t kSlipBeyondTracks = 3;  // strain::StickZoneStatus::kSlipBeyondTracks
+  const std::vector<double> reach = h5.read_doubles("/stick/tracks_reach_ratio");
+  const std::vector<std::int64_t> status = h5.read_integers("/stick/radius_status");
+  r.stick_unmeasured_reach.assign(reach.size(), kNaN);
+  for (std::size_t i = 0; i < reach.size() && i < status.size(); ++i)
+    if (status[i] == kSlipBeyondTracks) r.stick_unmeasured_reach[i] = reach[i];
 }
 
 void read_fit(const H5Reader& h5, ResultData& r) {

@@ -51,9 +51,12 @@ struct ResultData {
   std::vector<double> normal_N, tangential_N, mu;       // NaN outside the channel's span (or W too small)
   std::vector<double> energy_J, energy_ratio;           // U and U / U_ext (cumulative external work)
   std::vector<double> stick_ratio, stick_radius_ratio;  // stuck area fraction and c/a of the stick fit
-  std::vector<double> fit_c_of_a, fit_tangential_N;     // the model fit (/fit), NaN where not fitted
-  std::vector<std::string> fit_model;                   // the fit's chosen field per frame ("" not fitted)
-  double energy_ratio_at_t90 = 0.0;                     // /work/energy_ratio, NaN when absent
+  // The tracks' reach over a on frames where c is not measured (the stuck core moved but no slip showed
+  // within the tracks: /stick/radius_status 3), NaN elsewhere.
+  std::vector<double> stick_unmeasured_reach;
+  std::vector<double> fit_c_of_a, fit_tangential_N;  // the model fit (/fit), NaN where not fitted
+  std::vector<std::string> fit_model;                // the fit's chosen field per frame ("" not fitted)
+  double energy_ratio_at_t90 = 0.0;                  // /work/energy_ratio, NaN when absent
   std::vector<Instant> instants;
   std::vector<StrainMaps> maps;  // one per instant with maps
   AngleSet principal_directions;

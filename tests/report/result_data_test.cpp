@@ -56,6 +56,10 @@ void write_channels_and_events(H5Writer& h5) {
   // 1 % of the largest work is 1e-6: frame 1's 5e-7 is below it, its ratio not drawn.
   h5.write("/work/external_cumulative_J", std::vector<double>{0, 5e-7, 2e-5, 6e-5, 1e-4}, {kFrames});
   h5.write("/work/energy_ratio", std::vector<double>{0.2}, {1});
+  // The stick fit: c = a at rest, then no slip seen within the tracks (status 3), then fitted.
+  h5.write("/stick/radius_ratio", std::vector<double>{1.0, kNaN, kNaN, 0.6, 0.3}, {kFrames});
+  h5.write("/stick/radius_status", std::vector<std::int8_t>{1, 3, 3, 0, 0}, {kFrames});
+  h5.write("/stick/tracks_reach_ratio", std::vector<double>{0.9, 0.89, 0.88, 0.88, 0.87}, {kFrames});
 }
 
 // Maps: frame f holds E_xx = f + 0.01 on the 3 × 3 cells with |x|, |y| ≤ 0.5, NaN elsewhere.
@@ -128,6 +132,12 @@ TEST(ReportResultData, SeriesAreTheFileContentsInSIUnits) {
   EXPECT_TRUE(std::isnan(r.energy_ratio[1])) << "external work below 1 % of its largest";
   EXPECT_DOUBLE_EQ(r.energy_ratio[3], 9e-6 / 6e-5);
   EXPECT_DOUBLE_EQ(r.energy_ratio_at_t90, 0.2);
+  // c not measured: the tracks' reach stands beside the gap, and only there.
+  ASSERT_EQ(r.stick_unmeasured_reach.size(), kFrames);
+  EXPECT_TRUE(std::isnan(r.stick_radius_ratio[1]));
+  EXPECT_DOUBLE_EQ(r.stick_unmeasured_reach[1], 0.89);
+  EXPECT_DOUBLE_EQ(r.stick_unmeasured_reach[2], 0.88);
+  for (std::size_t i : {0u, 3u, 4u}) EXPECT_TRUE(std::isnan(r.stick_unmeasured_reach[i])) << i;
 }
 
 TEST(ReportResultData, InstantsComeFromTheEventsAndMapsFromTheirFrames) {
