@@ -13,6 +13,7 @@
 #include <numbers>
 #include <span>
 #include <sstream>
+#include <utility>
 
 #include "contact/ellipse.hpp"
 #include "contact/geometry.hpp"
@@ -266,6 +267,44 @@ samples::SynthConfig load_trial_config(const std::string& trial_dir) {
   return samples::load_synth_config(scene_path);
 }
 
+// The truth is recomputed from the trial's scene.yaml, and truth.h5 records what the frames were made with.
+// A scene edited since `tirstrain synth` (the pattern band moved, the calibration changed) would be
+// validated against a truth the frames do not show, so every quantity the truth depends on must match.
+void check_scene_matches_truth(const samples::Trial& trial, const std::string& trial_dir) {
+  const fs::path truth_path = fs::path(trial_dir) / "truth.h5";
+  if (!fs::exists(truth_path)) return;  // a trial folder without one: the scene is the only truth there is
+  const H5Reader truth(truth_path.string());
+  const samples::SynthConfig& cfg = trial.config();
+  const samples::LoadHistory& history = trial.history();
+  const std::pair<const char*, double> recomputed[] = {
+      {"seed", static_cast<double>(cfg.seed)},
+      {"width_px", static_cast<double>(trial.width())},
+      {"height_px", static_cast<double>(trial.height())},
+      {"px_per_mm", cfg.scene.px_per_mm},
+      {"young_Pa", cfg.scene.tissue.young_Pa},
+      {"poisson", cfg.scene.tissue.poisson},
+      {"friction", cfg.loading.friction},
+      {"direction_rad", history.direction_rad()},
+      {"contact_centre_x_px", history.contact_centre_px().x},
+      {"contact_centre_y_px", history.contact_centre_px().y},
+      {"contact_semi_axis_1_px", history.contact_semi_axes_px().x},
+      {"contact_semi_axis_2_px", history.contact_semi_axes_px().y},
+      {"contact_angle_rad", history.contact_angle_rad()},
+      {"contact_radius_m", history.contact_radius_m()},
+      {"max_rigid_shift_m", history.max_rigid_shift_m()}};
+  for (const auto& [name, value] : recomputed) {
+    const double recorded = truth.attribute_number("/", name);
+    if (std::abs(recorded - value) <= 1e-9 * std::max(1.0, std::abs(recorded))) continue;
+    std::ostringstream message;
+    message.precision(10);
+    message << "the trial's scene.yaml no longer describes its frames: truth.h5 records " << name << " = "
+            << recorded << ", the scene now gives " << value
+            << " (edited since `tirstrain synth`?); to process the trial with other settings, leave its "
+               "scene as it is and pass them with --process-scene";
+    throw Error(message.str(), {.file = (fs::path(trial_dir) / "scene.yaml").string()});
+  }
+}
+
 // The trial processed into OUT/result (unless --result gives a result): report.result_dir and the time taken.
 void process_trial(const ValidateOptions& options, const std::string& trial_dir,
                    const StagingDirectory& staging, ValidationReport& report) {
@@ -356,6 +395,7 @@ ValidationReport run_validate(const ValidateOptions& options) {
   ValidationReport report;
   const std::string trial_dir = prepare_trial(options, out);
   const samples::Trial trial(load_trial_config(trial_dir));
+  check_scene_matches_truth(trial, trial_dir);
   process_trial(options, trial_dir, staging, report);
   const std::string result_path = (fs::path(report.result_dir) / "result.h5").string();
   if (!fs::exists(result_path))

@@ -447,6 +447,24 @@ TEST(ValidateCli, ComparesAnExistingTrialAndNamesMissingInputs) {
   const auto not_a_trial = run_cli("validate --trial " + out + " --out " + out + "/x");
   EXPECT_EQ(not_a_trial.exit_code, 1);
   EXPECT_NE(not_a_trial.output.find("scene.yaml"), std::string::npos) << not_a_trial.output;
+
+  // The truth is recomputed from the trial's scene: one edited since synthesis (here the pattern band two
+  // rows shorter, which moves the contact's centre the truth is built around by one row) is refused with the
+  // quantity that no longer matches truth.h5, and nothing is written.
+  const std::string edited = fresh_dir("validate_cli_edited_trial");
+  fs::copy(fs::path(trial) / "trials" / "quick", edited, fs::copy_options::recursive);
+  std::string scene = read_text(edited + "/scene.yaml");
+  const std::size_t roi = scene.find("roi_px: [0, 0, 640, 56]");
+  ASSERT_NE(roi, std::string::npos) << scene;
+  scene.replace(roi, std::string("roi_px: [0, 0, 640, 56]").size(), "roi_px: [0, 0, 640, 54]");
+  std::ofstream(edited + "/scene.yaml") << scene;
+  const std::string edited_out = fresh_dir("validate_cli_edited_out");
+  const auto refused = run_cli("validate --trial " + edited + " --out " + edited_out + " --quiet");
+  EXPECT_EQ(refused.exit_code, 1);
+  EXPECT_NE(refused.output.find("contact_centre_y_px = 283.5, the scene now gives 282.5"), std::string::npos)
+      << refused.output;
+  EXPECT_NE(refused.output.find("--process-scene"), std::string::npos) << refused.output;
+  EXPECT_FALSE(fs::exists(edited_out));
 }
 
 }  // namespace
