@@ -19,6 +19,7 @@
 #include "core/median.hpp"
 #include "flow/detail/tracker_impl.hpp"
 #include "flow/mask_erosion.hpp"
+#include "flow/model_check.hpp"
 #include "flow/shi_tomasi.hpp"
 
 namespace tirstrain::flow {
@@ -100,9 +101,68 @@ bool FeatureTracker::Impl::predict_from_neighbours(int index, Vec2& predicted, M
   return true;
 }
 
+namespace {
+// A re-match to start the subset's warp from: the neighbours' prediction and mean deformation.
+Warp warp_from_neighbours(const Mat2d& deformation, const Mat2d& birth, ShapeFunction shape) {
+  Warp w;
+  const Mat2d a = deformation * birth.inverse() - Mat2d::Identity();
+  w.p[2] = a(0, 0);
+  w.p[3] = a(0, 1);
+  w.p[4] = a(1, 0);
+  w.p[5] = a(1, 1);
+  if (shape == ShapeFunction::kTranslation) w.p[2] = w.p[3] = w.p[4] = w.p[5] = 0.0;
+  return w;
+}
+
+// What match_track changes in a track's state, to put the first match back when a second one loses.
+struct MatchSnapshot {
+  Warp warp;
+  Vec2 guess, candidate;
+  bool fixed_shape = false, matched = false, suspect = false;
+  Mat2d deformation;
+  MatchResult match;
+  int main_frame = -1;
+  OwnMatch main;
+
+  static MatchSnapshot of(const TrackState& st) {
+    return {st.warp,    st.guess,       st.candidate, st.fixed_shape, st.matched,
+            st.suspect, st.deformation, st.match,     st.main_frame,  st.main};
+  }
+  void restore(TrackState& st) const {
+    st.warp = warp;
+    st.guess = guess;
+    st.candidate = candidate;
+    st.fixed_shape = fixed_shape;
+    st.matched = matched;
+    st.suspect = suspect;
+    st.deformation = deformation;
+    st.match = match;
+    st.main_frame = main_frame;
+    st.main = main;
+  }
+};
+
+// How much lower than `zncc` another match of the same subset may correlate from the noise alone: a
+// squared-residual difference of χ²(2) at 99.9 % in units of the residual's variance per independent pixel
+// (Σ (f − g)² ≈ 2 (1 − ZNCC) Σ f², flow/model_check.hpp).
+double correlation_tie(double zncc, const Subset& subset, double prefilter_sigma_px) {
+  const double independent =
+      static_cast<double>(subset.pixel_count()) / correlated_pixels(prefilter_sigma_px, subset.stride());
+  return kModelShiftChi2 * (1.0 - zncc) / std::max(1.0, independent);
+}
+}  // namespace
+
+bool FeatureTracker::Impl::beyond_own_noise(const TrackState& st, Vec2 predicted) const {
+  const Eigen::Vector2d d(st.candidate.x - predicted.x, st.candidate.y - predicted.y);
+  const Eigen::Matrix2d& c = st.main.covariance_px2;
+  if (!(c.determinant() > 0.0)) return false;
+  return d.dot(c.inverse() * d) > kModelShiftChi2;
+}
+
 void FeatureTracker::Impl::check_neighbours() {
   build_hash(true);
   retry.clear();
+  second_opinion.clear();
   for (int i : alive) {
     TrackState& st = states[static_cast<std::size_t>(i)];
     // Placed by its neighbours' corrections: nothing of its own to check yet.
@@ -119,20 +179,17 @@ void FeatureTracker::Impl::check_neighbours() {
       continue;
     }
     const double deviation = std::hypot(st.candidate.x - predicted.x, st.candidate.y - predicted.y);
-    if (!st.suspect && deviation <= settings.neighbours.tolerance_px) continue;
+    if (!st.suspect && deviation <= settings.neighbours.tolerance_px) {
+      if (st.main_frame == frame && beyond_own_noise(st, predicted))
+        second_opinion.push_back({i, predicted, deformation});
+      continue;
+    }
     if (st.match.valid_fraction < settings.main_match.solver.min_valid_fraction) {
       retire(i, TrackStatus::kLeftContact);
       continue;
     }
     // Re-match from the neighbours' prediction, with their deformation as the subset's first-order terms.
-    Warp w;
-    const Mat2d a = deformation * st.birth.inverse() - Mat2d::Identity();
-    w.p[2] = a(0, 0);
-    w.p[3] = a(0, 1);
-    w.p[4] = a(1, 0);
-    w.p[5] = a(1, 1);
-    if (settings.main_match.shape == ShapeFunction::kTranslation) w.p[2] = w.p[3] = w.p[4] = w.p[5] = 0.0;
-    st.warp = w;
+    st.warp = warp_from_neighbours(deformation, st.birth, settings.main_match.shape);
     st.guess = predicted;
     retry.push_back(i);
   }
@@ -157,6 +214,38 @@ void FeatureTracker::Impl::check_neighbours() {
                                   ? TrackStatus::kLeftContact
                                   : TrackStatus::kPoorMatch));
     }
+  }
+  take_second_opinions();
+}
+
+// A match that settled beyond its own noise of where the neighbours put it, but within the tolerance, is
+// matched again from their prediction. Along its ridges a subset's cost hardly changes, so a match started
+// from its own last motion can stay where it started; the second match replaces the first when it fits the
+// subset as well (its correlation no lower than the noise allows), and the first stands otherwise.
+void FeatureTracker::Impl::take_second_opinions() {
+  std::vector<char> adopted(second_opinion.size(), 0);
+  cv::parallel_for_(cv::Range(0, static_cast<int>(second_opinion.size())), [&](const cv::Range& range) {
+    for (int k = range.start; k < range.end; ++k) {
+      const SecondOpinion& o = second_opinion[static_cast<std::size_t>(k)];
+      TrackState& st = states[static_cast<std::size_t>(o.index)];
+      const MatchSnapshot first = MatchSnapshot::of(st);
+      const Warp w = warp_from_neighbours(o.deformation, st.birth, settings.main_match.shape);
+      match_track(o.index, o.predicted, &w);
+      const double tie = correlation_tie(first.match.zncc, st.subset, settings.main_match.prefilter_sigma_px);
+      // A second match within the first's noise of it changes nothing worth recording.
+      const Eigen::Vector2d moved(st.candidate.x - first.candidate.x, st.candidate.y - first.candidate.y);
+      const bool elsewhere = first.main.covariance_px2.determinant() > 0.0 &&
+                             moved.dot(first.main.covariance_px2.inverse() * moved) > kModelShiftChi2;
+      if (st.matched && !st.suspect && elsewhere && st.match.zncc >= first.match.zncc - tie)
+        adopted[static_cast<std::size_t>(k)] = 1;
+      else
+        first.restore(st);
+    }
+  });
+  for (std::size_t k = 0; k < second_opinion.size(); ++k) {
+    if (!adopted[k]) continue;
+    tracks[static_cast<std::size_t>(second_opinion[k].index)].status = TrackStatus::kRecovered;
+    ++stats.recovered;
   }
 }
 

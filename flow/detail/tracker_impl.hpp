@@ -164,6 +164,14 @@ struct FeatureTracker::Impl {
   std::vector<int> alive;
   std::vector<double> scratch_x, scratch_y;
   std::vector<int> retry;
+  // The neighbour check's second opinions: a match beyond its own noise of the neighbours' prediction,
+  // matched again from that prediction.
+  struct SecondOpinion {
+    int index = -1;
+    Vec2 predicted;
+    Mat2d deformation = Mat2d::Identity();
+  };
+  std::vector<SecondOpinion> second_opinion;
 
   // The fusion (fuse): per alive track, what its sweeps need besides the neighbours' current positions.
   struct FusionTerm {
@@ -254,6 +262,8 @@ struct FeatureTracker::Impl {
   void gather_neighbours(Vec2 p, double radius, int self);
   bool predict_from_neighbours(int index, Vec2& predicted, Mat2d& deformation);
   void check_neighbours();
+  bool beyond_own_noise(const TrackState& st, Vec2 predicted) const;
+  void take_second_opinions();
   // `last`: the final round, which converges to match.convergence_px (the others stop at
   // fixed_shape_convergence_px).
   void fixed_shape_pass(bool last);
