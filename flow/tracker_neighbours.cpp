@@ -142,6 +142,13 @@ struct MatchSnapshot {
   }
 };
 
+// Whether b lies beyond a's predicted noise (covariance c, px²) of a: χ²(2) at 99.9 %.
+bool beyond_noise(Vec2 a, Vec2 b, const Eigen::Matrix2d& c) {
+  if (!(c.determinant() > 0.0)) return false;
+  const Eigen::Vector2d d(b.x - a.x, b.y - a.y);
+  return d.dot(c.inverse() * d) > kModelShiftChi2;
+}
+
 // How much lower than `zncc` another match of the same subset may correlate from the noise alone: a
 // squared-residual difference of χ²(2) at 99.9 % in units of the residual's variance per independent pixel
 // (Σ (f − g)² ≈ 2 (1 − ZNCC) Σ f², flow/model_check.hpp).
@@ -153,10 +160,7 @@ double correlation_tie(double zncc, const Subset& subset, double prefilter_sigma
 }  // namespace
 
 bool FeatureTracker::Impl::beyond_own_noise(const TrackState& st, Vec2 predicted) const {
-  const Eigen::Vector2d d(st.candidate.x - predicted.x, st.candidate.y - predicted.y);
-  const Eigen::Matrix2d& c = st.main.covariance_px2;
-  if (!(c.determinant() > 0.0)) return false;
-  return d.dot(c.inverse() * d) > kModelShiftChi2;
+  return beyond_noise(st.candidate, predicted, st.main.covariance_px2);
 }
 
 void FeatureTracker::Impl::check_neighbours() {
@@ -233,9 +237,7 @@ void FeatureTracker::Impl::take_second_opinions() {
       match_track(o.index, o.predicted, &w);
       const double tie = correlation_tie(first.match.zncc, st.subset, settings.main_match.prefilter_sigma_px);
       // A second match within the first's noise of it changes nothing worth recording.
-      const Eigen::Vector2d moved(st.candidate.x - first.candidate.x, st.candidate.y - first.candidate.y);
-      const bool elsewhere = first.main.covariance_px2.determinant() > 0.0 &&
-                             moved.dot(first.main.covariance_px2.inverse() * moved) > kModelShiftChi2;
+      const bool elsewhere = beyond_noise(first.candidate, st.candidate, first.main.covariance_px2);
       if (st.matched && !st.suspect && elsewhere && st.match.zncc >= first.match.zncc - tie)
         adopted[static_cast<std::size_t>(k)] = 1;
       else
