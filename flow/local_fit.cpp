@@ -145,7 +145,12 @@ class PolynomialAccumulator {
     }
     energy_ += s.displacement_px.dot(wd);
     ++count_;
-    // Overlapping subsets share noise in proportion to their overlap.
+    count_overlap(s);
+  }
+
+  // Overlapping subsets share noise in proportion to their overlap.
+  void count_overlap(const Sample& s) {
+    const double dx = s.reference_px.x - centre_.x, dy = s.reference_px.y - centre_.y;
     correlation_ += std::max(0.0, 1.0 - std::abs(dx) / side_) * std::max(0.0, 1.0 - std::abs(dy) / side_);
   }
 
@@ -216,6 +221,15 @@ struct FrameFit {
   int count = 0;
   double min_x = 0.0, min_y = 0.0, max_x = 0.0, max_y = 0.0;  // the matches' bounding box
   AffineAccumulator::Solution solution;
+  // Each component's own affine fit, weighted by that component's variances alone: where the other
+  // component is not affine, the joint fit's correlated weights carry that misfit into this one.
+  struct ComponentFit {
+    bool valid = false;
+    Eigen::Vector3d theta = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d inverse = Eigen::Matrix3d::Zero();
+    double rss = 0.0;  // residual χ² in the component's own variances
+  };
+  std::array<ComponentFit, 2> components;
 
   FrameFit(const std::vector<Sample>& samples, double correlation_side_px) {
     double sx = 0.0, sy = 0.0, extent = 1.0;
@@ -243,6 +257,44 @@ struct FrameFit {
     for (const Sample& s : samples)
       if (s.usable) all.add(s);
     valid = all.solve_all(solution, true);
+    if (valid)
+      for (int c = 0; c < 2; ++c) components[static_cast<std::size_t>(c)] = component_fit(samples, c);
+  }
+
+  Eigen::Vector3d basis(Vec2 X) const {
+    return {1.0, (X.x - centre.x) / scale_px, (X.y - centre.y) / scale_px};
+  }
+
+  ComponentFit component_fit(const std::vector<Sample>& samples, int c) const {
+    ComponentFit fit;
+    Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+    double energy = 0.0;
+    for (const Sample& s : samples)
+      if (s.usable) {
+        const Eigen::Vector3d a = basis(s.reference_px);
+        const double w = 1.0 / s.covariance_px2(c, c), d = s.displacement_px(c);
+        normal += w * a * a.transpose();
+        rhs += w * d * a;
+        energy += w * d * d;
+      }
+    const Eigen::LLT<Eigen::Matrix3d> llt(normal);
+    if (llt.info() != Eigen::Success || !(llt.rcond() > 1e-10)) return fit;
+    fit.theta = llt.solve(rhs);
+    fit.inverse = llt.solve(Eigen::Matrix3d::Identity());
+    fit.rss = std::max(0.0, energy - fit.theta.dot(rhs));
+    fit.valid = fit.theta.allFinite() && fit.inverse.allFinite();
+    return fit;
+  }
+
+  // Component c's own fit at X and its variance for independent matches.
+  bool component_at(Vec2 X, int c, double& value, double& variance) const {
+    const ComponentFit& fit = components[static_cast<std::size_t>(c)];
+    if (!fit.valid) return false;
+    const Eigen::Vector3d a = basis(X);
+    value = a.dot(fit.theta);
+    variance = a.dot(fit.inverse * a);
+    return true;
   }
 
   // How far from X the frame's matches reach: the window the frame's fit covers, seen from X.
@@ -273,11 +325,69 @@ struct Estimate {
   Eigen::Matrix2d covariance;
 };
 
+// The χ² bound with one degree of freedom that has the same tail probability as `chi2_2` with two
+// (9.21 → 6.63): P(χ²₁ > x) = erfc(√(x / 2)), P(χ²₂ > c) = exp(−c / 2).
+double one_component_bound(double chi2_2) {
+  const double tail = std::exp(-0.5 * chi2_2);
+  double low = 0.0, high = 200.0;
+  for (int i = 0; i < 60; ++i) {
+    const double mid = 0.5 * (low + high);
+    (std::erfc(std::sqrt(0.5 * mid)) > tail ? low : high) = mid;
+  }
+  return 0.5 * (low + high);
+}
+
+// Where the joint windows stop, each component alone against the frame's fit of that component (see
+// local_fit.hpp): kept when that fit's residuals are noise and it agrees with every finer estimate of the
+// component, in the component's own variance. `shared`: how many matches' noise the track's shares.
+// `bound`: one_component_bound of the options' agreement χ².
+void extend_components_to_frame(const FrameFit& frame, const Sample& own, const std::vector<Estimate>& finer,
+                                double shared, double bound, const LocalFitOptions& options, LocalFit& out) {
+  const LocalFit joint_fit = out;
+  const Eigen::Matrix2d joint = out.covariance_px2;
+  bool extended = false;
+  for (int c = 0; c < 2; ++c) {
+    double value = 0.0, variance = 0.0, chi2 = 0.0;
+    const FrameFit::ComponentFit& fit = frame.components[static_cast<std::size_t>(c)];
+    if (!frame.component_at(own.reference_px, c, value, variance) ||
+        !residuals_are_noise(fit.rss, frame.count - 3, shared, options.residual_quantile_z, chi2))
+      continue;
+    variance *= shared;
+    const bool agrees = std::all_of(finer.begin(), finer.end(), [&](const Estimate& e) {
+      return (value - e.value(c)) * (value - e.value(c)) <= bound * e.covariance(c, c);
+    });
+    if (!agrees) continue;
+    (c == 0 ? out.displacement_px.x : out.displacement_px.y) = value;
+    out.covariance_px2(c, c) = variance;
+    out.component_radius_px[static_cast<std::size_t>(c)] = frame.reach_px(own.reference_px);
+    extended = true;
+  }
+  if (!extended) return;
+  // The components now come from different fits: their correlation is kept as the joint estimate had it.
+  const double correlation = joint(0, 1) / std::sqrt(joint(0, 0) * joint(1, 1));
+  out.covariance_px2(0, 1) = out.covariance_px2(1, 0) =
+      std::isfinite(correlation)
+          ? correlation * std::sqrt(out.covariance_px2(0, 0) * out.covariance_px2(1, 1))
+          : 0.0;
+  // The two components together still agree with every finer estimate, as a joint window must.
+  const Eigen::Vector2d reported(out.displacement_px.x, out.displacement_px.y);
+  double worst = 0.0;
+  for (const Estimate& e : finer) worst = std::max(worst, mahalanobis2_of(reported - e.value, e.covariance));
+  if (!(worst <= options.agreement_chi2)) {
+    out = joint_fit;
+    return;
+  }
+  out.agreement_chi2 = worst;
+  out.own_mahalanobis2 = mahalanobis2_of(reported - own.displacement_px, own.covariance_px2);
+}
+
 // The widest window that agrees with every finer estimate and whose residuals are noise, for match i; the
-// local fits have K basis functions per component.
+// local fits have K basis functions per component. Where the joint windows stop, each component is tried
+// alone against the frame's fit of it (LocalFitOptions::per_component).
 template <int K>
 LocalFit fit_one(const std::vector<Sample>& samples, std::size_t i, const CellIndex& index,
-                 const FrameFit* frame, const LocalFitOptions& options, NeighbourBuffers& buffers) {
+                 const FrameFit* frame, double component_bound, const LocalFitOptions& options,
+                 NeighbourBuffers& buffers) {
   const Sample& own = samples[i];
   LocalFit out;
   out.displacement_px = {own.displacement_px.x(), own.displacement_px.y()};
@@ -301,6 +411,7 @@ LocalFit fit_one(const std::vector<Sample>& samples, std::size_t i, const CellIn
                         double chi2) {
     out.window = window;
     out.radius_px = radius_px;
+    out.component_radius_px = {radius_px, radius_px};
     out.tracks = tracks;
     out.displacement_px = {fit.value.x(), fit.value.y()};
     out.covariance_px2 = fit.covariance;
@@ -310,34 +421,46 @@ LocalFit fit_one(const std::vector<Sample>& samples, std::size_t i, const CellIn
     finer.push_back(fit);
   };
   const int windows = static_cast<int>(options.radii_px.size());
+  bool stopped = false;
   for (int w = 0; w < windows; ++w) {
     const double r2 =
         options.radii_px[static_cast<std::size_t>(w)] * options.radii_px[static_cast<std::size_t>(w)];
-    while (next < near.size() && near[next].first <= r2)
-      accumulator.add(samples[static_cast<std::size_t>(near[next++].second)]);
+    // Once the joint windows have stopped, the wider ones only count the noise the frame's fit shares.
+    for (; next < near.size() && near[next].first <= r2; ++next) {
+      const Sample& s = samples[static_cast<std::size_t>(near[next].second)];
+      if (stopped)
+        accumulator.count_overlap(s);
+      else
+        accumulator.add(s);
+    }
     typename PolynomialAccumulator<K>::Solution solution;
-    if (accumulator.count() < min_tracks || !accumulator.solve_all(solution)) continue;
+    if (stopped || accumulator.count() < min_tracks || !accumulator.solve_all(solution)) continue;
     // A mean over n matches that share noise is quieter than n independent ones by the overlap it counts.
     const double shared =
         std::clamp(accumulator.shared_noise(), 1.0, static_cast<double>(accumulator.count()));
     const Estimate fit{solution.theta.template head<2>(), shared * solution.centre_covariance};
     double chi2 = 0.0, worst = 0.0;
-    if (!residuals_are_noise(solution.rss, solution.dof, shared, options.residual_quantile_z, chi2))
-      return out;
-    if (!agrees(fit, worst)) return out;
-    take(fit, w, options.radii_px[static_cast<std::size_t>(w)], accumulator.count(), worst, chi2);
+    stopped = !residuals_are_noise(solution.rss, solution.dof, shared, options.residual_quantile_z, chi2) ||
+              !agrees(fit, worst);
+    if (!stopped)
+      take(fit, w, options.radii_px[static_cast<std::size_t>(w)], accumulator.count(), worst, chi2);
   }
-  if (out.window != windows - 1 || frame == nullptr || !frame->valid) return out;
+  if (frame == nullptr || !frame->valid) return out;
   const double shared = std::clamp(accumulator.shared_noise(), 1.0, static_cast<double>(frame->count));
-  Estimate fit;
-  frame->at(own.reference_px, fit.value, fit.covariance);
-  fit.covariance *= shared;
-  double chi2 = 0.0, worst = 0.0;
-  if (!residuals_are_noise(frame->solution.rss, frame->solution.dof, shared, options.residual_quantile_z,
-                           chi2))
-    return out;
-  if (!agrees(fit, worst)) return out;
-  take(fit, windows, frame->reach_px(own.reference_px), frame->count, worst, chi2);
+  if (!stopped && out.window == windows - 1) {
+    Estimate fit;
+    frame->at(own.reference_px, fit.value, fit.covariance);
+    fit.covariance *= shared;
+    double chi2 = 0.0, worst = 0.0;
+    if (residuals_are_noise(frame->solution.rss, frame->solution.dof, shared, options.residual_quantile_z,
+                            chi2) &&
+        agrees(fit, worst)) {
+      take(fit, windows, frame->reach_px(own.reference_px), frame->count, worst, chi2);
+      return out;
+    }
+  }
+  if (options.per_component)
+    extend_components_to_frame(*frame, own, finer, shared, component_bound, options, out);
   return out;
 }
 
@@ -352,14 +475,16 @@ std::vector<LocalFit> choose_local_fits(const std::vector<OwnMatch>& matches,
   // Cells of half the widest radius: the 5 × 5 cells scanned cover 6.25 r² for a disc of 3.14 r².
   const CellIndex index(samples, std::max(1.0, 0.5 * reach));
   const FrameFit frame(samples, options.correlation_side_px);
+  const double component_bound = one_component_bound(options.agreement_chi2);
+  const FrameFit* whole_frame = options.whole_frame ? &frame : nullptr;
   cv::parallel_for_(cv::Range(0, static_cast<int>(matches.size())), [&](const cv::Range& range) {
     NeighbourBuffers buffers;
     for (int i = range.start; i < range.end; ++i)
-      fits[static_cast<std::size_t>(i)] =
-          options.order == 2 ? fit_one<6>(samples, static_cast<std::size_t>(i), index,
-                                          options.whole_frame ? &frame : nullptr, options, buffers)
-                             : fit_one<3>(samples, static_cast<std::size_t>(i), index,
-                                          options.whole_frame ? &frame : nullptr, options, buffers);
+      fits[static_cast<std::size_t>(i)] = options.order == 2
+                                              ? fit_one<6>(samples, static_cast<std::size_t>(i), index,
+                                                           whole_frame, component_bound, options, buffers)
+                                              : fit_one<3>(samples, static_cast<std::size_t>(i), index,
+                                                           whole_frame, component_bound, options, buffers);
   });
   return fits;
 }

@@ -11,8 +11,18 @@
 // matches inside it within their predicted noise (χ² of the residuals). A field that bends inside a window
 // shows as a disagreement between the scales or as residuals above the noise, and stops the window from
 // growing. Where no window passes, the track keeps its own match.
+//
+// Where the joint windows stop short of the whole frame, each component is tried alone against the frame's
+// affine fit of that component: a field that bends in x and is affine in y (a chirp along x) stops the
+// joint windows where x bends, while y is described by the whole frame. The component's fit is weighted by
+// its own variances (the joint fit's correlated weights would carry the other component's misfit into it)
+// and must pass the same two rules in that variance; it then reports the frame's fit
+// (`component_radius_px`). The windows in between are not tried per component: a field with a shear step
+// biases the matches' other component near the step, and a per-component window there spreads that bias
+// while the residual test, diluted over a wide window, does not see it.
 #include <Eigen/Core>
 
+#include <array>
 #include <limits>
 #include <vector>
 
@@ -41,6 +51,8 @@ struct LocalFitOptions {
   // The local fits' polynomial order: 2 (default) with the second-order terms, so a field that bends
   // smoothly is followed over wider windows before the scales disagree; 1 affine.
   int order = 2;
+  // Where the joint windows stop, each displacement component tried alone against the frame's fit of it.
+  bool per_component = true;
 };
 
 // What one track reports.
@@ -59,6 +71,12 @@ struct LocalFit {
   double own_mahalanobis2 = std::numeric_limits<double>::quiet_NaN();
   // The chosen window's residual χ² per degree of freedom (NaN for the own match).
   double residual_chi2_per_dof = std::numeric_limits<double>::quiet_NaN();
+  // The radius each component's value comes from (x, y), px: radius_px, or the frame's reach where that
+  // component alone passed the frame's fit (0: the own match).
+  std::array<double, 2> component_radius_px{0.0, 0.0};
+
+  // Whether any component reports a fit rather than the own match.
+  bool reports_fit() const { return component_radius_px[0] > 0.0 || component_radius_px[1] > 0.0; }
 };
 
 // One LocalFit per match, in order. Matches with a singular covariance take part in no fit and keep

@@ -248,6 +248,7 @@ void parse_local_fit(YamlSection& t, TrackerOptions::LocalFit& o) {
   o.max_radius_px = t.number("local_fit_max_radius_px", o.max_radius_px, 0.0, 10000.0);
   o.agreement_chi2 = t.number("local_fit_agreement_chi2", o.agreement_chi2, 0.1, 1e6);
   o.order = integer(t, "local_fit_order", o.order, 1, 2);
+  o.per_component = t.boolean("local_fit_per_component", o.per_component);
 }
 
 void parse_affine_fit(YamlSection& t, TrackerOptions::AffineFit& o) {

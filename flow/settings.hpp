@@ -148,6 +148,9 @@ struct TrackerOptions {
     // `local_fit_order`: 2 (default) fits the second-order terms as well, so a smoothly bending field (a
     // Hertz load, a chirp) is followed over wide windows without the bias an affine fit has there; 1 affine
     int order = 2;
+    // `local_fit_per_component`: true (default) tries each displacement component alone against the
+    // frame's affine fit of it where the joint windows stop (a field that bends in one component only)
+    bool per_component = true;
     void check() const;
   } local_fit;
 

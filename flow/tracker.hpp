@@ -76,8 +76,10 @@ struct Track {
   // The own match's position this frame, whatever position_px reports (NaN where the track was not matched by
   // a subset): what a model fit downstream should be given, not another model's smoothing.
   Vec2 own_position_px{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN()};
-  // For a local fit (TrackModel::kLocalFit), the radius of the window it was fitted over, px; NaN otherwise.
-  double model_window_px = std::numeric_limits<double>::quiet_NaN();
+  // For a local fit (TrackModel::kLocalFit), the radius of the window each component (x, y) was fitted over,
+  // px (0: that component is the own match's; the whole frame's fit: its reach); NaN otherwise.
+  std::array<double, 2> model_window_px{std::numeric_limits<double>::quiet_NaN(),
+                                        std::numeric_limits<double>::quiet_NaN()};
   // The own match's predicted covariance this frame, px² (xx, xy, yy; flow/model_check.hpp); NaN where the
   // track was not matched by a subset (unrefined tracking, a frame whose match failed).
   std::array<double, 3> covariance_px2{std::numeric_limits<double>::quiet_NaN(),
@@ -116,6 +118,7 @@ struct FrameStats {
   int fused = 0;            // tracks reporting the neighbour fusion's position
   int fusion_declined = 0;  // tracks whose fused position lay outside their own match's noise: own match
   int local_fit = 0;        // tracks reporting a local fit of their neighbours' matches (flow/local_fit.hpp)
+  int local_fit_by_component = 0;  // of those, tracks whose two components come from different windows
 };
 
 // Frame 0's sizing of the main subsets for the moving frame's affine test (docs/flow.md, "Frame 0"): the

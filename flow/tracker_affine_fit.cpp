@@ -162,7 +162,7 @@ void FeatureTracker::Impl::place_on_affine_fit(const RestTest& test, const std::
     t.gradient = gradient;
     t.model = TrackModel::kAffineFit;
     t.model_mahalanobis2 = d2;
-    t.model_window_px = std::numeric_limits<double>::quiet_NaN();
+    t.model_window_px = {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN()};
     ++stats.on_affine_fit;
   }
   const auto reporting = [this](TrackModel model) {

@@ -332,7 +332,7 @@ void FeatureTracker::Impl::finish_frame() {
     t.position_px = st.candidate;
     t.model = st.model;
     t.model_mahalanobis2 = st.model_mahalanobis2;
-    t.model_window_px = std::numeric_limits<double>::quiet_NaN();
+    t.model_window_px = {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN()};
     const double nan = std::numeric_limits<double>::quiet_NaN();
     const Eigen::Matrix2d& c = st.own.covariance_px2;
     t.covariance_px2 = st.own_valid ? std::array<double, 3>{c(0, 0), c(0, 1), c(1, 1)}

@@ -20,6 +20,7 @@ LocalFitOptions FeatureTracker::Impl::local_fit_options() const {
   if (o.radii_px.empty() || o.radii_px.back() < largest) o.radii_px.push_back(largest);
   o.agreement_chi2 = settings.local_fit.agreement_chi2;
   o.order = settings.local_fit.order;
+  o.per_component = settings.local_fit.per_component;
   const int radius = settings.rounds.enabled
                          ? std::max(settings.main_match.subset_radius_px, settings.rounds.subset_radius_px)
                          : settings.main_match.subset_radius_px;
@@ -46,7 +47,9 @@ void FeatureTracker::Impl::report_local_fits() {
   for (std::size_t k = 0; k < fits.size(); ++k) {
     const LocalFit& fit = fits[k];
     Track& t = tracks[static_cast<std::size_t>(members[k])];
-    if (fit.window < 0 || t.model == TrackModel::kRestFit || (low_snr && t.model == TrackModel::kFused))
+    // A component alone never replaces a position that is not the own match (a fused track keeps it).
+    if (fit.window < 0 && t.model != TrackModel::kOwnMatch) continue;
+    if (!fit.reports_fit() || t.model == TrackModel::kRestFit || (low_snr && t.model == TrackModel::kFused))
       continue;
     const OwnMatch& own = matches[k];
     const Vec2 position{own.reference_px.x + fit.displacement_px.x,
@@ -55,7 +58,8 @@ void FeatureTracker::Impl::report_local_fits() {
     t.position_px = position;
     t.model = TrackModel::kLocalFit;
     t.model_mahalanobis2 = fit.own_mahalanobis2;
-    t.model_window_px = fit.radius_px;
+    t.model_window_px = fit.component_radius_px;
+    if (fit.component_radius_px[0] != fit.component_radius_px[1]) ++stats.local_fit_by_component;
     ++stats.local_fit;
   }
 }

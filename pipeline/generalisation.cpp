@@ -142,25 +142,27 @@ const std::vector<std::string>& generalisation_presets() {
                                                  "auto_no_affine_fit",
                                                  "auto_no_local_fit",
                                                  "auto_own_matches",
-                                                 "auto_low_snr"};
+                                                 "auto_low_snr",
+                                                 "auto_joint_windows"};
   return names;
 }
 
 flow::TrackerOptions generalisation_settings(const std::string& preset) {
   const bool no_rest = preset == "auto_no_rest", no_local_fit = preset == "auto_no_local_fit",
              no_affine = preset == "auto_no_affine_fit", low_snr = preset == "auto_low_snr",
-             own_matches = preset == "auto_own_matches";
-  const bool variant = no_rest || no_local_fit || no_affine || low_snr || own_matches;
+             own_matches = preset == "auto_own_matches", joint_windows = preset == "auto_joint_windows";
+  const bool variant = no_rest || no_local_fit || no_affine || low_snr || own_matches || joint_windows;
   if (!variant && preset != "auto" && preset != "delhaye2016")
     throw Error(
         "unknown generalisation configuration '" + preset +
         "' (known: auto, delhaye2016, auto_no_rest, auto_no_affine_fit, auto_no_local_fit, auto_own_matches, "
-        "auto_low_snr)");
+        "auto_low_snr, auto_joint_windows)");
   flow::TrackerOptions settings = flow::parse_tracking_options(Scene{}, variant ? "auto" : preset);
   settings.births.enabled = false;
   if (no_rest) settings.rest.average_frames = 1;
   if (no_affine || own_matches) settings.affine_fit.enabled = false;
   if (no_local_fit || own_matches) settings.local_fit.enabled = false;
+  if (joint_windows) settings.local_fit.per_component = false;
   // Ridged texture of any SNR takes the low-SNR path (docs/flow.md, "Frame 0").
   if (low_snr) settings.texture.min_quadratic_snr = 1e6;
   return settings;

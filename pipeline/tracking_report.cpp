@@ -36,6 +36,7 @@ nlohmann::json tracking_settings_json(const flow::TrackerOptions& s) {
       {"local_fit", s.local_fit.enabled},
       {"local_fit_agreement_chi2", s.local_fit.agreement_chi2},
       {"local_fit_order", s.local_fit.order},
+      {"local_fit_per_component", s.local_fit.per_component},
       {"affine_fit", s.affine_fit.enabled},
       {"affine_fit_max_chi2_per_dof", s.affine_fit.max_chi2_per_dof},
       {"affine_fit_max_correlation_z", s.affine_fit.max_correlation_z},

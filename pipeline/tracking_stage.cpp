@@ -51,7 +51,7 @@ struct TrackRow {
   // What each position is (flow::TrackModel) and the statistic that let a model stand in for the match.
   std::vector<std::uint8_t> model;
   std::vector<float> model_mahalanobis2;
-  std::vector<float> model_window_px;  // a local fit's window radius, px (NaN for other positions)
+  std::vector<float> model_window_px;  // per column x 2: a local fit's window radius per component, px (NaN)
   std::vector<float> inside_fraction;  // share of the match's subset inside the contact
   std::vector<float> covariance_px2;   // per column x 3: the own match's, xx xy yy
 };
@@ -60,7 +60,8 @@ struct TrackRow {
 struct TrackColumn {
   std::vector<double> position_px;     // N x 2
   std::vector<double> covariance_px2;  // N x 3
-  std::vector<double> model, model_mahalanobis2, model_window_px;
+  std::vector<double> model, model_mahalanobis2;
+  std::vector<double> model_window_px;  // N x 2
 };
 
 class TrackingStage final : public Stage {
@@ -126,7 +127,8 @@ class TrackingStage final : public Stage {
     a.layout(sizeof(TrackFrame), "tracking record");
     a(reference_normalization_, reference_has_ellipse_, reference_row_, reference_frame_index_, frames_,
       tracker_rows_, track_s_, tracked_frames_, plate_frames_not_matched_, rest_frames_averaged_,
-      rest_frames_on_fit_, affine_fit_frames_, model_track_frames_, fusion_declined_, smoothing_declined_);
+      rest_frames_on_fit_, affine_fit_frames_, model_track_frames_, local_fit_by_component_, fusion_declined_,
+      smoothing_declined_);
   }
 
   // Smoothing in time (flow/temporal_smoothing.hpp) once the trial is complete, where the settings in effect
@@ -253,6 +255,8 @@ class TrackingStage final : public Stage {
         {"own_match", model_track_frames_[0]}, {"fused", model_track_frames_[1]},
         {"rest_fit", model_track_frames_[2]},  {"smoothed_in_time", model_track_frames_[3]},
         {"local_fit", model_track_frames_[4]}, {"affine_fit", model_track_frames_[5]}};
+    // Of the local-fit track-frames, those whose x and y come from different windows (flow/local_fit.hpp).
+    s["local_fit_by_component_track_frames"] = local_fit_by_component_;
     s["fusion_declined_track_frames"] = fusion_declined_;
     s["smoothing_declined_track_frames"] = smoothing_declined_;
     s["tracks_total"] = tracker_ ? tracker_->tracks().size() : 0;
@@ -363,11 +367,14 @@ class TrackingStage final : public Stage {
         row.position_px.insert(row.position_px.end(), {t.position_px.x, t.position_px.y});
         row.model.push_back(static_cast<std::uint8_t>(t.model));
         row.model_mahalanobis2.push_back(static_cast<float>(t.model_mahalanobis2));
-        row.model_window_px.push_back(static_cast<float>(t.model_window_px));
+        for (std::size_t c = 0; c < 2; ++c)
+          row.model_window_px.push_back(static_cast<float>(t.model_window_px[c]));
         row.inside_fraction.push_back(static_cast<float>(t.subset_inside_fraction));
         for (std::size_t c = 0; c < 3; ++c)
           row.covariance_px2.push_back(static_cast<float>(t.covariance_px2[c]));
         ++model_track_frames_[static_cast<std::size_t>(t.model)];
+        if (t.model == flow::TrackModel::kLocalFit && t.model_window_px[0] != t.model_window_px[1])
+          ++local_fit_by_component_;
         ++record.alive;
         if (t.status == flow::TrackStatus::kBorn && frame > 0) ++record.born;
       } else {
@@ -375,7 +382,7 @@ class TrackingStage final : public Stage {
         row.position_px.insert(row.position_px.end(), {kNaN, kNaN});
         row.model.push_back(0);
         row.model_mahalanobis2.push_back(kNaNf);
-        row.model_window_px.push_back(kNaNf);
+        row.model_window_px.insert(row.model_window_px.end(), {kNaNf, kNaNf});
         row.inside_fraction.push_back(kNaNf);
         row.covariance_px2.insert(row.covariance_px2.end(), {kNaNf, kNaNf, kNaNf});
         ++record.retired;
@@ -398,8 +405,8 @@ class TrackingStage final : public Stage {
                       std::uint8_t{0});
     out.write_columns("/tracks/model_mahalanobis2", r, columns,
                       std::span<const float>(row.model_mahalanobis2), {k}, kNaNf);
-    out.write_columns("/tracks/model_window_px", r, columns, std::span<const float>(row.model_window_px), {k},
-                      kNaNf);
+    out.write_columns("/tracks/model_window_px", r, columns, std::span<const float>(row.model_window_px),
+                      {k, 2}, kNaNf);
     out.write_columns("/tracks/covariance_px2", r, columns, std::span<const float>(row.covariance_px2),
                       {k, 3}, kNaNf);
     out.write_columns("/tracks/subset_inside_fraction", r, columns,
@@ -468,11 +475,15 @@ class TrackingStage final : public Stage {
     p[0] = smoothed.x;
     p[1] = smoothed.y;
     --model_track_frames_[static_cast<std::size_t>(column.model[row])];
+    if (column.model[row] == static_cast<double>(flow::TrackModel::kLocalFit) &&
+        column.model_window_px[2 * row] != column.model_window_px[2 * row + 1])
+      --local_fit_by_component_;
     ++model_track_frames_[static_cast<std::size_t>(flow::TrackModel::kSmoothedInTime)];
     column.model[row] = static_cast<double>(flow::TrackModel::kSmoothedInTime);
     // Stored as float, as the tracker's own statistic is.
     column.model_mahalanobis2[row] = static_cast<double>(static_cast<float>(d2));
-    column.model_window_px[row] = std::numeric_limits<double>::quiet_NaN();
+    column.model_window_px[2 * row] = column.model_window_px[2 * row + 1] =
+        std::numeric_limits<double>::quiet_NaN();
     return true;
   }
 
@@ -485,7 +496,7 @@ class TrackingStage final : public Stage {
     c.covariance_px2 = out_->read_block("/tracks/covariance_px2", {0, k, 0}, {n, 1, 3});
     c.model = out_->read_block("/tracks/model", {0, k}, {n, 1});
     c.model_mahalanobis2 = out_->read_block("/tracks/model_mahalanobis2", {0, k}, {n, 1});
-    c.model_window_px = out_->read_block("/tracks/model_window_px", {0, k}, {n, 1});
+    c.model_window_px = out_->read_block("/tracks/model_window_px", {0, k, 0}, {n, 1, 2});
     return c;
   }
 
@@ -494,7 +505,7 @@ class TrackingStage final : public Stage {
     out_->write_block("/tracks/position_px", {0, k, 0}, {n, 1, 2}, c.position_px);
     out_->write_block("/tracks/model", {0, k}, {n, 1}, c.model);
     out_->write_block("/tracks/model_mahalanobis2", {0, k}, {n, 1}, c.model_mahalanobis2);
-    out_->write_block("/tracks/model_window_px", {0, k}, {n, 1}, c.model_window_px);
+    out_->write_block("/tracks/model_window_px", {0, k, 0}, {n, 1, 2}, c.model_window_px);
   }
 
   // Each track's runs of consecutive alive rows, x and y apart, smoothed with their own noise level; the
@@ -578,6 +589,7 @@ class TrackingStage final : public Stage {
   std::int64_t rest_frames_on_fit_ = 0;
   std::int64_t affine_fit_frames_ = 0;
   std::array<std::int64_t, 6> model_track_frames_{};
+  std::int64_t local_fit_by_component_ = 0;  // local-fit track-frames whose components' windows differ
   std::int64_t fusion_declined_ = 0, smoothing_declined_ = 0;
   bool smoothed_ = false;
   std::int64_t smoothed_track_frames_ = 0;

@@ -121,6 +121,7 @@ nlohmann::json frame_json(const flow::FrameStats& s) {
                       {"at_rest", s.at_rest},
                       {"on_rest_fit", s.on_rest_fit},
                       {"local_fit", s.local_fit},
+                      {"local_fit_by_component", s.local_fit_by_component},
                       {"affine_fit", s.affine_fit},
                       {"on_affine_fit", s.on_affine_fit}};
   if (s.rest_tested) {
@@ -145,7 +146,8 @@ class TrackRun {
  public:
   explicit TrackRun(const TrackOptions& o)
       : o_(o),
-        out_(o.out, {"frame", "id", "X_px", "Y_px", "x_px", "y_px", "status", "model", "model_window_px"}) {}
+        out_(o.out, {"frame", "id", "X_px", "Y_px", "x_px", "y_px", "status", "model", "model_window_x_px",
+                     "model_window_y_px"}) {}
 
   void run() {
     open_input();
@@ -206,11 +208,13 @@ class TrackRun {
   void write_rows(int frame) {
     for (const flow::Track& t : tracker_->tracks()) {
       if (!flow::is_alive(t.status) && t.retired_frame != frame) continue;
+      const bool local_fit = t.model == flow::TrackModel::kLocalFit;
       out_.row_text({std::to_string(frame), std::to_string(t.id), format_double(t.reference_px.x),
                      format_double(t.reference_px.y), format_double(t.position_px.x),
                      format_double(t.position_px.y), std::to_string(static_cast<int>(t.status)),
                      std::to_string(static_cast<int>(t.model)),
-                     t.model == flow::TrackModel::kLocalFit ? format_double(t.model_window_px) : "0"});
+                     local_fit ? format_double(t.model_window_px[0]) : "0",
+                     local_fit ? format_double(t.model_window_px[1]) : "0"});
       if (flow::is_alive(t.status)) ++by_model_[static_cast<std::size_t>(t.model)];
     }
     frames_json_.push_back(frame_json(tracker_->stats()));
@@ -251,7 +255,8 @@ class TrackRun {
     std::cout << "positions: " << by_model_[0] << " own matches, " << by_model_[1] << " neighbour-fused, "
               << by_model_[2] << " on the rest fit, " << by_model_[5] << " on a moving frame's affine fit, "
               << by_model_[4]
-              << " on a local fit of their neighbours (track-frames; columns model and model_window_px, and "
+              << " on a local fit of their neighbours (track-frames; columns model and model_window_x_px / "
+                 "_y_px, and "
                  "the tests per frame in "
               << json_path << ")\n";
   }
@@ -280,8 +285,9 @@ void add_track_command(CLI::App& app) {
       "track",
       "Track points (or a grid) through an image sequence: pyramidal Lucas-Kanade between frames, refined\n"
       "against the first frame by subset correlation. Writes frame,id,X_px,Y_px,x_px,y_px,status,model,\n"
-      "model_window_px (model: 0 own match, 1 neighbour-fused, 2 rest fit, 4 local affine fit of the\n"
-      "neighbours' matches over a window of model_window_px radius, else 0; 5 the affine fit of a\n"
+      "model_window_x_px,model_window_y_px (model: 0 own match, 1 neighbour-fused, 2 rest fit, 4 local fit\n"
+      "of the neighbours' matches, x and y each over a window of that radius (0: that component is the own\n"
+      "match's; a component alone may take the whole frame's fit of it), else 0; 5 the affine fit of a\n"
       "moving frame; each only where a test on that frame accepted it)\n"
       "and, beside the CSV, a JSON of the settings in effect, the texture and the per-frame tests.\n"
       "Example: tirstrain track frames/ --grid 10 --out tracks.csv   (writes tracks.csv and tracks.json)");

@@ -140,6 +140,77 @@ TEST(LocalFit, SecondOrderFollowsABendingFieldWhereAnAffineFitStops) {
   EXPECT_GT(median_radius(by_second), median_radius(by_affine));
 }
 
+// Matches on a 10 px grid whose u and v noise are correlated (ρ), as a subset's are when its ridges run
+// obliquely: pinned across them, free along them.
+Field correlated_grid_field(int cols, int rows, double sigma_px, double rho,
+                            const std::function<Vec2(Vec2)>& u, unsigned seed = 11) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  Field f;
+  for (int j = 0; j < rows; ++j)
+    for (int i = 0; i < cols; ++i) {
+      const Vec2 X{10.0 * i, 10.0 * j};
+      const Vec2 d = u(X);
+      const double a = noise(rng), b = noise(rng);
+      OwnMatch m;
+      m.reference_px = X;
+      m.position_px = {X.x + d.x + sigma_px * a,
+                       X.y + d.y + sigma_px * (rho * a + std::sqrt(1 - rho * rho) * b)};
+      m.covariance_px2 << 1.0, rho, rho, 1.0;
+      m.covariance_px2 *= sigma_px * sigma_px;
+      f.matches.push_back(m);
+      f.truth.push_back(d);
+    }
+  return f;
+}
+
+TEST(LocalFit, AComponentFlatOverTheFrameTakesTheFramesFitOfItAlone) {
+  // u a 40 px wave (the joint windows stop within a few grid steps), v = 0 everywhere, the two components'
+  // noise correlated (ρ 0.7). v alone passes the frame's fit of it: its error falls to a fraction of the
+  // noise, while u, which no wide window describes, is left exactly as the joint windows gave it.
+  const double sigma = 0.02, rho = 0.7, wavelength = 40.0;
+  const Field f = correlated_grid_field(40, 20, sigma, rho, [&](Vec2 X) {
+    return Vec2{0.1 * std::sin(2.0 * std::numbers::pi * X.x / wavelength), 0.0};
+  });
+  LocalFitOptions joint = options_without_shared_noise();
+  joint.per_component = false;
+  const std::vector<LocalFit> by_joint = choose_local_fits(f.matches, joint);
+  const std::vector<LocalFit> by_component = choose_local_fits(f.matches, options_without_shared_noise());
+  const auto rms = [&](const std::vector<LocalFit>& fits, int c) {
+    double sum = 0.0;
+    for (std::size_t i = 0; i < fits.size(); ++i) {
+      const double e =
+          c == 0 ? fits[i].displacement_px.x - f.truth[i].x : fits[i].displacement_px.y - f.truth[i].y;
+      sum += e * e;
+    }
+    return std::sqrt(sum / static_cast<double>(fits.size()));
+  };
+  std::printf("wave in u, flat v: v %.4f px joint, %.4f px by component; u %.4f / %.4f px (noise %.3f)\n",
+              rms(by_joint, 1), rms(by_component, 1), rms(by_joint, 0), rms(by_component, 0), sigma);
+  EXPECT_LT(rms(by_component, 1), 0.5 * rms(by_joint, 1));
+  int v_on_frame = 0;
+  double on_frame_sum = 0.0;
+  for (std::size_t i = 0; i < by_component.size(); ++i) {
+    const LocalFit& fit = by_component[i];
+    if (fit.component_radius_px[1] > 80.0) {
+      ++v_on_frame;
+      on_frame_sum += std::pow(fit.displacement_px.y - f.truth[i].y, 2);
+    }
+    // u is never taken further than the joint windows went.
+    EXPECT_LE(fit.component_radius_px[0], 80.0);
+    EXPECT_DOUBLE_EQ(fit.displacement_px.x, by_joint[i].displacement_px.x);
+    // The pair still lies within the own match's noise, as every joint window's does.
+    if (fit.reports_fit()) {
+      EXPECT_LE(fit.own_mahalanobis2, 9.21 + 1e-9);
+    }
+  }
+  // Those whose own v lies more than about 2.2 σ off (in the correlated noise) keep it: the frame's fit
+  // would move them beyond their noise. The rest: 800 matches put the frame's fit of v within a few
+  // σ/√800 ≈ 0.0007 px.
+  EXPECT_GT(v_on_frame, 700);
+  EXPECT_LT(std::sqrt(on_frame_sum / v_on_frame), 0.1 * sigma);
+}
+
 TEST(LocalFit, StepIsNotSmearedAcrossItsEdge) {
   // Two rigid halves 0.3 px apart across y = 95: the tracks near the edge keep windows that do not reach
   // across it (or their own match); none is pulled beyond its noise.
@@ -226,11 +297,14 @@ double stretch_rms(bool local_fit, int& fitted, double& worst_distance2, bool& w
              std::pow(t.position_px.y - t.reference_px.y - u.y, 2);
       ++n;
       if (t.model != TrackModel::kLocalFit) {
-        windows_given = windows_given && std::isnan(t.model_window_px);
+        windows_given = windows_given && std::isnan(t.model_window_px[0]) && std::isnan(t.model_window_px[1]);
         continue;
       }
       ++fitted;
-      windows_given = windows_given && t.model_window_px >= 1.5 * s.seeding.grid_step_px - 1e-9;
+      // Each component's window: 0 where that component is the own match's, else at least the smallest.
+      for (double w : t.model_window_px)
+        windows_given = windows_given && (w == 0.0 || w >= 1.5 * s.seeding.grid_step_px - 1e-9);
+      windows_given = windows_given && std::max(t.model_window_px[0], t.model_window_px[1]) > 0.0;
       worst_distance2 = std::max(worst_distance2, t.model_mahalanobis2);
     }
   }
