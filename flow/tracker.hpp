@@ -39,7 +39,7 @@ namespace tirstrain::flow {
 enum class TrackStatus : std::int8_t {
   kTracked = 0,           // matched this frame
   kBorn = 1,              // born this frame (reference position mapped back through its neighbours)
-  kRecovered = 2,         // its first match disagreed with its neighbours; re-matched from their prediction
+  kRecovered = 2,         // re-matched from its neighbours' prediction (either case of docs/flow.md step 6)
   kUnchecked = 3,         // matched, but too few neighbours to check it against
   kLeftContact = 10,      // left the contact (or too little of its subset is still in contact)
   kForwardBackward = 11,  // forward–backward LK check failed (unrefined tracking)
