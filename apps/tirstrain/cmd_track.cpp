@@ -1,9 +1,10 @@
 // `tirstrain track`: tracks given points (or a grid) through any image sequence with the flow/ tracker, no
 // contact segmentation involved — for textures that are not fingerprints (speckle) and for checking the
-// tracker alone. Output: frame,id,X_px,Y_px,x_px,y_px,status,model (reference and current position; a
-// retired track appears once more, in the frame it was retired, at its last good position with the reason;
-// model: what the position is, flow::TrackModel), and beside it <out>.json: the settings in effect, the
-// texture as judged, and per frame the rest test and how many tracks a model stood in for.
+// tracker alone. Output: frame,id,X_px,Y_px,x_px,y_px,status,model,model_window_x_px,model_window_y_px
+// (reference and current position; a retired track appears once more, in the frame it was retired, at its
+// last good position with the reason; model: what the position is, flow::TrackModel; the local fit's window
+// per component), and beside it <out>.json: the settings in effect, the texture as judged, and per frame the
+// rest test and how many tracks a model stood in for.
 #include <nlohmann/json.hpp>
 
 #include <array>
