@@ -89,6 +89,7 @@ void measure_chirp(const samples::GeneralisationCase& sequence, const flow::Feat
   std::vector<Vec2> X;
   std::vector<double> u_x;
   ErrorSums long_waves;
+  double long_u2 = 0.0;
   for (const flow::Track& t : tracker.tracks()) {
     if (!flow::is_alive(t.status)) continue;
     X.push_back(t.reference_px);
@@ -96,12 +97,14 @@ void measure_chirp(const samples::GeneralisationCase& sequence, const flow::Feat
     if (sequence.chirp_wavelength_px(t.reference_px.x) >= options.long_wave_radii * result.radius_px) {
       const Vec2 u = sequence.field(t.reference_px, last).displacement_px;
       long_waves.add({t.position_px.x - t.reference_px.x - u.x, t.position_px.y - t.reference_px.y - u.y});
+      long_u2 += std::pow(t.position_px.x - t.reference_px.x - u.x, 2);
     }
   }
   result.chirp = chirp_resolution(sequence, X, u_x, options.min_gain);
   result.resolution_px = result.chirp.resolved_wavelength_px;
   result.resolution_radii = result.resolution_px / result.radius_px;
   result.long_wave_rms_px = long_waves.rms();
+  result.long_wave_u_rms_px = long_waves.n ? std::sqrt(long_u2 / long_waves.n) : kNaN;
   if (!result.chirp.windows.empty()) {
     result.longest_wavelength_px = result.chirp.windows.front().wavelength_px;
     result.longest_gain = result.chirp.windows.front().gain;

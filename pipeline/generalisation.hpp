@@ -72,7 +72,8 @@ struct GeneralisationResult {
   double edge_band_px = 0.0;
   double resolution_px = std::numeric_limits<double>::quiet_NaN();  // chirp only
   double resolution_radii = std::numeric_limits<double>::quiet_NaN();
-  double long_wave_rms_px = std::numeric_limits<double>::quiet_NaN();  // chirp only
+  double long_wave_rms_px = std::numeric_limits<double>::quiet_NaN();    // chirp only: |error vector|
+  double long_wave_u_rms_px = std::numeric_limits<double>::quiet_NaN();  // chirp only: its component u
   // The chirp's longest window (the first of chirp.windows) and its gain: where the resolution is nan
   // (no window reaches the threshold), how much of the longest wavelength the frame holds is reproduced.
   double longest_wavelength_px = std::numeric_limits<double>::quiet_NaN();

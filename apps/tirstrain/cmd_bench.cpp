@@ -209,9 +209,9 @@ void write_plot(const std::vector<Row>& rows, const std::string& path) {
 }
 
 void print_generalisation_header() {
-  std::printf("%-15s %-11s %6s %-11s %6s %8s %8s %8s %8s %6s %8s %7s %7s %8s %4s %6s %8s\n", "case",
+  std::printf("%-15s %-11s %6s %-11s %6s %8s %8s %8s %8s %6s %8s %7s %7s %8s %8s %4s %6s %8s\n", "case",
               "texture", "noise%", "preset", "alive", "rms_px", "edge_px", "bias_px", "max_px", ">1px",
-              "res_px", "res_r", "gain_l", "long_px", "rest", "affine", "ms/frame");
+              "res_px", "res_r", "gain_l", "long_px", "long_u", "rest", "affine", "ms/frame");
 }
 
 // The chirp's resolution: its wavelength, or ">L" when not even the longest window L reaches the gain.
@@ -228,23 +228,42 @@ std::string resolution_cell(const pipeline::GeneralisationResult& r) {
 
 void print_generalisation_row(const pipeline::GeneralisationResult& r) {
   std::printf(
-      "%-15s %-11s %6.1f %-11s %6.0f %8.4f %8.4f %8.4f %8.3f %6d %8s %7.2f %7.3f %8.4f %4d %6d %8.1f\n",
+      "%-15s %-11s %6.1f %-11s %6.0f %8.4f %8.4f %8.4f %8.3f %6d %8s %7.2f %7.3f %8.4f %8.4f %4d %6d %8.1f\n",
       r.field.c_str(), r.texture.c_str(), 100.0 * r.noise_fraction, r.preset.c_str(), r.alive_mean, r.rms_px,
       r.edge_rms_px, r.bias_px, r.max_px, r.over_1px, resolution_cell(r).c_str(), r.resolution_radii,
-      r.longest_gain, r.long_wave_rms_px, r.rest_frames, r.affine_fit_frames, r.ms_per_frame);
+      r.longest_gain, r.long_wave_rms_px, r.long_wave_u_rms_px, r.rest_frames, r.affine_fit_frames,
+      r.ms_per_frame);
   std::fflush(stdout);
 }
 
 void write_generalisation_csv(const std::vector<pipeline::GeneralisationResult>& results,
                               const fs::path& out) {
-  static const std::vector<std::string> columns = {
-      "case",         "texture",          "noise_fraction",   "preset",
-      "width_px",     "height_px",        "frames",           "seeded",
-      "alive_mean",   "rms_px",           "edge_rms_px",      "interior_rms_px",
-      "edge_band_px", "bias_px",          "max_px",           "over_1px",
-      "radius_px",    "resolution_px",    "resolution_radii", "longest_wavelength_px",
-      "longest_gain", "long_wave_rms_px", "rest_frames",      "affine_fit_frames",
-      "ms_per_frame"};
+  static const std::vector<std::string> columns = {"case",
+                                                   "texture",
+                                                   "noise_fraction",
+                                                   "preset",
+                                                   "width_px",
+                                                   "height_px",
+                                                   "frames",
+                                                   "seeded",
+                                                   "alive_mean",
+                                                   "rms_px",
+                                                   "edge_rms_px",
+                                                   "interior_rms_px",
+                                                   "edge_band_px",
+                                                   "bias_px",
+                                                   "max_px",
+                                                   "over_1px",
+                                                   "radius_px",
+                                                   "resolution_px",
+                                                   "resolution_radii",
+                                                   "longest_wavelength_px",
+                                                   "longest_gain",
+                                                   "long_wave_rms_px",
+                                                   "long_wave_u_rms_px",
+                                                   "rest_frames",
+                                                   "affine_fit_frames",
+                                                   "ms_per_frame"};
   CsvWriter summary((out / "generalisation.csv").string(), columns);
   for (const pipeline::GeneralisationResult& r : results)
     summary.row_text({r.field,
@@ -269,6 +288,7 @@ void write_generalisation_csv(const std::vector<pipeline::GeneralisationResult>&
                       format_double(r.longest_wavelength_px),
                       format_double(r.longest_gain),
                       format_double(r.long_wave_rms_px),
+                      format_double(r.long_wave_u_rms_px),
                       std::to_string(r.rest_frames),
                       std::to_string(r.affine_fit_frames),
                       format_double(r.ms_per_frame)});
@@ -612,8 +632,9 @@ void add_bench_command(CLI::App& app) {
       "track-frames more than 1 px off (>1px); for the chirp (u = 0.1 px sin, wavelength 1000 -> 20 px\n"
       "along x): res_px, the shortest wavelength reproduced with >= 90 % of its amplitude ('>L': not even\n"
       "the longest window L the frame holds), res_r the same in radii (the subset radius, or half the LK\n"
-      "window for delhaye2016), gain_l the gain at that longest window, long_px the RMS over wavelengths\n"
-      ">= 10 radii; rest: frames the tracker declared at rest; affine: moving frames whose affine fit\n"
+      "window for delhaye2016), gain_l the gain at that longest window, long_px the RMS of the error\n"
+      "vector over wavelengths >= 10 radii, long_u that of its component u alone; rest: frames the tracker "
+      "declared at rest; affine: moving frames whose affine fit\n"
       "stood in for the matches within their noise; ms per tracked frame\n"
       "(FeatureTracker::track).\n"
       "Writes OUT/generalisation.csv, generalisation_frames.csv (per frame) and generalisation_chirp.csv\n"
