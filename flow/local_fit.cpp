@@ -5,8 +5,11 @@
 #include <opencv2/core/utility.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <utility>
+
+#include "flow/detail/small_cholesky.hpp"
 
 namespace tirstrain::flow {
 namespace {
@@ -112,10 +115,16 @@ class CellIndex {
 // The weighted least-squares normal equations of a polynomial field in (X − X_i) / scale, built up one
 // match at a time (the window grows by adding the next nearest matches). K basis functions per component:
 // 3 for an affine field d(X) = c + B (X − X_i) / scale, 6 with the second-order terms as well.
+//
+// Entry (p, q) of the normal matrix's block for weight element w is Σ w a_p a_q, and the products a_p a_q
+// are the monomials of (u, v) up to twice the basis's degree, fewer than the pairs (15 for 21 pairs of the
+// second-order basis, 6 for 6 of the affine one). So a match adds its weights times each monomial once, and
+// the matrix is assembled from those sums when a window is solved.
 template <int K>
 class PolynomialAccumulator {
  public:
   static constexpr int kParameters = 2 * K;
+  static constexpr int kMonomials = K == 6 ? 15 : 6;
   using Matrix = Eigen::Matrix<double, kParameters, kParameters>;
   using Vector = Eigen::Matrix<double, kParameters, 1>;
 
@@ -125,24 +134,17 @@ class PolynomialAccumulator {
   void add(const Sample& s) {
     const double dx = s.reference_px.x - centre_.x, dy = s.reference_px.y - centre_.y;
     const double u = dx / scale_, v = dy / scale_;
-    const double a[6] = {1.0, u, v, u * u, u * v, v * v};
+    const double uu = u * u, uv = u * v, vv = v * v;
+    // Monomials in the order of monomial_of(): degree 0–2, then (second order) 3 and 4.
+    Eigen::Matrix<double, kMonomials, 1> m;
+    m.template head<6>() << 1.0, u, v, uu, uv, vv;
+    if constexpr (K == 6)
+      m.template tail<9>() << uu * u, uu * v, u * vv, vv * v, uu * uu, uu * uv, uu * vv, uv * vv, vv * vv;
+    moments_.col(0) += s.weight(0, 0) * m;
+    moments_.col(1) += s.weight(0, 1) * m;
+    moments_.col(2) += s.weight(1, 1) * m;
     const Eigen::Vector2d wd = s.weight * s.displacement_px;
-    const double w00 = s.weight(0, 0), w01 = s.weight(0, 1), w11 = s.weight(1, 1);
-    // The lower triangle only (the solver reads no more): a weight matrix is symmetric.
-    for (int p = 0; p < K; ++p) {
-      for (int q = 0; q < p; ++q) {
-        const double aa = a[p] * a[q];
-        normal_(2 * p, 2 * q) += aa * w00;
-        normal_(2 * p, 2 * q + 1) += aa * w01;
-        normal_(2 * p + 1, 2 * q) += aa * w01;
-        normal_(2 * p + 1, 2 * q + 1) += aa * w11;
-      }
-      const double aa = a[p] * a[p];
-      normal_(2 * p, 2 * p) += aa * w00;
-      normal_(2 * p + 1, 2 * p) += aa * w01;
-      normal_(2 * p + 1, 2 * p + 1) += aa * w11;
-      rhs_.template segment<2>(2 * p) += a[p] * wd;
-    }
+    for (int p = 0; p < K; ++p) rhs_.template segment<2>(2 * p) += m[p] * wd;
     energy_ += s.displacement_px.dot(wd);
     ++count_;
     count_overlap(s);
@@ -167,23 +169,32 @@ class PolynomialAccumulator {
     double rss = 0.0;
     int dof = 0;
   };
+  // A window whose normal matrix is not positive definite, or whose reciprocal condition number is not
+  // above 1e-10 (as Eigen's LLT estimates it), has no solution.
   bool solve_all(Solution& out, bool full_inverse = false) const {
-    const Eigen::LLT<Matrix, Eigen::Lower> llt(normal_);
-    if (llt.info() != Eigen::Success || !(llt.rcond() > 1e-10)) return false;
-    if (full_inverse) {
-      out.theta = llt.solve(rhs_);
-      out.inverse = llt.solve(Matrix::Identity());
-      out.centre_covariance = out.inverse.template topLeftCorner<2, 2>();
+    const Matrix n = normal();
+    // One solve for the parameters and the value's two columns of the inverse.
+    Eigen::Matrix<double, kParameters, 3> right = Eigen::Matrix<double, kParameters, 3>::Zero();
+    right.col(0) = rhs_;
+    right(0, 1) = 1.0;
+    right(1, 2) = 1.0;
+    detail::SmallCholesky<kParameters> cholesky;
+    if (!full_inverse && cholesky.compute(n) && cholesky.rcond_lower_bound() > 1e-10) {
+      cholesky.solve_in_place(right);
     } else {
-      // One solve for the parameters and the value's two columns of the inverse.
-      Eigen::Matrix<double, kParameters, 3> right = Eigen::Matrix<double, kParameters, 3>::Zero();
-      right.col(0) = rhs_;
-      right(0, 1) = 1.0;
-      right(1, 2) = 1.0;
-      const Eigen::Matrix<double, kParameters, 3> solved = llt.solve(right);
-      out.theta = solved.col(0);
-      out.centre_covariance = solved.template block<2, 2>(0, 1);
+      // The full inverse, or a window near the conditioning limit: Eigen's estimate decides.
+      const Eigen::LLT<Matrix, Eigen::Lower> llt(n);
+      if (llt.info() != Eigen::Success || !(llt.rcond() > 1e-10)) return false;
+      if (full_inverse) {
+        out.inverse = llt.solve(Matrix::Identity());
+        right.col(0) = llt.solve(rhs_);
+        right.template rightCols<2>() = out.inverse.template leftCols<2>();
+      } else {
+        right = llt.solve(right).eval();
+      }
     }
+    out.theta = right.col(0);
+    out.centre_covariance = right.template block<2, 2>(0, 1);
     out.rss = std::max(0.0, energy_ - out.theta.dot(rhs_));
     out.dof = 2 * count_ - kParameters;
     return out.theta.allFinite() && out.centre_covariance.allFinite() &&
@@ -193,7 +204,30 @@ class PolynomialAccumulator {
  private:
   Vec2 centre_;
   double scale_, side_;
-  Matrix normal_ = Matrix::Zero();
+  // Index into the monomials of a_p a_q (basis 1, u, v, u², uv, v²).
+  static constexpr int monomial_of(int p, int q) {
+    // Exponents of u and v of each basis function, and the monomials' index by (i, j) = exponents.
+    constexpr int eu[6] = {0, 1, 0, 2, 1, 0}, ev[6] = {0, 0, 1, 0, 1, 2};
+    constexpr int index[5][5] = {
+        {0, 2, 5, 9, 14}, {1, 4, 8, 13, -1}, {3, 7, 12, -1, -1}, {6, 11, -1, -1, -1}, {10, -1, -1, -1, -1}};
+    return index[eu[p] + eu[q]][ev[p] + ev[q]];
+  }
+  // The lower triangle of the normal matrix (the solver reads no more; a weight matrix is symmetric).
+  Matrix normal() const {
+    Matrix n = Matrix::Zero();
+    for (int p = 0; p < K; ++p)
+      for (int q = 0; q <= p; ++q) {
+        const int k = monomial_of(p, q);
+        n(2 * p, 2 * q) = moments_(k, 0);
+        n(2 * p + 1, 2 * q) = moments_(k, 1);
+        n(2 * p + 1, 2 * q + 1) = moments_(k, 2);
+        if (q < p) n(2 * p, 2 * q + 1) = moments_(k, 1);
+      }
+    return n;
+  }
+
+  // Column c: Σ w m_k over the matches, w the weight's element 00, 01 or 11.
+  Eigen::Matrix<double, kMonomials, 3> moments_ = Eigen::Matrix<double, kMonomials, 3>::Zero();
   Vector rhs_ = Vector::Zero();
   double energy_ = 0.0, correlation_ = 0.0;
   int count_ = 0;

@@ -2,6 +2,8 @@
 // where the field is affine, keeps the detail where it is not, and never moves a match beyond its noise.
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
+
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -10,6 +12,7 @@
 #include <random>
 #include <vector>
 
+#include "flow/detail/small_cholesky.hpp"
 #include "flow/local_fit.hpp"
 #include "flow/settings.hpp"
 #include "flow/tracker.hpp"
@@ -325,6 +328,42 @@ TEST(LocalFit, TrackerFlagsEveryLocalFitAndLowersTheError) {
   EXPECT_TRUE(windows_off);
   EXPECT_LE(worst_on, 9.21 + 1e-9);  // within the own match's noise, as the agreement test demands
   EXPECT_LT(on, off);
+}
+
+// The windows' 12 × 12 solver against Eigen's LLT: the same solutions, a condition bound no larger than
+// Eigen's estimate, and the same refusal of a matrix that is not positive definite.
+TEST(SmallCholesky, SolvesAsEigensLltAndBoundsItsConditionEstimate) {
+  using Matrix = Eigen::Matrix<double, 12, 12>;
+  std::mt19937 rng(11);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    // B Bᵀ with columns scaled over six decades: conditioning from good to near the windows' 1e-10 limit.
+    Matrix b;
+    for (int r = 0; r < 12; ++r)
+      for (int c = 0; c < 12; ++c) b(r, c) = normal(rng) * std::pow(10.0, -0.5 * (c % 7) * (trial % 4));
+    const Matrix a = b * b.transpose() + 1e-12 * Matrix::Identity();
+    Eigen::Matrix<double, 12, 3> right;
+    for (int r = 0; r < 12; ++r)
+      for (int c = 0; c < 3; ++c) right(r, c) = normal(rng);
+    tirstrain::flow::detail::SmallCholesky<12> small;
+    ASSERT_TRUE(small.compute(a));
+    const Eigen::LLT<Matrix, Eigen::Lower> llt(a);
+    ASSERT_EQ(llt.info(), Eigen::Success);
+    Eigen::Matrix<double, 12, 3> x = right;
+    small.solve_in_place(x);
+    const Eigen::Matrix<double, 12, 3> expected = llt.solve(right);
+    const double condition = 1.0 / llt.rcond();
+    EXPECT_LE((x - expected).norm(), 1e-13 * condition * expected.norm()) << trial;
+    EXPECT_LE(small.rcond_lower_bound(), llt.rcond() * (1.0 + 1e-12)) << trial;
+    EXPECT_GT(small.rcond_lower_bound(), 1e-3 * llt.rcond()) << trial;  // a useful bound, not a vacuous one
+  }
+  Matrix indefinite = Matrix::Identity();
+  indefinite(7, 7) = -1.0;
+  tirstrain::flow::detail::SmallCholesky<12> small;
+  EXPECT_FALSE(small.compute(indefinite));
+  Matrix not_a_number = Matrix::Identity();
+  not_a_number(3, 3) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(small.compute(not_a_number));
 }
 
 }  // namespace
