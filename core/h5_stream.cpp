@@ -28,6 +28,10 @@ static_assert(std::is_same_v<hid_t, std::int64_t>, "hid_t is a 64-bit id in the 
 // small enough that the chunks being filled (one per 64 tracks or triangles: 74 for 4700 triangles) all stay
 // in the chunk cache, so none is written half full and read back.
 constexpr std::size_t kChunkBytes = 16 * 1024;
+// Deflate's level after the shuffle filter: with the bytes of each significance grouped, the fastest level
+// leaves result.h5 about 2 % larger than level 4 while the compression, a tenth of `process`'s instructions
+// at level 4, takes a third fewer.
+constexpr unsigned kDeflateLevel = 1;
 constexpr std::size_t kChunkWidth = 64;
 constexpr std::size_t kMaxFramesPerChunk = 1024;
 // Chunk cache per open dataset: room for the partly filled chunks of one block of frames across the row
@@ -285,7 +289,7 @@ std::int64_t H5Stream::open_or_create(const std::string& name, const H5Shape& ro
     H5Pset_chunk(create, static_cast<int>(rank), chunk.data());
     H5Pset_fill_value(create, memory_type, fill);
     H5Pset_shuffle(create);
-    H5Pset_deflate(create, 4);
+    H5Pset_deflate(create, kDeflateLevel);
     ChunkCache& cache = caches_[name];
     cache.chunk_bytes = H5Tget_size(file_type);
     for (const hsize_t c : chunk) cache.chunk_bytes *= static_cast<std::size_t>(c);
@@ -665,7 +669,7 @@ void H5Stream::write_whole(const std::string& name, std::span<const T> data, con
                                    dims[0]);
     H5Pset_chunk(create, static_cast<int>(chunk.size()), chunk.data());
     H5Pset_shuffle(create);
-    H5Pset_deflate(create, 4);
+    H5Pset_deflate(create, kDeflateLevel);
   }
   Id set(H5Dcreate2(file_, name.c_str(), memory_type, space, H5P_DEFAULT, create, H5P_DEFAULT));
   if (set < 0) fail("cannot create dataset", name);
