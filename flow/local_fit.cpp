@@ -179,7 +179,9 @@ class PolynomialAccumulator {
     right(0, 1) = 1.0;
     right(1, 2) = 1.0;
     detail::SmallCholesky<kParameters> cholesky;
-    if (!full_inverse && cholesky.compute(n) && cholesky.rcond_lower_bound() > 1e-10) {
+    // The comparison bound is the cheaper test; the explicit L⁻¹ only where it is too loose.
+    if (!full_inverse && cholesky.compute(n) &&
+        (cholesky.rcond_comparison_bound() > 1e-10 || cholesky.rcond_lower_bound() > 1e-10)) {
       cholesky.solve_in_place(right);
     } else {
       // The full inverse, or a window near the conditioning limit: Eigen's estimate decides.

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
@@ -356,6 +357,8 @@ TEST(SmallCholesky, SolvesAsEigensLltAndBoundsItsConditionEstimate) {
     EXPECT_LE((x - expected).norm(), 1e-13 * condition * expected.norm()) << trial;
     EXPECT_LE(small.rcond_lower_bound(), llt.rcond() * (1.0 + 1e-12)) << trial;
     EXPECT_GT(small.rcond_lower_bound(), 1e-3 * llt.rcond()) << trial;  // a useful bound, not a vacuous one
+    // The comparison bound is never above the explicit one (on these dense random factors it is far looser).
+    EXPECT_LE(small.rcond_comparison_bound(), small.rcond_lower_bound() * (1.0 + 1e-12)) << trial;
   }
   Matrix indefinite = Matrix::Identity();
   indefinite(7, 7) = -1.0;
@@ -364,6 +367,39 @@ TEST(SmallCholesky, SolvesAsEigensLltAndBoundsItsConditionEstimate) {
   Matrix not_a_number = Matrix::Identity();
   not_a_number(3, 3) = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(small.compute(not_a_number));
+}
+
+TEST(SmallCholesky, ComparisonBoundIsCloseOnTheWindowsNormalMatrices) {
+  // A window's normal matrix as the local fit builds it: matches on a 10 px grid within radius r, the
+  // second-order basis in coordinates scaled by the widest radius (80 px), each match weighted by the inverse
+  // of a subset's covariance that is 100 times larger along its ridges than across them. On such matrices
+  // the two triangular solves bound rcond within a few times Eigen's estimate, far above the 1e-10 limit,
+  // so the cheaper test decides alone.
+  using Matrix = Eigen::Matrix<double, 12, 12>;
+  for (double radius_px : {15.0, 21.2, 30.0, 42.4, 60.0, 80.0})
+    for (double ridge_rad : {0.0, 0.7}) {
+      const Eigen::Matrix2d rotation = Eigen::Rotation2Dd(ridge_rad).toRotationMatrix();
+      const Eigen::Matrix2d weight =
+          rotation * Eigen::Vector2d(1.0 / 0.01, 1.0 / 0.0001).asDiagonal() * rotation.transpose();
+      Matrix normal = Matrix::Zero();
+      for (int i = -8; i <= 8; ++i)
+        for (int j = -8; j <= 8; ++j) {
+          const double x = 10.0 * i, y = 10.0 * j;
+          if (x * x + y * y > radius_px * radius_px) continue;
+          const double u = x / 80.0, v = y / 80.0;
+          const double basis[6] = {1.0, u, v, u * u, u * v, v * v};
+          Eigen::Matrix<double, 2, 12> a = Eigen::Matrix<double, 2, 12>::Zero();
+          for (int p = 0; p < 6; ++p) a(0, 2 * p) = a(1, 2 * p + 1) = basis[p];
+          normal += a.transpose() * weight * a;
+        }
+      tirstrain::flow::detail::SmallCholesky<12> small;
+      ASSERT_TRUE(small.compute(normal)) << radius_px;
+      const Eigen::LLT<Matrix, Eigen::Lower> llt(normal);
+      const double comparison = small.rcond_comparison_bound();
+      EXPECT_LE(comparison, small.rcond_lower_bound() * (1.0 + 1e-12)) << radius_px;
+      EXPECT_GT(comparison, 0.1 * llt.rcond()) << radius_px << " " << ridge_rad;  // measured: within ×3.3
+      EXPECT_GT(comparison, 1e-10) << radius_px;
+    }
 }
 
 }  // namespace
