@@ -13,6 +13,7 @@
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/median.hpp"
+#include "signals/hdf5_layout.hpp"
 #include "signals/spectral.hpp"
 
 namespace tirstrain::signals {
@@ -193,28 +194,23 @@ std::string implausible_length(const H5::DataSet& ds, std::size_t length, std::s
          std::to_string(static_cast<long long>(stored_bytes)) + " bytes of them (a damaged file?)";
 }
 
-// HDF5 1.10 reads a version 0/1 superblock's driver information block before checking it, allocating the
-// size it claims (gigabytes, in a damaged file). Channel files (MATLAB v7.3, h5py, HDF5's default driver)
-// never have one, so a file naming one is refused before HDF5 opens it.
-void check_superblock(const std::string& path) {
-  constexpr unsigned char kSignature[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
-  std::ifstream in(path, std::ios::binary);
-  unsigned char head[64] = {};
-  in.read(reinterpret_cast<char*>(head), sizeof head);
-  if (in.gcount() < 24 || std::memcmp(head, kSignature, 8) != 0) return;  // HDF5 judges the rest
-  const int version = head[8];
-  const int offset_bytes = head[13];
-  if (version > 1 || offset_bytes != 8) return;
-  // Version 0: base, free-space, end-of-file and driver-information addresses follow at byte 24
-  // (version 1 has 4 more bytes before them); "undefined" is all ones.
-  const std::size_t at = (version == 0 ? 24 : 28) + 3 * 8;
-  if (at + 8 > static_cast<std::size_t>(in.gcount())) return;
-  for (std::size_t k = 0; k < 8; ++k)
-    if (head[at + k] != 0xff)
-      throw Error(
-          "names a driver information block (a multi-file HDF5 driver, or a damaged superblock); "
-          "channel files use HDF5's default driver",
-          {.file = path});
+// HDF5 1.10 copies a compact dataset's samples out of its header without checking that the header holds as
+// many bytes as the shape and type need (in a damaged file it reads through a null pointer), and reads a
+// contiguous one from wherever its address points; such a dataset is damaged, not read.
+std::string damaged_storage(const H5::DataSet& ds, std::size_t length, std::size_t element_bytes,
+                            std::uintmax_t file_bytes) {
+  const double needed_bytes = static_cast<double>(length) * static_cast<double>(element_bytes);
+  const H5D_layout_t layout = ds.getCreatePlist().getLayout();
+  if (layout == H5D_COMPACT && static_cast<double>(ds.getStorageSize()) != needed_bytes)
+    return "is damaged: its compact storage holds " + std::to_string(ds.getStorageSize()) +
+           " bytes where its shape and type need " + std::to_string(static_cast<long long>(needed_bytes));
+  if (layout == H5D_CONTIGUOUS) {
+    const haddr_t offset = ds.getOffset();  // undefined when nothing was written: HDF5 reads fill values
+    if (offset != HADDR_UNDEF && static_cast<double>(offset) + needed_bytes > static_cast<double>(file_bytes))
+      return "is damaged: its samples would lie beyond the end of the file (byte " + std::to_string(offset) +
+             " + " + std::to_string(static_cast<long long>(needed_bytes)) + ")";
+  }
+  return "";
 }
 
 // The MATLAB class a v7.3 file gives a dataset ("" for other HDF5 writers).
@@ -258,7 +254,10 @@ std::string why_not_a_channel(const H5::DataSet& ds, std::uintmax_t file_bytes, 
     return "has shape " + shape + "; a channel must be a vector (one non-singleton dimension)";
   }
   if (length == 0) return "is empty";
-  return implausible_length(ds, length, element_bytes, file_bytes);
+  if (const std::string implausible = implausible_length(ds, length, element_bytes, file_bytes);
+      !implausible.empty())
+    return implausible;
+  return damaged_storage(ds, length, element_bytes, file_bytes);
 }
 
 std::vector<double> read_finite_samples(const H5::DataSet& ds, std::size_t length, const std::string& path,
@@ -333,7 +332,7 @@ ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOption
   table.path = path;
   table.time_column = options.time_column;
   table.first_data_row = -1;
-  check_superblock(path);
+  check_hdf5_layout(path);
   try {
     H5::H5File file(path, H5F_ACC_RDONLY);
     std::error_code size_error;

@@ -14,6 +14,7 @@
 #include "core/csv.hpp"
 #include "core/error.hpp"
 #include "signals/channels.hpp"
+#include "signals/hdf5_layout.hpp"
 
 namespace tirstrain::signals {
 namespace {
@@ -373,6 +374,8 @@ ChannelTable read_channels_mat(const std::string& path, const ChannelReadOptions
                     "': neither MATLAB's text header nor a version 4 matrix header); MATLAB v4, v5, v7 and "
                     "v7.3 files are read",
                 {.file = path});
+  // libmatio reads a v7.3 file through HDF5, which crashes on some damaged ones.
+  if (first_bytes.rfind("MATLAB 7.3", 0) == 0) check_hdf5_layout(path);
   MatHandle mat(Mat_Open(path.c_str(), MAT_ACC_RDONLY));
   if (!mat) {
     // A v7.3 file this matio cannot open (built without HDF5) is HDF5 inside.

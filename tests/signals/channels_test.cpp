@@ -227,6 +227,86 @@ TEST(ChannelsHdf5, DriverInformationBlockIsRefusedBeforeHdf5OpensTheFile) {
   EXPECT_NEAR(seed.sample_rate_Hz, 1000.0, 1e-3);
 }
 
+TEST(ChannelsHdf5, DamagedGroupIndexIsRefusedBeforeHdf5ReadsIt) {
+  // The root group's B-tree node names its symbol-table node at an undefined address (and its siblings
+  // outside the file): HDF5 1.10.8 reads through a null pointer listing the group.
+  const std::string path = std::string(TIRSTRAIN_SOURCE_DIR) +
+                           "/tests/fuzz/corpus/fuzz_channel_hdf5/regression-btree-child-undefined.h5";
+  const auto e = expect_error([&] { ts::read_channels(path); });
+  EXPECT_NE(std::string(e.what()).find("regression-btree-child-undefined.h5"), std::string::npos) << e.what();
+  EXPECT_NE(e.message().find("group's index is damaged"), std::string::npos) << e.what();
+  EXPECT_NE(e.message().find("the node at byte 136"), std::string::npos) << e.what();  // 0x88
+}
+
+TEST(ChannelsHdf5, CompactDatasetShorterThanItsShapeIsRefusedNotRead) {
+  // The time dataset's layout turned compact with no bytes stored for its 6 samples: HDF5 1.10.8 copies
+  // them from a null pointer.
+  const std::string path =
+      std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/regression-compact-short.h5";
+  const auto e = expect_error([&] { ts::read_channels(path); });
+  EXPECT_EQ(e.context().column, "t_s") << e.what();
+  EXPECT_NE(e.message().find("compact storage holds 0 bytes where its shape and type need 48"),
+            std::string::npos)
+      << e.what();
+}
+
+TEST(ChannelsHdf5, ContiguousSamplesBeyondTheFileAreRefusedNotReadAsZeros) {
+  // The seed with t_s's data address (bytes 906–913, in its layout message) moved to 16 bytes before the end
+  // of the file: HDF5 1.10.8 reads its 48 bytes without an error, partly from beyond the end.
+  const std::string seed =
+      std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/channels.h5";
+  std::ifstream in(seed, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::uint64_t moved = bytes.size() - 16;
+  for (int k = 0; k < 8; ++k)
+    bytes[static_cast<std::size_t>(906 + k)] = static_cast<char>((moved >> (8 * k)) & 0xff);
+  const auto path = tmp_path("moved.h5");
+  std::ofstream(path, std::ios::binary) << bytes;
+  {
+    const H5::H5File file(path, H5F_ACC_RDONLY);
+    ASSERT_EQ(file.openDataSet("t_s").getOffset(), moved);  // the patch moved what the test means to move
+  }
+  const auto e = expect_error([&] { ts::read_channels(path); });
+  EXPECT_EQ(e.context().column, "t_s") << e.what();
+  EXPECT_NE(e.message().find("would lie beyond the end of the file (byte 2128 + 48)"), std::string::npos)
+      << e.what();
+}
+
+TEST(ChannelsHdf5, GroupIndexCheckPassesAUserBlockSubgroupAndInnerNodes) {
+  // Valid files of every layout the check walks: a user block before the superblock, a subgroup, and more
+  // channels than one symbol-table node holds (2 × 4 by default), so that the group's B-tree has several
+  // leaves.
+  const auto path = tmp_path("many.h5");
+  {
+    H5::FileCreatPropList create;
+    create.setUserblock(512);
+    create.setSymk(2, 1);  // B-tree nodes of 4 children, symbol-table nodes of 2 entries
+    H5::H5File file(path, H5F_ACC_TRUNC, create);
+    H5::Group group = file.createGroup("/trial");
+    const std::vector<double> t{0.0, 0.001, 0.002, 0.003, 0.004};
+    write_vector(group, "t_s", t, {5});
+    for (int k = 0; k < 40; ++k) write_vector(group, "ch" + std::to_string(k), t, {5});
+  }
+  const auto table = ts::read_channels(path, {.hdf5_group = "/trial"});
+  EXPECT_EQ(table.names.size(), 40u);
+  EXPECT_EQ(table.samples(), 5u);
+  EXPECT_NEAR(table.sample_rate_Hz, 1000.0, 1e-6);
+  // The check does walk it: an inner node's first child turned to the superblock (address 0, after the
+  // user block) is refused, named.
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::size_t inner = std::string::npos;
+  for (std::size_t at = bytes.find("TREE"); at != std::string::npos; at = bytes.find("TREE", at + 4))
+    if (bytes[at + 4] == 0 && bytes[at + 5] > 0) inner = at;
+  ASSERT_NE(inner, std::string::npos) << "no inner B-tree node: the test's file has too few channels";
+  std::fill_n(bytes.begin() + static_cast<std::ptrdiff_t>(inner + 32), 8, '\0');
+  const auto damaged = tmp_path("damaged.h5");
+  std::ofstream(damaged, std::ios::binary) << bytes;
+  const auto e = expect_error([&] { ts::read_channels(damaged, {.hdf5_group = "/trial"}); });
+  EXPECT_NE(e.message().find("the node at byte " + std::to_string(inner)), std::string::npos) << e.what();
+  EXPECT_NE(e.message().find("which is not a B-tree node"), std::string::npos) << e.what();
+}
+
 TEST(Resample, LinearAtFrameTimesAndNoExtrapolation) {
   const std::vector<double> t{0.0, 0.001, 0.002, 0.003};
   const std::vector<double> v{1.0, 3.0, 5.0, 7.0};  // 1 + 2000 t

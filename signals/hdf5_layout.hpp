@@ -1,0 +1,15 @@
+#pragma once
+// Checks of an HDF5 file's own structure, made before HDF5 (or libmatio, for MATLAB v7.3) opens it: HDF5
+// 1.10 trusts some addresses in a damaged file and allocates gigabytes or reads through a null pointer
+// instead of reporting the damage. Each check refuses only what the format rules out for a file written by
+// HDF5's default driver; whatever it does not recognise it leaves to HDF5.
+#include <string>
+
+namespace tirstrain::signals {
+
+// Throws tirstrain::Error naming `path` when the file's superblock names a driver information block (a
+// multi-file driver or a damaged superblock), or when the B-tree of a group reachable from the root group
+// points outside the file or at something that is not a B-tree or symbol-table node.
+void check_hdf5_layout(const std::string& path);
+
+}  // namespace tirstrain::signals
