@@ -166,11 +166,12 @@ class GroupIndexWalk {
       damaged(address, "runs past the end of the file");
     for (std::uint64_t e = 0; e < count; ++e) {
       const unsigned char* entry = &b[40 * e];
-      const std::uint64_t header = le(entry + 8, 8);
-      if (sb_.absolute(header, file_.size()) == kUndefined)
+      const std::uint64_t header = le(entry + 8, 8), cache_type = le(entry + 16, 4);
+      // A soft link's entry (cache type 2) names no object header.
+      if (cache_type != 2 && sb_.absolute(header, file_.size()) == kUndefined)
         damaged(address, "names an object header at " + where(header) + ", outside the file");
       const std::uint64_t subgroup = le(entry + 24, 8);
-      if (le(entry + 16, 4) == 1 && file_.has_signature(sb_.absolute(subgroup, file_.size()), "TREE"))
+      if (cache_type == 1 && file_.has_signature(sb_.absolute(subgroup, file_.size()), "TREE"))
         tree(subgroup, depth + 1);
     }
   }

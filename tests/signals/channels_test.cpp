@@ -287,6 +287,11 @@ TEST(ChannelsHdf5, GroupIndexCheckPassesAUserBlockSubgroupAndInnerNodes) {
     write_vector(group, "t_s", t, {5});
     for (int k = 0; k < 40; ++k) write_vector(group, "ch" + std::to_string(k), t, {5});
   }
+  {
+    // A soft link's symbol-table entry names no object header (an undefined address, cache type 2).
+    H5::H5File file(path, H5F_ACC_RDWR);
+    ASSERT_GE(H5Lcreate_soft("/trial/ch0", file.getId(), "/alias_of_ch0", H5P_DEFAULT, H5P_DEFAULT), 0);
+  }
   const auto table = ts::read_channels(path, {.hdf5_group = "/trial"});
   EXPECT_EQ(table.names.size(), 40u);
   EXPECT_EQ(table.samples(), 5u);
