@@ -55,6 +55,11 @@ class FileBytes {
   std::uint64_t size_ = 0;
 };
 
+// A group's symbol-table message: where its B-tree and its local heap (the members' names) are.
+struct SymbolTable {
+  std::uint64_t btree = kUndefined, heap = kUndefined;
+};
+
 // A version 0 or 1 superblock with 8-byte addresses and lengths, the layout HDF5's default driver writes
 // unless asked for the newest format.
 struct Superblock {
@@ -63,7 +68,8 @@ struct Superblock {
   int internal_k = 0;      // a group B-tree node up to 2 internal_k children
   std::uint64_t driver_info = kUndefined;
   std::uint64_t root_header = kUndefined;  // the root group's object header
-  std::uint64_t root_btree = kUndefined;   // the root group's B-tree from its cached symbol-table entry
+  bool root_cached = false;                // whether its entry caches its symbol table (cache type 1)
+  SymbolTable root_table;                  // that cached B-tree and heap
 
   // The absolute offset of `address` in a file of `size` bytes; kUndefined when it is not in the file.
   std::uint64_t absolute(std::uint64_t address, std::uint64_t size) const {
@@ -90,48 +96,69 @@ bool find_superblock(FileBytes& file, Superblock& sb) {
     const std::size_t p = version == 0 ? 24 : 28;
     sb.driver_info = le(&b[p + 24], 8);
     sb.root_header = le(&b[p + 40], 8);
-    if (le(&b[p + 48], 4) == 1) sb.root_btree = le(&b[p + 56], 8);
+    sb.root_cached = le(&b[p + 48], 4) == 1;
+    sb.root_table = {le(&b[p + 56], 8), le(&b[p + 64], 8)};
     return true;
   }
   return false;
 }
 
-// The B-tree address of a version 1 object header's symbol-table message (kUndefined when there is none in
-// its first block: a group of the newer kind, or messages continued elsewhere).
-std::uint64_t symbol_table_btree(FileBytes& file, const Superblock& sb, std::uint64_t header) {
+// The symbol-table message of the version 1 object header at `header`; false when there is none in its
+// first block (not a group, a group of the newer kind, or messages continued elsewhere).
+bool symbol_table_message(FileBytes& file, const Superblock& sb, std::uint64_t header, SymbolTable& out) {
   std::vector<unsigned char> b;
   const std::uint64_t at_header = sb.absolute(header, file.size());
-  if (!file.read(at_header, 16, b) || b[0] != 1) return kUndefined;
+  if (!file.read(at_header, 16, b) || b[0] != 1) return false;
   const std::uint64_t messages = le(&b[2], 2), size = le(&b[8], 4);
   const std::size_t readable =
       static_cast<std::size_t>(std::min<std::uint64_t>(size, file.size() - at_header - 16));
-  if (!file.read(at_header + 16, std::min<std::size_t>(readable, 1 << 16), b)) return kUndefined;
+  if (!file.read(at_header + 16, std::min<std::size_t>(readable, 1 << 16), b)) return false;
   std::size_t at = 0;
   for (std::uint64_t m = 0; m < messages && at + 8 <= b.size(); ++m) {
     const std::uint64_t type = le(&b[at], 2), length = le(&b[at + 2], 2);
     if (at + 8 + length > b.size()) break;
-    if (type == 0x11 && length >= 16) return le(&b[at + 8], 8);
+    if (type == 0x11 && length >= 16) {
+      out = {le(&b[at + 8], 8), le(&b[at + 16], 8)};
+      return true;
+    }
     at += 8 + static_cast<std::size_t>(length);
   }
-  return kUndefined;
+  return false;
 }
 
-// Walks group B-trees from their roots, checking that every address a node holds lies in the file and
-// leads to the kind of node the format says (a B-tree node for a sibling or an inner child, a
-// symbol-table node for a leaf's child); a symbol-table entry that caches a subgroup's B-tree leads on to it.
+// Walks the groups from the root, checking that every address their indexes hold lies in the file and
+// leads to the kind of node the format says: a group's symbol-table message (and the copy its entry may
+// cache) to a group B-tree node and a local heap, a B-tree node's siblings and inner children to B-tree
+// nodes, a leaf's children to symbol-table nodes, whose entries lead on to the members.
 class GroupIndexWalk {
  public:
   GroupIndexWalk(FileBytes& file, const Superblock& sb, const std::string& path)
       : file_(file), sb_(sb), path_(path) {}
 
+  // The group or other object whose header is at `header`; `cached` the B-tree and heap its entry caches
+  // (cache type 1), if any.
+  void object(std::uint64_t header, const SymbolTable* cached, int depth) {
+    if (depth > kMaxDepth || visited_.size() >= kMaxNodes || !visited_.insert(header).second) return;
+    SymbolTable table;
+    if (symbol_table_message(file_, sb_, header, table)) group(header, table, depth);
+    if (cached != nullptr) group(header, *cached, depth);
+  }
+
+ private:
+  void group(std::uint64_t header, const SymbolTable& table, int depth) {
+    expect(header, table.heap, "HEAP");
+    expect(header, table.btree, "TREE");
+    tree(table.btree, depth);
+  }
+
   void tree(std::uint64_t address, int depth) {
     if (depth > kMaxDepth || visited_.size() >= kMaxNodes || !visited_.insert(address).second) return;
     std::vector<unsigned char> b;
     const std::uint64_t at = sb_.absolute(address, file_.size());
-    if (!file_.read(at, 24, b)) return;
+    if (!file_.read(at, 24, b)) damaged(address, "runs past the end of the file");
     const int level = b[5];
     const std::uint64_t entries = le(&b[6], 2);
-    if (b[4] != 0) return;  // not a group B-tree: HDF5 judges it
+    if (b[4] != 0) damaged(address, "is a group's B-tree node of type " + std::to_string(b[4]) + ", not 0");
     if (sb_.internal_k > 0 && entries > 2 * static_cast<std::uint64_t>(sb_.internal_k))
       damaged(address,
               "holds " + std::to_string(entries) + " entries, more than the file's node size allows");
@@ -152,7 +179,6 @@ class GroupIndexWalk {
     }
   }
 
- private:
   // A symbol-table node: its entries must lie in the file; an entry caching a group's B-tree leads on.
   void symbols(std::uint64_t address, int depth) {
     if (visited_.size() >= kMaxNodes || !visited_.insert(address).second) return;
@@ -170,9 +196,9 @@ class GroupIndexWalk {
       // A soft link's entry (cache type 2) names no object header.
       if (cache_type != 2 && sb_.absolute(header, file_.size()) == kUndefined)
         damaged(address, "names an object header at " + where(header) + ", outside the file");
-      const std::uint64_t subgroup = le(entry + 24, 8);
-      if (cache_type == 1 && file_.has_signature(sb_.absolute(subgroup, file_.size()), "TREE"))
-        tree(subgroup, depth + 1);
+      if (cache_type == 2) continue;
+      const SymbolTable cached{le(entry + 24, 8), le(entry + 32, 8)};
+      object(header, cache_type == 1 ? &cached : nullptr, depth + 1);
     }
   }
 
@@ -180,8 +206,14 @@ class GroupIndexWalk {
     if (sb_.absolute(to, file_.size()) == kUndefined)
       damaged(from, "points to " + where(to) + ", outside the file");
     if (!file_.has_signature(sb_.base + to, signature))
-      damaged(from, "points to byte " + std::to_string(sb_.base + to) + ", which is not a " +
-                        (std::strcmp(signature, "TREE") == 0 ? "B-tree node" : "symbol-table node"));
+      damaged(from,
+              "points to byte " + std::to_string(sb_.base + to) + ", which is not a " + kind_of(signature));
+  }
+
+  static std::string kind_of(const char* signature) {
+    if (std::strcmp(signature, "TREE") == 0) return "B-tree node";
+    if (std::strcmp(signature, "SNOD") == 0) return "symbol-table node";
+    return "local heap";
   }
 
   std::string where(std::uint64_t address) const {
@@ -214,11 +246,9 @@ void check_hdf5_layout(const std::string& path) {
         "names a driver information block (a multi-file HDF5 driver, or a damaged superblock); "
         "channel files use HDF5's default driver",
         {.file = path});
-  // The root group's B-tree as its object header names it and as the superblock caches it; only one that
-  // starts with a group B-tree node is walked (anything else HDF5 reports itself).
+  // The root group, as its object header describes it and as the superblock's entry may cache it.
   GroupIndexWalk walk(file, sb, path);
-  for (const std::uint64_t root : {symbol_table_btree(file, sb, sb.root_header), sb.root_btree})
-    if (file.has_signature(sb.absolute(root, file.size()), "TREE")) walk.tree(root, 0);
+  walk.object(sb.root_header, sb.root_cached ? &sb.root_table : nullptr, 0);
 }
 
 }  // namespace tirstrain::signals

@@ -8,8 +8,9 @@
 namespace tirstrain::signals {
 
 // Throws tirstrain::Error naming `path` when the file's superblock names a driver information block (a
-// multi-file driver or a damaged superblock), or when the B-tree of a group reachable from the root group
-// points outside the file or at something that is not a B-tree or symbol-table node.
+// multi-file driver or a damaged superblock), or when the index of a group reachable from the root (its
+// symbol-table message, B-tree nodes and symbol-table nodes) points outside the file or at something that
+// is not the node the format says.
 void check_hdf5_layout(const std::string& path);
 
 }  // namespace tirstrain::signals

@@ -228,14 +228,21 @@ TEST(ChannelsHdf5, DriverInformationBlockIsRefusedBeforeHdf5OpensTheFile) {
 }
 
 TEST(ChannelsHdf5, DamagedGroupIndexIsRefusedBeforeHdf5ReadsIt) {
-  // The root group's B-tree node names its symbol-table node at an undefined address (and its siblings
-  // outside the file): HDF5 1.10.8 reads through a null pointer listing the group.
-  const std::string path = std::string(TIRSTRAIN_SOURCE_DIR) +
-                           "/tests/fuzz/corpus/fuzz_channel_hdf5/regression-btree-child-undefined.h5";
-  const auto e = expect_error([&] { ts::read_channels(path); });
-  EXPECT_NE(std::string(e.what()).find("regression-btree-child-undefined.h5"), std::string::npos) << e.what();
-  EXPECT_NE(e.message().find("group's index is damaged"), std::string::npos) << e.what();
-  EXPECT_NE(e.message().find("the node at byte 136"), std::string::npos) << e.what();  // 0x88
+  // Two fuzz findings on which HDF5 1.10.8 reads through a null pointer while listing the root group:
+  // its B-tree node naming its symbol-table node at an undefined address (and its siblings and local heap
+  // overwritten), and its symbol-table message naming its B-tree and heap at undefined addresses.
+  const std::string corpus = std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/";
+  const auto child = expect_error([&] { ts::read_channels(corpus + "regression-btree-child-undefined.h5"); });
+  EXPECT_NE(std::string(child.what()).find("regression-btree-child-undefined.h5"), std::string::npos)
+      << child.what();
+  EXPECT_NE(child.message().find("group's index is damaged: the node at byte 96 points to byte 680, which is "
+                                 "not a local heap"),
+            std::string::npos)
+      << child.what();
+  const auto table = expect_error([&] { ts::read_channels(corpus + "regression-stab-btree-undefined.h5"); });
+  EXPECT_NE(table.message().find("the node at byte 96 points to an undefined address, outside the file"),
+            std::string::npos)
+      << table.what();
 }
 
 TEST(ChannelsHdf5, CompactDatasetShorterThanItsShapeIsRefusedNotRead) {
@@ -304,12 +311,25 @@ TEST(ChannelsHdf5, GroupIndexCheckPassesAUserBlockSubgroupAndInnerNodes) {
   for (std::size_t at = bytes.find("TREE"); at != std::string::npos; at = bytes.find("TREE", at + 4))
     if (bytes[at + 4] == 0 && bytes[at + 5] > 0) inner = at;
   ASSERT_NE(inner, std::string::npos) << "no inner B-tree node: the test's file has too few channels";
-  std::fill_n(bytes.begin() + static_cast<std::ptrdiff_t>(inner + 32), 8, '\0');
+  std::string turned = bytes;
+  std::fill_n(turned.begin() + static_cast<std::ptrdiff_t>(inner + 32), 8, '\0');
   const auto damaged = tmp_path("damaged.h5");
-  std::ofstream(damaged, std::ios::binary) << bytes;
+  std::ofstream(damaged, std::ios::binary) << turned;
   const auto e = expect_error([&] { ts::read_channels(damaged, {.hdf5_group = "/trial"}); });
   EXPECT_NE(e.message().find("the node at byte " + std::to_string(inner)), std::string::npos) << e.what();
   EXPECT_NE(e.message().find("which is not a B-tree node"), std::string::npos) << e.what();
+  // A leaf's first child (a symbol-table node) made undefined is refused as well.
+  const std::size_t leaf = bytes.find(std::string("TREE\0\0", 6));
+  ASSERT_NE(leaf, std::string::npos);
+  turned = bytes;
+  std::fill_n(turned.begin() + static_cast<std::ptrdiff_t>(leaf + 32), 8, '\xff');
+  const auto undefined = tmp_path("undefined.h5");
+  std::ofstream(undefined, std::ios::binary) << turned;
+  const auto u = expect_error([&] { ts::read_channels(undefined, {.hdf5_group = "/trial"}); });
+  EXPECT_NE(u.message().find("the node at byte " + std::to_string(leaf) +
+                             " points to an undefined address, outside the file"),
+            std::string::npos)
+      << u.what();
 }
 
 TEST(Resample, LinearAtFrameTimesAndNoExtrapolation) {
