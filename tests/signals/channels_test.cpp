@@ -37,6 +37,11 @@ std::string write_text(const std::string& name, const std::string& text) {
   return path;
 }
 
+// A file of the HDF5 channel reader's fuzz corpus (its seeds and the findings kept as regressions).
+std::string corpus_file(const std::string& name) {
+  return std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/" + name;
+}
+
 using tirstrain::testing::expect_error;
 
 template <typename Where>
@@ -188,8 +193,7 @@ TEST(ChannelsHdf5, MismatchedLengthsNanAndBadTimeAreNamed) {
 // Found by fuzz_channel_hdf5 (tests/fuzz/corpus): a header claiming 4 GB wide floats makes HDF5
 // allocate 4 GB for the conversion; the dataset is refused as not numeric.
 TEST(ChannelsHdf5, DamagedElementSizeIsRefusedNotAllocated) {
-  const std::string path =
-      std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/regression-element-4GB.h5";
+  const std::string path = corpus_file("regression-element-4GB.h5");
   ts::ChannelReadOptions options;
   options.required = {"normal_N"};
   const auto e = expect_error([&] { ts::read_channels(path, options); });
@@ -201,8 +205,7 @@ TEST(ChannelsHdf5, DamagedElementSizeIsRefusedNotAllocated) {
 TEST(ChannelsHdf5, LengthBeyondTheStoredBytesIsRefusedNotAllocated) {
   // Two damaged headers: one whose layout stores little, one whose layout claims the length's bytes too.
   for (const char* name : {"regression-length-2e43.h5", "regression-length-2e43-layout.h5"}) {
-    const std::string path =
-        std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/" + name;
+    const std::string path = corpus_file(name);
     ts::ChannelReadOptions options;
     options.required = {"normal_N"};
     const auto e = expect_error([&] { ts::read_channels(path, options); });
@@ -215,14 +218,12 @@ TEST(ChannelsHdf5, LengthBeyondTheStoredBytesIsRefusedNotAllocated) {
 // Found by fuzz_channel_hdf5: a superblock naming a driver information block at byte 255 of a 2 kB file
 // makes HDF5 1.10 allocate 2 GB (and take seconds) before it finds the damage.
 TEST(ChannelsHdf5, DriverInformationBlockIsRefusedBeforeHdf5OpensTheFile) {
-  const std::string path = std::string(TIRSTRAIN_SOURCE_DIR) +
-                           "/tests/fuzz/corpus/fuzz_channel_hdf5/regression-driver-info-block.h5";
+  const std::string path = corpus_file("regression-driver-info-block.h5");
   const auto e = expect_error([&] { ts::read_channels(path); });
   EXPECT_NE(std::string(e.what()).find("regression-driver-info-block.h5"), std::string::npos) << e.what();
   EXPECT_NE(e.message().find("driver information block"), std::string::npos) << e.what();
   // The seed it was mutated from (h5import's output) opens as before.
-  const auto seed = ts::read_channels(std::string(TIRSTRAIN_SOURCE_DIR) +
-                                      "/tests/fuzz/corpus/fuzz_channel_hdf5/channels.h5");
+  const auto seed = ts::read_channels(corpus_file("channels.h5"));
   EXPECT_EQ(seed.samples(), 6u);
   EXPECT_NEAR(seed.sample_rate_Hz, 1000.0, 1e-3);
 }
@@ -231,15 +232,16 @@ TEST(ChannelsHdf5, DamagedGroupIndexIsRefusedBeforeHdf5ReadsIt) {
   // Two fuzz findings on which HDF5 1.10.8 reads through a null pointer while listing the root group:
   // its B-tree node naming its symbol-table node at an undefined address (and its siblings and local heap
   // overwritten), and its symbol-table message naming its B-tree and heap at undefined addresses.
-  const std::string corpus = std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/";
-  const auto child = expect_error([&] { ts::read_channels(corpus + "regression-btree-child-undefined.h5"); });
+  const auto child =
+      expect_error([&] { ts::read_channels(corpus_file("regression-btree-child-undefined.h5")); });
   EXPECT_NE(std::string(child.what()).find("regression-btree-child-undefined.h5"), std::string::npos)
       << child.what();
   EXPECT_NE(child.message().find("group's index is damaged: the node at byte 96 points to byte 680, which is "
                                  "not a local heap"),
             std::string::npos)
       << child.what();
-  const auto table = expect_error([&] { ts::read_channels(corpus + "regression-stab-btree-undefined.h5"); });
+  const auto table =
+      expect_error([&] { ts::read_channels(corpus_file("regression-stab-btree-undefined.h5")); });
   EXPECT_NE(table.message().find("the node at byte 96 points to an undefined address, outside the file"),
             std::string::npos)
       << table.what();
@@ -248,8 +250,7 @@ TEST(ChannelsHdf5, DamagedGroupIndexIsRefusedBeforeHdf5ReadsIt) {
 TEST(ChannelsHdf5, CompactDatasetShorterThanItsShapeIsRefusedNotRead) {
   // The time dataset's layout turned compact with no bytes stored for its 6 samples: HDF5 1.10.8 copies
   // them from a null pointer.
-  const std::string path =
-      std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/regression-compact-short.h5";
+  const std::string path = corpus_file("regression-compact-short.h5");
   const auto e = expect_error([&] { ts::read_channels(path); });
   EXPECT_EQ(e.context().column, "t_s") << e.what();
   EXPECT_NE(e.message().find("compact storage holds 0 bytes where its shape and type need 48"),
@@ -260,8 +261,7 @@ TEST(ChannelsHdf5, CompactDatasetShorterThanItsShapeIsRefusedNotRead) {
 TEST(ChannelsHdf5, ContiguousSamplesBeyondTheFileAreRefusedNotReadAsZeros) {
   // The seed with t_s's data address (bytes 906–913, in its layout message) moved to 16 bytes before the end
   // of the file: HDF5 1.10.8 reads its 48 bytes without an error, partly from beyond the end.
-  const std::string seed =
-      std::string(TIRSTRAIN_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_channel_hdf5/channels.h5";
+  const std::string seed = corpus_file("channels.h5");
   std::ifstream in(seed, std::ios::binary);
   std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   const std::uint64_t moved = bytes.size() - 16;
