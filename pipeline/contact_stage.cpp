@@ -11,6 +11,7 @@
 #include "core/csv.hpp"
 #include "core/median.hpp"
 #include "core/yaml_reader.hpp"
+#include "pipeline/contact_centre_smoothing.hpp"
 
 namespace tirstrain::pipeline {
 namespace {
@@ -27,6 +28,9 @@ struct ContactRecord {
   std::optional<cv::Point2d> ridge_label_shift_px;
   std::optional<cv::Vec3d> ridge_label_shape_px;
   cv::Mat orientation_rad, coherence;
+  // Set after the trial where the centre was smoothed in time: the segmenter's own centre (ellipse[0..1] and
+  // hull_px then carry the smoothed one). Not archived: it is set after the last frame.
+  std::optional<cv::Point2d> measured_centre_px;
 
   void archive(Archive& a) {
     a(status, area_mm2, hull_px, ellipse, texture_snr, border_averaged, border_band_used,
@@ -36,7 +40,10 @@ struct ContactRecord {
 
 class ContactStage final : public Stage {
  public:
-  explicit ContactStage(const Scene& scene) : options_(segmenter_options_for(scene)), segmenter_(options_) {
+  explicit ContactStage(const Scene& scene)
+      : stage_options_(contact_stage_options_for(scene)),
+        options_(stage_options_.segmenter),
+        segmenter_(options_) {
     period_source_ = scene.ridge_period_mm ? "scene" : "measured";
   }
 
@@ -82,6 +89,13 @@ class ContactStage final : public Stage {
     if (result.polarity > 0) ++bright_votes_;
     remember(records_, std::move(record), keep_history_);
     context.contact = std::move(result);
+  }
+
+  // Smooths the centres in time. The stages after this one read the contact only while the frames are
+  // processed (the tracker's mask and reference ellipse), so nothing they derive changes: false.
+  bool finish() override {
+    if (keep_history_ && stage_options_.smooth_centre_in_time) smooth_centres();
+    return false;
   }
 
   void draw(cv::Mat& bgr, const FrameContext& context, const OverlayText& overlay) const override {
@@ -143,7 +157,8 @@ class ContactStage final : public Stage {
     std::vector<std::int32_t> status(n);
     std::vector<double> area(n), hull(n * hull_points * 2, 0.0), ellipse(n * 5, 0.0), snr(n);
     std::vector<std::int8_t> averaged(n), labelled(n), band(n);
-    std::vector<double> shift(n * 2, 0.0), shape(n * 3, 0.0);
+    std::vector<double> shift(n * 2, 0.0), shape(n * 3, 0.0), measured_centre(n * 2, 0.0);
+    std::vector<std::int8_t> smoothed(n, 0);
     std::vector<float> orientation(n * by * bx, 0.0f), coherence(n * by * bx, 0.0f);
     for (std::size_t i = 0; i < n; ++i) {
       const ContactRecord& r = records_[i];
@@ -159,6 +174,9 @@ class ContactStage final : public Stage {
       }
       if (r.ridge_label_shape_px)
         for (std::size_t j = 0; j < 3; ++j) shape[i * 3 + j] = (*r.ridge_label_shape_px)[static_cast<int>(j)];
+      measured_centre[i * 2] = r.measured_centre_px ? r.measured_centre_px->x : r.ellipse[0];
+      measured_centre[i * 2 + 1] = r.measured_centre_px ? r.measured_centre_px->y : r.ellipse[1];
+      smoothed[i] = r.measured_centre_px ? 1 : 0;
       for (std::size_t k = 0; k < r.hull_px.size() && k < hull_points; ++k) {
         hull[(i * hull_points + k) * 2] = r.hull_px[k].x;
         hull[(i * hull_points + k) * 2 + 1] = r.hull_px[k].y;
@@ -183,6 +201,9 @@ class ContactStage final : public Stage {
     out.write("/contact/border_band_centre", std::span<const std::int8_t>(band), {n});
     out.write("/contact/ridge_label_shift_px", std::span<const double>(shift), {n, 2});
     out.write("/contact/ridge_label_shape_px", std::span<const double>(shape), {n, 3});
+    out.write("/contact/centre_measured_px", std::span<const double>(measured_centre), {n, 2});
+    out.write("/contact/centre_smoothed", std::span<const std::int8_t>(smoothed), {n});
+    out.attribute("/contact", "centre_noise_px", centre_noise_px_);
     out.attribute("/contact", "px_per_mm", options_.px_per_mm);
     out.attribute("/contact", "ridge_period_px", period_px());
     out.attribute("/contact", "ridge_period_source", period_source());
@@ -232,6 +253,8 @@ class ContactStage final : public Stage {
     c["frames_border_averaged"] = border_averaged;
     c["frames_ridge_label_centre"] = ridge_label_centre;
     c["frames_border_band_centre"] = border_band;
+    c["frames_centre_smoothed"] = centre_smoothed_frames_;
+    c["centre_noise_px"] = centre_noise_px_;
     // The switches in effect (the preset's, after the scene's own keys and --segmentation).
     c["settings"] = {{"flat_field", options_.flat_field},
                      {"border_average_snr", options_.border_average_snr},
@@ -240,12 +263,39 @@ class ContactStage final : public Stage {
                      {"ridge_label_shape_weight", options_.ridge_label_shape_weight},
                      {"small_contact_ellipse_outline", options_.small_contact_ellipse_outline},
                      {"border_band_centre", options_.border_band_centre},
-                     {"downsample", options_.downsample}};
+                     {"downsample", options_.downsample},
+                     {"smooth_centre_in_time", stage_options_.smooth_centre_in_time}};
     c["segment_ms_per_frame"] = segmented_ > 0 ? 1e3 * segment_s_ / static_cast<double>(segmented_) : 0.0;
     summary["contact"] = c;
   }
 
  private:
+  // The ellipse's centre, and the outline with it, moved to the centre smoothed in time; the measured one
+  // kept.
+  void smooth_centres() {
+    std::vector<std::optional<Vec2>> measured(records_.size());
+    for (std::size_t i = 0; i < records_.size(); ++i) {
+      const ContactRecord& r = records_[i];
+      const bool has_ellipse =
+          (r.status & (contact::kNoContact | contact::kFrameSkipped | contact::kNoEllipse)) == 0 &&
+          r.ellipse[2] > 0.0;
+      if (has_ellipse) measured[i] = Vec2{r.ellipse[0], r.ellipse[1]};
+    }
+    const CentreSmoothing smoothing = smooth_centres_in_time(measured);
+    centre_noise_px_ = smoothing.noise_px;
+    centre_smoothed_frames_ = smoothing.frames_changed;
+    for (std::size_t i = 0; i < records_.size(); ++i) {
+      if (!smoothing.changed[i]) continue;
+      ContactRecord& r = records_[i];
+      const cv::Point2d shift(smoothing.centre_px[i]->x - r.ellipse[0],
+                              smoothing.centre_px[i]->y - r.ellipse[1]);
+      r.measured_centre_px = cv::Point2d(r.ellipse[0], r.ellipse[1]);
+      r.ellipse[0] += shift.x;
+      r.ellipse[1] += shift.y;
+      for (cv::Point2d& p : r.hull_px) p += shift;
+    }
+  }
+
   double period_px() const {
     return segmenter_.ridge_period_px().value_or(options_.default_period_mm * options_.px_per_mm);
   }
@@ -258,6 +308,7 @@ class ContactStage final : public Stage {
     return dark_votes_ >= bright_votes_ ? "dark" : "bright";
   }
 
+  ContactStageOptions stage_options_;
   contact::SegmenterOptions options_;
   contact::ContactSegmenter segmenter_;
   std::string period_source_;
@@ -267,12 +318,15 @@ class ContactStage final : public Stage {
   double segment_s_ = 0.0;
   std::int64_t segmented_ = 0;
   std::int64_t dark_votes_ = 0, bright_votes_ = 0;
+  double centre_noise_px_ = 0.0;
+  std::int64_t centre_smoothed_frames_ = 0;
 };
 
 }  // namespace
 
-contact::SegmenterOptions segmenter_options_for(const Scene& scene) {
-  contact::SegmenterOptions options;
+ContactStageOptions contact_stage_options_for(const Scene& scene) {
+  ContactStageOptions stage;
+  contact::SegmenterOptions& options = stage.segmenter;
   options.px_per_mm = scene.px_per_mm;
   if (scene.ridge_period_mm) options.ridge_period_px = *scene.ridge_period_mm * scene.px_per_mm;
   if (scene.ridge_polarity == "dark") options.polarity = -1;
@@ -284,14 +338,15 @@ contact::SegmenterOptions segmenter_options_for(const Scene& scene) {
   }
   // segmentation: {preset: accurate, downsample: 0, flat_field: true, border_average_snr: 20,
   // ridge_label_centre: true, ridge_label_below_periods: 5, ridge_label_shape_weight: 0.5,
-  // border_band_centre: true, small_contact_ellipse_outline: true} — the preset (accurate, balanced or fast:
-  // contact::SegmentationPreset) sets the switches below, and those the scene sets override it one by one;
-  // the working-resolution factor (0 automatic from the ridge period, 1 full); the background flat field; the
-  // texture SNR below which the edge is searched on the frame averaged along the border (0: never); the
-  // centre from where ridges show near the border, on large contacts and on those under so many ridge periods
-  // in radius (0: none); on those small ones, the weight of the labels' elongation against the level edge's
-  // (0: the level edge's); the border band's intensity fit for the centre of large contacts; the small ones'
-  // outline from their ellipse. See contact/segmenter.hpp.
+  // border_band_centre: true, small_contact_ellipse_outline: true, smooth_centre_in_time: true} — the preset
+  // (accurate, balanced or fast: contact::SegmentationPreset) sets the switches below, and those the scene
+  // sets override it one by one; the working-resolution factor (0 automatic from the ridge period, 1 full);
+  // the background flat field; the texture SNR below which the edge is searched on the frame averaged along
+  // the border (0: never); the centre from where ridges show near the border, on large contacts and on those
+  // under so many ridge periods in radius (0: none); on those small ones, the weight of the labels'
+  // elongation against the level edge's (0: the level edge's); the border band's intensity fit for the centre
+  // of large contacts; the small ones' outline from their ellipse; the centre smoothed in time after the
+  // trial. See contact/segmenter.hpp and pipeline/contact_centre_smoothing.hpp.
   YamlSection s(scene.segmentation, scene.file, "segmentation");
   const std::string preset = s.choice("preset", "accurate", {"accurate", "balanced", "fast"});
   options = contact::with_preset(options, preset == "fast"       ? contact::SegmentationPreset::fast
@@ -308,8 +363,13 @@ contact::SegmenterOptions segmenter_options_for(const Scene& scene) {
   options.border_band_centre = s.boolean("border_band_centre", options.border_band_centre);
   options.small_contact_ellipse_outline =
       s.boolean("small_contact_ellipse_outline", options.small_contact_ellipse_outline);
+  stage.smooth_centre_in_time = s.boolean("smooth_centre_in_time", stage.smooth_centre_in_time);
   s.finish();
-  return options;
+  return stage;
+}
+
+contact::SegmenterOptions segmenter_options_for(const Scene& scene) {
+  return contact_stage_options_for(scene).segmenter;
 }
 
 std::unique_ptr<Stage> make_contact_stage(const Scene& scene) {

@@ -106,6 +106,8 @@ TEST(Process, WritesDocumentedResults) {
   EXPECT_EQ(h5.shape("/contact/border_band_centre"), (H5Shape{n}));
   EXPECT_EQ(h5.shape("/contact/ridge_label_shift_px"), (H5Shape{n, 2}));
   EXPECT_EQ(h5.shape("/contact/ridge_label_shape_px"), (H5Shape{n, 3}));
+  EXPECT_EQ(h5.shape("/contact/centre_measured_px"), (H5Shape{n, 2}));
+  EXPECT_EQ(h5.shape("/contact/centre_smoothed"), (H5Shape{n}));
   EXPECT_NE(h5.attribute_text("/", "software_version").find("tirstrain"), std::string::npos);
   EXPECT_NE(h5.attribute_text("/", "scene_yaml").find("px_per_mm"), std::string::npos);
   EXPECT_NEAR(h5.attribute_number("/contact", "ridge_period_px"), 23.4, 1.0);
@@ -152,6 +154,14 @@ TEST(Process, WritesDocumentedResults) {
     largest_shape_px = std::max(largest_shape_px, shape_px);
     level_edge_sq += std::pow(dx - shift_x, 2) + std::pow(dy - shift_y, 2);
   }
+  // Eight frames are too few to know the centre's noise: none is smoothed in time, and the measured centre is
+  // the ellipse's.
+  const auto smoothed = h5.read_integers("/contact/centre_smoothed");
+  const auto measured = h5.read_doubles("/contact/centre_measured_px");
+  for (int i = 0; i < kFrames; ++i) {
+    EXPECT_EQ(smoothed[static_cast<std::size_t>(i)], 0);
+    EXPECT_EQ(measured[static_cast<std::size_t>(i) * 2], ellipse[static_cast<std::size_t>(i) * 5]);
+  }
   const double labelled_rms_px = std::sqrt(labelled_sq / kFrames);
   const double level_edge_rms_px = std::sqrt(level_edge_sq / kFrames);
   std::cout << "  centre RMS " << labelled_rms_px << " px with the recorded shifts, " << level_edge_rms_px
@@ -179,6 +189,7 @@ TEST(Process, WritesDocumentedResults) {
   EXPECT_EQ(summary["contact"]["frames_border_averaged"], 0);
   EXPECT_EQ(summary["contact"]["frames_ridge_label_centre"], kFrames);
   EXPECT_EQ(summary["contact"]["frames_border_band_centre"], kFrames);  // on by default, on large contacts
+  EXPECT_EQ(summary["contact"]["frames_centre_smoothed"], 0);
   EXPECT_GT(summary["contact"]["texture_snr_median"].get<double>(), 20.0);
   EXPECT_EQ(summary["time_measured"], true);
 
