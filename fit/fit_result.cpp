@@ -39,10 +39,21 @@ void read_contacts(const H5Reader& h5, ResultForFit& r) {
     throw Error("/contact/ellipse has " + std::to_string(e.size() / 5) + " rows for " +
                     std::to_string(r.frames()) + " frames",
                 {.file = h5.path()});
+  // Each frame's own centre where the contact stage smoothed it in time after the trial: the fit stage
+  // fits while the frames are read, before that, and the two must give the same numbers.
+  std::vector<double> measured;
+  if (h5.has("/contact/centre_measured_px")) measured = h5.read_doubles("/contact/centre_measured_px");
+  if (!measured.empty() && measured.size() != 2 * r.frames())
+    throw Error("/contact/centre_measured_px has " + std::to_string(measured.size() / 2) + " rows for " +
+                    std::to_string(r.frames()) + " frames",
+                {.file = h5.path()});
   for (std::size_t i = 0; i < r.frames(); ++i) {
     const double* row = &e[5 * i];
-    r.ellipse.push_back({row[0], row[1], row[2], row[3], row[4]});
-    r.has_contact.push_back(row[2] > 0.0 && row[3] > 0.0 ? 1 : 0);
+    const bool has = row[2] > 0.0 && row[3] > 0.0;
+    const double cx = has && !measured.empty() ? measured[2 * i] : row[0];
+    const double cy = has && !measured.empty() ? measured[2 * i + 1] : row[1];
+    r.ellipse.push_back({cx, cy, row[2], row[3], row[4]});
+    r.has_contact.push_back(has ? 1 : 0);
   }
 }
 

@@ -342,10 +342,15 @@ void process_trial(const ValidateOptions& options, const std::string& trial_dir,
 struct ContactValidation {
   std::vector<ContactErrors> frames;
   ErrorAccumulator iou_deficit, centre, major, minor, area;
+  // Each frame's own centre, before the smoothing in time (results that have it).
+  ErrorAccumulator centre_measured;
+  bool has_measured = false;
 
   void append_rows(std::vector<ErrorStats>& rows) const {
     rows.push_back(iou_deficit.stats("contact_1-IoU", "truth mask", "", ""));
     rows.push_back(centre.stats("contact_centre", "truth ellipse", "", "px"));
+    if (has_measured)
+      rows.push_back(centre_measured.stats("contact_centre_measured", "truth ellipse", "", "px"));
     rows.push_back(major.stats("contact_semi_major", "truth ellipse", "", "%"));
     rows.push_back(minor.stats("contact_semi_minor", "truth ellipse", "", "%"));
     rows.push_back(area.stats("contact_area", "truth mask", "", "%"));
@@ -368,6 +373,11 @@ ContactValidation validate_contact(const ValidatedResult& r, const ContactTruth&
     v.frames.push_back(e);
     v.iou_deficit.add(1.0 - e.iou);
     v.centre.add(e.centre_px);
+    if (!r.measured_centres.empty() && std::isfinite(e.centre_px) && truth.ellipse) {
+      v.has_measured = true;
+      v.centre_measured.add(std::hypot(r.measured_centres[i * 2] - truth.ellipse->cx_px,
+                                       r.measured_centres[i * 2 + 1] - truth.ellipse->cy_px));
+    }
     v.major.add(e.semi_major_pct);
     v.minor.add(e.semi_minor_pct);
     v.area.add(e.area_pct);

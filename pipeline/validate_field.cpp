@@ -97,9 +97,12 @@ void read_contact(const H5Reader& h5, ValidatedResult& r) {
   r.hull_values = shape.size() == 3 ? shape[1] * shape[2] : 0;
   r.ellipses = read(h5, "/contact/ellipse", &shape);
   r.contact_area = read(h5, "/contact/area_mm2", &shape);
+  if (h5.has("/contact/centre_measured_px"))
+    r.measured_centres = read(h5, "/contact/centre_measured_px", &shape);
   const std::size_t n = r.frames;
   if (r.contact_status.size() != n || r.hull.size() != n * r.hull_values || r.hull_values % 2 != 0 ||
-      r.ellipses.size() != n * 5 || r.contact_area.size() != n)
+      r.ellipses.size() != n * 5 || r.contact_area.size() != n ||
+      (!r.measured_centres.empty() && r.measured_centres.size() != n * 2))
     throw Error("the /contact datasets do not have one row per frame", {.file = r.path});
 }
 

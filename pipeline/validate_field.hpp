@@ -45,6 +45,8 @@ struct ValidatedResult {
   std::vector<std::int64_t> contact_status;          // [N]
   std::vector<double> hull, ellipses, contact_area;  // [N, H, 2], [N, 5], [N]
   std::size_t hull_values = 0;                       // H × 2
+  // [N, 2]: each frame's own ellipse centre before the smoothing in time (empty in results without it).
+  std::vector<double> measured_centres;
 };
 
 // Reads and checks RESULT_DIR/result.h5 against the trial (frame count and times).
