@@ -33,6 +33,12 @@ Series noisy_series(int rows, double sigma_px, Truth truth, std::uint32_t seed) 
   return s;
 }
 
+// A contact holding still at `at`.
+Series still_series(int rows, double sigma_px, Vec2 at, std::uint32_t seed) {
+  return noisy_series(
+      rows, sigma_px, [at](int) { return at; }, seed);
+}
+
 double rms_error(const std::vector<std::optional<Vec2>>& centres, const std::vector<Vec2>& truth) {
   double sum = 0.0;
   int n = 0;
@@ -46,12 +52,7 @@ double rms_error(const std::vector<std::optional<Vec2>>& centres, const std::vec
 
 TEST(ContactCentreSmoothing, AveragesTheScatterOfAContactThatHoldsStill) {
   // A hold: the segmenter's centre scatters by ~0.1 px per axis (the shipped scenes: 0.10-0.14 px).
-  Series s = noisy_series(
-      60, 0.1,
-      [](int) {
-        return Vec2{320.0, 250.0};
-      },
-      1);
+  Series s = still_series(60, 0.1, Vec2{320.0, 250.0}, 1);
   s.measured[30].reset();  // a frame without an ellipse splits the run
   const CentreSmoothing smoothed = smooth_centres_in_time(s.measured);
   const double before = rms_error(s.measured, s.truth), after = rms_error(smoothed.centre_px, s.truth);
@@ -107,12 +108,7 @@ TEST(ContactCentreSmoothing, FollowsAContactThatStartsToMoveAfterARest) {
 }
 
 TEST(ContactCentreSmoothing, LeavesRunsTooShortToKnowTheirNoise) {
-  Series s = noisy_series(
-      15, 0.1,
-      [](int) {
-        return Vec2{100.0, 100.0};
-      },
-      3);
+  Series s = still_series(15, 0.1, Vec2{100.0, 100.0}, 3);
   s.measured[9].reset();  // runs of 9 and 5 frames, both under the 10 the noise estimate needs
   const CentreSmoothing smoothed = smooth_centres_in_time(s.measured);
   EXPECT_EQ(smoothed.frames_changed, 0);
