@@ -14,6 +14,7 @@
 #include "core/error.hpp"
 #include "core/median.hpp"
 #include "signals/hdf5_layout.hpp"
+#include "signals/isolated_read.hpp"
 #include "signals/spectral.hpp"
 
 namespace tirstrain::signals {
@@ -324,15 +325,13 @@ void settle_time_axis(bool have_time, const std::string& path, const ChannelRead
               {.file = path, .column = options.time_column});
 }
 
-}  // namespace
-
-ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOptions& options) {
+// The read itself, once the layout is checked.
+ChannelTable read_hdf5_table(const std::string& path, const ChannelReadOptions& options) {
   H5::Exception::dontPrint();
   ChannelTable table;
   table.path = path;
   table.time_column = options.time_column;
   table.first_data_row = -1;
-  check_hdf5_layout(path);
   try {
     H5::H5File file(path, H5F_ACC_RDONLY);
     std::error_code size_error;
@@ -354,6 +353,15 @@ ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOption
       validate_time_axis(table.time_s, options.rate_tolerance, path, options.time_column, -1);
   apply_calibration(table, options.calibration);
   return table;
+}
+
+}  // namespace
+
+ChannelTable read_channels_hdf5(const std::string& path, const ChannelReadOptions& options) {
+  check_hdf5_layout(path);
+  if (options.read_in_child_first)
+    survive_read_in_child(path, "HDF5", [&] { read_hdf5_table(path, options); });
+  return read_hdf5_table(path, options);
 }
 
 ChannelTable read_channels(const std::string& path, const ChannelReadOptions& options) {

@@ -64,6 +64,10 @@ struct ChannelReadOptions {
   std::map<std::string, std::vector<std::string>> mat_column_names;
   // Per channel name: raw -> physical units, applied after reading (channels not named stay raw).
   std::map<std::string, ChannelCalibration> calibration;
+  // HDF5 files (and MATLAB v7.3, read through HDF5) are read once in a child process first, so that a file
+  // on which the library crashes is refused with an error rather than ending this process
+  // (signals/isolated_read.hpp). Off only where the crash itself is wanted (the fuzz targets).
+  bool read_in_child_first = true;
 };
 
 // Dispatches on the extension: .mat as MATLAB; .h5, .hdf5 as HDF5; anything else as CSV.

@@ -15,6 +15,7 @@
 #include "core/error.hpp"
 #include "signals/channels.hpp"
 #include "signals/hdf5_layout.hpp"
+#include "signals/isolated_read.hpp"
 
 namespace tirstrain::signals {
 namespace {
@@ -361,25 +362,12 @@ std::vector<std::pair<std::string, Selector>> wanted_channels(MatFile& file, con
   return wanted;
 }
 
-}  // namespace
-
-ChannelTable read_channels_mat(const std::string& path, const ChannelReadOptions& options) {
-  if (!std::ifstream(path)) throw Error("cannot open the file", {.file = path});
-  std::string first_bytes;
-  const MatHeader header = sniff_mat_header(path, first_bytes);
-  // HDF5 without MATLAB's text header (h5py, or a v7.3 layout written by other tools): the HDF5 reader.
-  if (header == MatHeader::kHdf5) return read_channels_hdf5(path, options);
-  if (header == MatHeader::kUnknown)
-    throw Error("is not a MATLAB .mat file (it starts with '" + first_bytes +
-                    "': neither MATLAB's text header nor a version 4 matrix header); MATLAB v4, v5, v7 and "
-                    "v7.3 files are read",
-                {.file = path});
-  // libmatio reads a v7.3 file through HDF5, which crashes on some damaged ones.
-  if (first_bytes.rfind("MATLAB 7.3", 0) == 0) check_hdf5_layout(path);
+// The file opened and read by libmatio, once a v7.3 file's HDF5 layout is checked.
+ChannelTable read_mat_table(const std::string& path, const ChannelReadOptions& options, bool hdf5_inside) {
   MatHandle mat(Mat_Open(path.c_str(), MAT_ACC_RDONLY));
   if (!mat) {
     // A v7.3 file this matio cannot open (built without HDF5) is HDF5 inside.
-    if (first_bytes.rfind("MATLAB 7.3", 0) == 0) return read_channels_hdf5(path, options);
+    if (hdf5_inside) return read_channels_hdf5(path, options);
     throw Error("libmatio cannot open it as a MAT-file (damaged?); MATLAB v4, v5, v7 and v7.3 files are read",
                 {.file = path});
   }
@@ -429,6 +417,29 @@ ChannelTable read_channels_mat(const std::string& path, const ChannelReadOptions
       validate_time_axis(table.time_s, options.rate_tolerance, path, options.time_column, -1);
   apply_calibration(table, options.calibration);
   return table;
+}
+
+}  // namespace
+
+ChannelTable read_channels_mat(const std::string& path, const ChannelReadOptions& options) {
+  if (!std::ifstream(path)) throw Error("cannot open the file", {.file = path});
+  std::string first_bytes;
+  const MatHeader header = sniff_mat_header(path, first_bytes);
+  // HDF5 without MATLAB's text header (h5py, or a v7.3 layout written by other tools): the HDF5 reader.
+  if (header == MatHeader::kHdf5) return read_channels_hdf5(path, options);
+  if (header == MatHeader::kUnknown)
+    throw Error("is not a MATLAB .mat file (it starts with '" + first_bytes +
+                    "': neither MATLAB's text header nor a version 4 matrix header); MATLAB v4, v5, v7 and "
+                    "v7.3 files are read",
+                {.file = path});
+  // libmatio reads a v7.3 file through HDF5, which crashes on some damaged ones.
+  const bool hdf5_inside = first_bytes.rfind("MATLAB 7.3", 0) == 0;
+  if (hdf5_inside) {
+    check_hdf5_layout(path);
+    if (options.read_in_child_first)
+      survive_read_in_child(path, "libmatio (HDF5)", [&] { read_mat_table(path, options, hdf5_inside); });
+  }
+  return read_mat_table(path, options, hdf5_inside);
 }
 
 }  // namespace tirstrain::signals

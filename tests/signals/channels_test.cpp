@@ -7,7 +7,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -17,6 +19,7 @@
 
 #include "core/error.hpp"
 #include "signals/channels.hpp"
+#include "signals/isolated_read.hpp"
 #include "tests/support/expect_error.hpp"
 
 namespace ts = tirstrain::signals;
@@ -245,6 +248,51 @@ TEST(ChannelsHdf5, DamagedGroupIndexIsRefusedBeforeHdf5ReadsIt) {
   EXPECT_NE(table.message().find("the node at byte 96 points to an undefined address, outside the file"),
             std::string::npos)
       << table.what();
+}
+
+TEST(ChannelsHdf5, ACrashInTheChildsReadIsAnErrorNamingTheFileAndTheSignal) {
+  // The net under the layout checks (signals/isolated_read.hpp): a read that crashes takes only the child
+  // down. The signals' default actions, so that the sanitizers' own handlers do not turn them into others.
+  const auto segv = expect_error([] {
+    ts::survive_read_in_child("damaged.h5", "HDF5", [] {
+      std::signal(SIGSEGV, SIG_DFL);
+      std::raise(SIGSEGV);
+    });
+  });
+  EXPECT_EQ(segv.context().file, "damaged.h5");
+  EXPECT_NE(segv.message().find("HDF5 crashed (signal 11"), std::string::npos) << segv.what();
+  EXPECT_NE(segv.message().find("it was not changed"), std::string::npos) << segv.what();
+  const auto abort = expect_error([] {
+    ts::survive_read_in_child("damaged.mat", "libmatio (HDF5)", [] {
+      std::signal(SIGABRT, SIG_DFL);
+      std::abort();
+    });
+  });
+  EXPECT_NE(abort.message().find("libmatio (HDF5) crashed (signal 6"), std::string::npos) << abort.what();
+  // A read that ends, or throws (the parent's own read reports that), is no crash.
+  EXPECT_NO_THROW(ts::survive_read_in_child("good.h5", "HDF5", [] {}));
+  EXPECT_NO_THROW(
+      ts::survive_read_in_child("bad.h5", "HDF5", [] { throw tirstrain::Error("not channels"); }));
+}
+
+TEST(ChannelsHdf5, AFileOnWhichHdf5ItselfCrashesIsRefusedByTheChildsRead) {
+  // HDF5 1.10.8 itself, with no layout check before it, on a fuzz finding it reads through a null pointer
+  // (listing the root group): the child crashes, this process gets the error.
+  const std::string path = corpus_file("regression-btree-child-undefined.h5");
+  const auto e = expect_error([&] {
+    ts::survive_read_in_child(path, "HDF5", [&] {
+      H5::Exception::dontPrint();
+      H5::H5File file(path, H5F_ACC_RDONLY);
+      const H5::Group root = file.openGroup("/");
+      for (hsize_t i = 0; i < root.getNumObjs(); ++i) (void)root.getObjnameByIdx(i);
+    });
+  });
+  EXPECT_EQ(e.context().file, path);
+  EXPECT_NE(e.message().find("HDF5 crashed (signal"), std::string::npos) << e.what();
+  std::printf("  %s\n", e.what());
+  // Through the reader, the layout check refuses it first, with what is damaged.
+  EXPECT_NE(expect_error([&] { ts::read_channels(path); }).message().find("group's index is damaged"),
+            std::string::npos);
 }
 
 TEST(ChannelsHdf5, CompactDatasetShorterThanItsShapeIsRefusedNotRead) {
