@@ -1,13 +1,19 @@
 // Throughput of the signals/ hot paths in samples per second: zero-phase filtering (the paper's 4th-order
 // 80 Hz low-pass and the 15–500 Hz band-pass), Welch PSD and H1/coherence, and RQA of a 10^4-sample series
-// (D = 3, fixed recurrence rate 5 %: threshold search + bitset + line histograms). Each benchmark also
-// reports an accuracy counter against known truth so speed and error are read together.
+// (D = 3, fixed recurrence rate 5 %: threshold search + bitset + line histograms), and reading an HDF5
+// channel file with and without the read in a child process first (signals/isolated_read.hpp). Each benchmark
+// also reports an accuracy counter against known truth so speed and error are read together.
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <numbers>
 #include <random>
+#include <string>
 
+#include "core/h5_file.hpp"
+#include "signals/channels.hpp"
 #include "signals/filter.hpp"
 #include "signals/rqa.hpp"
 #include "signals/spectral.hpp"
@@ -105,5 +111,38 @@ BENCHMARK(BM_WelchPsd)->Arg(1 << 20)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_TransferEstimate)->Arg(1 << 20)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Rqa)->Arg(10000)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RqaFixedThreshold)->Arg(10000)->Unit(benchmark::kMillisecond);
+
+// A channel file of n samples at 1 kHz (t_s, normal_N, tangential_N), read whole; argument 1: read in a
+// child process first (the default), 0: in this process only. max_abs_error: read against written (0).
+void BM_ReadChannelsHdf5(benchmark::State& state) {
+  const auto n = static_cast<std::size_t>(state.range(0));
+  const std::string path =
+      (std::filesystem::temp_directory_path() / ("signals_bench_" + std::to_string(n) + ".h5")).string();
+  std::vector<double> t(n), normal = noisy_sine(n, 1000.0, 2.0), tangential = noisy_sine(n, 1000.0, 3.0);
+  for (std::size_t i = 0; i < n; ++i) t[i] = static_cast<double>(i) / 1000.0;
+  {
+    tirstrain::H5Writer out(path);
+    out.write("/t_s", t, {n});
+    out.write("/normal_N", normal, {n});
+    out.write("/tangential_N", tangential, {n});
+    out.commit();
+  }
+  ts::ChannelReadOptions options;
+  options.read_in_child_first = state.range(1) != 0;
+  double error = 0.0;
+  for (auto _ : state) {
+    const ts::ChannelTable table = ts::read_channels(path, options);
+    const std::vector<double>& read = table.column("normal_N");
+    error = 0.0;
+    for (std::size_t i = 0; i < n; ++i) error = std::max(error, std::abs(read[i] - normal[i]));
+    benchmark::DoNotOptimize(error);
+  }
+  state.counters["max_abs_error"] = error;
+  state.counters["samples_per_s"] =
+      benchmark::Counter(static_cast<double>(n) * state.iterations(), benchmark::Counter::kIsRate);
+  std::filesystem::remove(path);
+}
+
+BENCHMARK(BM_ReadChannelsHdf5)->Args({1 << 20, 0})->Args({1 << 20, 1})->Unit(benchmark::kMillisecond);
 
 BENCHMARK_MAIN();
