@@ -40,12 +40,13 @@ struct ContactRecord {
 
 class ContactStage final : public Stage {
  public:
-  explicit ContactStage(const Scene& scene)
-      : stage_options_(contact_stage_options_for(scene)),
-        options_(stage_options_.segmenter),
-        segmenter_(options_) {
+  explicit ContactStage(const Scene& scene) : ContactStage(contact_stage_options_for(scene)) {
     period_source_ = scene.ridge_period_mm ? "scene" : "measured";
   }
+  explicit ContactStage(const ContactStageOptions& options)
+      : options_(options.segmenter),
+        segmenter_(options_),
+        smooth_centre_in_time_(options.smooth_centre_in_time) {}
 
   std::string name() const override { return "contact"; }
 
@@ -94,7 +95,7 @@ class ContactStage final : public Stage {
   // Smooths the centres in time. The stages after this one read the contact only while the frames are
   // processed (the tracker's mask and reference ellipse), so nothing they derive changes: false.
   bool finish() override {
-    if (keep_history_ && stage_options_.smooth_centre_in_time) smooth_centres();
+    if (keep_history_ && smooth_centre_in_time_) smooth_centres();
     return false;
   }
 
@@ -264,7 +265,7 @@ class ContactStage final : public Stage {
                      {"small_contact_ellipse_outline", options_.small_contact_ellipse_outline},
                      {"border_band_centre", options_.border_band_centre},
                      {"downsample", options_.downsample},
-                     {"smooth_centre_in_time", stage_options_.smooth_centre_in_time}};
+                     {"smooth_centre_in_time", smooth_centre_in_time_}};
     c["segment_ms_per_frame"] = segmented_ > 0 ? 1e3 * segment_s_ / static_cast<double>(segmented_) : 0.0;
     summary["contact"] = c;
   }
@@ -308,9 +309,9 @@ class ContactStage final : public Stage {
     return dark_votes_ >= bright_votes_ ? "dark" : "bright";
   }
 
-  ContactStageOptions stage_options_;
   contact::SegmenterOptions options_;
   contact::ContactSegmenter segmenter_;
+  bool smooth_centre_in_time_ = true;
   std::string period_source_;
   cv::Size blocks_;
   std::vector<ContactRecord> records_;
