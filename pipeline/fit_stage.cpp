@@ -143,6 +143,8 @@ class FitStage final : public Stage {
     r.px_per_mm = px_per_mm_;
     r.young_Pa = young_Pa_;
     r.poisson = poisson_;
+    // No tracking output (nothing was ever tracked: a recording with no contact): nothing to fit.
+    if (!tracks_ || !out_->has("/tracks/position_px")) return r;
     const std::size_t k =
         std::min(tracks_->size(), static_cast<std::size_t>(out_->shape("/tracks/position_px")[1]));
     for (std::size_t j = 0; j < k; ++j) r.reference_px.push_back((*tracks_)[j].reference_px);

@@ -599,6 +599,23 @@ TEST(Process, ContactComingLateAndLiftingOff) {
   }
 }
 
+// A recording in which the finger never touches: nothing is tracked, so the fit stage has no track to read
+// back. Every frame is reported not fitted (no contact) and the run succeeds.
+TEST(Process, FitStageOnARecordingWithNoContact) {
+  constexpr int kFrames = 4;
+  const fs::path trial = write_recording("no_contact_fit", kFrames, [](int) { return false; });
+  const fs::path out = scratch("no_contact_fit_out");
+  const CliRun run =
+      run_cli("process " + trial.string() + " --compute fit --out " + out.string() + " --overlay none");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const nlohmann::json summary = read_summary(out);
+  EXPECT_EQ(summary["fit"]["frames_not_fitted"], kFrames) << summary.dump();
+  H5Reader h5((out / "result.h5").string());
+  const auto status = h5.read_integers("/fit/status");
+  ASSERT_EQ(status.size(), static_cast<std::size_t>(kFrames));
+  for (const auto s : status) EXPECT_EQ(s, 1);  // no_contact
+}
+
 // A channels.csv beside the frames with tirstrain synth's column names: without a scene the channels stage
 // runs on it (its columns mapped by name, in SI); one with unknown names is left out and the reason said.
 TEST(Process, ChannelsFileBesideTheFramesIsRead) {
