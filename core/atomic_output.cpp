@@ -1,6 +1,7 @@
 #include "core/atomic_output.hpp"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/statvfs.h>
@@ -44,6 +45,14 @@ bool exchange_paths(const std::string& a, const std::string& b) {
   return false;
 }
 
+// Leftovers of an interrupted writer inside a folder (partial files of a run before staging).
+bool is_leftover(const std::string& name) {
+  const auto ends_with = [&](const std::string& tail) {
+    return name.size() >= tail.size() && name.compare(name.size() - tail.size(), tail.size(), tail) == 0;
+  };
+  return ends_with(".partial") || ends_with(".partial.mp4") || name == ".tirstrain-write-probe";
+}
+
 }  // namespace
 
 void ensure_output_dir(const std::string& dir, const std::string& what) {
@@ -84,20 +93,84 @@ StagingDirectory::StagingDirectory(const std::string& final_path) : StagingDirec
 StagingDirectory::StagingDirectory(const std::string& final_path, bool adopt_existing)
     : final_path_(fs::path(final_path).lexically_normal().string()) {
   while (final_path_.size() > 1 && final_path_.back() == '/') final_path_.pop_back();
-  staging_path_ = final_path_ + ".partial";
   std::error_code ec;
+  // A link to a folder is followed: the output goes where the user's link points, and the link stays.
+  if (fs::is_symlink(final_path_, ec)) {
+    const fs::path target = fs::canonical(final_path_, ec);
+    if (ec)
+      throw Error("output path is a link that cannot be followed: " + ec.message(), {.file = final_path_});
+    final_path_ = target.string();
+  }
+  staging_path_ = final_path_ + ".partial";
   if (fs::exists(final_path_, ec) && !fs::is_directory(final_path_, ec))
     throw Error("output path exists and is not a directory", {.file = final_path_});
-  if (adopt_existing && fs::is_directory(staging_path_, ec)) {
-    keep_on_failure_ = true;
-    return;
-  }
-  fs::remove_all(staging_path_, ec);
   const fs::path parent = fs::path(final_path_).parent_path();
   if (!parent.empty()) fs::create_directories(parent, ec);
-  if (!ec) fs::create_directory(staging_path_, ec);
-  if (ec) throw Error("cannot create output directory: " + ec.message(), {.file = staging_path_});
+  const bool existed = lock_staging_folder();
+  if (existed && adopt_existing) {
+    keep_on_failure_ = true;
+  } else if (existed) {
+    clear_leftover();
+  }
   ensure_output_dir(staging_path_, "--out");
+  std::ofstream(fs::path(staging_path_) / kStagingMarker) << "a tirstrain run is writing here\n";
+}
+
+// Creates the staging folder if needed and holds an exclusive lock on it for as long as this object lives:
+// a second run into the same --out is refused instead of writing into the same files. True when the folder
+// was there before.
+bool StagingDirectory::lock_staging_folder() {
+  for (int attempt = 0; attempt < 8; ++attempt) {
+    const bool created = ::mkdir(staging_path_.c_str(), 0777) == 0;
+    if (!created && errno != EEXIST)
+      throw Error(std::string("cannot create output directory: ") + std::strerror(errno),
+                  {.file = staging_path_, .key = "--out"});
+    const int fd = ::open(staging_path_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd < 0) continue;  // removed in between by a run that found it unlocked: try again
+    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+      const int error = errno;
+      ::close(fd);
+      if (error == EWOULDBLOCK)
+        throw Error(
+            "another tirstrain run is writing this output now (its staging folder is locked); wait "
+            "for it to finish or choose another --out",
+            {.file = staging_path_, .key = "--out"});
+      throw Error(std::string("cannot lock the output's staging folder: ") + std::strerror(error),
+                  {.file = staging_path_, .key = "--out"});
+    }
+    // The lock holds the folder now at the path only if no one replaced it between open() and flock().
+    struct stat held {
+    }, at_path{};
+    if (::fstat(fd, &held) == 0 && ::stat(staging_path_.c_str(), &at_path) == 0 &&
+        held.st_ino == at_path.st_ino && held.st_dev == at_path.st_dev) {
+      lock_fd_ = fd;
+      return !created;
+    }
+    ::close(fd);
+  }
+  throw Error("the output's staging folder keeps changing under this run",
+              {.file = staging_path_, .key = "--out"});
+}
+
+// A staging folder left by an interrupted run carries the marker (or, from a writer without one, only
+// partial files) and is emptied; one holding anything else is not tirstrain's, and is left alone.
+void StagingDirectory::clear_leftover() {
+  std::error_code ec;
+  bool marked = false, only_partial_files = true;
+  for (const auto& entry : fs::directory_iterator(staging_path_, ec)) {
+    const std::string name = entry.path().filename().string();
+    marked = marked || name == kStagingMarker;
+    only_partial_files = only_partial_files && is_leftover(name);
+  }
+  if (!marked && !only_partial_files)
+    throw Error(
+        "this folder holds files a tirstrain run did not leave there; the run stages its output under "
+        "this name, so move them or choose another --out",
+        {.file = staging_path_, .key = "--out"});
+  for (const auto& entry : fs::directory_iterator(staging_path_, ec))
+    if (entry.path().filename() != kStagingMarker) fs::remove_all(entry.path(), ec);
+  if (ec)
+    throw Error("cannot clear an interrupted run's staging folder: " + ec.message(), {.file = staging_path_});
 }
 
 StagingDirectory::~StagingDirectory() {
@@ -105,24 +178,15 @@ StagingDirectory::~StagingDirectory() {
     std::error_code ec;
     fs::remove_all(staging_path_, ec);
   }
+  if (lock_fd_ >= 0) ::close(lock_fd_);
 }
 
 void StagingDirectory::commit() {
+  std::error_code ec;
+  fs::remove(fs::path(staging_path_) / kStagingMarker, ec);
   swap_in_directory(staging_path_, final_path_);
   committed_ = true;
 }
-
-namespace {
-
-// Leftovers of an interrupted writer inside a folder (partial files of a run before staging).
-bool is_leftover(const std::string& name) {
-  const auto ends_with = [&](const std::string& tail) {
-    return name.size() >= tail.size() && name.compare(name.size() - tail.size(), tail.size(), tail) == 0;
-  };
-  return ends_with(".partial") || ends_with(".partial.mp4") || name == ".tirstrain-write-probe";
-}
-
-}  // namespace
 
 void check_replaceable_output(const std::string& dir, const std::vector<std::string>& own_names,
                               const std::string& command) {

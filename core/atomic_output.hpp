@@ -26,7 +26,10 @@ std::string recorded_path(std::string text, const std::vector<StagedFolder>& fol
 // A directory built at "<final>.partial" and swapped in for <final> by commit(): an existing <final> is
 // exchanged atomically (renameat2 RENAME_EXCHANGE) and only then removed, so at every instant <final> is
 // either the earlier complete output or the new complete one. Destroyed uncommitted (error, exception), it
-// removes the staging directory.
+// removes the staging directory. While it lives it holds an exclusive lock (flock) on the staging
+// directory, so a second run into the same output is refused rather than interleaved; the directory carries
+// a marker file until commit, so that a later run clears only what an interrupted run left (a
+// "<final>.partial" holding anything else is refused). A <final> that is a link to a folder is followed.
 class StagingDirectory {
  public:
   explicit StagingDirectory(const std::string& final_path);
@@ -42,9 +45,16 @@ class StagingDirectory {
   StagedFolder folder() const { return {staging_path_, final_path_}; }
   void commit();
 
+  // The marker file a staging directory carries while a run writes it.
+  static constexpr const char* kStagingMarker = ".tirstrain-staging";
+
  private:
+  bool lock_staging_folder();
+  void clear_leftover();
+
   std::string final_path_;
   std::string staging_path_;
+  int lock_fd_ = -1;
   bool committed_ = false;
   bool keep_on_failure_ = false;
 };

@@ -155,6 +155,62 @@ TEST(StagingDirectory, EarlierOutputStaysWholeUntilTheSwap) {
   EXPECT_FALSE(fs::exists(final_dir + ".partial"));
 }
 
+// A second writer into the same output while the first is building it is refused, and the first's staging
+// folder is left as it was; once the first is done, the output can be written again.
+TEST(StagingDirectory, ASecondRunIntoTheSameOutputIsRefused) {
+  const fs::path dir = testing::scratch_dir("core", "staging_lock");
+  const std::string final_dir = (dir / "out").string();
+  {
+    StagingDirectory first(final_dir);
+    std::ofstream(first.path() + "/result.txt") << "first";
+    try {
+      StagingDirectory second(final_dir);
+      ADD_FAILURE() << "a second staging directory was created for the same output";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("another tirstrain run is writing this output"), std::string::npos)
+          << e.what();
+    }
+    EXPECT_TRUE(fs::exists(first.path() + "/result.txt"));
+    first.commit();
+  }
+  EXPECT_TRUE(fs::exists(final_dir + "/result.txt"));
+  EXPECT_FALSE(fs::exists(final_dir + "/" + StagingDirectory::kStagingMarker));  // not in the finished output
+  EXPECT_NO_THROW(StagingDirectory again(final_dir));
+}
+
+// "<out>.partial" left by an interrupted run (it carries the marker) is cleared by the next run; one that
+// holds anything else is someone's folder, and is refused and left untouched.
+TEST(StagingDirectory, ClearsAnInterruptedRunsLeftoverButNotAForeignFolder) {
+  const fs::path dir = testing::scratch_dir("core", "staging_leftover");
+  const std::string final_dir = (dir / "out").string();
+  fs::create_directories(final_dir + ".partial");
+  std::ofstream(final_dir + ".partial/" + StagingDirectory::kStagingMarker) << "x";
+  std::ofstream(final_dir + ".partial/result.h5.partial") << "cut short";
+  {
+    StagingDirectory stage(final_dir);
+    EXPECT_FALSE(fs::exists(stage.path() + "/result.h5.partial"));
+  }
+  const std::string foreign = (dir / "mine").string();
+  fs::create_directories(foreign + ".partial");
+  std::ofstream(foreign + ".partial/notes.txt") << "keep";
+  EXPECT_THROW(StagingDirectory stage(foreign), Error);
+  EXPECT_TRUE(fs::exists(foreign + ".partial/notes.txt"));
+}
+
+// An output given as a link to a folder is written into the folder, and the link stays a link.
+TEST(StagingDirectory, FollowsALinkToAFolder) {
+  const fs::path dir = testing::scratch_dir("core", "staging_link");
+  fs::create_directories(dir / "real");
+  fs::create_directory_symlink(dir / "real", dir / "link");
+  {
+    StagingDirectory stage((dir / "link").string());
+    std::ofstream(stage.path() + "/result.txt") << "r";
+    stage.commit();
+  }
+  EXPECT_TRUE(fs::is_symlink(dir / "link"));
+  EXPECT_TRUE(fs::exists(dir / "real" / "result.txt"));
+}
+
 TEST(RecordedPath, NamesTheFinalPlaceOfWholeStagingFolderNamesOnly) {
   const std::vector<StagedFolder> nested = {{"/o/v.partial", "/o/v"}, {"/b.partial", "/b"}};
   EXPECT_EQ(recorded_path("/o/v.partial/trial", nested), "/o/v/trial");
