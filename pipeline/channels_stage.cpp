@@ -570,6 +570,7 @@ class ChannelsStage final : public Stage {
       c["events"] = {{"onset_s", e.onset_s},
                      {"onset_frame", f.onset_frame},
                      {"onset_source", e.onset_source},
+                     {"baseline_end_s", e.baseline_end_s},
                      {"t90_s", e.fraction_s},
                      {"t90_frame", f.t90_frame},
                      {"fraction", config_.events.plateau_fraction},
@@ -762,6 +763,10 @@ class ChannelsStage final : public Stage {
     }
     if (f.events) {
       const ts::TrialEvents& e = *f.events;
+      if (e.baseline_shortened)
+        f.warnings.push_back("the movement starts inside the " + fmt(config_.events.baseline_s) +
+                             " s baseline window (friction.baseline_s): the baseline ends at " +
+                             fmt(e.baseline_end_s) + " s, before it");
       f.onset_frame = frame_at_or_after(frame_t_s_, e.onset_s);
       f.t90_frame = frame_at_or_after(frame_t_s_, e.fraction_s);
       f.full_slip_frame = frame_at_or_after(frame_t_s_, e.full_slip_s);
@@ -783,6 +788,12 @@ class ChannelsStage final : public Stage {
         if (tu.size() >= 2 && e.fraction_s >= tu.front() && e.fraction_s <= tu.back()) {
           f.strain_energy_at_t90_J = ts::resample_linear(tu, u, {e.fraction_s}).front();
           if (*e.external_work_J != 0.0) f.energy_ratio = *f.strain_energy_at_t90_J / *e.external_work_J;
+          // Elastic energy stored cannot exceed the work done on the skin.
+          if (f.energy_ratio && std::abs(*f.energy_ratio) > 1.0)
+            f.warnings.push_back("U/U_ext = " + fmt(*f.energy_ratio) +
+                                 ": the strain energy exceeds the work of the tangential force, which cannot "
+                                 "be; check the tissue's E and depth, the force and position units, and the "
+                                 "events (onset, t90)");
         } else if (!tu.empty()) {
           f.warnings.push_back("the 90 % point (" + fmt(e.fraction_s) +
                                " s) is not bracketed by frames with strain energy; U/U_ext not reported");

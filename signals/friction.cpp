@@ -220,6 +220,35 @@ std::size_t event_baseline_end(const std::vector<double>& time_s, const std::vec
   return baseline_end;
 }
 
+// The baseline window must end before the movement starts: a record whose movement begins inside it (a
+// short rest before the plate moves) would take part of the movement for the baseline, its level and noise
+// band. The window's first quarter is taken as quiet, and the onset is found against it as find_onset
+// does (the first crossing of the threshold, anywhere in the record, traced back to the noise band); when
+// that onset lies inside the window, the window ends there.
+std::size_t quiet_baseline_end(const std::vector<double>& driver, std::size_t baseline_end,
+                               const EventOptions& options) {
+  const std::size_t seed_end = std::max<std::size_t>(2, baseline_end / 4);
+  if (seed_end >= baseline_end) return baseline_end;
+  const BaselineStats seed = baseline_stats(driver, seed_end);
+  double excursion = 0.0;
+  for (double v : driver) excursion = std::max(excursion, std::abs(v - seed.mean));
+  const double detect = std::max(options.onset_fraction * excursion, options.onset_sigma * seed.sigma);
+  const double band = std::max(options.onset_sigma * seed.sigma, 1e-12 * excursion);
+  std::size_t cross = driver.size();
+  for (std::size_t i = seed_end; i < driver.size(); ++i)
+    if (std::abs(driver[i] - seed.mean) >= detect) {
+      cross = i;
+      break;
+    }
+  std::size_t end = cross;
+  while (end > 0 && std::abs(driver[end - 1] - seed.mean) > band) --end;
+  if (end >= baseline_end) return baseline_end;
+  if (end < 2)
+    throw Error("the movement starts at the record's start: no quiet stretch before it for the baseline",
+                {.key = "baseline_s"});
+  return end;
+}
+
 // The driver leaves its baseline by onset_fraction of its excursion; the onset is the last sample before
 // that still inside the baseline noise band.
 void find_onset(const std::vector<double>& time_s, const std::vector<double>& driver,
@@ -279,10 +308,14 @@ template <typename PlateauOf>
 TrialEvents detect_events_with(const std::vector<double>& time_s, const std::vector<double>& tangential_N,
                                const std::vector<double>* position_m, const EventOptions& options,
                                PlateauOf plateau_of) {
-  const std::size_t baseline_end = event_baseline_end(time_s, tangential_N, position_m, options);
+  const std::size_t window_end = event_baseline_end(time_s, tangential_N, position_m, options);
   TrialEvents ev;
   ev.onset_source = position_m ? "position" : "tangential";
-  find_onset(time_s, position_m ? *position_m : tangential_N, baseline_end, options, ev);
+  const std::vector<double>& driver = position_m ? *position_m : tangential_N;
+  const std::size_t baseline_end = quiet_baseline_end(driver, window_end, options);
+  ev.baseline_end_s = time_s[baseline_end - 1];
+  ev.baseline_shortened = baseline_end < window_end;
+  find_onset(time_s, driver, baseline_end, options, ev);
   ev.baseline_tangential_N = baseline_stats(tangential_N, baseline_end).mean;
   std::vector<double> rise(time_s.size());
   for (std::size_t i = 0; i < rise.size(); ++i) rise[i] = tangential_N[i] - ev.baseline_tangential_N;

@@ -65,6 +65,10 @@ struct TrialEvents {
   double full_slip_s = 0.0;
   std::size_t full_slip_index = 0;
   double baseline_tangential_N = 0.0;
+  // The baseline's last sample time; before baseline_s when the movement starts inside that window
+  // (baseline_shortened), which a caller reports.
+  double baseline_end_s = 0.0;
+  bool baseline_shortened = false;
   Plateau tangential_plateau;
   std::optional<double> external_work_J;  // ∫ F_t dx from onset to the fraction point (needs position)
 };

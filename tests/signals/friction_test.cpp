@@ -68,6 +68,41 @@ TEST(Friction, DynamicMuAndEventsOfACleanTrial) {
   EXPECT_NEAR(*ev.external_work_J, trial.work(), 0.002 * trial.work());
 }
 
+// The plate moves 0.05 s into the record while the baseline window is 0.1 s (the shipped scenes' rest):
+// the baseline is cut before the movement, so the onset, t90 and the work are those of the clean trial, and
+// the cut is reported. Without the movement in the window, nothing is cut.
+TEST(Friction, MovementInsideTheBaselineWindowCutsTheBaseline) {
+  for (const double noise : {0.0, 0.005}) {
+    Trial trial(noise, 5);
+    trial.t0 = 0.05;
+    trial = [&] {
+      Trial t = trial;
+      t.t.clear(), t.x.clear(), t.f.clear(), t.n.clear();
+      std::mt19937_64 rng(5);
+      std::normal_distribution<double> g(0.0, 1.0);
+      for (int i = 0; i <= static_cast<int>(t.duration * t.fs); ++i) {
+        const double ti = i / t.fs, d = std::max(0.0, t.v * (ti - t.t0));
+        t.t.push_back(ti);
+        t.x.push_back(0.01 + d + 1e-7 * noise * g(rng));
+        t.f.push_back(t.mu * t.w * (1.0 - std::pow(1.0 - std::min(1.0, d / t.delta_star), 1.5)) +
+                      noise * t.mu * t.w * g(rng));
+      }
+      return t;
+    }();
+    const auto ev = ts::detect_events(trial.t, trial.f, &trial.x, {});  // baseline_s 0.1
+    EXPECT_TRUE(ev.baseline_shortened) << noise;
+    EXPECT_NEAR(ev.baseline_end_s, 0.05, 0.002) << noise;
+    EXPECT_NEAR(ev.onset_s, trial.t0, 2e-3) << noise;
+    EXPECT_NEAR(ev.fraction_s, trial.t90(), 3e-3) << noise;
+    ASSERT_TRUE(ev.external_work_J);
+    EXPECT_NEAR(*ev.external_work_J, trial.work(), 0.02 * trial.work()) << noise;
+  }
+  const Trial quiet;  // moves at 0.5 s
+  const auto ev = ts::detect_events(quiet.t, quiet.f, &quiet.x, {});
+  EXPECT_FALSE(ev.baseline_shortened);
+  EXPECT_NEAR(ev.baseline_end_s, 0.1, 0.0011);
+}
+
 TEST(Friction, NoisyTrialStillFindsMuAndTheNinetyPercentPoint) {
   const Trial trial(0.005, 3);
   const auto mu = ts::friction_coefficient(trial.f, trial.n, 0.05);
