@@ -716,6 +716,8 @@ class ChannelsStage final : public Stage {
       }
   }
 
+  std::vector<std::string> warnings() const override { return fused().warnings; }
+
   const Fused& fused() const {
     if (fused_) return *fused_;
     if (frame_t_s_.empty() || series_.empty())

@@ -329,6 +329,8 @@ class ProcessRun {
     update_time_source(*source_, time_source_, warn());
     if (!trial_) throw Error("no frame of the input could be decoded", {.file = options_.input});
     finish_stages(scene_, *trial_, rows_, plan_.stages, options_);
+    for (const auto& stage : plan_.stages)
+      for (const std::string& w : stage->warnings()) warn()(stage->name() + ": " + w);
     warn_if_no_contact();
     // Outputs in order of increasing importance; result.h5 last, so its presence means a complete run.
     if (const std::string name = overlay_->finish(); !name.empty())

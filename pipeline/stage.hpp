@@ -93,6 +93,9 @@ class Stage {
   // whole trial's scalars (rates by central differences). Per-frame rows are already in `out`.
   virtual void write(H5Stream& out) const = 0;
   virtual void summarize(nlohmann::json& /*summary*/) const {}
+  // After finish(): what a user must read about this stage's results (each also in the stage's own part of
+  // summary.json); the run prints them and lists them in summary.json's `warnings`.
+  virtual std::vector<std::string> warnings() const { return {}; }
   // Everything process() carries from frame to frame, in a checkpoint (core/archive.hpp), so that an
   // interrupted run continues where it stopped: written after start() and a number of frames, read back
   // into a stage made from the same scene and started on the same trial. What start() sets is not in it.

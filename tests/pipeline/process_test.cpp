@@ -638,6 +638,16 @@ TEST(Process, ChannelsFileBesideTheFramesIsRead) {
   EXPECT_DOUBLE_EQ(normal[7], 1.5);
   const auto plate_x = h5.read_doubles("/channels/plate_position_x_m");
   EXPECT_NEAR(plate_x[10], 1e-4, 1e-12);  // 0.1 mm
+  // The channels' warnings (here: the plate moves from the record's first sample) are the run's too,
+  // printed and in summary.json's top-level list.
+  ASSERT_FALSE(summary["channels"]["warnings"].empty()) << summary["channels"].dump();
+  for (const auto& w : summary["channels"]["warnings"]) {
+    const std::string line = "channels: " + w.get<std::string>();
+    EXPECT_NE(std::find(summary["warnings"].begin(), summary["warnings"].end(), line),
+              summary["warnings"].end())
+        << line;
+    EXPECT_NE(run.output.find("tirstrain: warning: " + line), std::string::npos) << line;
+  }
 
   std::ofstream(trial / "channels.csv") << "time,force\n0,1\n0.001,1\n";
   const CliRun other = run_cli("process " + trial.string() + " --out " + out.string() + " --overlay none");
