@@ -220,6 +220,9 @@ SynthSummary synthesize(const SynthOptions& options) {
     throw Error("the output folder holds the scene file " + options.scene_path +
                     "; it is replaced as a whole when the trial is complete, so give a folder of its own",
                 {.file = options.out_dir, .key = "--out"});
+  // Replacing the folder deletes what is in it: only an earlier trial's own files may be.
+  check_replaceable_output(options.out_dir,
+                           {"frames", "frames.csv", "channels.csv", "scene.yaml", "truth.h5"}, "synth");
   // Everything that can be wrong with the scene is found here, before the output directory exists.
   SynthConfig config = load_synth_config(options.scene_path);
   if (options.seed) config.seed = *options.seed;

@@ -157,7 +157,8 @@ SynthConfig parse_synth_config(const Scene& scene) {
     throw Error("required key is missing (the synthesis section describes the trial to render)",
                 {.file = file, .key = "synthesis"});
   YamlSection top(scene.synthesis, file, "synthesis");
-  cfg.seed = static_cast<std::uint64_t>(top.integer("seed", 1, 0, std::numeric_limits<long>::max()));
+  // Up to 2^53: truth.h5 keeps the seed as a double, which holds every integer up to there exactly.
+  cfg.seed = static_cast<std::uint64_t>(top.integer("seed", 1, 0, 1L << 53));
 
   YamlSection image = top.section("image");
   cfg.image.width_px = static_cast<int>(image.integer("width_px", 0, 16, 8192));

@@ -29,13 +29,17 @@ void add_synth_command(CLI::App& app) {
       "and DIR/truth.h5 (per frame: load P, Q, c, delta_x; plate displacement in px; contact mask; "
       "displacement in\n"
       "px, gradient and Green-Lagrange strain on a grid of reference points). Layout: docs/formats.md.\n"
-      "Example scenes: samples/scenes/*.yaml. The directory appears only when complete; an existing one is "
-      "replaced.");
+      "Example scenes: samples/scenes/*.yaml. The directory appears only when complete; an earlier trial "
+      "in it is\nreplaced, a folder holding anything else is refused.\n"
+      "Example: tirstrain synth --scene samples/scenes/default.yaml --out trial   (then: tirstrain process "
+      "trial --out result)");
   sub->add_option("--scene", options->scene, "Scene file (YAML) with a synthesis: section")
       ->required()
       ->check(CLI::ExistingFile);
   sub->add_option("--out", options->out, "Output trial directory DIR")->required();
-  sub->add_option("--seed", options->seed, "Random seed (non-negative integer); overrides synthesis.seed");
+  // Up to 2^53, so that the seed reads back exactly from truth.h5 and the written scene.
+  sub->add_option("--seed", options->seed, "Random seed (integer 0 to 2^53); overrides synthesis.seed")
+      ->check(CLI::Range(std::uint64_t{0}, std::uint64_t{1} << 53));
   sub->add_flag("--quiet,-q", options->quiet, "No progress output");
   sub->callback([options] {
     samples::SynthOptions o;

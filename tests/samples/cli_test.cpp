@@ -184,6 +184,35 @@ TEST(SamplesCli, BadSceneFilesNameKeyAndFileAndLeaveNoOutput) {
   }
 }
 
+// synth replaces its output folder as a whole: an earlier trial there is replaced, a folder holding
+// anything else is refused and left as it was.
+TEST(SamplesCli, ReplacesAnEarlierTrialButNotSomeoneElsesFolder) {
+  const std::string dir = scratch_dir("cli-replace");
+  write_yaml(small_scene(), dir + "/scene.yaml");
+  const std::string synth = "synth --scene " + dir + "/scene.yaml --quiet --out ";
+  ASSERT_EQ(run_cli(synth + dir + "/trial", dir + "/log1.txt").exit_code, 0);
+  ASSERT_EQ(run_cli(synth + dir + "/trial", dir + "/log2.txt").exit_code, 0);
+  fs::create_directories(dir + "/mine");
+  std::ofstream(dir + "/mine/notes.txt") << "keep";
+  const auto r = run_cli(synth + dir + "/mine", dir + "/log3.txt");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("notes.txt"), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::exists(dir + "/mine/notes.txt"));
+  EXPECT_FALSE(fs::exists(dir + "/mine/truth.h5"));
+}
+
+// A seed that truth.h5 and the written scene could not hold exactly (negative, past 2^53) is a usage error.
+TEST(SamplesCli, RefusesASeedThatWouldNotReadBack) {
+  const std::string dir = scratch_dir("cli-seed");
+  write_yaml(small_scene(), dir + "/scene.yaml");
+  for (const char* seed : {"-1", "9007199254740993", "99999999999999999999"}) {
+    const auto r = run_cli("synth --scene " + dir + "/scene.yaml --quiet --out " + dir + "/t --seed " + seed,
+                           dir + "/log.txt");
+    EXPECT_EQ(r.exit_code, 2) << seed << ": " << r.output;
+    EXPECT_FALSE(fs::exists(dir + "/t")) << seed;
+  }
+}
+
 TEST(SamplesCli, HelpStatesUnits) {
   const std::string dir = scratch_dir("cli-help");
   const auto r = run_cli("synth --help", dir + "/help.txt");
