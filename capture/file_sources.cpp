@@ -143,9 +143,28 @@ std::string size_text(const cv::Size& size) {
   return std::to_string(size.width) + "x" + std::to_string(size.height);
 }
 
+// A JPEG ends with its end-of-image marker (FF D9). libjpeg decodes a file cut short anyway, fills the
+// missing rows with grey and only prints a warning, so a cut file would pass for a frame: its tail is
+// checked (some writers append a few bytes after the marker, hence the last 4 KiB).
+bool jpeg_is_cut_short(const std::string& path) {
+  std::string extension = fs::path(path).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (extension != ".jpg" && extension != ".jpeg") return false;
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) return false;  // the decoder reports an unreadable file
+  const std::streamoff size = in.tellg();
+  const std::streamoff tail = std::min<std::streamoff>(size, 4096);
+  std::string bytes(static_cast<std::size_t>(tail), '\0');
+  in.seekg(size - tail);
+  in.read(bytes.data(), tail);
+  return bytes.find("\xFF\xD9") == std::string::npos;
+}
+
 // The decoded image, or an empty one when the file cannot be decoded: OpenCV's decoders throw on some
 // malformed headers (a TIFF 0 pixels wide) where others return nothing, and either is a corrupt frame.
 cv::Mat read_image(const std::string& path) {
+  if (jpeg_is_cut_short(path)) return {};
   try {
     return cv::imread(path, cv::IMREAD_UNCHANGED);
   } catch (const cv::Exception&) {

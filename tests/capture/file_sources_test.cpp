@@ -127,6 +127,24 @@ TEST(ImageFolder, CorruptMiddleFrameIsMarkedNotFatal) {
   EXPECT_EQ(frames[3].status, FrameStatus::kOk);
 }
 
+// libjpeg decodes a JPEG cut short (grey rows for what is missing) and only prints a warning: a file
+// without its end-of-image marker is a corrupt frame, a whole one with bytes after the marker is not.
+TEST(ImageFolder, JpegCutShortIsACorruptFrame) {
+  const fs::path dir = scratch("jpeg_cut");
+  for (int i = 0; i < 3; ++i)
+    cv::imwrite((dir / ("f" + std::to_string(i) + ".jpg")).string(), frame_image(i));
+  const fs::path cut = dir / "f1.jpg";
+  fs::resize_file(cut, fs::file_size(cut) * 6 / 10);
+  std::ofstream(dir / "f2.jpg", std::ios::app | std::ios::binary) << "trailer";
+  const auto frames = read_all(*open_source(dir.string()));
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(frames[0].status, FrameStatus::kOk);
+  EXPECT_EQ(frames[1].status, FrameStatus::kCorrupt);
+  EXPECT_TRUE(frames[1].image.empty());
+  EXPECT_EQ(frames[2].status, FrameStatus::kOk);
+  EXPECT_EQ(frames[2].image.cols, 64);
+}
+
 // Found by fuzz_image_sequence (tests/fuzz/corpus): a TIFF header 0 pixels wide makes OpenCV throw out of
 // imread instead of returning nothing; it is a corrupt frame like any other undecodable file.
 TEST(ImageFolder, TiffZeroPixelsWideIsACorruptFrame) {
