@@ -253,13 +253,25 @@ class ImageSequenceSource final : public FrameSource {
           throw Error("index must be distinct whole frame numbers",
                       {.file = csv, .row = static_cast<long>(r) + 2, .column = "index"});
       }
-      // Rows are matched to files by the number in the file name (so a missing file is a lost frame), or
-      // by position when the names carry no numbers or are numbered from another origin.
+      // Rows are matched to files by the number in the file name (so a missing file is a lost frame), also
+      // when the names count from another origin than the index (000001.png for index 0); by position only
+      // when the names carry no numbers, or when the numbers match no origin and there are exactly as many
+      // rows as files (otherwise a lost file would shift every later frame's time).
       if (numbered_) {
-        mapped = std::all_of(files_.begin(), files_.end(),
-                             [&](const SequenceFile& f) { return rows.count(f.number); });
-        if (mapped)
-          for (std::size_t i = 0; i < files_.size(); ++i) row_of[i] = rows.at(files_[i].number);
+        const std::int64_t origin = files_.front().number - rows.begin()->first;
+        for (const std::int64_t offset : {std::int64_t{0}, origin}) {
+          mapped = std::all_of(files_.begin(), files_.end(),
+                               [&](const SequenceFile& f) { return rows.count(f.number - offset); });
+          if (!mapped) continue;
+          for (std::size_t i = 0; i < files_.size(); ++i) row_of[i] = rows.at(files_[i].number - offset);
+          break;
+        }
+        if (!mapped && rows.size() != files_.size())
+          throw Error("the image names are numbered " + std::to_string(files_.front().number) + " to " +
+                          std::to_string(files_.back().number) + " and match no row's index, and the " +
+                          std::to_string(rows.size()) + " rows are not one per image (" +
+                          std::to_string(files_.size()) + "): rows cannot be matched to images",
+                      {.file = csv, .column = "index"});
       }
       if (!mapped) {
         numbered_ = false;

@@ -113,6 +113,26 @@ TEST(ImageFolder, MissingFileBecomesGapWithFrameNumbers) {
   EXPECT_DOUBLE_EQ(frames[2].device_time_s, 0.03);
 }
 
+// Names counted from 1 while frames.csv's index counts from 0 (a common camera export), with one file
+// lost: rows are matched through the names' origin, so the lost file is a gap and the later frames keep
+// their own times. Numbers that match no origin are matched by position only with one row per image.
+TEST(ImageFolder, NamesFromAnotherOriginKeepTheirTimesAcrossALostFile) {
+  const fs::path dir = scratch("origin");
+  for (int i : {1, 2, 4, 5})
+    cv::imwrite((dir / ("img" + std::to_string(i) + ".png")).string(), frame_image(i));
+  write_text(dir / "frames.csv", "index,t_s\n0,0\n1,0.01\n2,0.02\n3,0.03\n4,0.04\n");
+  const auto frames = read_all(*open_source(dir.string()));
+  ASSERT_EQ(frames.size(), 4u);
+  EXPECT_DOUBLE_EQ(frames[1].device_time_s, 0.01);
+  EXPECT_EQ(frames[2].status, FrameStatus::kGapBefore);
+  EXPECT_EQ(frames[2].frames_lost_before, 1);
+  EXPECT_DOUBLE_EQ(frames[2].device_time_s, 0.03);
+  EXPECT_DOUBLE_EQ(frames[3].device_time_s, 0.04);
+
+  write_text(dir / "frames.csv", "index,t_s\n10,0\n12,0.01\n14,0.02\n16,0.03\n18,0.04\n");
+  EXPECT_NE(error_of([&] { open_source(dir.string()); }).find("not one per image"), std::string::npos);
+}
+
 TEST(ImageFolder, CorruptMiddleFrameIsMarkedNotFatal) {
   const fs::path dir = scratch("corrupt");
   for (int i = 0; i < 4; ++i)
