@@ -167,9 +167,25 @@ class TrackRun {
     source_ = capture::open_source(o_.input, capture::FileSourceOptions{.frame_rate_Hz = o_.frame_rate_Hz});
   }
 
+  // The next frame that decoded; a corrupt or incomplete one is skipped, said and listed in the JSON.
+  std::optional<capture::Frame> next_usable_frame() {
+    while (std::optional<capture::Frame> f = source_->next()) {
+      if (f->status != capture::FrameStatus::kCorrupt && f->status != capture::FrameStatus::kIncomplete)
+        return f;
+      skipped_.push_back(f->index);
+      if (!o_.quiet)
+        std::cerr << "tirstrain track: skipping frame " << f->index << " (" << capture::to_string(f->status)
+                  << ")\n";
+    }
+    return std::nullopt;
+  }
+
   void start() {
-    std::optional<capture::Frame> first = source_->next();
-    if (!first) throw Error("the sequence has no frames", {.file = o_.input});
+    std::optional<capture::Frame> first = next_usable_frame();
+    if (!first)
+      throw Error(
+          skipped_.empty() ? "the sequence has no frames" : "no frame of the sequence could be decoded",
+          {.file = o_.input});
     const cv::Size size = first->image.size();
     if (!o_.roi.empty()) {
       mask_ = cv::Mat::zeros(size, CV_8U);
@@ -179,36 +195,31 @@ class TrackRun {
     try {
       tracker_->start(first->image, mask_, first->device_time_s, seed_points(o_, settings_, size));
     } catch (const Error& e) {
-      throw Error(e.message(), {.file = o_.input, .frame = 0});
+      throw Error(e.message(), {.file = o_.input, .frame = first->index});
     }
-    write_rows(0);
+    write_rows(first->index);
   }
 
   void track_frames() {
     Progress progress("track", source_->frame_count() > 0 ? static_cast<long>(source_->frame_count()) : 1L,
                       o_.quiet);
-    while (std::optional<capture::Frame> f = source_->next()) {
-      if (f->status == capture::FrameStatus::kCorrupt || f->status == capture::FrameStatus::kIncomplete) {
-        if (!o_.quiet)
-          std::cerr << "tirstrain track: skipping frame " << f->index << " (" << capture::to_string(f->status)
-                    << ")\n";
-        continue;
-      }
+    while (std::optional<capture::Frame> f = next_usable_frame()) {
       try {
         tracker_->track(f->image, mask_, f->device_time_s);
       } catch (const Error& e) {
         throw Error(e.message(), {.file = o_.input, .frame = f->index});
       }
-      write_rows(tracker_->frame_index());
+      write_rows(f->index);
       progress.update(static_cast<long>(f->index) + 1);
     }
     progress.finish();
   }
 
-  // The frame's rows: every alive track, and those retired this frame with their reason.
-  void write_rows(int frame) {
+  // The frame's rows (`frame`: the input's frame index, which counts the skipped frames too): every alive
+  // track, and those retired this frame with their reason.
+  void write_rows(std::int64_t frame) {
     for (const flow::Track& t : tracker_->tracks()) {
-      if (!flow::is_alive(t.status) && t.retired_frame != frame) continue;
+      if (!flow::is_alive(t.status) && t.retired_frame != tracker_->frame_index()) continue;
       const bool local_fit = t.model == flow::TrackModel::kLocalFit;
       out_.row_text({std::to_string(frame), std::to_string(t.id), format_double(t.reference_px.x),
                      format_double(t.reference_px.y), format_double(t.position_px.x),
@@ -229,6 +240,7 @@ class TrackRun {
                                    {"texture", pipeline::texture_json(*tracker_)},
                                    {"input", o_.input},
                                    {"frames", frames_},
+                                   {"frames_skipped", skipped_},
                                    {"track_frames_by_model",
                                     {{"own_match", by_model_[0]},
                                      {"fused", by_model_[1]},
@@ -271,6 +283,7 @@ class TrackRun {
   nlohmann::json frames_json_ = nlohmann::json::array();
   std::array<long, 6> by_model_{};
   int frames_ = 0;
+  std::vector<std::int64_t> skipped_;  // input frame indices that could not be decoded
 };
 
 void run_track(const TrackOptions& o) {
@@ -291,6 +304,8 @@ void add_track_command(CLI::App& app) {
       "match's; a component alone may take the whole frame's fit of it), else 0; 5 the affine fit of a\n"
       "moving frame; each only where a test on that frame accepted it)\n"
       "and, beside the CSV, a JSON of the settings in effect, the texture and the per-frame tests.\n"
+      "frame is the input's frame index: a frame that cannot be decoded is skipped (listed in the JSON's\n"
+      "frames_skipped) and the others keep their numbers.\n"
       "Example: tirstrain track frames/ --grid 10 --out tracks.csv   (writes tracks.csv and tracks.json)");
   cmd->add_option("input", o->input,
                   "Image folder, printf/glob pattern, multi-page TIFF, .cine, .mraw/.cih or video file")

@@ -118,6 +118,36 @@ TEST(TrackCli, SubPixelShiftOfSpeckle) {
   EXPECT_EQ(files, 2u);
 }
 
+// A corrupt frame (here the first and the third file) is skipped: the CSV's frame column is the input's
+// frame index, so the frames after it keep their numbers, and the JSON lists the skipped ones.
+TEST(TrackCli, SkippedFramesKeepTheInputsFrameNumbers) {
+  const std::filesystem::path dir = std::filesystem::path(TIRSTRAIN_TEST_TMP) / "flow" / "skipped";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir / "frames");
+  for (int k = 0; k < 5; ++k) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06d.png", k);
+    if (k == 0 || k == 2)
+      std::ofstream(dir / "frames" / name) << "not a PNG";
+    else
+      cv::imwrite((dir / "frames" / name).string(), speckle(96, 0.3 * k, 0.0));
+  }
+  const std::string out = (dir / "tracks.csv").string();
+  ASSERT_EQ(run("track " + (dir / "frames").string() + " --grid 16 --out " + out + " --quiet"), 0);
+  const tirstrain::CsvTable t = tirstrain::read_numeric_csv(out);
+  std::vector<double> frames;
+  for (const double f : t.column("frame"))
+    if (frames.empty() || frames.back() != f) frames.push_back(f);
+  EXPECT_EQ(frames, (std::vector<double>{1, 3, 4}));
+  // Frame 4 is 0.9 px from frame 1, the tracks' reference.
+  for (std::size_t i = 0; i < t.rows(); ++i)
+    if (t.column("frame")[i] == 4) EXPECT_NEAR(t.column("x_px")[i] - t.column("X_px")[i], 0.9, 0.02);
+  std::ifstream json(dir / "tracks.json");
+  const nlohmann::json report = nlohmann::json::parse(json);
+  EXPECT_EQ(report["frames"], 3);
+  EXPECT_EQ(report["frames_skipped"], (std::vector<int>{0, 2}));
+}
+
 TEST(TrackCli, TenBitCodesInSixteenBitFilesTrackAsWell) {
   // A 10-bit camera's frames stored as 16-bit PNGs: codes up to 1023. Full scale is decided the way contact/
   // decides it (1023 here), so the tracker sees the same texture as from a full-range file and finds the
