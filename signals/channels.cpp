@@ -18,7 +18,27 @@
 #include "signals/spectral.hpp"
 
 namespace tirstrain::signals {
+
+double time_column_seconds_per_unit(const std::string& name) {
+  const auto ends_with = [&](const char* tail) {
+    const std::string t(tail);
+    return name.size() > t.size() && name.compare(name.size() - t.size(), t.size(), t) == 0;
+  };
+  if (ends_with("_ms")) return 1e-3;
+  if (ends_with("_us")) return 1e-6;
+  if (ends_with("_ns")) return 1e-9;
+  if (ends_with("_min")) return 60.0;
+  return 1.0;
+}
+
 namespace {
+
+// The time column in seconds, whatever unit its name carries.
+void time_to_seconds(const std::string& time_column, std::vector<double>& time_s) {
+  const double scale = time_column_seconds_per_unit(time_column);
+  if (scale != 1.0)
+    for (double& t : time_s) t *= scale;
+}
 
 std::string lower_extension(const std::string& path) {
   const auto dot = path.find_last_of('.');
@@ -158,6 +178,7 @@ ChannelTable read_channels_csv(const std::string& path, const ChannelReadOptions
   for (std::size_t j = 0; j < csv.names.size(); ++j) {
     if (csv.names[j] == options.time_column) {
       table.time_s = csv.columns[j];
+      time_to_seconds(options.time_column, table.time_s);
     } else {
       table.names.push_back(csv.names[j]);
       table.columns.push_back(csv.columns[j]);
@@ -299,6 +320,7 @@ bool read_group_channels(const H5::Group& group, const std::string& path, std::u
     std::vector<double> values = read_finite_samples(ds, length, path, name);
     if (name == options.time_column) {
       table.time_s = std::move(values);
+      time_to_seconds(options.time_column, table.time_s);
       have_time = true;
     } else {
       table.names.push_back(name);

@@ -27,6 +27,11 @@
 
 namespace tirstrain::signals {
 
+// Seconds per unit of a time column or variable named with a unit suffix (`t_ms`: 1e-3, `_us`, `_ns`,
+// `_min`); 1 for `_s` and for a name with no time unit, which is read as seconds. Readers convert the time
+// axis with it, so `ChannelTable::time_s` is always in seconds.
+double time_column_seconds_per_unit(const std::string& name);
+
 struct ChannelTable {
   std::string path;
   std::string time_column = "t_s";

@@ -389,6 +389,7 @@ ChannelTable read_mat_table(const std::string& path, const ChannelReadOptions& o
         {.file = path, .column = options.time_column, .key = "--rate-Hz"});
   if (have_time) {
     table.time_s = file.read(time);
+    for (double& t : table.time_s) t *= time_column_seconds_per_unit(options.time_column);
     table.time_source = options.time_column + " variable";
   } else if (options.rate_Hz) {
     table.time_s =

@@ -72,6 +72,16 @@ TEST(ChannelsCsv, ReadsColumnsAndSampleRate) {
   EXPECT_EQ(table.samples(), 4u);
 }
 
+// A time column named with its unit (`t_ms`) is read in that unit: the table's time axis is in seconds.
+TEST(ChannelsCsv, TimeColumnInMillisecondsIsReadInSeconds) {
+  const auto path = write_text("ms.csv", "t_ms,normal_N\n0,1\n1,1.1\n2,1.2\n3,1.3\n");
+  const auto table = ts::read_channels(path, {.time_column = "t_ms"});
+  EXPECT_NEAR(table.sample_rate_Hz, 1000.0, 1e-6);
+  EXPECT_DOUBLE_EQ(table.time_s[3], 0.003);
+  EXPECT_DOUBLE_EQ(ts::time_column_seconds_per_unit("time_us"), 1e-6);
+  EXPECT_DOUBLE_EQ(ts::time_column_seconds_per_unit("t_s"), 1.0);
+}
+
 TEST(ChannelsCsv, DuplicateTimestampNamesRowAndColumn) {
   const auto path = write_text("dup.csv", "t_s,normal_N\n0,1\n0.001,1\n0.001,1\n0.003,1\n");
   const auto e = expect_error([&] { ts::read_channels(path); });
