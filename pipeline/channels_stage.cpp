@@ -371,6 +371,13 @@ std::string fmt(double v) {
   return buf;
 }
 
+// The channel file as the scene's section reads it, with every mapped column required.
+ts::ChannelTable read_table(const Config& config) {
+  ts::ChannelReadOptions options = config.read;
+  for (const auto& m : config.mapped) options.required.push_back(m.column);
+  return ts::read_channels(config.file, options);
+}
+
 class ChannelsStage final : public Stage {
  public:
   explicit ChannelsStage(Config config) : config_(std::move(config)) {}
@@ -385,9 +392,7 @@ class ChannelsStage final : public Stage {
 
   void start(const TrialInfo& info) override {
     keep_history_ = info.keep_history;
-    ts::ChannelReadOptions options = config_.read;
-    for (const auto& m : config_.mapped) options.required.push_back(m.column);
-    table_ = ts::read_channels(config_.file, options);
+    table_ = read_table(config_);
     for (const auto& name : table_.names) {
       const bool used = std::any_of(config_.mapped.begin(), config_.mapped.end(),
                                     [&](const Mapped& m) { return m.column == name; });
@@ -824,6 +829,10 @@ class ChannelsStage final : public Stage {
 
 std::unique_ptr<Stage> make_channels_stage(const Scene& scene) {
   return std::make_unique<ChannelsStage>(parse_config(scene));
+}
+
+void check_channel_file(const Scene& scene) {
+  (void)read_table(parse_config(scene));
 }
 
 }  // namespace tirstrain::pipeline

@@ -18,4 +18,8 @@ namespace tirstrain::pipeline {
 // channel it needs are errors naming the scene file and key). The channel file is read at start().
 std::unique_ptr<Stage> make_channels_stage(const Scene& scene);
 
+// Reads the channel file the scene's section names, as the stage's start() does: throws the Error start()
+// would (a non-finite sample, a time axis going back, a missing column), before any frame is read.
+void check_channel_file(const Scene& scene);
+
 }  // namespace tirstrain::pipeline

@@ -86,11 +86,11 @@ std::vector<std::string> default_stages(Scene& scene, const std::string& input, 
     reason += "; no channels (no channels section, no " + file + " with known columns)";
     return stages;
   }
-  // A section that the channels stage would reject leaves the channels out rather than stop the run.
+  // A section or file that the channels stage would reject leaves the channels out rather than stop the run.
   Scene trial = scene;
   trial.channels = section;
   try {
-    (void)make_channels_stage(trial);
+    check_channel_file(trial);
   } catch (const std::exception& e) {
     reason += "; no channels (" + file + ": " + e.what() + ")";
     return stages;

@@ -655,6 +655,18 @@ TEST(Process, ChannelsFileBesideTheFramesIsRead) {
   summary = read_summary(out);
   EXPECT_EQ(summary["stages_run"], (std::vector<std::string>{"contact", "tracking", "strain"}));
   EXPECT_NE(summary["stages_source"].get<std::string>().find("no channels"), std::string::npos);
+
+  // Known columns but a sample that is not a number: found before any frame is read, the channels left out
+  // and the reason (file, row, column) said on the first line, not the run stopped.
+  std::ofstream(trial / "channels.csv") << "t_s,normal_N,tangential_N\n0,1,0.1\n0.001,nan,0.1\n0.002,1,0.1\n";
+  const CliRun nan = run_cli("process " + trial.string() + " --out " + out.string() + " --overlay none");
+  ASSERT_EQ(nan.exit_code, 0) << nan.output;
+  summary = read_summary(out);
+  EXPECT_EQ(summary["stages_run"], (std::vector<std::string>{"contact", "tracking", "strain"}));
+  const std::string why = summary["stages_source"].get<std::string>();
+  EXPECT_NE(why.find("no channels"), std::string::npos) << why;
+  EXPECT_NE(why.find("normal_N"), std::string::npos) << why;
+  EXPECT_NE(nan.output.find(why), std::string::npos) << nan.output;
 }
 
 // `scene init` on a recording with the band along the left and the finger arriving at frame 2: the band's
