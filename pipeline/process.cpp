@@ -188,6 +188,15 @@ void use_default_channels_when_asked(Scene& scene, const std::string& input, std
   stages_reason += "; channels from " + file + " (no channels section in the scene)";
 }
 
+// A channel file beside the frames that the compute list leaves out is named, so that it is not missed.
+void note_unused_channel_file(const Scene& scene, const std::string& input, std::string& stages_reason) {
+  if (std::find(scene.compute.begin(), scene.compute.end(), "channels") != scene.compute.end()) return;
+  const std::string file = default_channel_file(input);
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec)) return;
+  stages_reason += "; " + file + " is not used (no channels in the compute list; --compute channels adds it)";
+}
+
 // The scene's compute list, or (without one) every stage whose inputs exist, then --compute's additions.
 Scene scene_with_overrides(const ProcessOptions& options, const std::optional<std::string>& scene_path,
                            std::string& stages_reason) {
@@ -206,6 +215,7 @@ Scene scene_with_overrides(const ProcessOptions& options, const std::optional<st
       scene.compute.push_back(name);
   }
   use_default_channels_when_asked(scene, options.input, stages_reason);
+  note_unused_channel_file(scene, options.input, stages_reason);
   if (!options.tracking_preset.empty())
     scene.tracking = scene.tracking.with("preset", options.tracking_preset);
   if (!options.segmentation_preset.empty())

@@ -649,6 +649,15 @@ TEST(Process, ChannelsFileBesideTheFramesIsRead) {
     EXPECT_NE(run.output.find("tirstrain: warning: " + line), std::string::npos) << line;
   }
 
+  // A scene whose compute list leaves the channels out: the file beside the frames is named as not used.
+  const fs::path scene = scratch("channels_scene") / "scene.yaml";
+  std::ofstream(scene) << "compute: [contact, tracking, strain]\n";
+  const CliRun listed = run_cli("process " + trial.string() + " --scene " + scene.string() + " --out " +
+                                out.string() + " --overlay none");
+  ASSERT_EQ(listed.exit_code, 0) << listed.output;
+  EXPECT_NE(read_summary(out)["stages_source"].get<std::string>().find("channels.csv is not used"),
+            std::string::npos);
+
   std::ofstream(trial / "channels.csv") << "time,force\n0,1\n0.001,1\n";
   const CliRun other = run_cli("process " + trial.string() + " --out " + out.string() + " --overlay none");
   ASSERT_EQ(other.exit_code, 0) << other.output;
