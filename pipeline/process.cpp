@@ -461,6 +461,18 @@ class ProcessRun {
       progress.update(static_cast<long>(report_.frames));
     }
     progress.finish();
+    warn_if_fewer_frames_than_announced();
+  }
+
+  // A container whose header announces more frames than could be read is most likely cut short (a copy
+  // that did not finish, a full disk while recording): the frames read are processed, and that is said.
+  void warn_if_fewer_frames_than_announced() {
+    const std::int64_t announced = source_->frame_count();
+    const auto read = static_cast<std::int64_t>(report_.frames);
+    if (announced > 0 && read < announced)
+      warn()("the input announces " + std::to_string(announced) + " frames but only " + std::to_string(read) +
+             " could be read: the file may be cut short, and frames " + std::to_string(read) + " to " +
+             std::to_string(announced - 1) + " are missing from the result");
   }
 
   // Flushed now and then, so that a run killed later leaves the frames before it readable, and said to be

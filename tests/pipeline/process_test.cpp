@@ -429,6 +429,32 @@ nlohmann::json read_summary(const fs::path& out) {
   return nlohmann::json::parse(file);
 }
 
+// A video cut short (a copy that did not finish): its header still announces every frame. The frames that
+// decode are processed, and the run says that the others are missing.
+TEST(Process, VideoCutShortIsProcessedAndSaidToBeShort) {
+  const fs::path dir = scratch("cut_video_trial");
+  const std::string video = (dir / "trial.avi").string();
+  {
+    cv::VideoWriter writer(video, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 50.0, {640, 512}, false);
+    ASSERT_TRUE(writer.isOpened());
+    for (int i = 0; i < 8; ++i) writer.write(test::render_tir(frame_scene(i % 4)));
+  }
+  fs::resize_file(video, fs::file_size(video) * 6 / 10);
+  const fs::path out = scratch("cut_video_out");
+  const CliRun run =
+      run_cli("process " + video + " --out " + out.string() + " --overlay none --compute contact");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const nlohmann::json summary = read_summary(out);
+  const int frames = summary["frames"]["total"].get<int>();
+  EXPECT_LT(frames, 8);
+  EXPECT_GE(frames, 2);
+  const std::string expected = "the input announces 8 frames but only " + std::to_string(frames);
+  bool said = false;
+  for (const auto& w : summary["warnings"]) said = said || w.get<std::string>().find(expected) == 0;
+  EXPECT_TRUE(said) << summary["warnings"].dump();
+  EXPECT_NE(run.output.find(expected), std::string::npos) << run.output;
+}
+
 // Frames of a recording as a real one comes: a folder of frames and frames.csv, no scene. `contact_at(i)`
 // says whether frame i shows the fingertip (else the glass alone); `band` (when not empty) is the plate's
 // dot band, moving with the plate by `plate_px_per_frame` along x.
