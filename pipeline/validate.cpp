@@ -412,6 +412,10 @@ ValidationReport run_validate(const ValidateOptions& options) {
     throw Error("no result.h5 (incomplete or missing run)", {.file = report.result_dir});
   const ValidatedResult result = read_validated_result(result_path, trial);
   report.frames = static_cast<int>(result.frames);
+  if (options.map_frame >= 0 && static_cast<std::size_t>(options.map_frame) >= result.frames)
+    throw Error("frame " + std::to_string(options.map_frame) + " is past the trial's last frame (" +
+                    std::to_string(result.frames - 1) + ")",
+                {.key = "--map-frame"});
 
   const ContactTruth true_contact = contact_truth(trial);
   const ContactValidation contact = validate_contact(result, true_contact, trial.config().scene.px_per_mm);
@@ -422,9 +426,8 @@ ValidationReport run_validate(const ValidateOptions& options) {
   for (std::size_t i = 0; i < result.frames; ++i) field.add_frame(i);
   field.finish();
 
-  const std::size_t map_frame = options.map_frame >= 0
-                                    ? std::min(static_cast<std::size_t>(options.map_frame), result.frames - 1)
-                                    : field.energy_peak_frame();
+  const std::size_t map_frame =
+      options.map_frame >= 0 ? static_cast<std::size_t>(options.map_frame) : field.energy_peak_frame();
   write_tracks_csv(out / "validation_tracks.csv", trial, map_frame, result.reference,
                    frame_rows(result, map_frame).position);
   report.outputs.push_back((out / "validation_tracks.csv").string());

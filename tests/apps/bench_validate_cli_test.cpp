@@ -441,6 +441,15 @@ TEST(ValidateCli, ComparesAnExistingTrialAndNamesMissingInputs) {
   EXPECT_NE(foreign.output.find("notes.txt"), std::string::npos) << foreign.output;
   fs::remove(out + "/notes.txt");
 
+  // A map frame past the trial's last (the quick trial has 12 frames) is named, not replaced by the last.
+  const auto past =
+      run_cli("validate --trial " + trial + "/trials/quick --result " + out +
+              "/result --no-maps --map-frame 999 --out " + fresh_dir("validate_cli_map") + " --quiet");
+  EXPECT_EQ(past.exit_code, 1) << past.output;
+  EXPECT_NE(past.output.find("--map-frame"), std::string::npos) << past.output;
+  EXPECT_NE(past.output.find("past the trial's last frame"), std::string::npos) << past.output;
+  EXPECT_EQ(run_cli("validate --trial " + trial + "/trials/quick --map-frame -3 --out " + out).exit_code, 2);
+
   const auto neither = run_cli("validate --out " + out);
   EXPECT_EQ(neither.exit_code, 1);
   EXPECT_NE(neither.output.find("--scene"), std::string::npos) << neither.output;
