@@ -20,7 +20,8 @@ namespace tirstrain::capture {
 
 struct FileSourceOptions {
   // Frame rate of a recording whose file holds no timestamps, Hz; unset = none given (t_s is then the
-  // frame number, labelled as such). A file with its own timestamps or a frames.csv ignores it.
+  // frame number, labelled as such). A video's or camera file's own timestamps take precedence; an image
+  // sequence with a frames.csv refuses it (one clock).
   std::optional<double> frame_rate_Hz;
 };
 

@@ -175,10 +175,23 @@ cv::Mat read_image(const std::string& path) {
 class ImageSequenceSource final : public FrameSource {
  public:
   ImageSequenceSource(std::vector<SequenceFile> files, std::string description,
-                      const std::optional<std::string>& times_csv)
+                      const std::optional<std::string>& times_csv, const FileSourceOptions& options)
       : files_(std::move(files)), description_(std::move(description)) {
+    if (times_csv && options.frame_rate_Hz)
+      throw Error("--frame-rate-Hz was given but " + *times_csv +
+                      " times the frames already; a recording has one clock: drop one of them",
+                  {.file = *times_csv, .key = "--frame-rate-Hz"});
     if (times_csv) {
       load_times(*times_csv);
+    } else if (options.frame_rate_Hz) {
+      const double rate_Hz = *options.frame_rate_Hz;
+      if (!(rate_Hz > 0.0) || !std::isfinite(rate_Hz))
+        throw Error("the frame rate must be a positive number of Hz, not " + format_double(rate_Hz),
+                    {.key = "--frame-rate-Hz"});
+      time_source_ = "frame number / " + format_double(rate_Hz) + " Hz (--frame-rate-Hz)";
+      rate_timed_ = true;
+      times_s_.resize(files_.size());
+      for (std::size_t i = 0; i < files_.size(); ++i) times_s_[i] = static_cast<double>(i) / rate_Hz;
     } else {
       // No clock anywhere: the frame number is the only honest axis, and it is labelled as such.
       time_source_ = "none (no frames.csv found): t_s is the frame number, not a measured time";
@@ -233,7 +246,7 @@ class ImageSequenceSource final : public FrameSource {
             {"first_file", files_.front().path},
             {"frames", std::to_string(files_.size())},
             {"time_source", time_source_},
-            {"time_measured", times_csv_.empty() ? "false" : "true"}};
+            {"time_measured", times_csv_.empty() && !rate_timed_ ? "false" : "true"}};
   }
 
  private:
@@ -323,6 +336,7 @@ class ImageSequenceSource final : public FrameSource {
   std::string description_;
   std::vector<double> times_s_;
   std::string times_csv_;
+  bool rate_timed_ = false;  // timed by --frame-rate-Hz
   std::string time_source_;
   bool numbered_ = false;
   std::size_t next_ = 0;
@@ -458,12 +472,12 @@ std::string first_bytes(const std::string& path) {
   return "'" + text + "'";
 }
 
-std::unique_ptr<FrameSource> open_single_image(const std::string& path) {
+std::unique_ptr<FrameSource> open_single_image(const std::string& path, const FileSourceOptions& options) {
   // A single image is a one-frame sequence; its time comes from a frames.csv beside it, as for folders.
   const fs::path file(path);
   const fs::path dir = file.has_parent_path() ? file.parent_path() : fs::path(".");
   return std::make_unique<ImageSequenceSource>(make_sequence({path}), "image " + path,
-                                               existing(dir / "frames.csv"));
+                                               existing(dir / "frames.csv"), options);
 }
 
 // A file is judged by its first bytes before its name: a multi-page TIFF named .dat is still every page.
@@ -479,7 +493,7 @@ std::unique_ptr<FrameSource> open_regular_file(const std::string& path, const Fi
     case FileKind::kOther:
       break;
   }
-  if (is_image_file_name(path)) return open_single_image(path);
+  if (is_image_file_name(path)) return open_single_image(path, options);
   try {
     return open_video_file(path);
   } catch (const Error& e) {
@@ -524,7 +538,7 @@ bool natural_less(const std::string& a, const std::string& b) {
   return a < b;
 }
 
-std::unique_ptr<FrameSource> open_image_folder(const std::string& dir) {
+std::unique_ptr<FrameSource> open_image_folder(const std::string& dir, const FileSourceOptions& options) {
   const fs::path root(dir);
   if (!fs::is_directory(root)) throw Error("not a folder", {.file = dir});
   fs::path images = root;
@@ -535,15 +549,19 @@ std::unique_ptr<FrameSource> open_image_folder(const std::string& dir) {
     if (!csv) csv = existing(images / "frames.csv");
   } else {
     csv = existing(root / "frames.csv");
+    // A trial's frames/ folder given itself: its frames.csv lies beside it, as `synth` and `record` write.
+    if (!csv && root.filename() == "frames" && root.has_parent_path())
+      csv = existing(root.parent_path() / "frames.csv");
   }
   auto paths = list_images(images);
   if (paths.empty())
     throw Error("no image files (.png, .tif, .bmp, .jpg, ...) in this folder", {.file = images.string()});
   return std::make_unique<ImageSequenceSource>(make_sequence(std::move(paths)),
-                                               "image folder " + images.string(), csv);
+                                               "image folder " + images.string(), csv, options);
 }
 
-std::unique_ptr<FrameSource> open_image_pattern(const std::string& pattern) {
+std::unique_ptr<FrameSource> open_image_pattern(const std::string& pattern,
+                                                const FileSourceOptions& options) {
   const fs::path full(pattern);
   const fs::path dir = full.has_parent_path() ? full.parent_path() : fs::path(".");
   const std::string name = full.filename().string();
@@ -567,7 +585,7 @@ std::unique_ptr<FrameSource> open_image_pattern(const std::string& pattern) {
   if (!csv && dir.filename() == "frames" && dir.has_parent_path())
     csv = existing(dir.parent_path() / "frames.csv");
   return std::make_unique<ImageSequenceSource>(make_sequence(std::move(paths)), "image pattern " + pattern,
-                                               csv);
+                                               csv, options);
 }
 
 std::unique_ptr<FrameSource> open_video_file(const std::string& path) {
@@ -579,11 +597,11 @@ std::unique_ptr<FrameSource> open_file_source(const std::string& path, const Fil
   if (path.empty()) throw Error("empty input path");
   std::error_code ec;
   const auto status = fs::status(path, ec);
-  if (fs::is_directory(status)) return open_image_folder(path);
+  if (fs::is_directory(status)) return open_image_folder(path, options);
   if (fs::is_regular_file(status)) return open_regular_file(path, options);
   if (fs::exists(status)) throw Error("not a regular file or folder", {.file = path});
   const std::string name = fs::path(path).filename().string();
-  if (has_glob_chars(name) || has_printf_spec(name)) return open_image_pattern(path);
+  if (has_glob_chars(name) || has_printf_spec(name)) return open_image_pattern(path, options);
   throw Error("no such file or folder", {.file = path});
 }
 

@@ -17,10 +17,13 @@
 
 namespace tirstrain::capture {
 
-// A folder of frames: DIR/frames/*.png (+ DIR/frames.csv) or images directly in DIR (+ DIR/frames.csv).
-std::unique_ptr<FrameSource> open_image_folder(const std::string& dir);
-// "a/b_%06d.png" (printf) or "a/*.png" (glob, wildcards only in the file name).
-std::unique_ptr<FrameSource> open_image_pattern(const std::string& pattern);
+// A folder of frames: DIR/frames/*.png (+ DIR/frames.csv) or images directly in DIR (+ DIR/frames.csv, or
+// for a folder named frames the frames.csv beside it). Without a frames.csv, `options.frame_rate_Hz` times
+// the frames; with one, giving it too is an error (one clock).
+std::unique_ptr<FrameSource> open_image_folder(const std::string& dir, const FileSourceOptions& options = {});
+// "a/b_%06d.png" (printf) or "a/*.png" (glob, wildcards only in the file name); times as for a folder.
+std::unique_ptr<FrameSource> open_image_pattern(const std::string& pattern,
+                                                const FileSourceOptions& options = {});
 std::unique_ptr<FrameSource> open_video_file(const std::string& path);
 // Chooses by what `path` is: a folder, a pattern, or a file judged by its first bytes (multi-page TIFF,
 // BigTIFF, .cine, .mraw/.cih: capture/file_formats.hpp), then by its name (an image, else a video). Throws

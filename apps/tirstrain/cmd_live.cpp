@@ -179,7 +179,7 @@ void add_live_command(CLI::App& app) {
       "camera flags below override)");
   sub->add_option("--frame-rate-Hz", args->frame_rate_Hz,
                   "Frame rate (Hz) of a recording whose file holds no timestamps and has no frames.csv "
-                  "beside it (a multi-page TIFF)")
+                  "beside it (a multi-page TIFF, a folder of images)")
       ->check(CLI::PositiveNumber);
   sub->add_flag("--recorded-rate", args->recorded_rate,
                 "Play a recording at the rate its timestamps give, as the camera delivered it (default: as "

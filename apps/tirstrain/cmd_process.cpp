@@ -83,7 +83,7 @@ void add_process_command(CLI::App& app) {
       ->required();
   sub->add_option("--frame-rate-Hz", args->frame_rate_Hz,
                   "Frame rate (Hz) of a recording whose file holds no timestamps and has no frames.csv "
-                  "beside it (a multi-page TIFF)")
+                  "beside it (a multi-page TIFF, a folder of images)")
       ->check(CLI::PositiveNumber);
   sub->add_option("--scene", args->scene, "Scene file (YAML) for calibration and what to compute");
   sub->add_flag(

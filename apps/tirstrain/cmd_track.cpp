@@ -312,7 +312,7 @@ void add_track_command(CLI::App& app) {
       ->required();
   cmd->add_option("--frame-rate-Hz", o->frame_rate_Hz,
                   "Frame rate (Hz) of a recording whose file holds no timestamps and has no frames.csv "
-                  "beside it (a multi-page TIFF)")
+                  "beside it (a multi-page TIFF, a folder of images)")
       ->check(CLI::PositiveNumber);
   CLI::Option* points =
       cmd->add_option("--points", o->points_csv, "CSV with columns x_px,y_px (first frame)");

@@ -133,6 +133,25 @@ TEST(ImageFolder, NamesFromAnotherOriginKeepTheirTimesAcrossALostFile) {
   EXPECT_NE(error_of([&] { open_source(dir.string()); }).find("not one per image"), std::string::npos);
 }
 
+// Without a frames.csv, --frame-rate-Hz times an image sequence; with one, it is refused (one clock). A
+// trial's frames/ folder given itself finds the frames.csv beside it.
+TEST(ImageFolder, FrameRateTimesASequenceWithoutFramesCsv) {
+  const fs::path trial = scratch("rate");
+  fs::create_directories(trial / "frames");
+  for (int i = 0; i < 3; ++i)
+    cv::imwrite((trial / "frames" / ("f" + std::to_string(i) + ".png")).string(), frame_image(i));
+  const FileSourceOptions at_500{.frame_rate_Hz = 500.0};
+  auto frames = read_all(*open_file_source((trial / "frames").string(), at_500));
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_DOUBLE_EQ(frames[2].device_time_s, 2.0 / 500.0);
+
+  write_text(trial / "frames.csv", "index,t_s\n0,0\n1,0.011\n2,0.023\n");
+  frames = read_all(*open_file_source((trial / "frames").string()));
+  EXPECT_DOUBLE_EQ(frames[2].device_time_s, 0.023);
+  EXPECT_NE(error_of([&] { open_file_source((trial / "frames").string(), at_500); }).find("one clock"),
+            std::string::npos);
+}
+
 TEST(ImageFolder, CorruptMiddleFrameIsMarkedNotFatal) {
   const fs::path dir = scratch("corrupt");
   for (int i = 0; i < 4; ++i)
