@@ -675,7 +675,7 @@ class ProcessRun {
     summary["time_measured"] = time_measured_;
     summary["scene"] = scene_.file.empty() ? "defaults" : recorded(scene_.file);
     summary["px_per_mm"] = scene_.px_per_mm;
-    summarize_scene_sources(summary, scene_, default_notes_, stages_reason_, band_);
+    summarize_scene_sources(summary, scene_, default_notes_, recorded(stages_reason_), band_);
     summary["stages_run"] = stage_names();
     summary["stages_unavailable"] = plan_.unavailable;
     std::map<std::string, std::int64_t> status_counts;
