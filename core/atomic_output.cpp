@@ -139,8 +139,8 @@ bool StagingDirectory::lock_staging_folder() {
                   {.file = staging_path_, .key = "--out"});
     }
     // The lock holds the folder now at the path only if no one replaced it between open() and flock().
-    struct stat held {
-    }, at_path{};
+    struct stat held = {};
+    struct stat at_path = {};
     if (::fstat(fd, &held) == 0 && ::stat(staging_path_.c_str(), &at_path) == 0 &&
         held.st_ino == at_path.st_ino && held.st_dev == at_path.st_dev) {
       lock_fd_ = fd;
