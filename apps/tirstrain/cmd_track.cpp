@@ -192,8 +192,10 @@ class TrackRun {
       mask_(parse_roi(o_.roi, size)).setTo(1);
     }
     tracker_ = std::make_unique<flow::FeatureTracker>(settings_);
+    // The points file's errors name it (file, row, column); the tracker's name the input's frame.
+    const std::vector<Vec2> points = seed_points(o_, settings_, size);
     try {
-      tracker_->start(first->image, mask_, first->device_time_s, seed_points(o_, settings_, size));
+      tracker_->start(first->image, mask_, first->device_time_s, points);
     } catch (const Error& e) {
       throw Error(e.message(), {.file = o_.input, .frame = first->index});
     }

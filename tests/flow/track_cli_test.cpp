@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
@@ -178,6 +179,25 @@ TEST(TrackCli, TenBitCodesInSixteenBitFilesTrackAsWell) {
 
 TEST(TrackCli, RequiresPointsOrGrid) {
   EXPECT_NE(run("track nowhere --out /dev/null 2>/dev/null"), 0);
+}
+
+// An error in the points file names the points file, not the frames.
+TEST(TrackCli, APointsFileErrorNamesThePointsFile) {
+  const std::filesystem::path dir = std::filesystem::path(TIRSTRAIN_TEST_TMP) / "flow" / "points_error";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir / "frames");
+  for (int k = 0; k < 2; ++k)
+    cv::imwrite((dir / "frames" / ("00000" + std::to_string(k) + ".png")).string(),
+                speckle(96, 0.3 * k, 0.0));
+  const std::string missing = (dir / "missing_points.csv").string();
+  const std::string log = (dir / "log.txt").string();
+  EXPECT_EQ(run("track " + (dir / "frames").string() + " --points " + missing + " --out " +
+                (dir / "t.csv").string() + " 2>" + log),
+            1);
+  std::ifstream in(log);
+  const std::string output((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(output.find(missing), std::string::npos) << output;
+  EXPECT_EQ(output.find("frames:"), std::string::npos) << output;
 }
 
 }  // namespace
