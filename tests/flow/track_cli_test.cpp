@@ -142,7 +142,9 @@ TEST(TrackCli, SkippedFramesKeepTheInputsFrameNumbers) {
   EXPECT_EQ(frames, (std::vector<double>{1, 3, 4}));
   // Frame 4 is 0.9 px from frame 1, the tracks' reference.
   for (std::size_t i = 0; i < t.rows(); ++i)
-    if (t.column("frame")[i] == 4) EXPECT_NEAR(t.column("x_px")[i] - t.column("X_px")[i], 0.9, 0.02);
+    if (t.column("frame")[i] == 4) {
+      EXPECT_NEAR(t.column("x_px")[i] - t.column("X_px")[i], 0.9, 0.02);
+    }
   std::ifstream json(dir / "tracks.json");
   const nlohmann::json report = nlohmann::json::parse(json);
   EXPECT_EQ(report["frames"], 3);
