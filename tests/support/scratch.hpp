@@ -9,10 +9,12 @@
 
 namespace tirstrain::testing {
 
-// TIRSTRAIN_TEST_TMP/suite/name, emptied and created.
+// TIRSTRAIN_TEST_TMP/suite/name, emptied and created; a staging folder "name.partial" that an earlier run
+// of the test left beside it (a killed run, a build before the staging marker) is removed too.
 inline std::filesystem::path scratch_dir(const std::string& suite, const std::string& name) {
   const std::filesystem::path dir = std::filesystem::path(TIRSTRAIN_TEST_TMP) / suite / name;
   std::filesystem::remove_all(dir);
+  std::filesystem::remove_all(dir.string() + ".partial");
   std::filesystem::create_directories(dir);
   return dir;
 }
