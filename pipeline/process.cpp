@@ -343,8 +343,8 @@ class ProcessRun {
       for (const std::string& w : stage->warnings()) warn()(stage->name() + ": " + w);
     warn_if_no_contact();
     // Outputs in order of increasing importance; result.h5 last, so its presence means a complete run.
-    if (const std::string name = overlay_->finish(); !name.empty())
-      report_.outputs.push_back((final_out() / name).string());
+    overlay_name_ = overlay_->finish();
+    if (!overlay_name_.empty()) report_.outputs.push_back((final_out() / overlay_name_).string());
     write_frames_csv();
     write_summary();
     write_result();
@@ -699,6 +699,7 @@ class ProcessRun {
     summary["wall_time_s"] =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start_).count();
     summary["outputs"] = {"result.h5", "frames.csv", "summary.json"};
+    if (!overlay_name_.empty()) summary["outputs"].push_back(overlay_name_);
     write_text_file((out() / "summary.json").string(), summary.dump(2) + "\n");
     report_.outputs.push_back((final_out() / "summary.json").string());
   }
@@ -744,6 +745,7 @@ class ProcessRun {
   ProcessReport report_;
   std::optional<std::string> scene_path_;
   std::string stages_reason_;
+  std::string overlay_name_;  // overlay.mp4 or overlay/ once written; empty with --overlay none
   Scene scene_;
   std::vector<std::string> default_notes_;
   StagePlan plan_;

@@ -271,6 +271,10 @@ TEST(Process, VideoInputUsesContainerTimestamps) {
   for (std::size_t i = 0; i < 4; ++i) EXPECT_NEAR(t_s[i], i / 50.0, 1e-6);
   EXPECT_EQ(h5.read_integers("/contact/status")[1], 0);
   EXPECT_TRUE(fs::exists(out / "overlay" / "000003.png"));
+  // summary.json lists every output the folder holds, the overlay too.
+  std::ifstream summary_file(out / "summary.json");
+  EXPECT_EQ(nlohmann::json::parse(summary_file)["outputs"],
+            (std::vector<std::string>{"result.h5", "frames.csv", "summary.json", "overlay"}));
 }
 
 // A multi-page TIFF, as several fingertip-imaging pipelines store 1 kHz recordings: every page is a frame,
