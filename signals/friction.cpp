@@ -220,28 +220,41 @@ std::size_t event_baseline_end(const std::vector<double>& time_s, const std::vec
   return baseline_end;
 }
 
+// How the driver leaves a baseline: its largest excursion from the baseline's level, the threshold of a
+// departure (onset_fraction of the excursion, at least onset_sigma σ) and the noise band (onset_sigma σ).
+struct Departure {
+  double level = 0.0, excursion = 0.0, detect = 0.0, band = 0.0;
+  bool moves = false;  // the excursion leaves the noise band at all
+
+  Departure(const std::vector<double>& driver, const BaselineStats& b, const EventOptions& options)
+      : level(b.mean) {
+    for (double v : driver) excursion = std::max(excursion, std::abs(v - level));
+    moves = excursion > 0.0 && excursion > options.onset_sigma * b.sigma;
+    detect = std::max(options.onset_fraction * excursion, options.onset_sigma * b.sigma);
+    band = std::max(options.onset_sigma * b.sigma, 1e-12 * excursion);
+  }
+
+  // The first sample of the run outside the band that first crosses the threshold at or after `from`;
+  // driver.size() when nothing crosses it.
+  std::size_t start(const std::vector<double>& driver, std::size_t from) const {
+    std::size_t cross = from;
+    while (cross < driver.size() && std::abs(driver[cross] - level) < detect) ++cross;
+    if (cross == driver.size()) return cross;
+    while (cross > 0 && std::abs(driver[cross - 1] - level) > band) --cross;
+    return cross;
+  }
+};
+
 // The baseline window must end before the movement starts: a record whose movement begins inside it (a
 // short rest before the plate moves) would take part of the movement for the baseline, its level and noise
-// band. The window's first quarter is taken as quiet, and the onset is found against it as find_onset
-// does (the first crossing of the threshold, anywhere in the record, traced back to the noise band); when
-// that onset lies inside the window, the window ends there.
+// band. The window's first quarter is taken as quiet, and the departure from it is found as find_onset
+// finds it; when it starts inside the window, the window ends there.
 std::size_t quiet_baseline_end(const std::vector<double>& driver, std::size_t baseline_end,
                                const EventOptions& options) {
   const std::size_t seed_end = std::max<std::size_t>(2, baseline_end / 4);
   if (seed_end >= baseline_end) return baseline_end;
-  const BaselineStats seed = baseline_stats(driver, seed_end);
-  double excursion = 0.0;
-  for (double v : driver) excursion = std::max(excursion, std::abs(v - seed.mean));
-  const double detect = std::max(options.onset_fraction * excursion, options.onset_sigma * seed.sigma);
-  const double band = std::max(options.onset_sigma * seed.sigma, 1e-12 * excursion);
-  std::size_t cross = driver.size();
-  for (std::size_t i = seed_end; i < driver.size(); ++i)
-    if (std::abs(driver[i] - seed.mean) >= detect) {
-      cross = i;
-      break;
-    }
-  std::size_t end = cross;
-  while (end > 0 && std::abs(driver[end - 1] - seed.mean) > band) --end;
+  const std::size_t end =
+      Departure(driver, baseline_stats(driver, seed_end), options).start(driver, seed_end);
   if (end >= baseline_end) return baseline_end;
   if (end < 2)
     throw Error("the movement starts at the record's start: no quiet stretch before it for the baseline",
@@ -253,24 +266,13 @@ std::size_t quiet_baseline_end(const std::vector<double>& driver, std::size_t ba
 // that still inside the baseline noise band.
 void find_onset(const std::vector<double>& time_s, const std::vector<double>& driver,
                 std::size_t baseline_end, const EventOptions& options, TrialEvents& ev) {
-  const std::size_t n = time_s.size();
-  const BaselineStats b = baseline_stats(driver, baseline_end);
-  double excursion = 0.0;
-  for (double v : driver) excursion = std::max(excursion, std::abs(v - b.mean));
-  if (excursion == 0.0 || excursion <= options.onset_sigma * b.sigma)
+  const Departure departure(driver, baseline_stats(driver, baseline_end), options);
+  if (!departure.moves)
     throw Error("no movement: the " + ev.onset_source + " channel never leaves its baseline noise band");
-  const double detect = std::max(options.onset_fraction * excursion, options.onset_sigma * b.sigma);
-  const double band = std::max(options.onset_sigma * b.sigma, 1e-12 * excursion);
-  std::size_t cross = n;
-  for (std::size_t i = baseline_end; i < n; ++i)
-    if (std::abs(driver[i] - b.mean) >= detect) {
-      cross = i;
-      break;
-    }
-  if (cross == n) throw Error("no movement onset after the baseline period", {.key = "baseline_s"});
-  std::size_t onset = cross;
-  while (onset > 0 && std::abs(driver[onset - 1] - b.mean) > band) --onset;
-  if (onset > 0) --onset;  // the last sample still inside the band
+  const std::size_t start = departure.start(driver, baseline_end);
+  if (start == driver.size())
+    throw Error("no movement onset after the baseline period", {.key = "baseline_s"});
+  const std::size_t onset = start > 0 ? start - 1 : 0;  // the last sample still inside the band
   ev.onset_index = onset;
   ev.onset_s = time_s[onset];
 }
