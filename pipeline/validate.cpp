@@ -406,16 +406,17 @@ ValidationReport run_validate(const ValidateOptions& options) {
   const std::string trial_dir = prepare_trial(options, out);
   const samples::Trial trial(load_trial_config(trial_dir));
   check_scene_matches_truth(trial, trial_dir);
+  // Before the trial is processed, which takes the time.
+  if (options.map_frame >= trial.frames())
+    throw Error("frame " + std::to_string(options.map_frame) + " is past the trial's last frame (" +
+                    std::to_string(trial.frames() - 1) + ")",
+                {.key = "--map-frame"});
   process_trial(options, trial_dir, staging, report);
   const std::string result_path = (fs::path(report.result_dir) / "result.h5").string();
   if (!fs::exists(result_path))
     throw Error("no result.h5 (incomplete or missing run)", {.file = report.result_dir});
   const ValidatedResult result = read_validated_result(result_path, trial);
   report.frames = static_cast<int>(result.frames);
-  if (options.map_frame >= 0 && static_cast<std::size_t>(options.map_frame) >= result.frames)
-    throw Error("frame " + std::to_string(options.map_frame) + " is past the trial's last frame (" +
-                    std::to_string(result.frames - 1) + ")",
-                {.key = "--map-frame"});
 
   const ContactTruth true_contact = contact_truth(trial);
   const ContactValidation contact = validate_contact(result, true_contact, trial.config().scene.px_per_mm);
