@@ -50,7 +50,8 @@ bool is_leftover(const std::string& name) {
   const auto ends_with = [&](const std::string& tail) {
     return name.size() >= tail.size() && name.compare(name.size() - tail.size(), tail.size(), tail) == 0;
   };
-  return ends_with(".partial") || ends_with(".partial.mp4") || name == ".tirstrain-write-probe";
+  return ends_with(".partial") || ends_with(".partial.mp4") || name == ".tirstrain-write-probe" ||
+         name == StagingDirectory::kStagingMarker;
 }
 
 }  // namespace
@@ -181,10 +182,13 @@ StagingDirectory::~StagingDirectory() {
   if (lock_fd_ >= 0) ::close(lock_fd_);
 }
 
+// The earlier output is marked before the exchange brings it to the staging path: a run killed while it is
+// being removed leaves a marked folder, which the next run clears instead of refusing.
 void StagingDirectory::commit() {
   std::error_code ec;
-  fs::remove(fs::path(staging_path_) / kStagingMarker, ec);
-  swap_in_directory(staging_path_, final_path_);
+  if (fs::is_directory(final_path_, ec))
+    std::ofstream(fs::path(final_path_) / kStagingMarker) << "an earlier output being replaced\n";
+  swap_in_directory(staging_path_, final_path_, kStagingMarker);
   committed_ = true;
 }
 
@@ -203,12 +207,16 @@ void check_replaceable_output(const std::string& dir, const std::vector<std::str
   }
 }
 
-void swap_in_directory(const std::string& staging, const std::string& final_path) {
+void swap_in_directory(const std::string& staging, const std::string& final_path, const std::string& marker) {
   std::error_code ec;
+  const auto unmark_output = [&] {
+    if (!marker.empty()) fs::remove(fs::path(final_path) / marker, ec);
+  };
   if (fs::exists(final_path, ec)) {
     if (!fs::is_directory(final_path, ec))
       throw Error("output path exists and is not a directory", {.file = final_path});
     if (exchange_paths(staging, final_path)) {
+      unmark_output();
       fs::remove_all(staging, ec);  // holds the earlier output after the exchange
       return;
     }
@@ -217,6 +225,7 @@ void swap_in_directory(const std::string& staging, const std::string& final_path
   }
   fs::rename(staging, final_path, ec);
   if (ec) throw Error("cannot move finished output into place: " + ec.message(), {.file = final_path});
+  unmark_output();
 }
 
 AtomicFile::AtomicFile(const std::string& path) : path_(path), partial_path_(path + ".partial") {

@@ -28,8 +28,9 @@ std::string recorded_path(std::string text, const std::vector<StagedFolder>& fol
 // either the earlier complete output or the new complete one. Destroyed uncommitted (error, exception), it
 // removes the staging directory. While it lives it holds an exclusive lock (flock) on the staging
 // directory, so a second run into the same output is refused rather than interleaved; the directory carries
-// a marker file until commit, so that a later run clears only what an interrupted run left (a
-// "<final>.partial" holding anything else is refused). A <final> that is a link to a folder is followed.
+// a marker file until commit, and commit marks the earlier <final> before exchanging it, so that a later
+// run clears only what an interrupted run left, at any instant it was killed (a "<final>.partial" holding
+// anything else is refused). A <final> that is a link to a folder is followed.
 class StagingDirectory {
  public:
   explicit StagingDirectory(const std::string& final_path);
@@ -68,8 +69,11 @@ void check_replaceable_output(const std::string& dir, const std::vector<std::str
 // Puts the complete directory `staging` in place of `final_path`: an existing <final_path> is exchanged
 // atomically (renameat2 RENAME_EXCHANGE) and only then removed, so at every instant <final_path> is either
 // the earlier complete output or the new one (where the filesystem cannot exchange, the earlier one is
-// removed first). Errors name the path and the cause.
-void swap_in_directory(const std::string& staging, const std::string& final_path);
+// removed first). Errors name the path and the cause. A non-empty `marker` names a file that both folders
+// carry through the swap: it is removed from the new output at once, and stays in the earlier one, which is
+// removed after it.
+void swap_in_directory(const std::string& staging, const std::string& final_path,
+                       const std::string& marker = {});
 
 // A file written to "<path>.partial" through a checked write(2) loop, made durable (fsync) and renamed to
 // <path> by commit(); destroyed uncommitted, it removes the partial file. Errors name the file and errno's

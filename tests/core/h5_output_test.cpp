@@ -219,6 +219,16 @@ TEST(StagingDirectory, CommitReplacesAndAbandonRemoves) {
     stage.commit();
   }
   EXPECT_TRUE(std::filesystem::exists(final_dir + "/b.txt"));
+  {  // over an earlier output: the earlier one is marked while it is removed, the new one is left unmarked
+    StagingDirectory stage(final_dir);
+    std::ofstream(stage.path() + "/c.txt") << "c";
+    stage.commit();
+  }
+  std::vector<std::string> names;
+  for (const auto& entry : std::filesystem::directory_iterator(final_dir))
+    names.push_back(entry.path().filename().string());
+  EXPECT_EQ(names, std::vector<std::string>{"c.txt"});
+  EXPECT_FALSE(std::filesystem::exists(final_dir + ".partial"));
 }
 
 TEST(OutputDir, RefusesAFileInTheWay) {
