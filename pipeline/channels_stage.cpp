@@ -46,34 +46,28 @@ constexpr RoleSpec kRoles[] = {
     {"trigger", Kind::kTrigger},
 };
 
-struct Unit {
-  const char* name;
-  double to_si;
-};
+using Unit = ts::ColumnUnit;
+
+ts::Quantity quantity_of(Kind kind) {
+  switch (kind) {
+    case Kind::kPosition:
+      return ts::Quantity::kPosition;
+    case Kind::kAcceleration:
+      return ts::Quantity::kAcceleration;
+    case Kind::kForce:
+    case Kind::kTrigger:  // carries no unit; never asked for one
+      break;
+  }
+  return ts::Quantity::kForce;
+}
 
 // Units a column name may end with ("_mm"), per kind; the first is the SI unit the stage writes.
 std::vector<Unit> units_of(Kind kind) {
-  switch (kind) {
-    case Kind::kForce:
-      return {{"N", 1.0}, {"mN", 1e-3}};
-    case Kind::kPosition:
-      return {{"m", 1.0}, {"mm", 1e-3}, {"um", 1e-6}};
-    case Kind::kAcceleration:
-      return {{"m_s2", 1.0}, {"g", 9.80665}};
-    case Kind::kTrigger:
-      break;
-  }
-  return {};
+  return ts::column_units(quantity_of(kind));
 }
 
 std::string unit_list(Kind kind) {
-  std::string out;
-  for (const Unit& u : units_of(kind)) out += (out.empty() ? "" : ", ") + std::string(u.name);
-  return out;
-}
-
-bool ends_with(const std::string& s, const std::string& tail) {
-  return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
+  return ts::column_unit_list(quantity_of(kind));
 }
 
 struct Mapped {
@@ -163,12 +157,7 @@ Unit unit_of_column(const RoleSpec& spec, const Mapped& m, YamlSection& columns,
                   {.file = scene_file, .key = units.path_of(role)});
     return *unit;
   }
-  std::size_t best = 0;
-  for (const Unit& u : options)
-    if (ends_with(m.column, std::string("_") + u.name) && std::string(u.name).size() > best) {
-      unit = u;
-      best = std::string(u.name).size();
-    }
+  unit = ts::unit_of_column_name(m.column, quantity_of(spec.kind));
   if (!unit)
     throw Error("cannot tell the unit of column '" + m.column + "' from its name (expected a suffix _" +
                     unit_list(spec.kind) + "); give it under channels.units." + role,

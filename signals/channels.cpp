@@ -31,6 +31,35 @@ double time_column_seconds_per_unit(const std::string& name) {
   return 1.0;
 }
 
+std::vector<ColumnUnit> column_units(Quantity quantity) {
+  switch (quantity) {
+    case Quantity::kForce:
+      return {{"N", 1.0}, {"mN", 1e-3}};
+    case Quantity::kPosition:
+      return {{"m", 1.0}, {"mm", 1e-3}, {"um", 1e-6}};
+    case Quantity::kAcceleration:
+      return {{"m_s2", 1.0}, {"g", 9.80665}};
+  }
+  return {};
+}
+
+std::string column_unit_list(Quantity quantity) {
+  std::string out;
+  for (const ColumnUnit& u : column_units(quantity)) out += (out.empty() ? "" : ", ") + std::string(u.name);
+  return out;
+}
+
+std::optional<ColumnUnit> unit_of_column_name(const std::string& column, Quantity quantity) {
+  std::optional<ColumnUnit> unit;
+  for (const ColumnUnit& u : column_units(quantity)) {
+    const std::string tail = std::string("_") + u.name;
+    const bool ends =
+        column.size() > tail.size() && column.compare(column.size() - tail.size(), tail.size(), tail) == 0;
+    if (ends && (!unit || std::string(u.name).size() > std::string(unit->name).size())) unit = u;
+  }
+  return unit;
+}
+
 namespace {
 
 // The time column in seconds, whatever unit its name carries.

@@ -32,6 +32,22 @@ namespace tirstrain::signals {
 // axis with it, so `ChannelTable::time_s` is always in seconds.
 double time_column_seconds_per_unit(const std::string& name);
 
+// Physical quantities whose unit a channel's column name carries as a suffix ("plate_x_mm").
+enum class Quantity { kForce, kPosition, kAcceleration };
+
+struct ColumnUnit {
+  const char* name;  // as in the suffix: "mm"
+  double to_si;      // SI units per unit: 1e-3 for mm
+};
+
+// The units a column of `quantity` may be named with; the first is the SI unit.
+std::vector<ColumnUnit> column_units(Quantity quantity);
+// The units of `quantity` as a list for messages: "m, mm, um".
+std::string column_unit_list(Quantity quantity);
+// The unit `column` ends with, "_" and a name of column_units (the longest that matches, so "_mm" is not
+// read as "_m"); nullopt when the name carries none.
+std::optional<ColumnUnit> unit_of_column_name(const std::string& column, Quantity quantity);
+
 struct ChannelTable {
   std::string path;
   std::string time_column = "t_s";

@@ -64,7 +64,7 @@ TrialEvents first_stroke_events(const std::vector<double>& t, const Phases& phas
 }
 
 // The events must fall in order inside the phases: contact ≤ onset ≤ slide start, onset ≤ t90 ≤ slide end,
-// t90 ≤ full slip ≤ slide end.
+// t90 ≤ full slip ≤ slide end; U_ext ≥ 0.
 void check_consistency(const Phases& p, const TrialEvents& ev, std::vector<PhaseWarning>& warnings) {
   const Stroke& s = p.strokes.front();
   const auto add = [&](const char* code, const std::string& what) { warnings.push_back({code, what}); };
@@ -80,6 +80,11 @@ void check_consistency(const Phases& p, const TrialEvents& ev, std::vector<Phase
     add("full_slip_outside_slide", "full slip " + fmt(ev.full_slip_s) +
                                        " s lies outside t90 to the first slide's end (" + fmt(ev.fraction_s) +
                                        " to " + fmt(s.slide_end_s) + " s)");
+  // While the plate drags the finger along, force and displacement point the same way.
+  if (ev.external_work_J && *ev.external_work_J < 0.0)
+    add("external_work_negative", "U_ext = " + fmt(*ev.external_work_J) +
+                                      " J is negative: the tangential force and the position count positive "
+                                      "in opposite directions; flip the sign of one of them");
 }
 
 }  // namespace

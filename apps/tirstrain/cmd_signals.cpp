@@ -413,7 +413,7 @@ void add_friction_speed(CLI::App& signals) {
 void add_spatial(CLI::App& signals) {
   struct Opts {
     Common c;
-    std::string force, position;
+    std::string force, position, position_unit;
     long segment = 0, overlap = -1;
     double dx_m = 0.0, from_s = -1.0, to_s = -1.0, speed_window_s = 0.02;
   };
@@ -429,8 +429,12 @@ void add_spatial(CLI::App& signals) {
           "= peak speed / wavelength, the peak speed over windows of --speed-window-s.\n") +
           kWelchConventions);
   add_common(sub, o->c, "output CSV (see above)");
-  sub->add_option("--force", o->force, "force channel, N")->required();
-  sub->add_option("--position", o->position, "plate position channel, m")->required();
+  sub->add_option("--force", o->force, "force channel, N (mN when its name ends with _mN)")->required();
+  sub->add_option(
+         "--position", o->position,
+         "plate position channel; its unit from a name ending with _m, _mm or _um, or --position-unit")
+      ->required();
+  sub->add_option("--position-unit", o->position_unit, "unit of the position channel: m, mm or um");
   sub->add_option("--segment", o->segment, "segment length, spatial samples")->required();
   sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)")
       ->check(kSamplesAtLeastZero);
@@ -448,9 +452,18 @@ void add_spatial(CLI::App& signals) {
     if (o->to_s >= 0.0)
       end = static_cast<std::size_t>(std::upper_bound(table.time_s.begin(), table.time_s.end(), o->to_s) -
                                      table.time_s.begin());
+    const auto m_per_unit =
+        si_per_unit(o->position, o->position_unit, ts::Quantity::kPosition, "--position-unit");
+    if (!m_per_unit)
+      throw Error("cannot tell the unit of position column '" + o->position +
+                      "': name it with _m, _mm or _um, or give --position-unit",
+                  {.file = o->c.input, .key = "--position"});
+    const auto position_m = scaled(table.column(o->position), *m_per_unit);
+    const auto force_N =
+        scaled(table.column(o->force), si_per_unit(o->force, "", ts::Quantity::kForce, "").value_or(1.0));
     const auto spec = in_context(o->c.input, o->position, [&] {
-      const auto s = ts::to_spatial_domain(table.time_s, table.column(o->position), table.column(o->force),
-                                           o->dx_m, begin, end, o->speed_window_s);
+      const auto s =
+          ts::to_spatial_domain(table.time_s, position_m, force_N, o->dx_m, begin, end, o->speed_window_s);
       return ts::spatial_spectrum(s, welch_options(o->segment, o->overlap));
     });
     CsvWriter out(o->c.out, {"spatial_freq_per_m", "wavelength_m", "psd", "predicted_freq_Hz",

@@ -48,6 +48,13 @@ auto in_context(const std::string& file, const std::string& column, Fn fn) -> de
   });
 }
 
+// SI units per unit of a channel: the unit given by an option (`given_unit`, named `option` in errors),
+// else the one the column's name ends with ("_mm"); nullopt when neither says.
+std::optional<double> si_per_unit(const std::string& column, const std::string& given_unit,
+                                  signals::Quantity quantity, const std::string& option);
+// `values` times `scale`.
+std::vector<double> scaled(std::vector<double> values, double scale);
+
 // One-line description for `tirstrain signals --help`; the full contract goes into the verb's own --help.
 CLI::App* add_verb(CLI::App& signals, const std::string& name, const std::string& summary,
                    const std::string& details);

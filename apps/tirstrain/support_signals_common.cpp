@@ -37,6 +37,24 @@ signals::ChannelTable load(const Common& c, const std::string& path, std::vector
   return signals::read_channels(path, options);
 }
 
+std::optional<double> si_per_unit(const std::string& column, const std::string& given_unit,
+                                  signals::Quantity quantity, const std::string& option) {
+  if (!given_unit.empty()) {
+    for (const signals::ColumnUnit& u : signals::column_units(quantity))
+      if (given_unit == u.name) return u.to_si;
+    throw Error("unknown unit '" + given_unit + "' (use one of " + signals::column_unit_list(quantity) + ")",
+                {.key = option});
+  }
+  if (const auto unit = signals::unit_of_column_name(column, quantity)) return unit->to_si;
+  return std::nullopt;
+}
+
+std::vector<double> scaled(std::vector<double> values, double scale) {
+  if (scale != 1.0)
+    for (double& v : values) v *= scale;
+  return values;
+}
+
 CLI::App* add_verb(CLI::App& signals, const std::string& name, const std::string& summary,
                    const std::string& details) {
   CLI::App* sub = signals.add_subcommand(name, summary);

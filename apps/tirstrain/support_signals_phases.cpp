@@ -18,6 +18,7 @@
 #include "signals/phases.hpp"
 #include "signals/phases_json.hpp"
 #include "signals/phases_plot.hpp"
+#include "tirstrain/signals_common.hpp"
 #include "tirstrain/signals_verbs.hpp"
 
 namespace tirstrain::cli {
@@ -34,6 +35,7 @@ struct RecordingOptions {
   std::string group = "/";                                // HDF5 group of the datasets
   std::optional<double> rate_Hz;                          // of a file without a time column, Hz
   std::string normal, tangential, position;               // columns
+  std::string position_unit;                              // m, mm or um; empty: from the column's name
   bool invert_normal = false, invert_tangential = false;  // flip a channel's sign as read
   std::vector<double> tare_s;                             // a given quiet stretch T0,T1 (empty: found)
   bool no_tare = false;                                   // use the channels as recorded
@@ -45,10 +47,13 @@ void add_recording_options(CLI::App* sub, RecordingOptions& o) {
                   "channel file: CSV with a header row and a time column, HDF5, or MATLAB .mat (v4 to v7.3; "
                   "NAME, NAME[:,k] or a.b.c)")
       ->required();
-  sub->add_option("--normal", o.normal, "normal force channel W, N")->required();
-  sub->add_option("--tangential", o.tangential, "tangential force channel F_t, N")->required();
+  sub->add_option("--normal", o.normal, "normal force channel W, N (mN when its name ends with _mN)")
+      ->required();
+  sub->add_option("--tangential", o.tangential, "tangential force channel F_t, N (or _mN)")->required();
   sub->add_option("--position", o.position,
-                  "plate position channel (any unit): stroke directions, onset, U_ext");
+                  "plate position channel: stroke directions, onset, U_ext (its unit from a name ending "
+                  "with _m, _mm or _um, or --position-unit; without one, U_ext is left out)");
+  sub->add_option("--position-unit", o.position_unit, "unit of the position channel: m, mm or um");
   sub->add_flag("--invert-normal", o.invert_normal,
                 "flip the normal force's sign (pressing must be positive)");
   sub->add_flag("--invert-tangential", o.invert_tangential, "flip the tangential force's sign");
@@ -74,9 +79,16 @@ void add_recording_options(CLI::App* sub, RecordingOptions& o) {
 
 struct Recording {
   ts::ChannelTable table;
-  std::vector<double> normal, tangential;
-  const std::vector<double>* position = nullptr;
+  std::vector<double> normal, tangential;       // N
+  std::optional<std::vector<double>> position;  // m when position_in_m, else as recorded
+  bool position_in_m = false;
+  const std::vector<double>* position_or_null() const { return position ? &*position : nullptr; }
 };
+
+// A force column in N: mN when its name says so.
+std::vector<double> force_in_N(const ts::ChannelTable& table, const std::string& column) {
+  return scaled(table.column(column), si_per_unit(column, "", ts::Quantity::kForce, "").value_or(1.0));
+}
 
 Recording read_recording(RecordingOptions& o) {
   if (!o.tare_s.empty() && o.tare_s.size() != 2) throw Error("expects T0,T1 in seconds", {.key = "--tare-s"});
@@ -93,13 +105,18 @@ Recording read_recording(RecordingOptions& o) {
   if (!o.position.empty()) read.required.push_back(o.position);
   Recording r;
   r.table = ts::read_channels(o.input, read);
-  r.normal = r.table.column(o.normal);
-  r.tangential = r.table.column(o.tangential);
+  r.normal = force_in_N(r.table, o.normal);
+  r.tangential = force_in_N(r.table, o.tangential);
   if (o.invert_normal)
     for (double& v : r.normal) v = -v;
   if (o.invert_tangential)
     for (double& v : r.tangential) v = -v;
-  if (!o.position.empty()) r.position = &r.table.column(o.position);
+  if (!o.position.empty()) {
+    const auto m_per_unit =
+        si_per_unit(o.position, o.position_unit, ts::Quantity::kPosition, "--position-unit");
+    r.position = scaled(r.table.column(o.position), m_per_unit.value_or(1.0));
+    r.position_in_m = m_per_unit.has_value();
+  }
   return r;
 }
 
@@ -195,7 +212,8 @@ void add_signals_phases_verb(CLI::App& signals) {
   sub->callback([o] {
     Recording rec = read_recording(o->r);
     const ts::Phases phases = in_recording_context(o->r, [&] {
-      return ts::detect_phases(rec.table.time_s, rec.normal, rec.tangential, rec.position, o->r.phases);
+      return ts::detect_phases(rec.table.time_s, rec.normal, rec.tangential, rec.position_or_null(),
+                               o->r.phases);
     });
     const std::string plot = o->plot.empty() ? default_plot_path(o->out) : o->plot;
     ts::write_phases_png(plot, rec.table.time_s, phases,
@@ -228,8 +246,8 @@ void add_signals_friction_verb(CLI::App& signals) {
       "(that slide), strokes (every slide's mu), onset_s (the position, else F_t, leaves its baseline: the "
       "first --baseline-s after loaded; by 5 % of its excursion, the onset being the last sample inside 5 "
       "sigma), t90_s (F_t at --fraction of its level when the slide starts), full_slip_s (F_t within 1 % of "
-      "that level), plateau_tangential_N, external_work_J (integral of F_t dx from onset to t90; needs "
-      "--position in m), phases, tare, warnings.\n"
+      "that level), plateau_tangential_N, external_work_J (integral of F_t dx from onset to t90, in J; needs "
+      "--position with a known unit), phases, tare, warnings.\n"
       "The events must fall in order inside the phases (onset in the contact before the first slide, t90 "
       "and full slip before that slide's end); a disagreement is a named warning on stderr and in the "
       "summary. No slide is an error.\n"
@@ -246,10 +264,16 @@ void add_signals_friction_verb(CLI::App& signals) {
       ->capture_default_str();
   sub->callback([o] {
     Recording rec = read_recording(o->r);
-    const auto trial = in_recording_context(o->r, [&] {
-      return ts::analyse_friction_trial(rec.table.time_s, rec.normal, rec.tangential, rec.position,
+    auto trial = in_recording_context(o->r, [&] {
+      return ts::analyse_friction_trial(rec.table.time_s, rec.normal, rec.tangential, rec.position_or_null(),
                                         {o->r.phases, o->events});
     });
+    if (rec.position && !rec.position_in_m) {
+      trial.events.external_work_J.reset();
+      trial.warnings.push_back({"external_work_not_measured",
+                                "U_ext is left out: the unit of position column '" + o->r.position +
+                                    "' is not known (name it with _m, _mm or _um, or give --position-unit)"});
+    }
     const ts::Phases& p = trial.phases;
     CsvWriter out(o->out, {o->r.time_column, "mu"});
     std::size_t below = 0;

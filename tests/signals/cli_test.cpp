@@ -352,6 +352,98 @@ TEST(SignalsCli, FrictionAndPowerLaw) {
   EXPECT_LT(k["b_low"].get<double>(), k["b"].get<double>());
 }
 
+// The friction recording above with its columns in other units: position in mm (or with no unit in the name),
+// the forces in mN, and the position counted the other way. U_ext = ∫F dx from onset to t90 in closed form:
+// F = 1.6 (1 − (1 − u)^1.5) N over x = 2 mm · u gives 3.2 mJ · (u90 + ((1 − u90)^2.5 − 1) / 2.5).
+TEST(SignalsCli, FrictionReadsTheUnitsInTheColumnNames) {
+  const std::string in = dir() + "/friction_units.csv";
+  {
+    std::ofstream out(in);
+    out << "t_s,normal_mN,tangential_mN,x_mm,x_back_mm,x\n";
+    for (int i = 0; i <= 2000; ++i) {
+      const double t = i / 1000.0, d = std::max(0.0, 0.01 * (t - 0.5)), u = std::min(1.0, d / 0.002);
+      const double f_mN = 1600 * (1 - std::pow(1 - u, 1.5));
+      out << tirstrain::format_double(t) << ",2000," << tirstrain::format_double(f_mN) << ','
+          << tirstrain::format_double(1e3 * d) << ',' << tirstrain::format_double(-1e3 * d) << ','
+          << tirstrain::format_double(1e3 * d) << '\n';
+    }
+  }
+  const double u90 = 1 - std::pow(0.1, 2.0 / 3.0);
+  const double work_J = 3.2e-3 * (u90 + (std::pow(1 - u90, 2.5) - 1) / 2.5);
+  const auto summary_of = [&](const std::string& position) {
+    const std::string summary = dir() + "/friction_units.json";
+    const auto r = run("signals friction " + in + " --tangential tangential_mN --normal normal_mN " +
+                       position + " --out " + dir() + "/mu_units.csv --summary " + summary);
+    EXPECT_EQ(r.code, 0) << r.output;
+    std::ifstream f(summary);
+    return nlohmann::json::parse(f);
+  };
+  const auto warned = [](const nlohmann::json& j, const std::string& code) {
+    for (const auto& w : j["warnings"])
+      if (w["code"] == code) return true;
+    return false;
+  };
+  auto j = summary_of("--position x_mm");
+  EXPECT_NEAR(j["external_work_J"].get<double>(), work_J, 0.01 * work_J);
+  EXPECT_NEAR(j["mu_dynamic"].get<double>(), 0.8, 1e-4);
+  EXPECT_NEAR(j["plateau_tangential_N"].get<double>(), 1.6, 0.01);
+  EXPECT_FALSE(warned(j, "external_work_negative"));
+  j = summary_of("--position x --position-unit mm");
+  EXPECT_NEAR(j["external_work_J"].get<double>(), work_J, 0.01 * work_J);
+  j = summary_of("--position x");  // no unit known: the onset still, U_ext not
+  EXPECT_NEAR(j["onset_s"].get<double>(), 0.5, 1e-3);
+  EXPECT_FALSE(j.contains("external_work_J"));
+  EXPECT_TRUE(warned(j, "external_work_not_measured"));
+  j = summary_of("--position x_back_mm");
+  EXPECT_NEAR(j["external_work_J"].get<double>(), -work_J, 0.01 * work_J);
+  EXPECT_TRUE(warned(j, "external_work_negative"));
+  const auto r =
+      run("signals friction " + in + " --tangential tangential_mN --normal normal_mN --position x " +
+          "--position-unit inch --out " + dir() + "/mu_units.csv");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("--position-unit"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("m, mm, um"), std::string::npos) << r.output;
+}
+
+// A 0.5 mm grating felt at 10 mm/s, the position recorded in mm: the spectrum's peak is at λ = 0.5e-3 m
+// (within the 512-sample segment's resolution, 2.5 %), and a position without a unit is refused.
+TEST(SignalsCli, SpatialReadsThePositionsUnit) {
+  const std::string in = dir() + "/grating.csv";
+  {
+    std::ofstream out(in);
+    out << "t_s,force_N,x_mm,x\n";
+    for (int i = 0; i < 2000; ++i) {
+      const double t = i / 1000.0, x_mm = 10.0 * t;
+      out << tirstrain::format_double(t) << ','
+          << tirstrain::format_double(1 + 0.1 * std::sin(2 * std::numbers::pi * x_mm / 0.5)) << ','
+          << tirstrain::format_double(x_mm) << ',' << tirstrain::format_double(x_mm) << '\n';
+    }
+  }
+  const std::string out = dir() + "/grating_spectrum.csv";
+  auto r = run("signals spatial " + in + " --force force_N --position x_mm --segment 512 --out " + out);
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream csv(out);
+  std::string line;
+  std::getline(csv, line);
+  double best_psd = -1.0, best_wavelength_m = 0.0;
+  while (std::getline(csv, line)) {
+    std::stringstream cells(line);
+    std::string freq, wavelength, psd;
+    std::getline(cells, freq, ',');
+    std::getline(cells, wavelength, ',');
+    std::getline(cells, psd, ',');
+    if (std::stod(psd) > best_psd) {
+      best_psd = std::stod(psd);
+      best_wavelength_m = std::stod(wavelength);
+    }
+  }
+  EXPECT_NEAR(best_wavelength_m, 0.5e-3, 0.025 * 0.5e-3);
+  r = run("signals spatial " + in + " --force force_N --position x --segment 512 --out " + out + "2");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("cannot tell the unit of position column 'x'"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(out + "2"));
+}
+
 TEST(SignalsCli, AlignThreeModes) {
   // Channel clock: plate at rest until 0.2 s then 5 mm/s; a trigger with a 4 ms linear rise whose 2.5 V point
   // is at 0.302 s. Camera: 100 fps from 0.05 s on a clock 23.37 ms ahead, plate in pixels along -x (52
