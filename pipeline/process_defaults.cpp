@@ -142,14 +142,18 @@ std::string PatternBandChoice::describe() const {
   return text;
 }
 
+// A band the frames do not hold whole was written for another camera or region of interest: the scene is
+// wrong, and a clipped band would hide it.
 void check_pattern_band(const Scene& scene, cv::Size image_size) {
   if (!scene.reference_pattern_roi) return;
   const RoiPx& r = *scene.reference_pattern_roi;
-  const cv::Rect inside = cv::Rect(r.x, r.y, r.width, r.height) & cv::Rect({0, 0}, image_size);
-  if (!inside.empty()) return;
+  const cv::Rect band(r.x, r.y, r.width, r.height);
+  if ((band & cv::Rect({0, 0}, image_size)) == band) return;
   throw Error("the pattern band [" + std::to_string(r.x) + ", " + std::to_string(r.y) + ", " +
-                  std::to_string(r.width) + ", " + std::to_string(r.height) + "] lies outside the " +
-                  std::to_string(image_size.width) + " x " + std::to_string(image_size.height) + " px image",
+                  std::to_string(r.width) + ", " + std::to_string(r.height) + "] (x, y, width, height) " +
+                  ((band & cv::Rect({0, 0}, image_size)).empty() ? "lies outside" : "reaches outside") +
+                  " the " + std::to_string(image_size.width) + " x " + std::to_string(image_size.height) +
+                  " px frames",
               {.file = scene.file, .key = "reference_pattern.roi_px"});
 }
 

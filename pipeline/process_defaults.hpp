@@ -38,8 +38,8 @@ struct PatternBandChoice {
   std::string describe() const;  // one line for the console
 };
 
-// Throws Error (naming the scene file and reference_pattern.roi_px) when the scene's band lies wholly outside
-// an image of `image_size`: no stage could measure anything in it.
+// Throws Error (naming the scene file and reference_pattern.roi_px) when the scene's band does not lie
+// wholly inside frames of `image_size`.
 void check_pattern_band(const Scene& scene, cv::Size image_size);
 
 // The scene's band, or the one detected on `first_frame` (then put into `scene`, so that every stage sees it:

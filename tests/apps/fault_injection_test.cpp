@@ -588,8 +588,8 @@ TEST(Faults, LiveAnalysisErrorLeavesTheRecordingWhole) {
   EXPECT_EQ(run.exit_code, 1) << run.output;
   EXPECT_TRUE(mentions(run.output, "analysis stopped")) << run.output;
   EXPECT_TRUE(mentions(run.output,
-                       "'reference_pattern.roi_px': the pattern band [5000, 5000, 100, 20] lies "
-                       "outside the 320 x 256 px image"))
+                       "'reference_pattern.roi_px': the pattern band [5000, 5000, 100, 20] (x, y, width, "
+                       "height) lies outside the 320 x 256 px frames"))
       << run.output;
   EXPECT_TRUE(mentions(run.output, "is complete")) << run.output;
   EXPECT_TRUE(fs::exists(rec / "recording.json")) << run.output;
@@ -604,7 +604,19 @@ TEST(Faults, LiveAnalysisErrorLeavesTheRecordingWhole) {
       run_cli({"process", small_trial().string(), "--scene", (dir / "outside.yaml").string(), "--out",
                (dir / "out").string(), "--quiet"});
   EXPECT_EQ(process.exit_code, 1) << process.output;
-  EXPECT_TRUE(mentions(process.output, "lies outside the 320 x 256 px image")) << process.output;
+  EXPECT_TRUE(mentions(process.output, "lies outside the 320 x 256 px frames")) << process.output;
+  EXPECT_FALSE(fs::exists(dir / "out" / "result.h5"));
+
+  // A band only partly inside (written for a wider camera) is refused too, not clipped.
+  scene.replace(scene.find("roi_px:"), scene.find(']', scene.find("roi_px:")) - scene.find("roi_px:") + 1,
+                "roi_px: [0, 0, 400, 24]");
+  std::ofstream(dir / "wider.yaml") << scene;
+  const CliRun wider = run_cli({"process", small_trial().string(), "--scene", (dir / "wider.yaml").string(),
+                                "--out", (dir / "out").string(), "--quiet"});
+  EXPECT_EQ(wider.exit_code, 1) << wider.output;
+  EXPECT_TRUE(
+      mentions(wider.output, "[0, 0, 400, 24] (x, y, width, height) reaches outside the 320 x 256 px"))
+      << wider.output;
   EXPECT_FALSE(fs::exists(dir / "out" / "result.h5"));
 }
 
