@@ -6,6 +6,7 @@
 #include <memory>
 #include <string>
 
+#include "core/error.hpp"
 #include "fit/fit_result.hpp"
 #include "tirstrain/commands.hpp"
 
@@ -62,17 +63,26 @@ void add_fit_command(CLI::App& app) {
     const fit::FitRun run = fit::fit_result(result, options->run);
     const std::vector<fit::FrameFit>& fits = run.frames;
     const double fit_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    fit::write_fit_outputs(options->out, result, run, options->run.fit);
-    if (options->quiet) return;
     std::array<int, fit::kFieldModels> by_model{};
-    int unfitted = 0, from_trial = 0;
+    int unfitted = 0, from_trial = 0, no_contact = 0;
     for (const fit::FrameFit& f : fits) {
       from_trial += f.limit_from_trial ? 1 : 0;
+      no_contact += f.status == fit::FitStatus::no_contact ? 1 : 0;
       if (f.status == fit::FitStatus::no_contact || f.status == fit::FitStatus::too_few_tracks)
         ++unfitted;
       else
         ++by_model[static_cast<int>(f.model)];
     }
+    // A fit folder without a single fit would look like a result; say why instead.
+    if (unfitted == static_cast<int>(fits.size()))
+      throw Error("no frame could be fitted: " + std::to_string(fits.size()) + " frames, " +
+                      std::to_string(no_contact) + " with no contact, " +
+                      std::to_string(unfitted - no_contact) + " with fewer than " +
+                      std::to_string(options->run.fit.min_tracks) +
+                      " usable tracks (--min-tracks); nothing written",
+                  {.file = options->result});
+    fit::write_fit_outputs(options->out, result, run, options->run.fit);
+    if (options->quiet) return;
     std::cout << "fitted " << fits.size() - unfitted << " of " << fits.size() << " frames in " << fit_s
               << " s: rest " << by_model[0] << ", full stick " << by_model[1] << ", partial slip "
               << by_model[2] << ", full slip " << by_model[3] << "; not fitted " << unfitted << "\n";

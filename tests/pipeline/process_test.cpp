@@ -343,7 +343,7 @@ TEST(Process, StagesAskedForBringWhatTheyNeed) {
   // --compute adds stages to the scene's list; an unknown name is an error.
   const CliRun unknown =
       run_cli("process " + trial.string() + " --out " + out.string() + " --compute straim");
-  EXPECT_EQ(unknown.exit_code, 1);
+  EXPECT_EQ(unknown.exit_code, 2);
   EXPECT_NE(unknown.output.find("straim"), std::string::npos) << unknown.output;
 }
 
@@ -644,6 +644,14 @@ TEST(Process, FitStageOnARecordingWithNoContact) {
   const auto status = h5.read_integers("/fit/status");
   ASSERT_EQ(status.size(), static_cast<std::size_t>(kFrames));
   for (const auto s : status) EXPECT_EQ(s, 1);  // no_contact
+  // `tirstrain fit` on it has nothing to write: an error that says why, and no output folder.
+  const fs::path fit_out = scratch("no_contact_fit_fit");
+  fs::remove_all(fit_out);
+  const CliRun fit = run_cli("fit " + out.string() + " --out " + fit_out.string());
+  EXPECT_EQ(fit.exit_code, 1) << fit.output;
+  EXPECT_NE(fit.output.find("no frame could be fitted: 4 frames, 4 with no contact"), std::string::npos)
+      << fit.output;
+  EXPECT_FALSE(fs::exists(fit_out));
 }
 
 // A channels.csv beside the frames with tirstrain synth's column names: without a scene the channels stage
