@@ -209,8 +209,11 @@ Scene scene_with_overrides(const ProcessOptions& options, const std::optional<st
   }
   for (const std::string& name : options.compute) {
     const auto& known = known_stages();
-    if (std::find(known.begin(), known.end(), name) == known.end())
-      throw Error("unknown stage '" + name + "' in --compute");
+    if (std::find(known.begin(), known.end(), name) == known.end()) {
+      std::string listed;
+      for (const std::string& stage : known) listed += (listed.empty() ? "" : ", ") + stage;
+      throw Error("unknown stage '" + name + "' (known: " + listed + ")", {.key = "--compute"});
+    }
     if (std::find(scene.compute.begin(), scene.compute.end(), name) == scene.compute.end())
       scene.compute.push_back(name);
   }

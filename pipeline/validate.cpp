@@ -396,7 +396,8 @@ const ErrorStats* ValidationReport::find(const std::string& quantity, const std:
 
 ValidationReport run_validate(const ValidateOptions& options) {
   if (options.scene_path.has_value() == options.trial_dir.has_value())
-    throw Error("validate needs exactly one of --scene (synthesise) and --trial (an existing trial folder)");
+    throw Error("validate needs exactly one of --scene (synthesise) and --trial (an existing trial folder)",
+                {.key = "--scene"});
   check_validate_output(options);
   // Built in "<out>.partial" and swapped in whole: a failed or killed run leaves the earlier output as it
   // was.

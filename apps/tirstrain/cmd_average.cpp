@@ -197,7 +197,9 @@ void add_average_command(CLI::App& app) {
       "/maps/energy_density_J_m3\n"
       "[G,G], /maps/count [G,G] trials per cell; attributes: inputs and frames used) and "
       "DIR/average_E_xx.png,\n"
-      "average_E_yy.png, average_E_xy.png, average_count.png.");
+      "average_E_yy.png, average_E_xy.png, average_count.png.\n"
+      "Example:\n"
+      "  tirstrain average trial1/result.h5 trial2/result.h5 trial3/result.h5 --out avg");
   sub->add_option("RESULT", args->inputs, "result.h5 files (or process output folders)")->required();
   sub->add_option("--out", args->out, "Output folder")->required();
   sub->add_option("--at", args->at, "Which frame of each trial: max-energy (default), last")

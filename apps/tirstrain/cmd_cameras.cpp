@@ -20,6 +20,7 @@ void add_cameras_command(CLI::App& app) {
       "cameras",
       "List connected cameras per backend with the URI to use in 'record' and 'live'.\n"
       "Aravis (GigE Vision / USB3 Vision) discovery broadcasts on every network interface and takes ~1 s.");
+  sub->footer("Example:\n  tirstrain cameras --backend aravis");
   sub->add_option("--backend", args->backend, "aravis, v4l2, libcamera or all (default)")
       ->check(CLI::IsMember({"aravis", "v4l2", "libcamera", "all"}));
   sub->callback([args] {

@@ -250,6 +250,10 @@ void add_model_command(CLI::App& app) {
       "Hertz + Cattaneo-Mindlin partial slip of an elastic sphere on a rigid flat: surface displacement,\n"
       "displacement gradient, Green-Lagrange strain and plane-strain energy density.\n"
       "Either --grid N --out DIR (model.h5, heat maps, summary.json) or --points IN.csv --out OUT.csv.");
+  cm->footer(
+      "Example:\n"
+      "  tirstrain model cattaneo-mindlin --normal-N 2 --tangential-N 1 --radius-m 0.01 --young-Pa 1e6 "
+      "--poisson 0.4 --friction 1 --grid 201 --out cm");
   cm->add_option("--normal-N", options->params.normal_N, "Normal load P (N), > 0")->required();
   cm->add_option("--tangential-N", options->params.tangential_N,
                  "Tangential load Q (N), 0 <= Q <= friction*P")

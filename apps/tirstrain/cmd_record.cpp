@@ -98,6 +98,10 @@ void add_record_command(CLI::App& app) {
       "DIR/recording.json (settings read back from the device, what was asked, counts, why it stopped).\n"
       "Camera settings come from the scene's camera: section (--scene) and the flags below, which override\n"
       "it. DIR is a valid input for 'tirstrain process'. Ctrl-C stops cleanly. See docs/capture.md.");
+  sub->footer(
+      "Examples:\n"
+      "  tirstrain record aravis:192.168.1.20 --out REC --seconds 10\n"
+      "  tirstrain record v4l2:/dev/video0 --out REC --frames 500");
   sub->add_option("URI", args->uri, "Source: aravis:ID, aravis:IP, or a file source")->required();
   sub->add_option("--out", args->out, "Output folder")->required();
   sub->add_option(

@@ -18,6 +18,8 @@ void add_scene_command(CLI::App& app) {
       "Write a commented starting scene file from what a recording's images show: frame size, frame rate\n"
       "(from the timestamps), the glass's printed dot band (along any edge, or none), ridge period and\n"
       "polarity, contact size; calibration and tissue as PLACEHOLDERS holding the defaults.");
+  init->footer(
+      "Example:\n  tirstrain scene init REC --out REC/scene.yaml    # then edit calibration and tissue");
   init->add_option("RECORDING", options->input,
                    "Frames folder, image pattern or video file (as process takes)")
       ->required();

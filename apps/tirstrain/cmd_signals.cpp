@@ -65,6 +65,8 @@ void add_filter(CLI::App& signals) {
       "Designed "
       "as second-order sections for numerical stability.");
   add_common(sub, o->c, "output CSV: t_s,NAME_filtered");
+  add_example(sub,
+              "tirstrain signals filter trial.csv --column normal_N --lowpass-Hz 80 --out normal_80Hz.csv");
   sub->add_option("--column", o->column, "channel to filter")->required();
   sub->add_option("--order", o->order, "Butterworth order N")->capture_default_str();
   sub->add_option("--lowpass-Hz", o->lowpass_Hz, "low-pass -3 dB frequency, Hz (e.g. the paper's 80)")
@@ -127,6 +129,7 @@ void add_psd(CLI::App& signals) {
       std::string("Welch power spectral density of one channel. Output CSV: freq_Hz,psd (units^2/Hz).\n") +
           kWelchConventions);
   add_common(sub, o->c, "output CSV: freq_Hz,psd");
+  add_example(sub, "tirstrain signals psd trial.csv --column accel_m_s2 --segment 1024 --out accel_psd.csv");
   sub->add_option("--column", o->column, "channel")->required();
   sub->add_option("--segment", o->segment, "segment length nperseg, samples (= nfft)")->required();
   sub->add_option("--overlap", o->overlap, "overlap, samples (default segment/2)")
@@ -169,6 +172,9 @@ void add_tf(CLI::App& signals) {
           "|Pxy|^2/(Pxx*Pyy).\n") +
           kWelchConventions);
   add_common(sub, o->c, "output CSV: freq_Hz,gain,phase_rad,coherence");
+  add_example(
+      sub,
+      "tirstrain signals tf trial.csv --input tangential_N --output accel_m_s2 --segment 1024 --out tf.csv");
   sub->add_option("--input", o->input_column, "input channel A (e.g. force)")->required();
   sub->add_option("--output", o->output_column, "output channel B (e.g. acceleration)")->required();
   sub->add_option("--segment", o->segment, "segment length nperseg, samples")->required();
@@ -344,6 +350,7 @@ void add_power_law(CLI::App& signals) {
   sub->add_option("IN", o->input, "CSV with one row per trial")->required();
   sub->add_option("--out", o->out, "output JSON")->required();
   sub->add_option("--normal", o->normal, "normal force column W, N")->capture_default_str();
+  add_example(sub, "tirstrain signals power-law trials.csv --normal normal_N --mu mu --out power_law.json");
   sub->add_option("--mu", o->mu, "friction coefficient column")->capture_default_str();
   sub->add_option("--confidence", o->confidence, "confidence level of the intervals")->capture_default_str();
   sub->callback([o] {
@@ -430,6 +437,9 @@ void add_spatial(CLI::App& signals) {
           kWelchConventions);
   add_common(sub, o->c, "output CSV (see above)");
   sub->add_option("--force", o->force, "force channel, N (mN when its name ends with _mN)")->required();
+  add_example(sub,
+              "tirstrain signals spatial stroke.csv --force tangential_N --position plate_x_mm --segment 512 "
+              "--out spatial.csv");
   sub->add_option(
          "--position", o->position,
          "plate position channel; its unit from a name ending with _m, _mm or _um, or --position-unit")
@@ -571,6 +581,9 @@ void add_pad_deformation(CLI::App& signals) {
           kWelchConventions);
   add_common(sub, o->c, "output CSV (see above)");
   sub->add_option("--calibration", o->calibration, "two-accelerometer calibration recording")->required();
+  add_example(sub,
+              "tirstrain signals pad-deformation trial.csv --side accel_side_m_s2 --calibration sweep.csv "
+              "--cal-pad accel_pad_m_s2 --cal-side accel_side_m_s2 --segment 2048 --out pad.csv");
   sub->add_option("--cal-pad", o->cal_pad, "pad accelerometer channel in the calibration, m/s^2")->required();
   sub->add_option("--cal-side", o->cal_side, "side accelerometer channel in the calibration, m/s^2")
       ->required();
@@ -602,6 +615,10 @@ void add_resample(CLI::App& signals) {
       "Linear interpolation. Times outside the "
       "channel record are an error (nothing is extrapolated).\nOutput CSV: t_s followed by the channels.");
   add_common(sub, o->c, "output CSV: t_s,COLUMNS...");
+  add_example(
+      sub,
+      "tirstrain signals resample channels.csv --times REC/frames.csv --columns normal_N,tangential_N "
+      "--out at_frames.csv");
   sub->add_option("--times", o->times, "CSV holding the target times")->required();
   sub->add_option("--times-column", o->times_column, "column of --times, s")->capture_default_str();
   sub->add_option("--columns", o->columns, "channels to resample (default: all)")->delimiter(',');
@@ -733,6 +750,8 @@ void add_align(CLI::App& signals) {
       "camera_edge_s, threshold (trigger) or max_lag_s, camera_samples_compared (cross-correlation).\n"
       "--shifted-out writes IN with its time column moved to the camera clock (all columns, same names).");
   add_common(sub, o->c, "output JSON: method, offset_s, correlation, ...");
+  add_example(
+      sub, "tirstrain signals align channels.csv --trigger trigger_V --camera-edge-s 0.1 --out align.json");
   auto* offset =
       sub->add_option("--offset-s", o->offset_s, "explicit offset, s (t_camera = t_channel + offset)");
   auto* trigger = sub->add_option("--trigger", o->trigger, "trigger channel (any unit)");

@@ -57,7 +57,10 @@ const char* const kValidateFooter =
     "the truth mask's outline.\n"
     "Writes OUT/validation.csv (one row per quantity), OUT/validation_frames.csv (per frame) and\n"
     "OUT/maps_E_xx.png, maps_E_yy.png, maps_E_xy.png (measured | truth | difference on the standard "
-    "ellipse).";
+    "ellipse).\n"
+    "Examples:\n"
+    "  tirstrain validate --scene samples/scenes/default.yaml --out val\n"
+    "  tirstrain validate --trial TRIAL --out val    # a trial made earlier by tirstrain synth";
 
 pipeline::ValidateOptions validate_options(const ValidateArgs& args) {
   pipeline::ValidateOptions o;

@@ -11,6 +11,7 @@ namespace tirstrain::cli {
 
 void add_version_command(CLI::App& app) {
   CLI::App* sub = app.add_subcommand("version", "Print the version and the library versions of this build");
+  sub->footer("Example:\n  tirstrain version    # paste into a bug report");
   sub->callback([] {
     unsigned major = 0, minor = 0, release = 0;
     H5::H5Library::getLibVersion(major, minor, release);

@@ -79,6 +79,13 @@ void report_unexpected(const CLI::App& app, const CLI::ExtrasError& error) {
   std::cerr << "Run 'tirstrain " << path << (path.empty() ? "" : " ") << "--help' for the options.\n";
 }
 
+// An error about an option's value alone (it names the option, and no file, frame or row it was read from)
+// is the command line's: the same as a value CLI11 refuses.
+bool is_command_line_error(const tirstrain::Error& e) {
+  const tirstrain::ErrorContext& c = e.context();
+  return c.key.rfind("--", 0) == 0 && c.file.empty() && !c.frame && !c.row;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -120,7 +127,7 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : kExitUsage;  // --help and --version are parse "errors" that succeed
   } catch (const tirstrain::Error& e) {
     std::cerr << "tirstrain: error: " << e.what() << '\n';
-    return 1;
+    return is_command_line_error(e) ? kExitUsage : 1;
   } catch (const std::exception& e) {
     std::cerr << "tirstrain: error: " << e.what() << '\n';
     return 1;

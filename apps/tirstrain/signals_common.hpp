@@ -59,6 +59,9 @@ std::vector<double> scaled(std::vector<double> values, double scale);
 CLI::App* add_verb(CLI::App& signals, const std::string& name, const std::string& summary,
                    const std::string& details);
 
+// Ends a verb's --help with a command a user can start from ("tirstrain signals VERB ..." in full).
+void add_example(CLI::App* sub, const std::string& command);
+
 void write_json(const std::string& path, const nlohmann::json& j);
 
 }  // namespace tirstrain::cli

@@ -62,6 +62,10 @@ CLI::App* add_verb(CLI::App& signals, const std::string& name, const std::string
   return sub;
 }
 
+void add_example(CLI::App* sub, const std::string& command) {
+  sub->footer(sub->get_footer() + "\nExample:\n  " + command);
+}
+
 void write_json(const std::string& path, const nlohmann::json& j) {
   write_text_file(path, j.dump(2) + "\n");
 }

@@ -445,13 +445,13 @@ TEST(ValidateCli, ComparesAnExistingTrialAndNamesMissingInputs) {
   const auto past =
       run_cli("validate --trial " + trial + "/trials/quick --result " + out +
               "/result --no-maps --map-frame 999 --out " + fresh_dir("validate_cli_map") + " --quiet");
-  EXPECT_EQ(past.exit_code, 1) << past.output;
+  EXPECT_EQ(past.exit_code, 2) << past.output;
   EXPECT_NE(past.output.find("--map-frame"), std::string::npos) << past.output;
   EXPECT_NE(past.output.find("past the trial's last frame"), std::string::npos) << past.output;
   EXPECT_EQ(run_cli("validate --trial " + trial + "/trials/quick --map-frame -3 --out " + out).exit_code, 2);
 
   const auto neither = run_cli("validate --out " + out);
-  EXPECT_EQ(neither.exit_code, 1);
+  EXPECT_EQ(neither.exit_code, 2);
   EXPECT_NE(neither.output.find("--scene"), std::string::npos) << neither.output;
   const auto not_a_trial = run_cli("validate --trial " + out + " --out " + out + "/x");
   EXPECT_EQ(not_a_trial.exit_code, 1);

@@ -1,10 +1,16 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cctype>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include "cli_support.hpp"
 #include "core/version.hpp"
+#include "tests/support/scratch.hpp"
 
 namespace tirstrain {
 namespace {
@@ -43,6 +49,58 @@ TEST(Cli, HelpDocumentsTheExitCodes) {
   for (const char* part :
        {"Exit codes: 0 success; 1 the run failed", "2 the command line is", "128+N killed"})
     EXPECT_NE(r.output.find(part), std::string::npos) << part << "\n" << r.output;
+}
+
+// The commands listed under SUBCOMMANDS in a --help text: the section's lines "  name   summary" up to its
+// first blank line.
+std::vector<std::string> subcommands_in(const std::string& help) {
+  std::vector<std::string> names;
+  const std::size_t from = std::min(help.find("SUBCOMMANDS:"), help.find("Subcommands:"));  // CLI11 1.x / 2.x
+  if (from == std::string::npos) return names;
+  std::istringstream lines(help.substr(from));
+  std::string line;
+  std::getline(lines, line);
+  while (std::getline(lines, line) && !line.empty()) {
+    if (line.rfind("  ", 0) != 0 || line.size() < 3 || !std::islower(static_cast<unsigned char>(line[2])))
+      continue;
+    names.push_back(line.substr(2, line.find(' ', 2) - 2));
+  }
+  return names;
+}
+
+TEST(Cli, EveryCommandsHelpGivesAnExample) {
+  std::vector<std::string> pending = subcommands_in(run_cli("--help").output);
+  ASSERT_GE(pending.size(), 15u);
+  int leaves = 0;
+  while (!pending.empty()) {
+    const std::string command = pending.back();
+    pending.pop_back();
+    const auto r = run_cli(command + " --help");
+    ASSERT_EQ(r.exit_code, 0) << command;
+    const std::vector<std::string> below = subcommands_in(r.output);
+    ASSERT_LE(std::count(command.begin(), command.end(), ' '), 2) << command;
+    for (const std::string& name : below) pending.push_back(command + " " + name);
+    if (!below.empty()) continue;
+    ++leaves;
+    EXPECT_NE(r.output.find("Example"), std::string::npos) << "tirstrain " << command << " --help";
+  }
+  EXPECT_GE(leaves, 30);
+}
+
+// A value the command line gives that a command refuses by itself (not through the option parser) is a
+// usage error all the same: exit 2, the option named. A run failure is 1.
+TEST(Cli, RefusedOptionValuesExitWithTheUsageCode) {
+  const std::string dir = testing::scratch_dir("cli", "usage_codes").string();
+  for (const std::string& args : {std::string("validate --out ") + dir + "/v",
+                                  "track " + dir + " --grid 20 --roi a,b,c,d --out " + dir + "/t.csv",
+                                  "track " + dir + " --grid 20 --preset foo --out " + dir + "/t.csv",
+                                  "process " + dir + " --compute bogus --out " + dir + "/p"}) {
+    const auto r = run_cli(args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find("'--"), std::string::npos) << args << "\n" << r.output;
+  }
+  const auto missing = run_cli("process " + dir + "/no_such_recording --out " + dir + "/p");
+  EXPECT_EQ(missing.exit_code, 1) << missing.output;
 }
 
 TEST(Cli, MistypedOptionGetsASuggestionAndUsageExitCode) {

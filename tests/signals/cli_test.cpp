@@ -100,7 +100,7 @@ TEST(SignalsCli, RqaJsonHasTheFourMeasures) {
     EXPECT_TRUE(j.contains(key)) << key;
   EXPECT_NEAR(j["recurrence_rate"].get<double>(), 0.05, 0.001);
   const auto bad = run("signals rqa " + in + " --column force_N --dim 3 --delay 5 --out " + out);
-  EXPECT_EQ(bad.code, 1);
+  EXPECT_EQ(bad.code, 2);  // the command line is wrong
   EXPECT_NE(bad.output.find("--recurrence-rate"), std::string::npos);
   const auto help = run("signals rqa --help");
   EXPECT_NE(help.output.find("line of identity is excluded"), std::string::npos);
@@ -150,7 +150,7 @@ TEST(SignalsCli, RecurrenceInTheSpatialDomainAcrossAnEnsembleAndAsAPicture) {
   EXPECT_GT(ej["false_neighbour_fraction"][0].get<double>(), ej["false_neighbour_fraction"][1].get<double>());
   EXPECT_EQ(ej["fnn_delay"].get<int>(), std::max(1, ej["suggested_delay"].get<int>()));
   const auto bad = run("signals rqa " + files[0] + common + "--joint-recurrence-rate 0.05 --out " + json_out);
-  EXPECT_EQ(bad.code, 1);
+  EXPECT_EQ(bad.code, 2);
   EXPECT_NE(bad.output.find("--joint-column"), std::string::npos) << bad.output;
 }
 
@@ -182,7 +182,7 @@ TEST(SignalsCli, FrictionSpeedAndTextureInteractionWriteTheirContracts) {
   EXPECT_NEAR(tj["predictions"][1]["surface_frequency_Hz"].get<double>(), 50.0, 1e-9);  // v / λ
   EXPECT_EQ(tj["predictions"][1]["zone"], "coarser_than_ridges");
   const auto bad = run("model texture-interaction --texture-period-mm 0.2 --speed-mm-s -1");
-  EXPECT_EQ(bad.code, 1);
+  EXPECT_EQ(bad.code, 2);
   EXPECT_NE(bad.output.find("--speed-mm-s"), std::string::npos) << bad.output;
 }
 
@@ -231,7 +231,7 @@ TEST(SignalsCli, ImpedanceFromVelocityWithAFixedStiffnessAndANarrowBandWarning) 
   ASSERT_EQ(j["warnings"].size(), 1u);
   EXPECT_NE(r.output.find("--fix-stiffness"), std::string::npos) << r.output;
   r = run("signals impedance " + in + " --force F_N --segment 512 --out " + z);
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("--velocity-column"), std::string::npos) << r.output;
 }
 
@@ -282,7 +282,7 @@ TEST(SignalsCli, PadDeformationRecoversTheDisplacementByBothRoutes) {
           " --cal-pad pad_m_s2 --cal-side side_m_s2 --side side_m_s2 --force F_N --segment 1000 "
           "--out " +
           out);
-  EXPECT_EQ(refused.code, 1);
+  EXPECT_EQ(refused.code, 2);
   EXPECT_NE(refused.output.find("--m-kg"), std::string::npos) << refused.output;
 }
 
@@ -302,7 +302,7 @@ TEST(SignalsCli, BadInputIsLocated) {
   EXPECT_NE(r.output.find("Nyquist"), std::string::npos);
   r = run("signals filter " + write_trial() + " --column force_N --lowpass-Hz 80 --highpass-Hz 5 --out " +
           dir() + "/x.csv");
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);  // the command line is wrong
   EXPECT_FALSE(std::filesystem::exists(dir() + "/x.csv"));
 }
 
