@@ -97,9 +97,10 @@ std::string scripts() {
 }  // namespace
 
 std::string render_page(const Page& page) {
-  std::string html = "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<title>" +
-                     html_escape(page.title) + "</title>\n<style>" + std::string(kStyle) + "</style>\n" +
-                     scripts() + "</head>\n<body>\n";
+  std::string html = "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n" +
+                     std::string(kGeneratorMeta) + "\n<title>" + html_escape(page.title) +
+                     "</title>\n<style>" + std::string(kStyle) + "</style>\n" + scripts() +
+                     "</head>\n<body>\n";
   html += "<h1>" + html_escape(page.title) + "</h1>\n" + page.intro_html + navigation(page);
   for (const Figure& f : page.figures) html += figure_html(f);
   for (const PageSection& s : page.sections)

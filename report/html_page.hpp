@@ -24,6 +24,9 @@ struct Page {
   std::vector<PageSection> sections;  // after the figures
 };
 
+// In every page's head: how a later run knows an existing file is an earlier page it may replace.
+inline constexpr const char* kGeneratorMeta = "<meta name=\"generator\" content=\"tirstrain report\">";
+
 std::string render_page(const Page& page);
 
 }  // namespace tirstrain::report

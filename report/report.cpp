@@ -1,6 +1,7 @@
 #include "report/report.hpp"
 
 #include <filesystem>
+#include <fstream>
 
 #include "core/atomic_output.hpp"
 #include "core/error.hpp"
@@ -14,25 +15,49 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The page goes beside the results, never into one: `process` replaces its folder as a whole and refuses a
-// folder holding files it does not write, so a report inside would block the next run there.
+// An existing file at --out is replaced only when it is an earlier page: anything else may be a user's.
+void check_replaceable_page(const fs::path& out, const std::string& out_arg) {
+  if (!fs::exists(out)) return;
+  std::ifstream in(out, std::ios::binary);
+  std::string head(4096, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(in.gcount()));
+  if (head.find(kGeneratorMeta) == std::string::npos)
+    throw Error(
+        "exists and is not a page tirstrain report wrote: it is not replaced; remove it or choose "
+        "another file",
+        {.file = out_arg, .key = "--out"});
+}
+
+// The inputs first, so that a missing one is named as such; then the page goes beside them, never into
+// one: `process` replaces its folder as a whole and refuses a folder holding files it does not write, so a
+// report inside would block the next run there, and it must never replace an input.
 void check_output(const ReportOptions& o) {
   if (o.out_path.empty()) throw Error("an output file is required", {.key = "--out"});
-  const fs::path out = fs::absolute(o.out_path).lexically_normal();
-  if (fs::is_directory(out))
-    throw Error("is a folder: give the HTML file to write", {.file = o.out_path, .key = "--out"});
-  for (const std::string& input : o.results) {
-    const fs::path in = fs::absolute(input).lexically_normal();
-    const fs::path folder = fs::is_directory(in) ? in : in.parent_path();
-    if (out == in || out.parent_path() == folder)
-      throw Error("is inside the result folder " + input + ": write the report beside it",
-                  {.file = o.out_path, .key = "--out"});
-  }
   if (!o.validations.empty() && o.validations.size() != o.results.size())
     throw Error("give one --validation folder per result, in the results' order (" +
                     std::to_string(o.results.size()) + " results, " + std::to_string(o.validations.size()) +
                     " validation folders)",
                 {.key = "--validation"});
+  std::vector<std::string> input_folders;
+  for (const std::string& input : o.results) {
+    const fs::path file(result_file_of(input));
+    input_folders.push_back(file.parent_path().empty() ? "." : file.parent_path().string());
+  }
+  for (const std::string& dir : o.validations) {
+    if (!fs::is_directory(dir))
+      throw Error("no such folder: give a folder written by `tirstrain validate`",
+                  {.file = dir, .key = "--validation"});
+    input_folders.push_back(dir);
+  }
+  if (fs::is_directory(o.out_path))
+    throw Error("is a folder: give the HTML file to write", {.file = o.out_path, .key = "--out"});
+  for (const std::string& folder : input_folders)
+    if (path_is_within(o.out_path, folder))
+      throw Error("is inside the input folder " + folder + ": write the report beside it",
+                  {.file = o.out_path, .key = "--out"});
+  const fs::path out = fs::absolute(o.out_path).lexically_normal();
+  check_replaceable_page(out, o.out_path);
   ensure_output_dir(out.parent_path().string(), "--out");
 }
 

@@ -16,15 +16,6 @@ namespace {
 namespace fs = std::filesystem;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-std::string result_file_of(const std::string& path) {
-  const fs::path p(path);
-  const fs::path file = fs::is_directory(p) ? p / "result.h5" : p;
-  if (!fs::exists(file))
-    throw Error("no result.h5 here: give a folder written by `tirstrain process` (or its result.h5)",
-                {.file = file.string()});
-  return file.string();
-}
-
 std::string label_of(const std::string& result_file) {
   const fs::path folder = fs::path(result_file).parent_path();
   const std::string name = folder.filename().string();
@@ -320,9 +311,22 @@ void read_ridge_orientation(const H5Reader& h5, const ReadOptions& options, Resu
 
 }  // namespace
 
+std::string result_file_of(const std::string& path) {
+  const fs::path p(path);
+  if (!fs::exists(p))
+    throw Error("no such result: give a folder written by `tirstrain process`", {.file = path});
+  const fs::path file = fs::is_directory(p) ? p / "result.h5" : p;
+  if (!fs::exists(file))
+    throw Error("no result.h5 here: give a folder written by `tirstrain process` (or its result.h5)",
+                {.file = file.string()});
+  return file.string();
+}
+
 ResultData read_result(const std::string& path, const ReadOptions& options) {
   const std::string file = result_file_of(path);
   const H5Reader h5(file);
+  if (!h5.has("/frames/t_s") || text_attribute(h5, "stages").empty())
+    throw Error("not a result of `tirstrain process` (no /frames/t_s or stages attribute)", {.file = file});
   ResultData r;
   r.dir = path;
   r.label = label_of(file);

@@ -69,6 +69,9 @@ struct ReadOptions {
 };
 
 // Reads a process output folder (or a result.h5 path). Throws Error naming the file and what is missing.
+// The result.h5 of a result folder (or the file given); throws Error naming the path when there is none.
+std::string result_file_of(const std::string& path);
+// Throws Error naming the file when it is not a result of `tirstrain process`.
 ResultData read_result(const std::string& path, const ReadOptions& options = {});
 
 }  // namespace tirstrain::report

@@ -15,6 +15,10 @@ ValidationData read_validation(const std::string& dir) {
   ValidationData v;
   v.dir = dir;
   v.summary = read_text_csv(summary.string());
+  for (const char* column : {"quantity", "reference", "mode", "rms"})
+    if (!v.summary.has(column))
+      throw Error(std::string("not a validation table of `tirstrain validate`: no column '") + column + "'",
+                  {.file = summary.string(), .key = "--validation"});
   const fs::path frames = fs::path(dir) / "validation_frames.csv";
   if (!fs::exists(frames)) return v;
   const TextTable t = read_text_csv(frames.string());

@@ -95,5 +95,42 @@ TEST(ReportPage, WriteReportRefusesToOverwriteAnInputOrAFolder) {
   EXPECT_FALSE(fs::exists(dir.parent_path() / "report_refusals.html"));
 }
 
+// --out never replaces what it reads (a validation table) nor a file it did not write; a missing or wrong
+// input is named as such.
+TEST(ReportPage, WriteReportReplacesOnlyItsOwnPagesAndNamesWrongInputs) {
+  const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "report_own_pages";
+  fs::remove_all(dir);
+  fs::create_directories(dir / "result");
+  fs::create_directories(dir / "validation");
+  std::ofstream(dir / "validation" / "validation.csv") << "quantity,reference,mode,unit,rms\n";
+  std::ofstream(dir / "notes.txt") << "a user's notes";
+  const auto message = [](const ReportOptions& o) {
+    try {
+      (void)write_report(o);
+    } catch (const std::exception& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  ReportOptions o;
+  o.results = {(dir / "no_such_result").string()};
+  o.out_path = (dir / "page.html").string();
+  EXPECT_NE(message(o).find("no such result"), std::string::npos) << message(o);
+  std::ofstream(dir / "result" / "result.h5") << "not an HDF5 file";
+  o.results = {(dir / "result").string()};
+  o.validations = {(dir / "validation").string()};
+  o.out_path = (dir / "validation" / "validation.csv").string();
+  EXPECT_NE(message(o).find("is inside the input folder"), std::string::npos) << message(o);
+  o.out_path = (dir / "notes.txt").string();
+  EXPECT_NE(message(o).find("is not a page tirstrain report wrote"), std::string::npos) << message(o);
+  std::ifstream notes(dir / "notes.txt");
+  std::string kept;
+  std::getline(notes, kept);
+  EXPECT_EQ(kept, "a user's notes");
+  std::ifstream table(dir / "validation" / "validation.csv");
+  std::getline(table, kept);
+  EXPECT_EQ(kept, "quantity,reference,mode,unit,rms");
+}
+
 }  // namespace
 }  // namespace tirstrain::report

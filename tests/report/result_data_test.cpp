@@ -4,10 +4,12 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <numbers>
 
 #include "core/h5_file.hpp"
 #include "report/result_data.hpp"
+#include "report/validation_data.hpp"
 
 namespace tirstrain::report {
 namespace {
@@ -163,6 +165,30 @@ TEST(ReportResultData, DirectionsKeepOnlyUsedTrianglesAndCoherentBlocks) {
   ASSERT_EQ(r.ridge_orientation.angle_rad.size(), 2u);
   EXPECT_NEAR(r.ridge_orientation.angle_rad[0], std::numbers::pi / 6, 1e-6);
   EXPECT_NEAR(r.ridge_orientation.weight[0] + r.ridge_orientation.weight[1], 1.4, 1e-6);
+}
+
+// An HDF5 file of another command (truth.h5, fit.h5) and a CSV that is not validate's are refused by name.
+TEST(ReportResultData, OtherFilesAreNotTakenForResultsOrValidations) {
+  const fs::path dir = fresh_dir("other_files");
+  {
+    H5Writer h5((dir / "truth.h5").string());
+    h5.write("/load/normal_N", std::vector<double>{1.0, 2.0}, {2});
+    h5.commit();
+  }
+  try {
+    (void)read_result((dir / "truth.h5").string());
+    FAIL() << "expected an error";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("not a result of `tirstrain process`"), std::string::npos)
+        << e.what();
+  }
+  std::ofstream(dir / "validation.csv") << "garbage,1,2\n";
+  try {
+    (void)read_validation(dir.string());
+    FAIL() << "expected an error";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("not a validation table"), std::string::npos) << e.what();
+  }
 }
 
 TEST(ReportResultData, AMissingResultNamesThePath) {
