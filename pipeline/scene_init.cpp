@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <sstream>
 #include <vector>
 
@@ -145,6 +146,11 @@ std::string scene_init_text(const SceneSurvey& s, const std::string& input) {
 }
 
 SceneSurvey write_initial_scene(const SceneInitOptions& options) {
+  if (!options.overwrite && std::filesystem::exists(options.out_path))
+    throw Error(
+        "exists and is not replaced: a scene file may hold a measured calibration; give another "
+        "file, or --overwrite",
+        {.file = options.out_path, .key = "--out"});
   const SceneSurvey survey = survey_recording(options);
   write_text_file(options.out_path, scene_init_text(survey, options.input));
   // What was written must read back as a scene.

@@ -15,6 +15,7 @@ struct SceneInitOptions {
   std::optional<double> frame_rate_Hz;  // as `process --frame-rate-Hz` takes it, Hz; unset: none
   std::string out_path;
   std::int64_t max_frames = 300;  // frames read at most (the contact and ridges need a few with contact)
+  bool overwrite = false;         // replace an existing out_path (a scene file may hold a calibration)
 };
 
 // What the images showed; written as the scene's values and comments.

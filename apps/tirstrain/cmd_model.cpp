@@ -61,6 +61,9 @@ void check_finite(const model::FieldSample& s, double x_m, double y_m) {
 }
 
 void run_points(const ModelOptions& options, const model::CattaneoMindlin& cm) {
+  if (path_is_within(options.out, options.points_csv))
+    throw Error("is the points file being read: write the values to another file",
+                {.file = options.out, .key = "--out"});
   const CsvTable table = read_numeric_csv(options.points_csv);
   const auto& xs = table.column("x_m");
   const auto& ys = table.column("y_m");

@@ -6,6 +6,7 @@
 
 #include "pipeline/scene_init.hpp"
 #include "tirstrain/commands.hpp"
+#include "tirstrain/value_checks.hpp"
 
 namespace tirstrain::cli {
 
@@ -27,7 +28,8 @@ void add_scene_command(CLI::App& app) {
   init->add_option("--frame-rate-Hz", options->frame_rate_Hz,
                    "Frame rate (Hz) of a recording whose file holds no timestamps and has no frames.csv "
                    "beside it (a multi-page TIFF)")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
+  init->add_flag("--overwrite", options->overwrite, "Replace an existing --out file");
   init->add_option("--frames", options->max_frames, "Frames read at most (default 300)")
       ->check(CLI::Range(1, 1000000));
   init->callback([options] {

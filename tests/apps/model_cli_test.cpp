@@ -5,6 +5,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <string>
 
 #include "cli_support.hpp"
 #include "core/csv.hpp"
@@ -151,6 +153,18 @@ TEST(ModelCli, BadPointsFileNamesRowAndColumn) {
   EXPECT_NE(r.output.find("row 3: column 'y_m': not a number"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir + "/out.csv"));
   EXPECT_FALSE(std::filesystem::exists(dir + "/out.csv.partial"));
+}
+
+TEST(ModelCli, PointsModeNeverWritesOverItsInput) {
+  const std::string dir = fresh_dir("model_points_in_place");
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir + "/p.csv") << "x_m,y_m\n0,0\n";
+  const auto r = run_cli(kLoads + " --points " + dir + "/p.csv --out " + dir + "/./p.csv");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("is the points file being read"), std::string::npos) << r.output;
+  std::ifstream in(dir + "/p.csv");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(text, "x_m,y_m\n0,0\n");
 }
 
 }  // namespace

@@ -740,6 +740,18 @@ TEST(SceneInit, WritesAStartingSceneFromTheImages) {
   for (const char* expected : {"640 x 512 px, 8-bit", "frame rate 188.68 Hz", "first in frame 2",
                                "PLACEHOLDER: image scale", "detected along the left edge"})
     EXPECT_NE(text.find(expected), std::string::npos) << expected << "\n" << text;
+  // A second run does not replace the file (it may hold a measured calibration by now) unless told to.
+  std::ofstream(out) << "calibration: {px_per_mm: 61.3}\n";
+  const CliRun again = run_cli("scene init " + trial.string() + " --out " + out.string());
+  EXPECT_EQ(again.exit_code, 1) << again.output;
+  EXPECT_NE(again.output.find("exists and is not replaced"), std::string::npos) << again.output;
+  std::ifstream kept(out);
+  std::string kept_line;
+  std::getline(kept, kept_line);
+  EXPECT_EQ(kept_line, "calibration: {px_per_mm: 61.3}");
+  const CliRun replace = run_cli("scene init " + trial.string() + " --out " + out.string() + " --overwrite");
+  EXPECT_EQ(replace.exit_code, 0) << replace.output;
+  EXPECT_DOUBLE_EQ(load_scene(out.string()).px_per_mm, 52.0);
 }
 
 TEST(Process, KilledHalfwayLeavesNoResult) {
