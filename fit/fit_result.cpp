@@ -263,6 +263,13 @@ void check_out_dir(const std::string& out_dir, const ResultForFit& r) {
   if (path_is_within(r.result_path, out_dir))
     throw Error("--out " + out_dir + " holds the result being fitted; choose another folder",
                 {.key = "--out"});
+  // Beside the result, never in it: `process` replaces its folder as a whole and refuses one holding
+  // files it does not write, so a fit inside would block the next run there.
+  const fs::path result_folder = fs::path(r.result_path).parent_path();
+  if (!result_folder.empty() && path_is_within(out_dir, result_folder.string()))
+    throw Error("--out " + out_dir + " lies inside the result folder " + result_folder.string() +
+                    "; write the fit beside it",
+                {.key = "--out"});
   if (!fs::exists(out_dir)) return;
   if (!fs::is_directory(out_dir)) throw Error("--out " + out_dir + " is not a folder", {.key = "--out"});
   for (const auto& entry : fs::directory_iterator(out_dir)) {

@@ -1,8 +1,12 @@
 #include "pipeline/study.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -97,7 +101,9 @@ void write_status(const std::string& dir, const TrialStatus& s) {
                   {"version", s.version},
                   {"error", s.error},
                   {"wall_s", s.wall_s},
-                  {"results", results_json(s.results)}};
+                  {"results", results_json(s.results)},
+                  {"pid", s.pid},
+                  {"host", s.host}};
   fs::create_directories(fs::path(dir) / "status");
   write_text_file(status_path(dir, s.name), j.dump(2) + "\n");
 }
@@ -175,6 +181,22 @@ std::string study_fingerprint(const std::string& dir) {
   return hex;
 }
 
+void check_study_folder(const std::string& dir) {
+  static const std::vector<std::string> kStudyNames = {"plan.json", "study.csv", "status",   "trials",
+                                                       "logs",      "slurm",     "aggregate"};
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec))
+    throw Error("is a file, not a folder", {.file = dir, .key = "--out"});
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    const bool leftover = name.size() > 8 && name.compare(name.size() - 8, 8, ".partial") == 0;
+    if (std::find(kStudyNames.begin(), kStudyNames.end(), name) == kStudyNames.end() && !leftover)
+      throw Error("holds '" + name +
+                      "', which a study does not write: give a new or empty folder, or an earlier study's",
+                  {.file = dir, .key = "--out"});
+  }
+}
+
 void write_plan(const std::string& dir, const StudySpec& spec) {
   json trials = json::array();
   for (const StudyTrial& t : spec.trials)
@@ -214,6 +236,21 @@ StudySpec read_plan(const std::string& dir) {
   }
 }
 
+namespace {
+
+std::string this_host() {
+  char name[256] = {};
+  return ::gethostname(name, sizeof name - 1) == 0 ? std::string(name) : std::string();
+}
+
+// A trial left "running" by a process that was killed: known only on the machine it ran on.
+bool process_is_gone(long pid, const std::string& host) {
+  if (pid <= 0 || host.empty() || host != this_host()) return false;
+  return ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH;
+}
+
+}  // namespace
+
 TrialStatus read_status(const std::string& dir, const std::string& name) {
   TrialStatus s;
   s.name = name;
@@ -227,9 +264,21 @@ TrialStatus read_status(const std::string& dir, const std::string& name) {
     s.error = j.at("error");
     s.wall_s = j.at("wall_s");
     s.results = results_from_json(j.at("results"));
+    s.pid = j.value("pid", 0L);
+    s.host = j.value("host", std::string());
   } catch (const json::exception& e) {
     s.status = "failed";
     s.error = std::string("unreadable status file: ") + e.what();
+  }
+  return s;
+}
+
+TrialStatus observed_status(const std::string& dir, const std::string& name) {
+  TrialStatus s = read_status(dir, name);
+  if (s.status == "running" && process_is_gone(s.pid, s.host)) {
+    s.status = "failed";
+    s.error = "interrupted: the process that ran it (" + std::to_string(s.pid) + " on " + s.host +
+              ") is gone; run the study again";
   }
   return s;
 }
@@ -282,7 +331,11 @@ bool run_study_trial(const std::string& dir, std::size_t index) {
   try {
     s.hash = trial_hash(trial);
     s.status = "running";
+    s.pid = static_cast<long>(::getpid());
+    s.host = this_host();
     write_status(dir, s);
+    s.pid = 0;  // the outcome written below is no process's state
+    s.host.clear();
     ProcessOptions o;
     o.input = trial.input;
     if (!trial.scene.empty()) o.scene_path = trial.scene;
@@ -313,7 +366,7 @@ void write_study_csv(const std::string& dir, const StudySpec& spec) {
   csv << ",status,frames,peak_contact_area_mm2,mu_dynamic,U_t90_J,onset_s,t90_s,full_slip_s,mu_P_N,hash,"
          "error\n";
   for (const StudyTrial& t : spec.trials) {
-    const TrialStatus s = read_status(dir, t.name);
+    const TrialStatus s = observed_status(dir, t.name);
     csv << csv_field(t.name);
     for (const std::string& k : keys)
       csv << ',' << csv_field(t.conditions.count(k) ? t.conditions.at(k) : "");
@@ -333,7 +386,7 @@ std::string study_status_text(const std::string& dir, const StudySpec& spec) {
   std::string failures;
   double wall_s = 0.0;
   for (const StudyTrial& t : spec.trials) {
-    const TrialStatus s = read_status(dir, t.name);
+    const TrialStatus s = observed_status(dir, t.name);
     ++counts[s.status];
     wall_s += s.wall_s;
     if (s.status == "failed") failures += "  " + t.name + ": " + s.error + "\n";

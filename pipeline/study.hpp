@@ -35,18 +35,28 @@ struct TrialStatus {
   std::string error;               // why it failed
   double wall_s = 0.0;             // processing time, s
   TrialResults results;            // done only
+  long pid = 0;                    // running: the process running the trial
+  std::string host;                // running: the machine it runs on
 };
 
 // Hex digest of the trial's input files (every regular file under its input folder, or the input file),
 // its scene file's bytes and the tirstrain version.
 std::string trial_hash(const StudyTrial& trial);
 
+// Throws Error (naming --out) when `dir` exists and holds anything a study does not write: a study folder
+// is kept between runs, so it must not be a process result or any other folder of the user's.
+void check_study_folder(const std::string& dir);
+
 // DIR/plan.json: the trials and settings the executors' tasks read (so a task runs what was planned even
 // when the study file changes meanwhile).
 void write_plan(const std::string& dir, const StudySpec& spec);
 StudySpec read_plan(const std::string& dir);
 
+// The status file as written (what the executors act on).
 TrialStatus read_status(const std::string& dir, const std::string& name);
+// The same as a user is shown it: a trial still "running" by a process that is gone from this machine (a
+// killed study) is failed, "interrupted". A Slurm task is judged by its executor through sacct instead.
+TrialStatus observed_status(const std::string& dir, const std::string& name);
 
 // Indices of the trials whose last complete run does not match their current hash (or that never ran).
 std::vector<std::size_t> trials_needing_work(const std::string& dir, const StudySpec& spec);

@@ -34,7 +34,7 @@ const std::vector<std::string>& metric_names() {
 std::vector<Row> done_rows(const std::string& dir, const StudySpec& spec) {
   std::vector<Row> rows;
   for (const StudyTrial& t : spec.trials) {
-    Row r{&t, read_status(dir, t.name), {}};
+    Row r{&t, observed_status(dir, t.name), {}};
     if (r.status.status != "done") continue;
     const TrialResults& v = r.status.results;
     const double values[] = {v.peak_contact_area_mm2, v.mu_dynamic, v.U_t90_J, v.onset_s, v.t90_s,

@@ -325,9 +325,16 @@ std::string run_slurm(const std::string& dir, const StudySpec& spec, const std::
   fs::remove_all(task_ids_dir(dir));  // an earlier job's task ids would name other tasks
   fs::create_directories(task_ids_dir(dir));
   write_text_file(script, slurm_script(dir, spec, indices, options.cli));
-  std::string job = run_command("sbatch --parsable '" + script + "'");
-  job = job.substr(0, job.find_first_of(";\n"));
-  if (job.empty()) throw Error("sbatch printed no job id", {.file = script});
+  std::string job;
+  try {
+    job = run_command("sbatch --parsable '" + script + "'");
+    job = job.substr(0, job.find_first_of(";\n"));
+    if (job.empty()) throw Error("sbatch printed no job id", {.file = script});
+  } catch (const Error& e) {
+    // Nothing was submitted: no trial may wait as "queued" for a job that does not exist.
+    for (std::size_t i : indices) record_failure(dir, spec.trials[i], "not submitted: " + e.message());
+    throw;
+  }
   write_text_file((fs::path(dir) / "slurm" / "job_id").string(), job + "\n");
   if (!options.quiet)
     std::fprintf(stderr, "submitted Slurm job %s (%zu tasks)\n", job.c_str(), indices.size());

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/atomic_output.hpp"
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "core/h5_file.hpp"
 #include "core/heatmap.hpp"
@@ -43,8 +44,20 @@ std::size_t pick_frame(const H5Reader& h5, const Selection& selection) {
     std::size_t best = 0;
     for (std::size_t i = 1; i < t_s.size(); ++i)
       if (std::abs(t_s[i] - selection.time_s) < std::abs(t_s[best] - selection.time_s)) best = i;
+    // Nearest, but within the recording: half a frame interval beyond its ends at most.
+    const double half_interval_s =
+        t_s.size() > 1 ? 0.5 * (t_s.back() - t_s.front()) / static_cast<double>(t_s.size() - 1) : 0.0;
+    if (selection.time_s < t_s.front() - half_interval_s || selection.time_s > t_s.back() + half_interval_s)
+      throw Error("--time-s " + format_double(selection.time_s) + " lies outside the result's frames (" +
+                      format_double(t_s.front()) + " to " + format_double(t_s.back()) + " s)",
+                  {.file = h5.path()});
     return best;
   }
+  if (!h5.has("/energy/total_J"))
+    throw Error(
+        "no /energy/total_J to find the frame of largest strain energy (processed without the strain "
+        "stage?)",
+        {.file = h5.path()});
   const std::vector<double> energy = h5.read_doubles("/energy/total_J");
   std::size_t best = 0;
   double best_energy = -1.0;
@@ -88,11 +101,34 @@ struct TrialMaps {
   std::string used;  // "file@frame;..."
 };
 
+// The result.h5 of each input (a result file or a process output folder), each once.
+std::vector<std::string> result_files(const std::vector<std::string>& inputs) {
+  std::vector<std::string> files;
+  for (const std::string& input : inputs) {
+    const std::string file = fs::is_directory(input) ? (fs::path(input) / "result.h5").string() : input;
+    if (!fs::exists(file)) throw Error("no such result", {.file = file});
+    for (const std::string& earlier : files)
+      if (fs::equivalent(earlier, file))
+        throw Error("is given twice: each trial counts once in the average", {.file = input});
+    files.push_back(file);
+  }
+  return files;
+}
+
+// The output goes beside the results, never into one: `process` replaces its folder as a whole and refuses
+// a folder holding files it does not write.
+void check_out_beside(const std::string& out, const std::vector<std::string>& result_files) {
+  for (const std::string& file : result_files) {
+    const fs::path folder = fs::path(file).parent_path().empty() ? "." : fs::path(file).parent_path();
+    if (path_is_within(out, folder.string()))
+      throw Error("lies inside the result folder " + folder.string() + ": write the average beside it",
+                  {.file = out, .key = "--out"});
+  }
+}
+
 TrialMaps read_trial_maps(const std::vector<std::string>& inputs, const Selection& selection) {
   TrialMaps t;
-  for (std::string input : inputs) {
-    if (fs::is_directory(input)) input = (fs::path(input) / "result.h5").string();
-    if (!fs::exists(input)) throw Error("no such result", {.file = input});
+  for (const std::string& input : inputs) {
     const H5Reader h5(input);
     if (h5.has("/maps") && h5.attribute_number("/maps", "reference_has_ellipse") <= 0.0)
       throw Error("the reference frame had no contact ellipse, so the result has no normalised maps",
@@ -214,11 +250,15 @@ void add_average_command(CLI::App& app) {
       selection.frame = args->frame;
     }
     if (sub->count("--time-s") > 0) {
-      if (selection.how == "frame") throw Error("give --frame or --time-s, not both");
+      if (selection.how == "frame") throw Error("give --frame or --time-s, not both", {.key = "--time-s"});
       selection.how = "time";
       selection.time_s = args->time_s;
     }
-    const TrialMaps trials = read_trial_maps(args->inputs, selection);
+    if (sub->count("--at") > 0 && selection.how != args->at)
+      throw Error("give one of --at, --frame and --time-s", {.key = "--at"});
+    const std::vector<std::string> files = result_files(args->inputs);
+    check_out_beside(args->out, files);
+    const TrialMaps trials = read_trial_maps(files, selection);
     // Built in "<out>.partial" and swapped in whole: a failed run leaves the earlier output as it was.
     check_replaceable_output(
         args->out,

@@ -12,6 +12,7 @@
 #include "pipeline/study.hpp"
 #include "pipeline/study_executor.hpp"
 #include "tirstrain/commands.hpp"
+#include "tirstrain/value_checks.hpp"
 
 namespace tirstrain::cli {
 namespace {
@@ -37,7 +38,7 @@ void summarise(const std::string& dir, const pl::StudySpec& spec, bool quiet) {
 
 int failed_trials(const std::string& dir, const pl::StudySpec& spec) {
   int n = 0;
-  for (const pl::StudyTrial& t : spec.trials) n += pl::read_status(dir, t.name).status != "done";
+  for (const pl::StudyTrial& t : spec.trials) n += pl::observed_status(dir, t.name).status != "done";
   return n;
 }
 
@@ -60,8 +61,7 @@ void add_run(CLI::App& study) {
       ->check(CLI::IsMember({"local", "slurm"}));
   sub->add_flag("--no-wait", a->no_wait,
                 "slurm: submit and return; 'study status' and 'study aggregate' follow");
-  sub->add_option("--poll-s", a->poll_s, "slurm: seconds between squeue polls (default 5)")
-      ->check(CLI::PositiveNumber);
+  sub->add_option("--poll-s", a->poll_s, "slurm: seconds between squeue polls (default 5)")->check(kPositive);
   sub->add_flag("--quiet", a->quiet, "No progress bar or summary on stderr");
   sub->callback([a] {
     const pl::StudySpec spec = pl::load_study_file(a->file);
@@ -69,6 +69,7 @@ void add_run(CLI::App& study) {
       if (path_is_within(a->out, t.input))
         throw Error("the study folder must not lie inside a trial's input (" + t.name + ")",
                     {.key = "--out"});
+    pl::check_study_folder(a->out);
     fs::create_directories(a->out);
     const std::string dir = fs::absolute(a->out).lexically_normal().string();
     pl::write_plan(dir, spec);
@@ -99,7 +100,9 @@ void add_run_trial(CLI::App& study) {
   CLI::App* sub = study.add_subcommand(
       "run-trial", "Process one trial of a planned study (what each executor's task runs)");
   sub->add_option("DIR", a->dir, "Study folder (holding plan.json)")->required();
-  sub->add_option("INDEX", a->index, "0-based trial index in plan.json")->required();
+  sub->add_option("INDEX", a->index, "0-based trial index in plan.json")
+      ->required()
+      ->check(kWholeAtLeastZero);
   sub->callback([a] {
     if (!pl::run_study_trial(a->dir, a->index)) {
       const pl::StudySpec spec = pl::read_plan(a->dir);

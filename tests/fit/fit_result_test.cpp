@@ -127,6 +127,13 @@ TEST(FitResult, RefusesAnOutputHoldingTheResult) {
   const FitRun none{std::vector<FrameFit>(r.frames()), std::nullopt};
   EXPECT_THROW(write_fit_outputs(base + "/result", r, none, FitOptions{}), Error);
   EXPECT_THROW(write_fit_outputs(base, r, none, FitOptions{}), Error);
+  try {  // inside the result folder, the next `process` there would refuse it
+    write_fit_outputs(base + "/result/fit", r, none, FitOptions{});
+    ADD_FAILURE() << "a fit inside the result folder was written";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("lies inside the result folder"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(base + "/result/fit"));
   EXPECT_EQ(fs::file_size(base + "/result/result.h5"), before);
   EXPECT_THROW(read_result_for_fit(base + "/nothing"), Error);
 }

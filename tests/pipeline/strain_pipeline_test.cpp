@@ -2,6 +2,7 @@
 // `tirstrain validate`'s comparison: datasets and shapes, strain against an affine field, the compressed
 // side of a Cattaneo–Mindlin contact facing the plate's motion for the four stimulus directions.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 #include <nlohmann/json.hpp>
 
 #include <yaml-cpp/yaml.h>
@@ -11,6 +12,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <numbers>
 #include <optional>
 #include <string>
@@ -571,6 +573,27 @@ TEST(StrainPipeline, AverageIsTheCellwiseMeanOverCoveringTrials) {
     }
   const double expected = 0.5 * ((0.10 + 0.5 * 0.10 * 0.10) + (-0.06 + 0.5 * 0.06 * 0.06));
   EXPECT_NEAR(sum / n, expected, 0.003);
+
+  // Refused, each with the earlier average kept: a trial given twice, an output inside a result folder, a
+  // time outside the trials, and --at with --frame (the command line's mistake: exit 2).
+  const auto refused = [&](const std::string& args, const std::string& why, int code) {
+    const std::string run =
+        std::string(TIRSTRAIN_CLI) + " average " + args + " > " + (out.string() + ".log") + " 2>&1";
+    const int status = std::system(run.c_str());
+    EXPECT_EQ(WEXITSTATUS(status), code) << args;
+    std::ifstream log(out.string() + ".log");
+    const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find(why), std::string::npos) << args << "\n" << text;
+  };
+  refused(result_a + " " + a.result_dir + " --out " + out.string(), "is given twice", 1);
+  refused(result_a + " " + b.result_dir + " --out " + (fs::path(a.result_dir) / "avg").string(),
+          "lies inside the result folder", 1);
+  refused(result_a + " " + b.result_dir + " --time-s 99 --out " + out.string(),
+          "lies outside the result's frames", 1);
+  refused(result_a + " " + b.result_dir + " --at last --frame 1 --out " + out.string(),
+          "give one of --at, --frame and --time-s", 2);
+  EXPECT_FALSE(fs::exists(fs::path(a.result_dir) / "avg"));
+  EXPECT_EQ(H5Reader((out / "average.h5").string()).read_doubles("/maps/count"), count);
 
   // The same two trials' principal directions: field a stretches along x (e1 at 0 deg), field b along y
   // (e1 at 90 deg); both nearly uniform in direction, and Kuiper's test tells them apart.

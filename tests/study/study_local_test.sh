@@ -89,4 +89,23 @@ after=$(stat -c %Y.%i "$work/out/trials/p1/result.h5" "$work/out/trials/p2/resul
 [ "$before" = "$after" ] || fail "an unchanged trial was reprocessed"
 [ "$(stat -c %i "$work/out/aggregate")" = "$aggregate_inode" ] || fail "aggregate/ was rebuilt with nothing changed"
 
+# A trial left "running" by a process that is gone (killed with the study) is shown as failed, interrupted.
+sleep 0 & gone=$!; wait "$gone"
+python3 - "$work/out/status/p1.json" "$gone" "$(hostname)" <<'PY'
+import json, sys
+path, pid, host = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+s = json.load(open(path)); s.update(status="running", pid=pid, host=host); json.dump(s, open(path, "w"))
+PY
+"$tirstrain" study status "$work/out" > "$work/status_gone.txt"
+grep -q "2 done 2 failed" "$work/status_gone.txt" || fail "a gone trial's status: $(cat "$work/status_gone.txt")"
+grep -q "interrupted" "$work/status_gone.txt" || fail "no reason given: $(cat "$work/status_gone.txt")"
+
+# A folder of the user's (here a process result) is not taken for a study folder: refused, left as it was.
+mkdir -p "$work/not_a_study" && echo '{}' > "$work/not_a_study/summary.json"
+if "$tirstrain" study run "$work/study.yaml" --out "$work/not_a_study" 2> "$work/refused.log"; then
+  fail "a folder holding summary.json was taken for a study folder"
+fi
+grep -q "holds 'summary.json', which a study does not write" "$work/refused.log" || fail "refusal: $(cat "$work/refused.log")"
+[ "$(ls "$work/not_a_study")" = "summary.json" ] || fail "the refused folder was changed: $(ls "$work/not_a_study")"
+
 echo "study local: ok"

@@ -103,6 +103,16 @@ trials:
 slurm: {partition: studytest, cpus_per_task: 1, mem_MB: 100, time_min: 5}
 YAML
 
+# sbatch refusing the job (here: no configuration it can read) leaves no trial "queued" for a job that does
+# not exist: each is failed with sbatch's message.
+if SLURM_CONF=$work/no_such.conf "$tirstrain" study run "$work/study.yaml" --out "$work/refused" \
+    --executor slurm --no-wait 2> "$work/refused.log"; then
+  echo "study run succeeded although sbatch failed"; exit 1
+fi
+"$tirstrain" study status "$work/refused" > "$work/refused_status.txt"
+grep -q "0 done 3 failed" "$work/refused_status.txt" || { echo "after a failed sbatch: $(cat "$work/refused_status.txt")"; exit 1; }
+grep -q "not submitted" "$work/refused/status/p1.json" || { echo "no reason: $(cat "$work/refused/status/p1.json")"; exit 1; }
+
 # Submitted without waiting: study status follows the job, study aggregate summarises it.
 "$tirstrain" study run "$work/study.yaml" --out "$work/slurm" --executor slurm --no-wait
 grep -q -- "--partition=studytest" "$work/slurm/slurm/job.sh"
