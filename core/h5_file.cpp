@@ -260,6 +260,17 @@ H5::Attribute open_attribute(const H5::H5File& file, const std::string& object, 
 }
 }  // namespace
 
+bool H5Reader::has_attribute(const std::string& object, const std::string& name) const {
+  try {
+    if (object == "/" || object.empty()) return file_.openGroup("/").attrExists(name);
+    if (!has(object)) return false;
+    if (file_.childObjType(object) == H5O_TYPE_DATASET) return file_.openDataSet(object).attrExists(name);
+    return file_.openGroup(object).attrExists(name);
+  } catch (const H5::Exception&) {
+    return false;
+  }
+}
+
 std::string H5Reader::attribute_text(const std::string& object, const std::string& name) const {
   try {
     H5::Attribute attr = open_attribute(file_, object, name);

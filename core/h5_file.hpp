@@ -63,6 +63,7 @@ class H5Reader {
   // gets the row's own shape (the dataset's without its first axis).
   std::vector<double> read_row_doubles(const std::string& name, std::size_t row,
                                        H5Shape* shape = nullptr) const;
+  bool has_attribute(const std::string& object, const std::string& name) const;
   std::string attribute_text(const std::string& object, const std::string& name) const;
   double attribute_number(const std::string& object, const std::string& name) const;
   // Names of the members of a group.

@@ -24,6 +24,7 @@
 #include "core/h5_file.hpp"
 #include "core/heatmap.hpp"
 #include "core/png_file.hpp"
+#include "core/scene.hpp"
 #include "core/tensor2.hpp"
 #include "pipeline/contact_observability.hpp"
 #include "pipeline/error_accumulator.hpp"
@@ -267,13 +268,32 @@ samples::SynthConfig load_trial_config(const std::string& trial_dir) {
   return samples::load_synth_config(scene_path);
 }
 
+// truth.h5 keeps the scene the frames were made with (trials synthesised before it did are checked by the
+// quantities below alone): any edit to scene.yaml since is refused, whatever it changes.
+void check_scene_text_matches(const H5Reader& truth, const std::string& trial_dir) {
+  if (!truth.has_attribute("/", "scene_yaml")) return;
+  const fs::path scene_path = fs::path(trial_dir) / "scene.yaml";
+  // Compared as scenes, written out the same way: comments and layout are not edits.
+  if (scene_to_yaml(load_scene(scene_path.string())) == truth.attribute_text("/", "scene_yaml")) return;
+  throw Error(
+      "the trial's scene.yaml differs from the scene its frames were made with (kept in truth.h5): "
+      "edited since `tirstrain synth`? To process the trial with other settings, leave its scene as "
+      "it is and pass them with --process-scene",
+      {.file = scene_path.string()});
+}
+
 // The truth is recomputed from the trial's scene.yaml, and truth.h5 records what the frames were made with.
 // A scene edited since `tirstrain synth` (the pattern band moved, the calibration changed) would be
 // validated against a truth the frames do not show, so every quantity the truth depends on must match.
 void check_scene_matches_truth(const samples::Trial& trial, const std::string& trial_dir) {
   const fs::path truth_path = fs::path(trial_dir) / "truth.h5";
-  if (!fs::exists(truth_path)) return;  // a trial folder without one: the scene is the only truth there is
+  if (!fs::exists(truth_path))
+    throw Error(
+        "no truth.h5: nothing tells that scene.yaml still describes the frames (`tirstrain synth` "
+        "writes both)",
+        {.file = trial_dir});
   const H5Reader truth(truth_path.string());
+  check_scene_text_matches(truth, trial_dir);
   const samples::SynthConfig& cfg = trial.config();
   const samples::LoadHistory& history = trial.history();
   const std::pair<const char*, double> recomputed[] = {

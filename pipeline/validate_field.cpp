@@ -42,6 +42,15 @@ std::string key(const std::string& q, const std::string& r, const std::string& m
 }
 
 void read_frames(const H5Reader& h5, const samples::Trial& trial, ValidatedResult& r) {
+  if (h5.has_attribute("/frames", "width_px")) {
+    const double width_px = h5.attribute_number("/frames", "width_px");
+    const double height_px = h5.attribute_number("/frames", "height_px");
+    if (width_px != trial.width() || height_px != trial.height())
+      throw Error("the result's frames are " + format_double(width_px) + " x " + format_double(height_px) +
+                      " px but the trial's " + std::to_string(trial.width()) + " x " +
+                      std::to_string(trial.height()) + ": a result of another trial",
+                  {.file = r.path});
+  }
   H5Shape shape;
   r.t_s = read(h5, "/frames/t_s", &shape);
   r.frames = shape[0];

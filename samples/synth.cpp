@@ -38,10 +38,15 @@ std::string frame_name(int index) {
 
 // The scene written next to the frames: the input scene with the seed actually used, so the trial can be
 // re-rendered bit for bit and `tirstrain process` finds calibration, tissue and the pattern band.
-void write_scene(const Trial& trial, const std::string& path) {
+// The trial's scene as it is written beside the frames: the seed drawn made explicit.
+Scene trial_scene(const Trial& trial) {
   Scene scene = trial.config().scene;
   scene.synthesis = scene.synthesis.with("seed", std::to_string(trial.config().seed));
-  save_scene(scene, path);
+  return scene;
+}
+
+void write_scene(const Trial& trial, const std::string& path) {
+  save_scene(trial_scene(trial), path);
 }
 
 // What the truth describes: the trial's scene, tissue, loading and contact geometry.
@@ -52,6 +57,7 @@ void write_truth_attributes(const Trial& trial, H5Writer& out) {
   out.attribute("/", "version", kTruthVersion);
   out.attribute("/", "field", field_name(cfg.loading.field));
   out.attribute("/", "scene_file", cfg.scene.file);
+  out.attribute("/", "scene_yaml", scene_to_yaml(trial_scene(trial)));  // what scene.yaml must still say
   out.attribute("/", "seed", static_cast<double>(cfg.seed));
   out.attribute("/", "px_per_mm", cfg.scene.px_per_mm);
   out.attribute("/", "width_px", static_cast<double>(trial.width()));

@@ -1,5 +1,6 @@
 // `tirstrain bench --quick` and `tirstrain validate` through the real binary: the table and files they write,
 // with numbers that are finite and in range (the figures themselves are in BENCHMARKS.md).
+#include <H5Cpp.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -470,10 +471,41 @@ TEST(ValidateCli, ComparesAnExistingTrialAndNamesMissingInputs) {
   const std::string edited_out = fresh_dir("validate_cli_edited_out");
   const auto refused = run_cli("validate --trial " + edited + " --out " + edited_out + " --quiet");
   EXPECT_EQ(refused.exit_code, 1);
-  EXPECT_NE(refused.output.find("contact_centre_y_px = 283.5, the scene now gives 282.5"), std::string::npos)
+  EXPECT_NE(refused.output.find("differs from the scene its frames were made with"), std::string::npos)
       << refused.output;
   EXPECT_NE(refused.output.find("--process-scene"), std::string::npos) << refused.output;
   EXPECT_FALSE(fs::exists(edited_out));
+  // Any edit, also one no recorded quantity depends on (the plate's speed), and a trial without truth.h5.
+  std::string slower = read_text(fs::path(trial) / "trials" / "quick" / "scene.yaml");
+  const std::size_t speed = slower.find("plate_speed_mm_s: ");
+  ASSERT_NE(speed, std::string::npos) << slower;
+  slower.insert(speed + std::string("plate_speed_mm_s: ").size(), "1");
+  std::ofstream(edited + "/scene.yaml") << slower;
+  const auto speed_edit = run_cli("validate --trial " + edited + " --out " + edited_out + " --quiet");
+  EXPECT_EQ(speed_edit.exit_code, 1) << speed_edit.output;
+  EXPECT_NE(speed_edit.output.find("differs from the scene"), std::string::npos) << speed_edit.output;
+  fs::copy_file(fs::path(trial) / "trials" / "quick" / "scene.yaml", edited + "/scene.yaml",
+                fs::copy_options::overwrite_existing);
+  fs::remove(edited + "/truth.h5");
+  const auto no_truth = run_cli("validate --trial " + edited + " --out " + edited_out + " --quiet");
+  EXPECT_EQ(no_truth.exit_code, 1) << no_truth.output;
+  EXPECT_NE(no_truth.output.find("no truth.h5"), std::string::npos) << no_truth.output;
+  EXPECT_FALSE(fs::exists(edited_out));
+
+  // A result of another trial (frames of another size) is refused before anything is compared.
+  const std::string other = fresh_dir("validate_cli_other_result");
+  fs::copy(out + "/result", other, fs::copy_options::recursive);
+  {
+    H5::H5File h5(other + "/result.h5", H5F_ACC_RDWR);
+    const double width_px = 480.0;
+    h5.openGroup("/frames").openAttribute("width_px").write(H5::PredType::NATIVE_DOUBLE, &width_px);
+  }
+  const auto mismatch = run_cli("validate --trial " + trial + "/trials/quick --result " + other + " --out " +
+                                fresh_dir("validate_cli_other_out") + " --quiet");
+  EXPECT_EQ(mismatch.exit_code, 1) << mismatch.output;
+  EXPECT_NE(mismatch.output.find("480 x 512 px but the trial's 640 x 512: a result of another trial"),
+            std::string::npos)
+      << mismatch.output;
 }
 
 }  // namespace
