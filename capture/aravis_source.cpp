@@ -114,6 +114,16 @@ std::optional<PixelLayout> layout_of(ArvPixelFormat format) {
 constexpr const char* kSupportedFormats =
     "Mono8, Mono10, Mono12, Mono14, Mono16, BayerRG8, BayerBG8, BayerGR8, BayerGB8";
 
+bool is_supported_format(const std::string& name) {
+  const std::string list = kSupportedFormats;
+  for (std::size_t from = 0; from <= list.size();) {
+    const std::size_t end = std::min(list.find(", ", from), list.size());
+    if (list.compare(from, end - from, name) == 0) return true;
+    from = end + 2;
+  }
+  return false;
+}
+
 enum class TriggerMode { kFreeRun, kSoftware, kHardware };
 
 class AravisSource final : public FrameSource {
@@ -269,6 +279,11 @@ class AravisSource final : public FrameSource {
   void apply_pixel_format(const std::string& requested) {
     GError* error = nullptr;
     if (!requested.empty()) {
+      // Checked before anything is written: a refused format must not stay on the device for later runs.
+      if (!is_supported_format(requested))
+        throw Error(
+            "pixel format '" + requested + "' is not supported (supported: " + kSupportedFormats + ")",
+            {.file = uri_, .key = requested_.key("--pixel-format")});
       guint n = 0;
       const char** formats = arv_camera_dup_available_pixel_formats_as_strings(camera_, &n, &error);
       const std::vector<std::string> offered = take_strings(formats, n);
@@ -288,9 +303,9 @@ class AravisSource final : public FrameSource {
     g_clear_error(&error);
     const std::string name = format_name != nullptr ? format_name : std::to_string(format);
     if (!layout_of(format))
-      throw Error("pixel format '" + name + "' is not supported (supported: " + kSupportedFormats +
-                      "); choose one with --pixel-format",
-                  {.file = uri_, .key = requested_.key("--pixel-format")});
+      throw Error("the camera's current pixel format '" + name + "' is not supported (supported: " +
+                      kSupportedFormats + "); choose one with --pixel-format",
+                  {.file = uri_});
   }
 
   // A camera control with a range (exposure, gain, frame rate): there, the value within the camera's own

@@ -16,6 +16,8 @@
 #include <map>
 #include <optional>
 
+#include <nlohmann/json.hpp>
+
 #include "capture/file_formats.hpp"
 #include "core/csv.hpp"
 #include "core/error.hpp"
@@ -172,22 +174,43 @@ cv::Mat read_image(const std::string& path) {
   }
 }
 
+// `tirstrain record` from a source without a clock writes the frame number as t_s in its frames.csv and
+// says so in the recording.json beside it: such times were never measured.
+bool recording_has_no_clock(const std::string& frames_csv) {
+  std::ifstream in(fs::path(frames_csv).parent_path() / "recording.json");
+  if (!in) return false;
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  if (!j.is_object() || !j.contains("settings") || !j["settings"].is_object()) return false;
+  return j["settings"].value("time_measured", std::string("true")) == "false";
+}
+
 class ImageSequenceSource final : public FrameSource {
  public:
   ImageSequenceSource(std::vector<SequenceFile> files, std::string description,
                       const std::optional<std::string>& times_csv, const FileSourceOptions& options)
       : files_(std::move(files)), description_(std::move(description)) {
-    if (times_csv && options.frame_rate_Hz)
+    const bool clockless = times_csv && recording_has_no_clock(*times_csv);
+    if (times_csv && options.frame_rate_Hz && !clockless)
       throw Error("--frame-rate-Hz was given but " + *times_csv +
                       " times the frames already; a recording has one clock: drop one of them",
                   {.file = *times_csv, .key = "--frame-rate-Hz"});
-    if (times_csv) {
+    if (clockless) {
+      // Its rows still say which frames were lost; its t_s, the frame number, is timed by the rate if given.
+      load_times(*times_csv);
+      times_csv_.clear();
+      time_source_ = "none: " + *times_csv +
+                     " holds the frame number as t_s (recording.json: the recorded source had no clock)";
+      if (options.frame_rate_Hz) {
+        const double rate_Hz = checked_rate_Hz(*options.frame_rate_Hz);
+        for (double& t : times_s_) t /= rate_Hz;
+        time_source_ =
+            "frame number in " + *times_csv + " / " + format_double(rate_Hz) + " Hz (--frame-rate-Hz)";
+        rate_timed_ = true;
+      }
+    } else if (times_csv) {
       load_times(*times_csv);
     } else if (options.frame_rate_Hz) {
-      const double rate_Hz = *options.frame_rate_Hz;
-      if (!(rate_Hz > 0.0) || !std::isfinite(rate_Hz))
-        throw Error("the frame rate must be a positive number of Hz, not " + format_double(rate_Hz),
-                    {.key = "--frame-rate-Hz"});
+      const double rate_Hz = checked_rate_Hz(*options.frame_rate_Hz);
       time_source_ = "frame number / " + format_double(rate_Hz) + " Hz (--frame-rate-Hz)";
       rate_timed_ = true;
       times_s_.resize(files_.size());
@@ -279,12 +302,7 @@ class ImageSequenceSource final : public FrameSource {
           for (std::size_t i = 0; i < files_.size(); ++i) row_of[i] = rows.at(files_[i].number - offset);
           break;
         }
-        if (!mapped && rows.size() != files_.size())
-          throw Error("the image names are numbered " + std::to_string(files_.front().number) + " to " +
-                          std::to_string(files_.back().number) + " and match no row's index, and the " +
-                          std::to_string(rows.size()) + " rows are not one per image (" +
-                          std::to_string(files_.size()) + "): rows cannot be matched to images",
-                      {.file = csv, .column = "index"});
+        if (!mapped && rows.size() != files_.size()) refuse_unmatched(csv, rows, origin);
       }
       if (!mapped) {
         numbered_ = false;
@@ -318,6 +336,40 @@ class ImageSequenceSource final : public FrameSource {
     }
     times_csv_ = csv;
     time_source_ = "t_s from " + csv;
+  }
+
+  // The images no row names, under whichever origin of the numbers leaves fewest: a row lost from frames.csv
+  // (or an image added) is named; only when most images match no row is the whole numbering said to differ.
+  [[noreturn]] void refuse_unmatched(const std::string& csv, const std::map<std::int64_t, std::size_t>& rows,
+                                     std::int64_t origin) const {
+    std::vector<std::string> best;
+    for (const std::int64_t offset : {std::int64_t{0}, origin}) {
+      std::vector<std::string> unmatched;
+      for (const SequenceFile& f : files_)
+        if (!rows.count(f.number - offset)) unmatched.push_back(fs::path(f.path).filename().string());
+      if (best.empty() || unmatched.size() < best.size()) best = std::move(unmatched);
+    }
+    if (2 * best.size() < files_.size()) {
+      std::string names;
+      for (std::size_t i = 0; i < best.size() && i < 5; ++i) names += (i ? ", " : "") + best[i];
+      if (best.size() > 5) names += " and " + std::to_string(best.size() - 5) + " more";
+      throw Error("has no row for " + std::to_string(best.size()) + " of the " +
+                      std::to_string(files_.size()) + " images: " + names +
+                      " (a row lost, or an image that is not part of the recording)",
+                  {.file = csv, .column = "index"});
+    }
+    throw Error("the image names are numbered " + std::to_string(files_.front().number) + " to " +
+                    std::to_string(files_.back().number) + " and match no row's index, and the " +
+                    std::to_string(rows.size()) + " rows are not one per image (" +
+                    std::to_string(files_.size()) + "): rows cannot be matched to images",
+                {.file = csv, .column = "index"});
+  }
+
+  static double checked_rate_Hz(double rate_Hz) {
+    if (!(rate_Hz > 0.0) || !std::isfinite(rate_Hz))
+      throw Error("the frame rate must be a positive number of Hz, not " + format_double(rate_Hz),
+                  {.key = "--frame-rate-Hz"});
+    return rate_Hz;
   }
 
   // A multi-page TIFF among the images would give only its first page: the user is told to open it alone.

@@ -9,6 +9,8 @@
 #include <cmath>
 #include <condition_variable>
 #include <cstdlib>
+#include <functional>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -161,11 +163,56 @@ cv::Mat display_canvas(const cv::Mat& image) {
 
 namespace {
 
+// A file source replayed at its recorded rate: each frame is held back until its offset from the first
+// frame's timestamp has passed (in steps of at most 50 ms, so that a stop is not held up), so that the
+// display and `--record` receive it as a camera would deliver it; its host time is then its delivery time.
+class RecordedRatePacer final : public FrameSource {
+ public:
+  RecordedRatePacer(FrameSource& inner, std::function<bool()> stopped)
+      : inner_(inner), stopped_(std::move(stopped)) {}
+
+  std::optional<Frame> next() override { return next_by_polling(*this); }
+  Poll poll(Frame& frame, double timeout_s) override {
+    const Poll result = inner_.poll(frame, timeout_s);
+    if (result != Poll::kFrame) return result;
+    return wait_until_due(frame) ? Poll::kFrame : Poll::kEnd;
+  }
+  std::int64_t frame_count() const override { return inner_.frame_count(); }
+  std::string describe() const override { return inner_.describe() + " at its recorded rate"; }
+  std::map<std::string, std::string> settings() const override { return inner_.settings(); }
+  bool is_live() const override { return inner_.is_live(); }
+
+ private:
+  bool wait_until_due(Frame& frame) {
+    if (!start_s_) {
+      start_s_ = steady_now_s();
+      first_device_time_s_ = frame.device_time_s;
+    }
+    const double due_s = *start_s_ + (frame.device_time_s - first_device_time_s_);
+    for (double now_s = steady_now_s(); now_s < due_s; now_s = steady_now_s()) {
+      if (stopped_()) return false;
+      std::this_thread::sleep_for(std::chrono::duration<double>(std::min(due_s - now_s, 0.05)));
+    }
+    frame.host_time_s = steady_now_s();
+    return true;
+  }
+
+  FrameSource& inner_;
+  std::function<bool()> stopped_;
+  std::optional<double> start_s_;
+  double first_device_time_s_ = 0.0;
+};
+
 // One live session: a capture thread (the source, or the recorder around it) feeds a mailbox; this thread
 // takes the newest frame, analyses and shows it, and keeps the rates and latencies.
 class LiveSession {
  public:
-  LiveSession(FrameSource& source, const LiveOptions& options) : source_(source), options_(options) {}
+  LiveSession(FrameSource& source, const LiveOptions& options)
+      : paced_(
+            source,
+            [this] { return stop_capture_.load() || (options_.stop != nullptr && options_.stop->load()); }),
+        source_(options.play_at_recorded_rate ? static_cast<FrameSource&>(paced_) : source),
+        options_(options) {}
 
   LiveReport run() {
     open_window();
@@ -224,6 +271,7 @@ class LiveSession {
   void record_frames() {
     RecordOptions record = options_.record;
     record.out_dir = options_.record_dir;
+    record.out_option = "--record";
     record.max_frames = options_.max_frames;
     record.max_seconds = options_.max_seconds;
     record.stop = &stop_capture_;
@@ -235,7 +283,6 @@ class LiveSession {
 
   void poll_frames() {
     const double start_s = steady_now_s();
-    std::optional<double> first_device_time_s;
     Frame frame;
     while (!stop_capture_.load()) {
       if (options_.max_frames >= 0 && counters_.received.load() >= options_.max_frames) break;
@@ -243,24 +290,8 @@ class LiveSession {
       const FrameSource::Poll result = source_.poll(frame, 0.1);
       if (result == FrameSource::Poll::kEnd) break;
       if (result != FrameSource::Poll::kFrame) continue;
-      if (options_.play_at_recorded_rate && !wait_for_recorded_time(frame, start_s, first_device_time_s))
-        break;
       on_frame(frame);
     }
-  }
-
-  // Sleeps until the frame's offset from the first frame's timestamp has passed since `start_s` (in steps of
-  // at most 50 ms, so that a stop is not held up); false when a stop came first. The frame's host time is
-  // then its delivery time, as a camera's would be.
-  bool wait_for_recorded_time(Frame& frame, double start_s, std::optional<double>& first_device_time_s) {
-    if (!first_device_time_s) first_device_time_s = frame.device_time_s;
-    const double due_s = start_s + (frame.device_time_s - *first_device_time_s);
-    for (double now_s = steady_now_s(); now_s < due_s; now_s = steady_now_s()) {
-      if (stop_capture_.load() || (options_.stop != nullptr && options_.stop->load())) return false;
-      std::this_thread::sleep_for(std::chrono::duration<double>(std::min(due_s - now_s, 0.05)));
-    }
-    frame.host_time_s = steady_now_s();
-    return true;
   }
 
   void fill_counts() {
@@ -343,12 +374,13 @@ class LiveSession {
     return report_;
   }
 
-  FrameSource& source_;
+  std::atomic<bool> stop_capture_{false};
+  RecordedRatePacer paced_;  // the source, held back to its recorded rate (--recorded-rate)
+  FrameSource& source_;      // the source or paced_: what the capture thread reads
   const LiveOptions& options_;
   LiveReport report_;
   Mailbox mailbox_;
   Counters counters_;
-  std::atomic<bool> stop_capture_{false};
   std::string capture_error_;  // written by the capture thread, read after it is joined
   double start_s_ = 0.0, interval_start_s_ = 0.0;
   std::int64_t received_at_interval_ = 0, shown_at_interval_ = 0;

@@ -52,11 +52,10 @@ std::unique_ptr<FrameSource> open_source(const std::string& uri, const FileSourc
     std::error_code ec;
     const bool word = std::all_of(scheme.begin(), scheme.end(), [](char c) { return std::isalnum(c) != 0; });
     if (word && !std::filesystem::exists(uri, ec) && uri.find_first_of("%*?[") == std::string::npos)
-      throw Error(
-          "unknown source scheme '" + scheme +
-              ":'; sources are aravis:ID (or aravis:IP, aravis:Fake), v4l2:/dev/videoN, libcamera:ID, "
-              "file:PATH or a plain path (a folder of frames, an image pattern or a video file)",
-          {.key = "URI"});
+      throw Error("unknown source scheme '" + scheme +
+                      ":'; sources are aravis:ID (or aravis:IP), v4l2:/dev/videoN, libcamera:ID, "
+                      "file:PATH or a plain path (a folder of frames, an image pattern or a video file)",
+                  {.key = "URI"});
   }
   return open_file_source(uri, file_options);
 }

@@ -169,7 +169,7 @@ struct Done {
 class Recording {
  public:
   Recording(const RecordOptions& options, FrameSource& source) : options_(options), source_(source) {
-    if (options.out_dir.empty()) throw Error("no output folder given", {.key = "--out"});
+    if (options.out_dir.empty()) throw Error("no output folder given", {.key = options.out_option});
     if (options.png_level < 0 || options.png_level > 9)
       throw Error("PNG compression level must be 0..9, got " + std::to_string(options.png_level),
                   {.key = "--png-level"});
@@ -181,7 +181,8 @@ class Recording {
     std::error_code ec;
     fs::create_directories(frames_dir_, ec);
     if (ec)
-      throw Error("cannot create folder: " + ec.message(), {.file = frames_dir_.string(), .key = "--out"});
+      throw Error("cannot create folder: " + ec.message(),
+                  {.file = frames_dir_.string(), .key = options.out_option});
     csv_fd_ = ::open(csv_path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
     if (csv_fd_ < 0)
       throw Error(std::string("cannot create file: ") + std::strerror(errno), {.file = csv_path_});
@@ -268,6 +269,7 @@ class Recording {
     report_.elapsed_s = steady_now_s() - start_s_;
     report_.counts.elapsed_s = report_.elapsed_s;
     write_summary();
+    report_.folder = root_.string();
     if (staged_) swap_in();
     return report_;
   }
@@ -286,7 +288,7 @@ class Recording {
     if (existing && !options.overwrite)
       throw Error(
           "already holds a recording (frames/, frames.csv); choose another folder or pass --overwrite",
-          {.file = options.out_dir, .key = "--out"});
+          {.file = options.out_dir, .key = options.out_option});
     staged_ = existing;
     root_ = staged_ ? fs::path(dir + ".partial") : final_root;
     if (staged_ && fs::exists(root_))
@@ -294,8 +296,8 @@ class Recording {
           "holds the unfinished recording of an earlier run; move it away or delete it, then record again "
           "(the recording in " +
               dir + " is untouched)",
-          {.file = root_.string(), .key = "--out"});
-    ensure_output_dir(root_.string(), "--out");
+          {.file = root_.string(), .key = options.out_option});
+    ensure_output_dir(root_.string(), options.out_option);
   }
 
   // The finished recording replaces the earlier one. After a write error both are kept and the error
@@ -308,6 +310,7 @@ class Recording {
     }
     try {
       swap_in_directory(root_.string(), final_dir_);
+      report_.folder = final_dir_;
     } catch (const Error& e) {
       report_.error = std::string(e.what()) + " (the new recording is kept in " + root_.string() + ")";
     }

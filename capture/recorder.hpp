@@ -44,6 +44,7 @@ struct RecordProgress {
 
 struct RecordOptions {
   std::string out_dir;
+  std::string out_option = "--out";                // the command-line option that gave out_dir, for messages
   std::int64_t max_frames = -1;                    // frames received (complete or not); -1: no limit
   double max_seconds = -1.0;                       // from the start of the recording; -1: no limit
   ImageFormat format = ImageFormat::kTiff;         // raw TIFF: the fastest lossless format (docs/capture.md)
@@ -71,6 +72,9 @@ struct RecordReport {
   std::string
       stop_reason;    // "frames", "seconds", "end of stream", "interrupted", "source error", "write error"
   std::string error;  // the message when the run stopped on an error
+  // Where the saved frames are: the output folder, or its staging folder when a failed --overwrite run
+  // kept the earlier recording in place.
+  std::string folder;
   bool ok() const { return error.empty(); }
 };
 

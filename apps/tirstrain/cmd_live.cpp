@@ -17,6 +17,7 @@
 #include "pipeline/stage.hpp"
 #include "tirstrain/camera_options.hpp"
 #include "tirstrain/commands.hpp"
+#include "tirstrain/value_checks.hpp"
 
 namespace tirstrain::cli {
 namespace {
@@ -172,7 +173,10 @@ void add_live_command(CLI::App& app) {
       "slow,\n"
       "the recording never does.\n"
       "Keys: q or Esc quits. Ctrl-C stops cleanly.");
-  sub->add_option("URI", args->uri, "Source: aravis:ID, aravis:IP, or a file source")->required();
+  sub->add_option("URI", args->uri,
+                  "Source: aravis:ID or aravis:IP, v4l2:/dev/videoN, libcamera:ID (tirstrain cameras lists "
+                  "them), or a file source")
+      ->required();
   sub->add_option(
       "--scene", args->scene,
       "Scene file (YAML): calibration, what to compute, and the camera: section (settings that the "
@@ -180,7 +184,7 @@ void add_live_command(CLI::App& app) {
   sub->add_option("--frame-rate-Hz", args->frame_rate_Hz,
                   "Frame rate (Hz) of a recording whose file holds no timestamps and has no frames.csv "
                   "beside it (a multi-page TIFF, a folder of images)")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   sub->add_flag("--recorded-rate", args->recorded_rate,
                 "Play a recording at the rate its timestamps give, as the camera delivered it (default: as "
                 "fast as it is read). Example: tirstrain live REC --scene REC/scene.yaml --recorded-rate");
@@ -188,8 +192,8 @@ void add_live_command(CLI::App& app) {
   sub->add_option("--format", args->format, "Recording image format: tiff (default), pgm, png")
       ->check(CLI::IsMember({"png", "tiff", "pgm"}));
   sub->add_flag("--overwrite", args->overwrite, "Replace a recording already in the --record folder");
-  sub->add_option("--frames", args->frames, "Stop after N frames")->check(CLI::PositiveNumber);
-  sub->add_option("--seconds", args->seconds, "Stop after S seconds")->check(CLI::PositiveNumber);
+  sub->add_option("--frames", args->frames, "Stop after N frames")->check(kPositive);
+  sub->add_option("--seconds", args->seconds, "Stop after S seconds")->check(kPositive);
   sub->add_flag("--no-window", args->no_window, "No display: print status lines (headless machines)");
   sub->add_flag("--quiet", args->quiet, "No status lines");
   add_camera_options(sub, camera);

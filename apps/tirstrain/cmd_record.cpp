@@ -11,6 +11,7 @@
 #include "core/scene.hpp"
 #include "tirstrain/camera_options.hpp"
 #include "tirstrain/commands.hpp"
+#include "tirstrain/value_checks.hpp"
 
 namespace tirstrain::cli {
 namespace {
@@ -55,7 +56,8 @@ capture::RecordOptions record_options(const RecordArgs& args) {
 // early (what was saved before it stays).
 void report_recording(const capture::RecordReport& report, const std::string& out) {
   const capture::RecordProgress& c = report.counts;
-  std::cerr << "record: " << c.frames_saved << " frames saved to " << out << " in " << report.elapsed_s
+  const std::string& saved_in = report.folder.empty() ? out : report.folder;
+  std::cerr << "record: " << c.frames_saved << " frames saved to " << saved_in << " in " << report.elapsed_s
             << " s (" << c.frames_received << " received, " << c.frames_incomplete << " incomplete, "
             << c.frames_lost_device << " lost by the camera/network, " << c.frames_dropped_host
             << " dropped because the disk could not keep up); stopped: " << report.stop_reason << "\n";
@@ -70,7 +72,7 @@ void report_recording(const capture::RecordReport& report, const std::string& ou
               << "status 1, no image) and " << c.frames_lost_device << " frames never received\n";
   if (!report.ok())
     throw Error("recording stopped early: " + report.error + " -- the " + std::to_string(c.frames_saved) +
-                " frames before it are saved in " + out);
+                " frames before it are saved in " + saved_in);
 }
 
 void run_record_command(const RecordArgs& args, const CameraArgs& camera) {
@@ -102,24 +104,27 @@ void add_record_command(CLI::App& app) {
       "Examples:\n"
       "  tirstrain record aravis:192.168.1.20 --out REC --seconds 10\n"
       "  tirstrain record v4l2:/dev/video0 --out REC --frames 500");
-  sub->add_option("URI", args->uri, "Source: aravis:ID, aravis:IP, or a file source")->required();
+  sub->add_option("URI", args->uri,
+                  "Source: aravis:ID or aravis:IP, v4l2:/dev/videoN, libcamera:ID (tirstrain cameras lists "
+                  "them), or a file source")
+      ->required();
   sub->add_option("--out", args->out, "Output folder")->required();
   sub->add_option(
       "--scene", args->scene,
       "Scene file (YAML) whose camera: section sets pixel format, ROI, exposure, gain, frame rate, "
       "trigger, packet size and buffers");
-  auto* frames =
-      sub->add_option("--frames", args->frames, "Stop after N frames received")->check(CLI::PositiveNumber);
-  auto* seconds =
-      sub->add_option("--seconds", args->seconds, "Stop after S seconds")->check(CLI::PositiveNumber);
+  auto* frames = sub->add_option("--frames", args->frames, "Stop after N frames received")->check(kPositive);
+  auto* seconds = sub->add_option("--seconds", args->seconds, "Stop after S seconds")->check(kPositive);
   frames->excludes(seconds);
   sub->add_option("--format", args->format,
                   "Image format: tiff (default, uncompressed), pgm (raw), png (smaller, ~30x slower)")
       ->check(CLI::IsMember({"png", "tiff", "pgm"}));
-  sub->add_option("--png-level", args->png_level, "PNG zlib level 0..9 (default 1: fast, lossless)");
-  sub->add_option("--writers", args->writers, "Writer threads (default 2)");
+  sub->add_option("--png-level", args->png_level, "PNG zlib level 0..9 (default 1: fast, lossless)")
+      ->check(CLI::Range(0, 9));
+  sub->add_option("--writers", args->writers, "Writer threads, 1..64 (default 2)")->check(CLI::Range(1, 64));
   sub->add_option("--queue-MiB", args->queue_MiB,
-                  "Frames held for the writers before dropping (default 512)");
+                  "Frames held for the writers before dropping, 16..1048576 MiB (default 512)")
+      ->check(CLI::Range(std::size_t{16}, std::size_t{1} << 20));
   sub->add_flag("--overwrite", args->overwrite, "Replace a recording already in DIR");
   sub->add_flag("--quiet", args->quiet, "Only errors and the final summary");
   add_camera_options(sub, camera);

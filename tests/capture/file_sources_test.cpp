@@ -152,6 +152,37 @@ TEST(ImageFolder, FrameRateTimesASequenceWithoutFramesCsv) {
             std::string::npos);
 }
 
+// A row lost from frames.csv (or an image added to the folder) is named, not the whole numbering blamed.
+TEST(ImageFolder, AnImageWithoutARowIsNamed) {
+  const fs::path dir = scratch("row_lost");
+  for (int i = 0; i < 8; ++i)
+    cv::imwrite((dir / ("frame_" + std::to_string(i) + ".png")).string(), frame_image(i));
+  write_text(dir / "frames.csv", "index,t_s\n0,0\n1,0.01\n2,0.02\n4,0.04\n5,0.05\n6,0.06\n7,0.07\n");
+  const std::string why = error_of([&] { open_source(dir.string()); });
+  EXPECT_NE(why.find("has no row for 1 of the 8 images: frame_3.png"), std::string::npos) << why;
+}
+
+// A recording `tirstrain record` made from a source without a clock keeps the frame number in t_s and says
+// so in recording.json: its times are not taken for measured ones, and --frame-rate-Hz may time it.
+TEST(ImageFolder, ARecordingOfASourceWithoutAClockIsNotTimed) {
+  const fs::path rec = scratch("clockless");
+  fs::create_directories(rec / "frames");
+  for (int i = 0; i < 3; ++i)
+    cv::imwrite((rec / "frames" / ("00000" + std::to_string(i) + ".tif")).string(), frame_image(i));
+  write_text(rec / "frames.csv", "index,t_s\n0,0\n1,1\n2,2\n");
+  write_text(rec / "recording.json",
+             R"({"format": "tirstrain-recording", "settings": {"time_measured": "false"}})");
+  auto source = open_file_source(rec.string());
+  EXPECT_EQ(source->settings().at("time_measured"), "false");
+  EXPECT_NE(source->describe().find("the recorded source had no clock"), std::string::npos)
+      << source->describe();
+  source = open_file_source(rec.string(), FileSourceOptions{.frame_rate_Hz = 100.0});
+  EXPECT_EQ(source->settings().at("time_measured"), "true");
+  const auto frames = read_all(*source);
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_DOUBLE_EQ(frames[2].device_time_s, 0.02);
+}
+
 TEST(ImageFolder, CorruptMiddleFrameIsMarkedNotFatal) {
   const fs::path dir = scratch("corrupt");
   for (int i = 0; i < 4; ++i)

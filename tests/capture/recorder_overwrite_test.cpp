@@ -78,6 +78,36 @@ TEST(RecorderOverwrite, EarlierRecordingStaysWholeUntilTheNewOneEnds) {
   EXPECT_FALSE(fs::exists(dir.string() + ".partial"));
 }
 
+// A --overwrite run that stops on an error keeps both recordings, and says the new frames are in DIR.partial.
+TEST(RecorderOverwrite, AFailedRunSaysWhereItsFramesAre) {
+  const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "capture_recorder" / "overwrite_failed";
+  fs::remove_all(dir);
+  fs::remove_all(dir.string() + ".partial");
+  WatchedSource first(5, 10);
+  ASSERT_TRUE(record(first, options_for(dir, false)).ok());
+  class FailingSource final : public FrameSource {  // frame 2 cannot be read: the run stops there
+   public:
+    std::optional<Frame> next() override {
+      if (at_ == 2) throw Error("frame 2 cannot be read");
+      Frame f;
+      f.index = f.device_frame_id = at_;
+      f.device_time_s = f.host_time_s = 0.01 * at_;
+      f.image = cv::Mat(8, 8, CV_8UC1, cv::Scalar(30));
+      ++at_;
+      return f;
+    }
+    std::string describe() const override { return "failing"; }
+
+   private:
+    int at_ = 0;
+  } second;
+  const RecordReport report = record(second, options_for(dir, true));
+  EXPECT_FALSE(report.ok());
+  EXPECT_EQ(report.folder, dir.string() + ".partial");
+  EXPECT_EQ(rows_of(dir), 5u);
+  EXPECT_TRUE(fs::exists(dir.string() + ".partial/frames.csv"));
+}
+
 TEST(RecorderOverwrite, UnfinishedRecordingOfAnEarlierRunIsNeverDeleted) {
   const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "capture_recorder" / "overwrite_leftover";
   const fs::path leftover = dir.string() + ".partial";

@@ -243,6 +243,9 @@ TEST_F(AravisTest, UnsupportedAndUnofferedPixelFormatsAreClear) {
   std::string message = error_of([&] { open_source("aravis:127.0.0.1", s); });
   EXPECT_NE(message.find("'RGB8' is not supported"), std::string::npos) << message;
   EXPECT_NE(message.find("--pixel-format"), std::string::npos) << message;
+  // The refused format was never written: the camera opens as it was, without asking for a format.
+  s.pixel_format.clear();
+  EXPECT_EQ(error_of([&] { open_source("aravis:127.0.0.1", s); }), "(no error)");
   s.pixel_format = "Mono12";
   message = error_of([&] { open_source("aravis:127.0.0.1", s); });
   EXPECT_NE(message.find("'Mono12' is not offered by this camera; it offers: "), std::string::npos)
