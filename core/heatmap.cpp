@@ -21,11 +21,20 @@ cv::Vec3b diverging_colour(double t) {
   return {static_cast<uchar>(255 * fade + 20 * s), static_cast<uchar>(255 * fade + 30 * s), 255};
 }
 
-cv::Vec3b sequential_colour(double t) {
-  cv::Mat1b in(1, 1, static_cast<uchar>(std::clamp(t, 0.0, 1.0) * 255.0));
+SequentialColours::SequentialColours() {
+  cv::Mat1b ramp(1, 256);
+  for (int i = 0; i < 256; ++i) ramp(0, i) = static_cast<uchar>(i);
   cv::Mat out;
-  cv::applyColorMap(in, out, cv::COLORMAP_VIRIDIS);
-  return out.at<cv::Vec3b>(0, 0);
+  cv::applyColorMap(ramp, out, cv::COLORMAP_VIRIDIS);
+  for (int i = 0; i < 256; ++i) table_[static_cast<std::size_t>(i)] = out.at<cv::Vec3b>(0, i);
+}
+
+cv::Vec3b SequentialColours::operator()(double t) const {
+  return table_[static_cast<uchar>(std::clamp(t, 0.0, 1.0) * 255.0)];
+}
+
+cv::Vec3b sequential_colour(double t) {
+  return SequentialColours()(t);
 }
 
 namespace {
@@ -176,9 +185,10 @@ cv::Mat render_heatmap(const cv::Mat& values, const HeatmapOptions& options) {
   const Layout l = layout_of(values, options);
   cv::Mat canvas(l.map_h + l.margin_top + l.margin_bottom, l.bar_x + l.bar_w + l.labels_w, CV_8UC3,
                  cv::Scalar(255, 255, 255));
+  const SequentialColours sequential;  // one table for every cell: applyColorMap builds one per call
   const auto colour_of = [&](double v) {
     const double t = (v - range.lo) / (range.hi - range.lo);
-    return options.diverging ? diverging_colour(t) : sequential_colour(t);
+    return options.diverging ? diverging_colour(t) : sequential(t);
   };
   draw_cells(canvas, values, l, colour_of);
   draw_circles(canvas, values, l, options);

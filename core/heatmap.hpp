@@ -3,6 +3,7 @@
 // axis extent and optional circles (e.g. stick and contact radii). NaN cells are drawn grey ("no data").
 #include <opencv2/core.hpp>
 
+#include <array>
 #include <optional>
 #include <string>
 #include <vector>
@@ -34,6 +35,16 @@ struct HeatmapOptions {
 // The colour scales (BGR): diverging blue-white-red with t in [0, 1] and 0.5 white; sequential viridis.
 cv::Vec3b diverging_colour(double t);
 cv::Vec3b sequential_colour(double t);
+
+// sequential_colour for many values: the viridis table built once.
+class SequentialColours {
+ public:
+  SequentialColours();
+  cv::Vec3b operator()(double t) const;
+
+ private:
+  std::array<cv::Vec3b, 256> table_{};
+};
 
 // values: CV_64FC1, rows = y, cols = x. Returns a BGR 8-bit image.
 cv::Mat render_heatmap(const cv::Mat& values, const HeatmapOptions& options);

@@ -1,11 +1,26 @@
 #include <gtest/gtest.h>
 
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
 #include <cmath>
 
 #include "core/heatmap.hpp"
 
 namespace tirstrain {
 namespace {
+
+// The table the maps colour their cells with is OpenCV's viridis, level for level.
+TEST(Heatmap, SequentialTableIsViridis) {
+  const SequentialColours table;
+  for (const double t : {-0.5, 0.0, 0.1, 0.37, 0.5, 0.999, 1.0, 2.0}) {
+    cv::Mat1b in(1, 1, static_cast<uchar>(std::clamp(t, 0.0, 1.0) * 255.0));
+    cv::Mat out;
+    cv::applyColorMap(in, out, cv::COLORMAP_VIRIDIS);
+    EXPECT_EQ(table(t), out.at<cv::Vec3b>(0, 0)) << t;
+    EXPECT_EQ(sequential_colour(t), out.at<cv::Vec3b>(0, 0)) << t;
+  }
+}
 
 TEST(Heatmap, DivergingMapIsBlueForNegativeRedForPositiveGreyForNaN) {
   cv::Mat values(2, 3, CV_64F);
