@@ -11,6 +11,7 @@ namespace tirstrain::model {
 namespace {
 
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
+constexpr double kMaxPeriodsInContact = 1e4;  // periods of the shorter profile along the contact
 
 void require_positive(double value, const char* field) {
   if (!(value > 0.0) || !std::isfinite(value))
@@ -56,6 +57,12 @@ OverlapSeries overlap_area(const TextureInteractionParams& p) {
   if (p.samples_per_period < 4) throw std::invalid_argument("samples_per_period must be at least 4");
   if (p.points_per_wavelength < 8) throw std::invalid_argument("points_per_wavelength must be at least 8");
   const double shortest = std::min(p.ridge_period_m, p.surface_wavelength_m);
+  // The profiles are sampled along the whole contact at points_per_wavelength of the shorter period: a
+  // period far below the contact's length would take memory and time without end.
+  if (p.contact_length_m / shortest > kMaxPeriodsInContact)
+    throw std::invalid_argument(
+        std::string(shortest == p.surface_wavelength_m ? "surface_wavelength_m" : "ridge_period_m") +
+        " is below 1/" + std::to_string(static_cast<long>(kMaxPeriodsInContact)) + " of the contact length");
   const auto points = static_cast<std::size_t>(
       std::ceil(p.contact_length_m / shortest * static_cast<double>(p.points_per_wavelength)));
   const double dx = p.contact_length_m / static_cast<double>(points);

@@ -45,6 +45,20 @@ std::string option_of(const std::string& field) {
   return "";
 }
 
+// The model's messages name its fields in SI units; the user gave options in mm and um.
+std::string in_the_options_words(std::string message) {
+  const std::pair<const char*, const char*> words[] = {{"surface_wavelength_m", "the texture period"},
+                                                       {"ridge_period_m", "the ridge period"},
+                                                       {"speed_m_s", "the speed"},
+                                                       {"contact_length_m", "the contact length"},
+                                                       {"ridge_amplitude_m", "the ridge height"},
+                                                       {"surface_amplitude_m", "the texture height"}};
+  for (const auto& [field, words_for] : words)
+    if (const std::size_t at = message.find(field); at != std::string::npos)
+      message.replace(at, std::string(field).size(), words_for);
+  return message;
+}
+
 model::InteractionPrediction predict(const TextureOptions& o, double texture_period_mm) {
   model::TextureInteractionParams p;
   p.ridge_period_m = o.ridge_period_mm * 1e-3;
@@ -57,7 +71,7 @@ model::InteractionPrediction predict(const TextureOptions& o, double texture_per
   try {
     return model::predict_interaction(p, o.zone_tolerance);
   } catch (const std::invalid_argument& e) {
-    throw Error(e.what(), {.key = option_of(e.what())});
+    throw Error(in_the_options_words(e.what()), {.key = option_of(e.what())});
   }
 }
 
@@ -115,10 +129,13 @@ void add_model_texture_interaction_verb(CLI::App& model) {
       ->capture_default_str();
   sub->add_option("--interpenetration", o->interpenetration, "overlapping fraction of a_f + a_s, (0, 1]")
       ->capture_default_str();
-  sub->add_option("--zone-tolerance", o->zone_tolerance, "relative band of the comparable zone")
-      ->capture_default_str();
-  sub->add_option("--min-line-fraction", o->min_line_fraction, "lines listed in --out above this fraction")
-      ->capture_default_str();
+  sub->add_option("--zone-tolerance", o->zone_tolerance, "relative band of the comparable zone, [0, 1)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 0.999));
+  sub->add_option("--min-line-fraction", o->min_line_fraction,
+                  "lines listed in --out above this fraction of the strongest, [0, 1]")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   sub->add_option("--out", o->out, "JSON with every texture period's prediction and lines");
   sub->callback([o] {
     json predictions = json::array();
