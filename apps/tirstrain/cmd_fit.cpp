@@ -9,6 +9,7 @@
 #include "core/error.hpp"
 #include "fit/fit_result.hpp"
 #include "tirstrain/commands.hpp"
+#include "tirstrain/value_checks.hpp"
 
 namespace tirstrain::cli {
 
@@ -45,7 +46,7 @@ void add_fit_command(CLI::App& app) {
   sub->add_option("--out", options->out, "Output folder DIR")->required();
   sub->add_option("--loss-scale-px", options->run.fit.loss_scale_px,
                   "Huber loss scale, px: residuals beyond it count linearly (default 0.3)")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   sub->add_option("--min-tracks", options->run.fit.min_tracks,
                   "Frames with fewer usable tracks are not fitted (status too_few_tracks; default 20)")
       ->check(CLI::Range(7, 1000000));

@@ -7,6 +7,7 @@
 
 #include "pipeline/process.hpp"
 #include "tirstrain/commands.hpp"
+#include "tirstrain/value_checks.hpp"
 
 namespace tirstrain::cli {
 namespace {
@@ -84,7 +85,7 @@ void add_process_command(CLI::App& app) {
   sub->add_option("--frame-rate-Hz", args->frame_rate_Hz,
                   "Frame rate (Hz) of a recording whose file holds no timestamps and has no frames.csv "
                   "beside it (a multi-page TIFF, a folder of images)")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   sub->add_option("--scene", args->scene, "Scene file (YAML) for calibration and what to compute");
   sub->add_flag(
       "--no-scene", args->no_scene,

@@ -27,6 +27,7 @@
 #include "pipeline/output_folder.hpp"
 #include "pipeline/tracking_report.hpp"
 #include "tirstrain/commands.hpp"
+#include "tirstrain/value_checks.hpp"
 
 namespace tirstrain::cli {
 namespace {
@@ -315,7 +316,7 @@ void add_track_command(CLI::App& app) {
   cmd->add_option("--frame-rate-Hz", o->frame_rate_Hz,
                   "Frame rate (Hz) of a recording whose file holds no timestamps and has no frames.csv "
                   "beside it (a multi-page TIFF, a folder of images)")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   CLI::Option* points =
       cmd->add_option("--points", o->points_csv, "CSV with columns x_px,y_px (first frame)");
   CLI::Option* grid = cmd->add_option("--grid", o->grid_step_px, "Track a grid with this spacing (px)")

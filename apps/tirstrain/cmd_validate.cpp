@@ -7,6 +7,7 @@
 
 #include "pipeline/validate.hpp"
 #include "tirstrain/commands.hpp"
+#include "tirstrain/value_checks.hpp"
 
 namespace tirstrain::cli {
 namespace {
@@ -128,7 +129,7 @@ void add_validate_command(CLI::App& app) {
                   "Distance from the contact border excluded (mm, default 0.3)")
       ->check(CLI::Range(0.0, 100.0));
   sub->add_option("--map-frame", args->map_frame, "Frame of the map images (default: largest true energy)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kAtLeastZero);
   sub->add_flag("--no-maps", args->no_maps, "Do not write the map images");
   sub->add_flag("--quiet", args->quiet, "No progress on stderr");
   // For `bench`, which runs validate inside its own staging folder: STAGING=FINAL.

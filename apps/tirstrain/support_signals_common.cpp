@@ -1,4 +1,5 @@
 #include "tirstrain/signals_common.hpp"
+#include "tirstrain/value_checks.hpp"
 
 #include "core/atomic_output.hpp"
 
@@ -18,7 +19,7 @@ void add_reading_options(CLI::App* sub, Common& c) {
   sub->add_option(
          "--rate-Hz", c.rate_Hz,
          "sample rate, Hz, of a file holding no time column (sample i at i / rate); an error when it has one")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
 }
 
 void add_common(CLI::App* sub, Common& c, const std::string& out_help) {

@@ -20,6 +20,7 @@
 #include "signals/phases_plot.hpp"
 #include "tirstrain/signals_common.hpp"
 #include "tirstrain/signals_verbs.hpp"
+#include "tirstrain/value_checks.hpp"
 
 namespace tirstrain::cli {
 namespace {
@@ -74,7 +75,7 @@ void add_recording_options(CLI::App* sub, RecordingOptions& o) {
   sub->add_option(
          "--rate-Hz", o.rate_Hz,
          "sample rate, Hz, of a file holding no time column (sample i at i / rate); an error when it has one")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
 }
 
 struct Recording {

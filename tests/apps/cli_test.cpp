@@ -124,6 +124,14 @@ TEST(Cli, NegativeValuesAreRefusedByName) {
   EXPECT_NE(cutoff.output.find("--lowpass-Hz: must be a frequency above 0 Hz; got -5"), std::string::npos)
       << cutoff.output;
   EXPECT_EQ(cutoff.output.find("give exactly one of"), std::string::npos) << cutoff.output;
+  const auto frames = run_cli("record in --out o --frames 0");
+  EXPECT_EQ(frames.exit_code, 2) << frames.output;
+  EXPECT_NE(frames.output.find("--frames: must be a number above 0; got 0"), std::string::npos)
+      << frames.output;
+  EXPECT_EQ(frames.output.find("1797693"), std::string::npos) << frames.output;  // no 300-digit limit
+  const auto queue = run_cli("record in --out o --queue-MiB 0");
+  EXPECT_EQ(queue.exit_code, 2) << queue.output;
+  EXPECT_NE(queue.output.find("--queue-MiB"), std::string::npos) << queue.output;
 }
 
 TEST(Cli, TooShortChannelNamesTheColumnNotAMadeUpOption) {

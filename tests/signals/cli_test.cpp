@@ -184,6 +184,15 @@ TEST(SignalsCli, FrictionSpeedAndTextureInteractionWriteTheirContracts) {
   const auto bad = run("model texture-interaction --texture-period-mm 0.2 --speed-mm-s -1");
   EXPECT_EQ(bad.code, 2);
   EXPECT_NE(bad.output.find("--speed-mm-s"), std::string::npos) << bad.output;
+  EXPECT_NE(bad.output.find("the speed must be positive and finite"), std::string::npos) << bad.output;
+  // A period far below the contact's length is refused at once (it was sampled until memory ran out), and so
+  // are a negative tolerance and a line fraction above 1.
+  const auto tiny = run("model texture-interaction --texture-period-mm 1e-9");
+  EXPECT_EQ(tiny.code, 2) << tiny.output;
+  EXPECT_NE(tiny.output.find("the texture period is below 1/10000 of the contact length"), std::string::npos)
+      << tiny.output;
+  EXPECT_EQ(run("model texture-interaction --texture-period-mm 0.45 --zone-tolerance -1").code, 2);
+  EXPECT_EQ(run("model texture-interaction --texture-period-mm 0.45 --min-line-fraction 2").code, 2);
 }
 
 TEST(SignalsCli, ImpedanceFromVelocityWithAFixedStiffnessAndANarrowBandWarning) {
