@@ -54,6 +54,8 @@ std::optional<double> si_per_unit(const std::string& column, const std::string& 
                                   signals::Quantity quantity, const std::string& option);
 // `values` times `scale`.
 std::vector<double> scaled(std::vector<double> values, double scale);
+// A force column in N: mN when its name says so (a name without a unit is read as N).
+std::vector<double> force_in_N(const signals::ChannelTable& table, const std::string& column);
 
 // One-line description for `tirstrain signals --help`; the full contract goes into the verb's own --help.
 CLI::App* add_verb(CLI::App& signals, const std::string& name, const std::string& summary,

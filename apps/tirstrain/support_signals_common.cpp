@@ -56,6 +56,10 @@ std::vector<double> scaled(std::vector<double> values, double scale) {
   return values;
 }
 
+std::vector<double> force_in_N(const signals::ChannelTable& table, const std::string& column) {
+  return scaled(table.column(column), si_per_unit(column, "", signals::Quantity::kForce, "").value_or(1.0));
+}
+
 CLI::App* add_verb(CLI::App& signals, const std::string& name, const std::string& summary,
                    const std::string& details) {
   CLI::App* sub = signals.add_subcommand(name, summary);

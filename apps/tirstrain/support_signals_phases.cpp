@@ -86,11 +86,6 @@ struct Recording {
   const std::vector<double>* position_or_null() const { return position ? &*position : nullptr; }
 };
 
-// A force column in N: mN when its name says so.
-std::vector<double> force_in_N(const ts::ChannelTable& table, const std::string& column) {
-  return scaled(table.column(column), si_per_unit(column, "", ts::Quantity::kForce, "").value_or(1.0));
-}
-
 Recording read_recording(RecordingOptions& o) {
   if (!o.tare_s.empty() && o.tare_s.size() != 2) throw Error("expects T0,T1 in seconds", {.key = "--tare-s"});
   if (!o.tare_s.empty() && o.no_tare)
