@@ -105,8 +105,7 @@ std::string render_page(const Page& page) {
   for (const Figure& f : page.figures) html += figure_html(f);
   for (const PageSection& s : page.sections)
     html += "<section id=\"" + s.id + "\"><h2>" + html_escape(s.title) + "</h2>\n" + s.html + "</section>\n";
-  html += "<script type=\"application/json\" id=\"tirstrain-specs\">" +
-          json_script_safe(specs_json(page.figures)) + "</script>\n";
+  html += std::string(kSpecsScriptId) + json_script_safe(specs_json(page.figures)) + "</script>\n";
   html += "<script>" + std::string(kBootstrap) + "</script>\n</body></html>\n";
   return html;
 }

@@ -26,6 +26,8 @@ struct Page {
 
 // In every page's head: how a later run knows an existing file is an earlier page it may replace.
 inline constexpr const char* kGeneratorMeta = "<meta name=\"generator\" content=\"tirstrain report\">";
+// The script element holding the figures' specifications, in every page (also those written before the meta).
+inline constexpr const char* kSpecsScriptId = "<script type=\"application/json\" id=\"tirstrain-specs\">";
 
 std::string render_page(const Page& page);
 

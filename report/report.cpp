@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 
 #include "core/atomic_output.hpp"
 #include "core/error.hpp"
@@ -15,14 +16,13 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// An existing file at --out is replaced only when it is an earlier page: anything else may be a user's.
+// An existing file at --out is replaced only when it is an earlier page (every page carries its figures'
+// specifications in one script element): anything else may be a user's.
 void check_replaceable_page(const fs::path& out, const std::string& out_arg) {
   if (!fs::exists(out)) return;
   std::ifstream in(out, std::ios::binary);
-  std::string head(4096, '\0');
-  in.read(head.data(), static_cast<std::streamsize>(head.size()));
-  head.resize(static_cast<std::size_t>(in.gcount()));
-  if (head.find(kGeneratorMeta) == std::string::npos)
+  const std::string page((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (page.find(kGeneratorMeta) == std::string::npos && page.find(kSpecsScriptId) == std::string::npos)
     throw Error(
         "exists and is not a page tirstrain report wrote: it is not replaced; remove it or choose "
         "another file",
