@@ -89,6 +89,12 @@ class TiffStackSource final : public IndexedFileSource {
     if (!tif_) throw Error("cannot open as a TIFF: " + message_, {.file = path});
     const std::int64_t pages = TIFFNumberOfDirectories(tif_.get());
     if (pages <= 0) throw Error("the TIFF holds no page", {.file = path});
+    // A page whose directory cannot be read ends the count: the file was cut (a recording that stopped
+    // mid-write) or damaged, and reading the pages before it would pass for the whole recording.
+    if (!message_.empty())
+      throw Error("the TIFF's chain of pages breaks after page " + std::to_string(pages - 1) + " (" +
+                      message_ + "): the file is cut short or damaged, so the recording's length is unknown",
+                  {.file = path, .frame = pages});
     if (TIFFIsBigTIFF(tif_.get())) kind_ = "multi-page BigTIFF";
     first_ = page_layout(tif_.get());
     if (const std::string why = unsupported(first_); !why.empty())

@@ -125,6 +125,26 @@ TEST(MultiPageTiff, InsideAnImageSequenceItIsRefusedNotReadAsOneFrame) {
   EXPECT_NE(message.find("multi-page TIFF of 3 pages"), std::string::npos) << message;
 }
 
+TEST(MultiPageTiff, ACutFileIsRefusedNotReadShort) {
+  const fs::path dir = testing::scratch_dir("recordings", "tiff_cut");
+  write_tiff(dir / "whole.tif", 5, 8, false);
+  // Cut inside the last page: libtiff writes each page's pixels, then its directory, so pages 0-3 stay
+  // whole and the chain of directories points past the end of the file.
+  const auto size = fs::file_size(dir / "whole.tif");
+  {
+    std::ifstream in(dir / "whole.tif", std::ios::binary);
+    std::vector<char> bytes(size - 100);
+    in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    std::ofstream(dir / "cut.tif", std::ios::binary)
+        .write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  }
+  EXPECT_EQ(open_source((dir / "whole.tif").string())->frame_count(), 5);
+  const std::string message = error_of([&] { open_source((dir / "cut.tif").string()); });
+  EXPECT_NE(message.find("cut.tif"), std::string::npos) << message;
+  EXPECT_NE(message.find("breaks after page 3"), std::string::npos) << message;
+  EXPECT_NE(message.find("cut short or damaged"), std::string::npos) << message;
+}
+
 // ---- Phantom .cine ----
 
 struct Bytes {
