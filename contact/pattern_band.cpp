@@ -14,8 +14,10 @@
 namespace tirstrain::contact {
 namespace {
 
-// lambda_min of the structure tensor of `image` (CV_32F, full scale 1).
-cv::Mat smaller_eigenvalue(const cv::Mat& image, const PatternBandOptions& options) {
+// lambda_min of the structure tensor of `image` (CV_32F, full scale 1), and, where `isotropy` is given,
+// lambda_min / lambda_max (0 where the image is flat).
+cv::Mat smaller_eigenvalue(const cv::Mat& image, const PatternBandOptions& options,
+                           cv::Mat* isotropy = nullptr) {
   cv::Mat smooth, gx, gy;
   cv::GaussianBlur(image, smooth, cv::Size(0, 0), options.presmooth_sigma_px, options.presmooth_sigma_px,
                    cv::BORDER_REFLECT);
@@ -25,12 +27,16 @@ cv::Mat smaller_eigenvalue(const cv::Mat& image, const PatternBandOptions& optio
   const double s = options.integration_sigma_px;
   for (cv::Mat* j : {&jxx, &jyy, &jxy}) cv::GaussianBlur(*j, *j, cv::Size(0, 0), s, s, cv::BORDER_REFLECT);
   cv::Mat out(image.size(), CV_32F);
+  if (isotropy) isotropy->create(image.size(), CV_32F);
   for (int y = 0; y < out.rows; ++y) {
     const float *a = jxx.ptr<float>(y), *b = jyy.ptr<float>(y), *c = jxy.ptr<float>(y);
     float* o = out.ptr<float>(y);
+    float* r = isotropy ? isotropy->ptr<float>(y) : nullptr;
     for (int x = 0; x < out.cols; ++x) {
       const float half_trace = 0.5f * (a[x] + b[x]), half_diff = 0.5f * (a[x] - b[x]);
-      o[x] = std::max(0.0f, half_trace - std::sqrt(half_diff * half_diff + c[x] * c[x]));
+      const float root = std::sqrt(half_diff * half_diff + c[x] * c[x]);
+      o[x] = std::max(0.0f, half_trace - root);
+      if (r) r[x] = half_trace + root > 0.0f ? o[x] / (half_trace + root) : 0.0f;
     }
   }
   return out;
@@ -116,7 +122,7 @@ double clamp01(double v) {
 
 // The candidate band along one edge; confidence below 0.5 means none there.
 PatternBand band_along(const EdgeProfile& profile, double typical, const cv::Mat& lambda,
-                       const PatternBandOptions& options) {
+                       const cv::Mat& isotropy, const PatternBandOptions& options) {
   PatternBand band;
   const std::vector<double>& level = profile.level;
   const auto lines = level.size();
@@ -159,6 +165,14 @@ PatternBand band_along(const EdgeProfile& profile, double typical, const cv::Mat
     band.confidence = 0.5 * clamp01(band.fill / options.min_fill);
     return band;
   }
+  // Per line, as the level: a contact pressed into the band covers less than half of each of its lines.
+  cv::Mat ratios = isotropy(roi);
+  if (profile.edge == ImageEdge::kLeft || profile.edge == ImageEdge::kRight) ratios = ratios.t();
+  band.isotropy = median_of(row_medians(ratios));
+  if (band.isotropy < options.min_isotropy) {
+    band.confidence = 0.5 * clamp01(band.isotropy / options.min_isotropy);
+    return band;
+  }
   const double contrast_part = clamp01(std::min(
       std::log(band.contrast / options.min_contrast) / std::log(options.full_contrast / options.min_contrast),
       std::log(band.snr / options.min_snr) / std::log(options.full_snr / options.min_snr)));
@@ -196,7 +210,8 @@ PatternBand detect_pattern_band(const cv::Mat& image, const PatternBandOptions& 
   if (image.rows < 4 * options.min_width_px || image.cols < 4 * options.min_width_px) return best;
   cv::Mat unit;
   image.convertTo(unit, CV_32F, 1.0 / full_scale_of(image));
-  const cv::Mat lambda = smaller_eigenvalue(unit, options);
+  cv::Mat isotropy;
+  const cv::Mat lambda = smaller_eigenvalue(unit, options, &isotropy);
   cv::Mat lambda_t;
   cv::transpose(lambda, lambda_t);
   const std::vector<double> rows = row_medians(lambda), cols = row_medians(lambda_t);
@@ -221,7 +236,8 @@ PatternBand detect_pattern_band(const cv::Mat& image, const PatternBandOptions& 
       EdgeProfile{ImageEdge::kRight, {cols.rbegin(), cols.rend()}, {col_noise.rbegin(), col_noise.rend()}}};
   for (const EdgeProfile& profile : profiles) {
     const bool horizontal = profile.edge == ImageEdge::kTop || profile.edge == ImageEdge::kBottom;
-    const PatternBand band = band_along(profile, horizontal ? typical_row : typical_col, lambda, options);
+    const PatternBand band =
+        band_along(profile, horizontal ? typical_row : typical_col, lambda, isotropy, options);
     if (band.confidence > best.confidence) best = band;
   }
   if (best.edge == ImageEdge::kNone) best.roi_px = cv::Rect();

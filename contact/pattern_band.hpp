@@ -9,7 +9,9 @@
 // line parallel to that edge is a profile against the distance from the edge: the median needs more than half
 // of a line to be dotted, which a full-length strip is and a fingertip contact or a corner object is not. A
 // band is a run of lines from the edge whose level stands well above the level of the image's typical line;
-// its inner boundary is where the profile falls to the geometric mean of the two levels.
+// its inner boundary is where the profile falls to the geometric mean of the two levels. A fingertip whose
+// contact fills an image edge also raises lambda_min there (its ridges curve and fork), so the band must
+// also be isotropic: lambda_min a sizeable share of lambda_max, as on dots and never on ridges.
 #include <opencv2/core.hpp>
 
 #include <string>
@@ -39,6 +41,9 @@ struct PatternBandOptions {
   double full_snr = 60.0;
   // Share of the band's pixels above the boundary level: a band fills its strip.
   double min_fill = 0.7;
+  // The band's median lambda_min / lambda_max: dots vary alike in every direction (about 0.4 on the printed
+  // patterns seen), ridges in one (0.03-0.07, also a fingertip whose contact runs along an image edge).
+  double min_isotropy = 0.15;
   // Width limits as fractions of the image's size across the edge, and in pixels.
   double max_width_fraction = 0.4;
   int min_width_px = 6;
@@ -63,6 +68,7 @@ struct PatternBand {
   double contrast = 0.0;    // band level over the typical line's level (the best edge's, also when none)
   double snr = 0.0;         // band level over its pixel noise's
   double fill = 0.0;        // share of the band's pixels above the boundary level
+  double isotropy = 0.0;    // median lambda_min / lambda_max over the band (0 until the fill passes)
 };
 
 // Finds the band in one frame (CV_8UC1, CV_16UC1 or CV_32FC1); kNone when no edge carries one. Throws Error

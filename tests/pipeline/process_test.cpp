@@ -602,6 +602,33 @@ TEST(Process, FindsTheBandExcludesItAndMeasuresThePlate) {
   }
 }
 
+// A fingertip whose contact fills the right edge of the frame, with no band there: its ridges are not
+// taken for the plate's dots, so the contact is tracked (and strained) and no plate motion is reported.
+TEST(Process, AContactAlongAnEdgeIsNotTakenForTheDotBand) {
+  const fs::path dir = scratch("edge_contact");
+  std::ofstream(dir / "scene.yaml")
+      << "calibration: {px_per_mm: 40, ridge_period_mm: 0.5, ridge_polarity: bright}\n"
+         "synthesis:\n"
+         "  seed: 3\n"
+         "  image: {width_px: 320, height_px: 256, bit_depth: 16}\n"
+         "  timing: {frames: 3, frame_rate_hz: 100}\n"
+         "  contact: {shape: hertz, normal_N: 1.0, radius_m: 0.02, centre_px: [290, 128]}\n"
+         "  loading: {field: affine, gradient: [0.05, 0.0, 0.0, 0.0]}\n"
+         "  fingerprint: {background: 0.15}\n"
+         "  sensor: {read_noise: 0.005}\n";
+  const CliRun synth = run_cli("synth --scene " + (dir / "scene.yaml").string() + " --out " +
+                               (dir / "trial").string() + " --quiet");
+  ASSERT_EQ(synth.exit_code, 0) << synth.output;
+  const fs::path out = scratch("edge_contact_out");
+  const CliRun run = run_cli("process " + (dir / "trial").string() + " --no-scene --out " + out.string() +
+                             " --overlay none --compute contact,tracking,strain");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("reference pattern band: none found"), std::string::npos) << run.output;
+  const nlohmann::json summary = read_summary(out);
+  EXPECT_EQ(summary["tracking"]["plate_measured"], false);
+  EXPECT_GT(summary["tracking"]["tracks_total"].get<int>(), 100);
+}
+
 // A recording that starts before the finger touches, and one where it lifts off mid-way and comes back:
 // contact is none on those frames, tracking starts at the first frame with contact, and strain is computed.
 TEST(Process, ContactComingLateAndLiftingOff) {
