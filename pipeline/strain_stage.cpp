@@ -463,7 +463,7 @@ class StrainStage final : public Stage {
     s["triangles_total"] = mesh_.triangles().size();
     s["mesh_rebuilds"] = mesh_.rebuilds();
     std::int64_t valid = 0, excluded = 0, missing = 0;
-    double energy_max = 0.0;
+    double energy_max = kNaN;
     const StrainFrame* last = nullptr;
     // Frames by what the stick radius is: fitted, c = a at rest, not measured (no slip seen although the core
     // moved), too few tracks.
@@ -475,14 +475,16 @@ class StrainStage final : public Stage {
       valid += f.counts.valid;
       excluded += f.counts.excluded();
       missing += f.counts.missing_vertex;
-      if (std::isfinite(f.energy_J)) energy_max = std::max(energy_max, f.energy_J);
+      if (std::isfinite(f.energy_J) && !(f.energy_J <= energy_max)) energy_max = f.energy_J;
       last = &f;
     }
     s["triangle_frames_valid"] = valid;
     s["triangle_frames_excluded"] = excluded;
     s["triangle_frames_missing_vertex"] = missing;
-    s["strain_energy_max_J"] = energy_max;
-    s["strain_energy_last_J"] = last && std::isfinite(last->energy_J) ? last->energy_J : 0.0;
+    // null where no frame had a strain energy (no triangle): 0 J would read as a measured skin at rest.
+    s["strain_energy_max_J"] = std::isfinite(energy_max) ? nlohmann::json(energy_max) : nlohmann::json();
+    s["strain_energy_last_J"] =
+        last && std::isfinite(last->energy_J) ? nlohmann::json(last->energy_J) : nlohmann::json();
     if (last && std::isfinite(last->stick_ratio)) s["stick_ratio_last"] = last->stick_ratio;
     if (last && std::isfinite(stick_radius_mm(*last))) s["stick_radius_last_mm"] = stick_radius_mm(*last);
     s["stick_radius_frames"] = radius_frames;
