@@ -123,10 +123,14 @@ std::string scene_init_text(const SceneSurvey& s, const std::string& input) {
   } else {
     out << "  # ridge_period_mm: 0.45        # not measured (no clear ridges seen): each run measures it\n";
   }
+  // Without ridges the segmenter still measures the contact's texture against the background: the
+  // polarity then says which of the two is darker, not which way ridges appear.
   out << "  ridge_polarity: " << s.ridge_polarity
-      << (s.ridge_polarity == "auto"
-              ? "         # not seen: measured by each run\n"
-              : "         # measured: ridges in contact darker (dark) or brighter (bright)\n");
+      << (s.ridge_polarity == "auto" ? "         # not seen: measured by each run\n"
+          : s.ridge_period_px
+              ? "         # measured: ridges in contact darker (dark) or brighter (bright)\n"
+              : "         # measured: the contact's texture darker (dark) or brighter (bright) than the "
+                "background; no ridges seen\n");
   out << "tissue:                          # PLACEHOLDERS: the skin's properties for the strain energy\n"
       << "  E_Pa: " << number(defaults.tissue.young_Pa) << "\n"
       << "  nu: " << number(defaults.tissue.poisson) << "\n"

@@ -34,9 +34,15 @@ void add_scene_command(CLI::App& app) {
       ->check(CLI::Range(1, 1000000));
   init->callback([options] {
     const pipeline::SceneSurvey survey = pipeline::write_initial_scene(*options);
-    std::cerr << "scene from " << survey.frames_read << " frames (band: " << survey.band_edge
-              << ", contact first in frame " << survey.first_contact_frame << ") -> " << options->out_path
-              << "\n";
+    std::cerr << "scene from " << survey.frames_read << " frames (band: " << survey.band_edge << ", "
+              << (survey.first_contact_frame >= 0
+                      ? "contact first in frame " + std::to_string(survey.first_contact_frame)
+                      : std::string("no contact seen"))
+              << ") -> " << options->out_path << "\n";
+    if (survey.first_contact_frame < 0)
+      std::cerr << "scene init: warning: no frame of " << survey.frames_read
+                << " read shows ridge texture in contact: process with this scene tracks nothing (for "
+                   "texture without ridges, tirstrain track follows a grid over the whole frame)\n";
   });
 }
 

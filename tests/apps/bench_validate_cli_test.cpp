@@ -171,6 +171,17 @@ TEST(BenchCli, GeneralisationSequencesAsRecordingsThatProcessReads) {
   EXPECT_NE(none.output.find("warning: no frame shows ridge texture in contact"), std::string::npos)
       << none.output;
   EXPECT_NE(read_text(speckle + "/summary.json").find("tirstrain track"), std::string::npos);
+  // No triangle, so no strain energy: null, not a measured 0 J.
+  EXPECT_NE(read_text(speckle + "/summary.json").find("\"strain_energy_max_J\": null"), std::string::npos)
+      << read_text(speckle + "/summary.json");
+  const std::string speckle_scene = fresh_dir("bench_recordings_speckle_scene.yaml");
+  const auto speckle_init =
+      run_cli("scene init " + (recordings / "stretch_speckle_0.5").string() + " --out " + speckle_scene);
+  ASSERT_EQ(speckle_init.exit_code, 0) << speckle_init.output;
+  EXPECT_NE(speckle_init.output.find("no contact seen"), std::string::npos) << speckle_init.output;
+  EXPECT_NE(speckle_init.output.find("warning: no frame of 6 read shows ridge texture in contact"),
+            std::string::npos)
+      << speckle_init.output;
 }
 
 // The one data row of a bench.csv, by column name.
