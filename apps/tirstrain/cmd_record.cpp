@@ -54,13 +54,17 @@ capture::RecordOptions record_options(const RecordArgs& args) {
 
 // What was saved, received and lost, a warning per kind of loss, and an error when the recording stopped
 // early (what was saved before it stays).
-void report_recording(const capture::RecordReport& report, const std::string& out) {
+void report_recording(const capture::RecordReport& report, const std::string& out,
+                      std::int64_t frames_asked) {
   const capture::RecordProgress& c = report.counts;
   const std::string& saved_in = report.folder.empty() ? out : report.folder;
   std::cerr << "record: " << c.frames_saved << " frames saved to " << saved_in << " in " << report.elapsed_s
             << " s (" << c.frames_received << " received, " << c.frames_incomplete << " incomplete, "
             << c.frames_lost_device << " lost by the camera/network, " << c.frames_dropped_host
             << " dropped because the disk could not keep up); stopped: " << report.stop_reason << "\n";
+  if (report.stop_reason == "end of stream" && frames_asked > 0 && c.frames_received < frames_asked)
+    std::cerr << "record: the source ended after " << c.frames_received << " frames, before the "
+              << frames_asked << " --frames asked for: the recording holds all the source had\n";
   if (c.frames_dropped_host > 0)
     std::cerr
         << "record: WARNING: " << c.frames_dropped_host
@@ -84,7 +88,7 @@ void run_record_command(const RecordArgs& args, const CameraArgs& camera) {
   // File sources ignore a scene's camera: section (it describes the camera that made them).
   if (source->is_live()) options.requested_settings = capture::describe_requested(settings);
   if (!args.quiet) std::cerr << "record: " << source->describe() << "\n";
-  report_recording(capture::record(*source, options), args.out);
+  report_recording(capture::record(*source, options), args.out, args.frames);
 }
 
 }  // namespace

@@ -199,5 +199,18 @@ TEST(CameraSettingsCliTest, FileSourcesIgnoreTheScenesCameraSectionButNotCameraF
   EXPECT_NE(result.output.find("only apply to camera sources"), std::string::npos) << result.output;
 }
 
+// More --frames than a file holds: all of it is recorded, and the run says the source ended first.
+TEST(CameraSettingsCliTest, AFileShorterThanFramesAskedIsRecordedWholeAndSaysSo) {
+  const fs::path dir = scratch("cli_file_short");
+  const std::string input = write_frames(dir, 3);
+  const std::string out = (dir / "rec").string();
+  const auto result = tirstrain::testing::run_cli("record " + input + " --out " + out + " --frames 10");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_NE(result.output.find("3 frames saved"), std::string::npos) << result.output;
+  EXPECT_NE(result.output.find("the source ended after 3 frames, before the 10 --frames asked for"),
+            std::string::npos)
+      << result.output;
+}
+
 }  // namespace
 }  // namespace tirstrain::capture
