@@ -147,7 +147,8 @@ void check_consistency(const StudySpec& spec) {
   std::set<std::string> names, keys;
   for (const StudyTrial& t : spec.trials) {
     if (!names.insert(t.name).second)
-      throw Error("two trials are named '" + t.name + "'", {.file = spec.file, .key = "trials"});
+      throw Error("two trials are named '" + t.name + "' (" + t.input + " and another input of that name)",
+                  {.file = spec.file, .key = "inputs"});
     for (const auto& [k, v] : t.conditions) keys.insert(k);
   }
   const auto check = [&](const std::vector<std::string>& by, const std::string& key) {
@@ -187,7 +188,16 @@ StudySpec load_study_file(const std::string& path) {
     if (trials.empty())
       throw Error("expected a non-empty list of {name, input, scene, conditions}",
                   {.file = spec.file, .key = "trials"});
-    for (YamlSection& trial : trials) spec.trials.push_back(read_trial(trial, base, default_scene));
+    std::set<std::string> names;
+    for (YamlSection& trial : trials) {
+      spec.trials.push_back(read_trial(trial, base, default_scene));
+      // Said here, where the second entry's line is known; check_consistency catches a glob's twins.
+      at_line(trial, [&] {
+        if (!names.insert(spec.trials.back().name).second)
+          throw Error("two trials are named '" + spec.trials.back().name + "'",
+                      {.file = spec.file, .key = trial.path_of("name")});
+      });
+    }
   } else {
     spec.trials = glob_trials(pattern, spec.file, base, default_scene);
   }
