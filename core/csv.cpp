@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 
@@ -48,6 +49,35 @@ std::size_t CsvTable::index_of(const std::string& name) const {
   throw Error("no such column (columns present: " + present + ")", {.file = path, .column = name});
 }
 
+namespace {
+
+// A header the reader would misread, said as what it is: a byte-order mark (spreadsheets' "CSV UTF-8",
+// invisible in the names) is dropped; other separators than commas, and lines ended by CR alone, are refused.
+void check_header_line(std::string& line, const std::string& path, long row) {
+  if (row == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
+  const auto cr = line.find('\r');
+  if (cr != std::string::npos && line.find_first_not_of(" \t\r", cr) != std::string::npos)
+    throw Error(
+        "lines end with a carriage return alone (old Mac text): save the file with LF or CRLF line ends",
+        {.file = path, .row = row});
+  if (line.find(',') == std::string::npos)
+    for (const char separator : {';', '\t'})
+      if (line.find(separator) != std::string::npos)
+        throw Error(std::string("the header is separated by ") + (separator == ';' ? "';'" : "tabs") +
+                        ": columns are separated by commas (and the decimal mark is '.')",
+                    {.file = path, .row = row});
+}
+
+// A number beyond a double's range: one too small to tell from 0 is 0 (as any reader rounds it); one too
+// large is an error.
+double out_of_range_value(const std::string& cell, const ErrorContext& where) {
+  const double value = std::strtod(cell.c_str(), nullptr);
+  if (!std::isfinite(value)) throw Error("'" + cell + "' is beyond the range of a double", where);
+  return value;
+}
+
+}  // namespace
+
 CsvTable read_numeric_csv(const std::string& path, NaNCells nan_cells) {
   std::ifstream in(path);
   if (!in) throw Error("cannot open file for reading", {.file = path});
@@ -61,6 +91,7 @@ CsvTable read_numeric_csv(const std::string& path, NaNCells nan_cells) {
   }
   if (row == 0 || line.find_first_not_of(" \t\r") == std::string::npos)
     throw Error("file is empty: expected a header row of column names", {.file = path});
+  check_header_line(line, path, row);
   table.names = split_line(line);
   for (std::size_t j = 0; j < table.names.size(); ++j) {
     if (table.names[j].empty())
@@ -87,7 +118,9 @@ CsvTable read_numeric_csv(const std::string& path, NaNCells nan_cells) {
       const char* end = cell.data() + cell.size();
       if (*begin == '+') ++begin;
       const auto result = std::from_chars(begin, end, value);
-      if (result.ec != std::errc() || result.ptr != end)
+      if (result.ec == std::errc::result_out_of_range && result.ptr == end)
+        value = out_of_range_value(cell, {.file = path, .row = row, .column = table.names[j]});
+      else if (result.ec != std::errc() || result.ptr != end)
         throw Error("not a number: '" + cell + "'", {.file = path, .row = row, .column = table.names[j]});
       const bool not_measured = std::isnan(value) && nan_cells == NaNCells::kNotMeasured;
       if (!std::isfinite(value) && !not_measured)

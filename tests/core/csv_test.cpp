@@ -69,6 +69,25 @@ TEST(Csv, ErrorsNameFileRowAndColumn) {
   }
 }
 
+// What spreadsheets and other programs write: a byte-order mark is read past; CRLF is read; a number too
+// small for a double is 0 and one too large an error; other separators and CR-only lines are named.
+TEST(Csv, SpreadsheetExportsAreReadOrNamed) {
+  const CsvTable bom =
+      read_numeric_csv(write_file("bom.csv", "\xEF\xBB\xBFt_s,normal_N\r\n0,1\r\n1,2e-400\r\n"));
+  ASSERT_EQ(bom.names.front(), "t_s");
+  EXPECT_DOUBLE_EQ(bom.column("normal_N")[0], 1.0);
+  EXPECT_EQ(bom.column("normal_N")[1], 0.0);
+  EXPECT_NE(
+      error_of(write_file("huge.csv", "a\n1e400\n")).find("row 2: column 'a': '1e400' is beyond the range"),
+      std::string::npos);
+  EXPECT_NE(error_of(write_file("semicolon.csv", "t_s;normal_N\n0;1,5\n")).find("separated by ';'"),
+            std::string::npos);
+  EXPECT_NE(error_of(write_file("tab.csv", "t_s\tnormal_N\n0\t1\n")).find("separated by tabs"),
+            std::string::npos);
+  EXPECT_NE(error_of(write_file("cr.csv", "t_s,normal_N\r0,1\r1,2\r")).find("carriage return alone"),
+            std::string::npos);
+}
+
 TEST(Csv, WriterRoundTripsFullPrecisionAndIsAtomic) {
   const std::string path = std::string(TIRSTRAIN_TEST_TMP) + "/written.csv";
   std::filesystem::remove(path);
