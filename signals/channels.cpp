@@ -19,7 +19,45 @@
 
 namespace tirstrain::signals {
 
+namespace {
+
+// The unit a name ends with in brackets, as spreadsheets and DAQ software write it ("Fz [mN]", "t (ms)"),
+// with the spelling variants mapped to the suffix names ("µm" -> "um", "m/s^2" -> "m_s2"); nullopt with none.
+struct BracketedName {
+  std::string stem, unit;
+  char open = '[', close = ']';
+};
+std::optional<BracketedName> bracketed_unit(const std::string& name) {
+  const auto last = name.find_last_not_of(' ');
+  if (last == std::string::npos || (name[last] != ']' && name[last] != ')')) return std::nullopt;
+  BracketedName b;
+  b.close = name[last];
+  b.open = b.close == ']' ? '[' : '(';
+  const auto open = name.rfind(b.open, last);
+  if (open == std::string::npos) return std::nullopt;
+  b.stem = name.substr(0, open);
+  std::string unit = name.substr(open + 1, last - open - 1);
+  unit.erase(0, unit.find_first_not_of(' '));
+  unit.erase(unit.find_last_not_of(' ') + 1);
+  static const std::vector<std::pair<std::string, std::string>> spellings = {
+      {"\xC2\xB5m", "um"}, {"\xCE\xBCm", "um"}, {"\xC2\xB5s", "us"},     {"\xCE\xBCs", "us"},
+      {"m/s2", "m_s2"},    {"m/s^2", "m_s2"},   {"m/s\xC2\xB2", "m_s2"}, {"m s-2", "m_s2"}};
+  for (const auto& [spelled, suffix] : spellings)
+    if (unit == spelled) unit = suffix;
+  b.unit = unit;
+  return b;
+}
+
+}  // namespace
+
 double time_column_seconds_per_unit(const std::string& name) {
+  if (const auto b = bracketed_unit(name)) {
+    if (b->unit == "ms") return 1e-3;
+    if (b->unit == "us") return 1e-6;
+    if (b->unit == "ns") return 1e-9;
+    if (b->unit == "min") return 60.0;
+    return 1.0;
+  }
   const auto ends_with = [&](const char* tail) {
     const std::string t(tail);
     return name.size() > t.size() && name.compare(name.size() - t.size(), t.size(), t) == 0;
@@ -29,6 +67,12 @@ double time_column_seconds_per_unit(const std::string& name) {
   if (ends_with("_ns")) return 1e-9;
   if (ends_with("_min")) return 60.0;
   return 1.0;
+}
+
+std::string seconds_column_name(const std::string& name) {
+  if (time_column_seconds_per_unit(name) == 1.0) return name;
+  if (const auto b = bracketed_unit(name)) return b->stem + b->open + "s" + b->close;
+  return name.substr(0, name.rfind('_')) + "_s";
 }
 
 std::vector<ColumnUnit> column_units(Quantity quantity) {
@@ -50,6 +94,11 @@ std::string column_unit_list(Quantity quantity) {
 }
 
 std::optional<ColumnUnit> unit_of_column_name(const std::string& column, Quantity quantity) {
+  if (const auto b = bracketed_unit(column)) {
+    for (const ColumnUnit& u : column_units(quantity))
+      if (b->unit == u.name) return u;
+    return std::nullopt;
+  }
   std::optional<ColumnUnit> unit;
   for (const ColumnUnit& u : column_units(quantity)) {
     const std::string tail = std::string("_") + u.name;

@@ -28,9 +28,13 @@
 namespace tirstrain::signals {
 
 // Seconds per unit of a time column or variable named with a unit suffix (`t_ms`: 1e-3, `_us`, `_ns`,
-// `_min`); 1 for `_s` and for a name with no time unit, which is read as seconds. Readers convert the time
+// `_min`) or a bracketed unit (`t [ms]`, `time (us)`); 1 for `_s` and for a name with no time unit, which
+// is read as seconds. Readers convert the time
 // axis with it, so `ChannelTable::time_s` is always in seconds.
 double time_column_seconds_per_unit(const std::string& name);
+// The name a time column takes once its values are in seconds: the unit suffix becomes `_s` (`t_ms` ->
+// `t_s`); a name without a time unit is kept. Outputs write their time axis under it.
+std::string seconds_column_name(const std::string& name);
 
 // Physical quantities whose unit a channel's column name carries as a suffix ("plate_x_mm").
 enum class Quantity { kForce, kPosition, kAcceleration };
@@ -45,7 +49,8 @@ std::vector<ColumnUnit> column_units(Quantity quantity);
 // The units of `quantity` as a list for messages: "m, mm, um".
 std::string column_unit_list(Quantity quantity);
 // The unit `column` ends with, "_" and a name of column_units (the longest that matches, so "_mm" is not
-// read as "_m"); nullopt when the name carries none.
+// read as "_m"), or in brackets as spreadsheets write it ("Fz [mN]", "x (mm)", "a [m/s^2]", "[µm]");
+// nullopt when the name carries none of them.
 std::optional<ColumnUnit> unit_of_column_name(const std::string& column, Quantity quantity);
 
 struct ChannelTable {

@@ -186,6 +186,16 @@ class MatFile {
     return s.column || s.row ? slice(v, s) : whole_vector(v, s);
   }
 
+  // Whether a top-level variable is one real numeric vector with data (what a file's channels are when none
+  // are named); its values are not looked at.
+  bool holds_numeric_vector(const Selector& s) {
+    const matvar_t* v = resolve(s);
+    if (!is_numeric(v) || v->isComplex || v->data == nullptr) return false;
+    int non_singleton = 0;
+    for (int d = 0; d < v->rank; ++d) non_singleton += v->dims[d] != 1;
+    return non_singleton <= 1;
+  }
+
   // Columns of a matrix variable (for mat_column_names): its column count.
   std::size_t columns_of(const Selector& s) {
     const matvar_t* v = resolve(s);
@@ -349,15 +359,28 @@ std::vector<std::pair<std::string, Selector>> wanted_channels(MatFile& file, con
   for (const std::string& name : options.required)
     if (!listed(name)) wanted.emplace_back(name, parse_selector(name, path));
   if (!wanted.empty()) return wanted;
+  // Every numeric vector, as the HDF5 reader takes them; other variables (matrices, structs, text) are
+  // skipped unless the channel config lists what the file must hold. A vector's samples must be finite.
+  std::vector<std::string> skipped;
   for (const std::string& name : file.variables()) {
     if (name == options.time_column) continue;
-    try {
-      Selector s = parse_selector(name, path);
-      file.read(s);  // skips what is not a numeric vector, as the HDF5 reader does
+    Selector s = parse_selector(name, path);
+    if (file.holds_numeric_vector(s)) {
+      file.read(s);
       wanted.emplace_back(name, s);
-    } catch (const Error&) {
-      if (!options.expected.empty()) throw;
+    } else if (!options.expected.empty()) {
+      file.read(s);  // throws what the variable is instead
+    } else {
+      skipped.push_back(name);
     }
+  }
+  if (wanted.empty()) {
+    std::string list;
+    for (const auto& n : skipped) list += (list.empty() ? "" : ", ") + n;
+    throw Error("holds no numeric vector besides the time axis (" +
+                    (list.empty() ? "no other variable" : list) +
+                    "): name a matrix column as NAME[:,k] or a struct field as NAME.FIELD",
+                {.file = path});
   }
   return wanted;
 }

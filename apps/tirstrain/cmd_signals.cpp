@@ -109,7 +109,7 @@ void add_filter(CLI::App& signals) {
         throw Error(e.message(), {.key = e.context().key == "order" ? "--order" : option});
       }
     });
-    CsvWriter out(o->c.out, {o->c.time_column, o->column + "_filtered"});
+    CsvWriter out(o->c.out, {signals::seconds_column_name(o->c.time_column), o->column + "_filtered"});
     for (std::size_t i = 0; i < y.size(); ++i) out.row({table.time_s[i], y[i]});
     out.commit();
   });
@@ -625,14 +625,15 @@ void add_resample(CLI::App& signals) {
   sub->callback([o] {
     const auto table = load(o->c, o->c.input, o->columns);
     const auto times = read_numeric_csv(o->times);
-    const auto& query = times.column(o->times_column);
+    std::vector<double> query = times.column(o->times_column);
+    for (double& t : query) t *= signals::time_column_seconds_per_unit(o->times_column);
     const auto columns = o->columns.empty() ? table.names : o->columns;
     std::vector<std::vector<double>> values;
     for (const auto& name : columns)
       values.push_back(in_context(o->times, o->times_column, [&] {
         return ts::resample_linear(table.time_s, table.column(name), query);
       }));
-    std::vector<std::string> names{o->c.time_column};
+    std::vector<std::string> names{signals::seconds_column_name(o->c.time_column)};
     names.insert(names.end(), columns.begin(), columns.end());
     CsvWriter out(o->c.out, names);
     for (std::size_t i = 0; i < query.size(); ++i) {
@@ -705,7 +706,7 @@ void run_align(const AlignOptions& o) {
   j["convention"] = "t_camera = t_channel + offset_s";
   j["input"] = o.c.input;
   if (!o.shifted_out.empty()) {
-    std::vector<std::string> names{o.c.time_column};
+    std::vector<std::string> names{signals::seconds_column_name(o.c.time_column)};
     names.insert(names.end(), table.names.begin(), table.names.end());
     CsvWriter out(o.shifted_out, names);
     std::vector<double> row(names.size());

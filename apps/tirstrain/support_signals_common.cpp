@@ -56,8 +56,16 @@ std::vector<double> scaled(std::vector<double> values, double scale) {
   return values;
 }
 
+// A force column without a unit in its name is in N (as documented); one that names a unit not known here
+// ("Fz [kN]") is refused rather than read as N.
 std::vector<double> force_in_N(const signals::ChannelTable& table, const std::string& column) {
-  return scaled(table.column(column), si_per_unit(column, "", signals::Quantity::kForce, "").value_or(1.0));
+  const std::optional<double> N_per_unit = si_per_unit(column, "", signals::Quantity::kForce, "");
+  const auto last = column.find_last_not_of(' ');
+  if (!N_per_unit && last != std::string::npos && (column[last] == ']' || column[last] == ')'))
+    throw Error("cannot tell the unit of column '" + column + "' (forces are read in " +
+                    signals::column_unit_list(signals::Quantity::kForce) + ")",
+                {.file = table.path, .key = column});
+  return scaled(table.column(column), N_per_unit.value_or(1.0));
 }
 
 CLI::App* add_verb(CLI::App& signals, const std::string& name, const std::string& summary,

@@ -271,7 +271,7 @@ void add_signals_friction_verb(CLI::App& signals) {
                                     "' is not known (name it with _m, _mm or _um, or give --position-unit)"});
     }
     const ts::Phases& p = trial.phases;
-    CsvWriter out(o->out, {o->r.time_column, "mu"});
+    CsvWriter out(o->out, {signals::seconds_column_name(o->r.time_column), "mu"});
     std::size_t below = 0;
     for (std::size_t i = 0; i < p.normal_N.size(); ++i) {
       if (p.normal_N[i] < o->r.phases.min_normal_N) {

@@ -10,6 +10,7 @@
 
 #include "core/error.hpp"
 #include "core/png_file.hpp"
+#include "signals/channels.hpp"
 #include "signals/embedding.hpp"
 #include "signals/recurrence_plot.hpp"
 #include "signals/rqa.hpp"
@@ -175,8 +176,10 @@ std::size_t min_trials(const RecurrenceRequest& o, std::size_t trials) {
 }
 
 std::string index_unit(const RecurrenceRequest& o) {
-  const auto cut = o.c.time_column.rfind('_');
-  return cut == std::string::npos ? "units" : o.c.time_column.substr(cut + 1);
+  // The index is read in seconds when its name carries a time unit (t_ms), else as it is (x_mm).
+  const std::string name = signals::seconds_column_name(o.c.time_column);
+  const auto cut = name.rfind('_');
+  return cut == std::string::npos ? "units" : name.substr(cut + 1);
 }
 
 json measures_json(const ts::RqaMeasures& m, const RecurrenceRequest& o, double spacing) {
@@ -296,7 +299,7 @@ void add_recurrence_plot(CLI::App& signals) {
     ts::RecurrencePlotOptions plot;
     plot.max_side_px = o->side_px;
     plot.spacing = trials.front().spacing;
-    plot.axis_label = o->r.c.time_column;
+    plot.axis_label = signals::seconds_column_name(o->r.c.time_column);
     plot.title = o->r.column + (o->r.joint_column.empty() ? "" : " & " + o->r.joint_column) +
                  ", D = " + std::to_string(o->r.dim) + ", tau = " + std::to_string(o->r.delay);
     if (trials.size() == 1) {

@@ -68,6 +68,46 @@ TEST(SignalsCli, FilterWritesZeroPhaseOutputMatchingTheLibrary) {
   EXPECT_FALSE(std::filesystem::exists(out + ".partial"));
 }
 
+// A time column in ms is read in ms and written in s, under a name that says so: filter, resample (its
+// --times in ms too) and friction's mu all give t_s, and the filtered series's spectrum peaks at its tone.
+TEST(SignalsCli, ATimeColumnInMillisecondsIsWrittenInSecondsAsTS) {
+  const std::string in = dir() + "/ms.csv", times = dir() + "/times_ms.csv";
+  {
+    std::ofstream out(in);
+    out << "t_ms,normal_N,tangential_N\n";
+    for (int i = 0; i < 2000; ++i)
+      out << i << ',' << tirstrain::format_double(1.0 + std::sin(2 * std::numbers::pi * 20 * i / 1000.0))
+          << ",0.5\n";
+    std::ofstream(times) << "when_ms\n100\n250.5\n";
+  }
+  const std::string filtered = dir() + "/ms_filtered.csv";
+  ASSERT_EQ(
+      run("signals filter " + in + " --time-column t_ms --column normal_N --lowpass-Hz 80 --out " + filtered)
+          .code,
+      0);
+  const auto f = tirstrain::read_numeric_csv(filtered);
+  ASSERT_EQ(f.names[0], "t_s");
+  EXPECT_DOUBLE_EQ(f.columns[0][1000], 1.0);
+  const std::string peaks = dir() + "/ms_peaks.csv";
+  ASSERT_EQ(run("signals psd " + filtered + " --column normal_N_filtered --segment 500 --peaks-out " + peaks +
+                " --out " + dir() + "/ms_psd.csv")
+                .code,
+            0);
+  const auto p = tirstrain::read_numeric_csv(peaks);
+  const auto& psd = p.column("psd");
+  ASSERT_FALSE(psd.empty());
+  const auto top = static_cast<std::size_t>(std::max_element(psd.begin(), psd.end()) - psd.begin());
+  EXPECT_NEAR(p.column("freq_Hz")[top], 20.0, 2.0);
+  const std::string resampled = dir() + "/ms_resampled.csv";
+  const auto r = run("signals resample " + in + " --time-column t_ms --times " + times +
+                     " --times-column when_ms --out " + resampled);
+  ASSERT_EQ(r.code, 0) << r.output;
+  const auto s = tirstrain::read_numeric_csv(resampled);
+  ASSERT_EQ(s.names[0], "t_s");
+  EXPECT_DOUBLE_EQ(s.columns[0][1], 0.2505);
+  EXPECT_NEAR(s.column("normal_N")[1], 1.0 + std::sin(2 * std::numbers::pi * 20 * 0.2505), 0.02);
+}
+
 TEST(SignalsCli, PsdAndTfFollowTheContract) {
   const std::string in = write_trial(), psd = dir() + "/psd.csv", tf = dir() + "/tf.csv";
   auto r = run("signals psd " + in + " --column force_N --segment 500 --out " + psd);
@@ -412,6 +452,39 @@ TEST(SignalsCli, FrictionReadsTheUnitsInTheColumnNames) {
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.output.find("--position-unit"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("m, mm, um"), std::string::npos) << r.output;
+}
+
+// The same recording as a spreadsheet or DAQ program writes it: units in brackets, time in ms. Read in
+// those units (plateau 1.6 N, U_ext in closed form); a force unit not known here is refused, not read as N.
+TEST(SignalsCli, FrictionReadsBracketedUnits) {
+  const std::string in = dir() + "/friction_brackets.csv";
+  {
+    std::ofstream out(in);
+    out << "t [ms],Fz [mN],Fx (mN),x [mm],Fy [kN]\n";
+    for (int i = 0; i <= 2000; ++i) {
+      const double t = i / 1000.0, d = std::max(0.0, 0.01 * (t - 0.5)), u = std::min(1.0, d / 0.002);
+      out << i << ",2000," << tirstrain::format_double(1600 * (1 - std::pow(1 - u, 1.5))) << ','
+          << tirstrain::format_double(1e3 * d) << ",0.001\n";
+    }
+  }
+  const double u90 = 1 - std::pow(0.1, 2.0 / 3.0);
+  const double work_J = 3.2e-3 * (u90 + (std::pow(1 - u90, 2.5) - 1) / 2.5);
+  const std::string summary = dir() + "/friction_brackets.json", mu = dir() + "/mu_brackets.csv";
+  auto r =
+      run("signals friction " + in + " --time-column 't [ms]' --tangential 'Fx (mN)' --normal 'Fz [mN]' " +
+          "--position 'x [mm]' --out " + mu + " --summary " + summary);
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream f(summary);
+  const auto j = nlohmann::json::parse(f);
+  EXPECT_NEAR(j["plateau_tangential_N"].get<double>(), 1.6, 0.01);
+  EXPECT_NEAR(j["mu_dynamic"].get<double>(), 0.8, 1e-4);
+  EXPECT_NEAR(j["onset_s"].get<double>(), 0.5, 1e-3);
+  EXPECT_NEAR(j["external_work_J"].get<double>(), work_J, 0.01 * work_J);
+  EXPECT_EQ(tirstrain::read_numeric_csv(mu).names[0], "t [s]");
+  r = run("signals friction " + in + " --time-column 't [ms]' --tangential 'Fy [kN]' --normal 'Fz [mN]' " +
+          "--out " + mu);
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("cannot tell the unit of column 'Fy [kN]'"), std::string::npos) << r.output;
 }
 
 // A 0.5 mm grating felt at 10 mm/s, the position recorded in mm: the spectrum's peak is at λ = 0.5e-3 m

@@ -179,6 +179,39 @@ TEST(MatChannels, ErrorsNameTheFileTheVariableAndWhatWasExpected) {
   EXPECT_NE(e.message().find("HDF5"), std::string::npos) << e.what();
 }
 
+// With no channel named, every numeric vector is a channel: one with a NaN sample is an error naming it,
+// not a channel left out; a file with no vector at all is an error, not a table of times alone.
+TEST(MatChannels, UnnamedChannelsAreEveryVectorWhoseSamplesMustBeFinite) {
+  const std::string path = tmp("rec.mat");
+  write_recording(path, MAT_FT_MAT5, MAT_COMPRESSION_NONE, true);
+  EXPECT_EQ(ts::read_channels(path, {.time_column = "t"}).names, (std::vector<std::string>{"force"}));
+  const std::string nan_path = tmp("nan.mat");
+  {
+    mat_t* mat = Mat_CreateVer(nan_path.c_str(), nullptr, MAT_FT_MAT5);
+    ASSERT_NE(mat, nullptr);
+    add(mat, vector_var("t", {0.0, 0.001, 0.002, 0.003}), MAT_COMPRESSION_NONE);
+    add(mat, vector_var("normal_N", {1.0, std::nan(""), 1.0, 1.0}), MAT_COMPRESSION_NONE);
+    add(mat, vector_var("tangential_N", {0.1, 0.2, 0.3, 0.4}), MAT_COMPRESSION_NONE);
+    Mat_Close(mat);
+  }
+  auto e = expect_error([&] { ts::read_channels(nan_path, {.time_column = "t"}); });
+  EXPECT_EQ(e.context().column, "normal_N");
+  EXPECT_NE(e.message().find("sample 1 (0-based) is not a finite number"), std::string::npos) << e.what();
+  const std::string matrix_path = tmp("matrix.mat");
+  {
+    mat_t* mat = Mat_CreateVer(matrix_path.c_str(), nullptr, MAT_FT_MAT5);
+    ASSERT_NE(mat, nullptr);
+    add(mat, vector_var("t", {0.0, 0.001}), MAT_COMPRESSION_NONE);
+    std::vector<double> q = {1, 2, 3, 4};
+    std::size_t qdims[2] = {2, 2};
+    add(mat, Mat_VarCreate("dataQ", MAT_C_DOUBLE, MAT_T_DOUBLE, 2, qdims, q.data(), 0), MAT_COMPRESSION_NONE);
+    Mat_Close(mat);
+  }
+  e = expect_error([&] { ts::read_channels(matrix_path, {.time_column = "t"}); });
+  EXPECT_NE(e.message().find("holds no numeric vector besides the time axis (dataQ)"), std::string::npos)
+      << e.what();
+}
+
 TEST(ChannelsCsv, RateInsteadOfATimeColumn) {
   const std::string path = tmp("daq.csv");
   std::ofstream(path) << "force_V\n1\n2\n3\n";
