@@ -1,6 +1,7 @@
 #include "python/arrays.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include "core/error.hpp"
 
@@ -34,13 +35,24 @@ ImageView image_view(const py::handle& image, const std::string& what) {
     array = py::array::ensure(array, py::array::c_style);
   const cv::Mat mat(static_cast<int>(array.shape(0)), static_cast<int>(array.shape(1)), type,
                     const_cast<void*>(array.data()), static_cast<std::size_t>(array.strides(0)));
+  // A NaN or infinite pixel would spread through every filter over it; the file readers never give one.
+  cv::Point bad;
+  if (type == CV_32F && !cv::checkRange(mat, true, &bad))
+    throw Error(
+        "pixel (x " + std::to_string(bad.x) + ", y " + std::to_string(bad.y) + ") is not a finite number",
+        {.key = what});
   return {array, mat};
 }
 
 std::vector<double> to_vector(const DoubleArray& x, const std::string& what) {
   if (x.ndim() != 1)
     throw Error("expected a 1-D array, got " + std::to_string(x.ndim()) + "-D", {.key = what});
-  return std::vector<double>(x.data(), x.data() + x.size());
+  std::vector<double> values(x.data(), x.data() + x.size());
+  const auto bad = std::find_if(values.begin(), values.end(), [](double v) { return !std::isfinite(v); });
+  if (bad != values.end())
+    throw Error("sample " + std::to_string(bad - values.begin()) + " (0-based) is not a finite number",
+                {.key = what});
+  return values;
 }
 
 py::array_t<double> to_array(const std::vector<double>& values) {

@@ -91,6 +91,14 @@ def test_tf_of_a_pure_gain():
     np.testing.assert_allclose(h["coherence"][1:], 1.0, rtol=1e-9)
     with pytest.raises(tirstrain.Error, match="segment must be at least 2 samples"):
         tirstrain.psd(x, sample_rate_Hz=100.0, segment=1)
+    # A NaN sample is named, as the command line does, instead of giving spectra of zeros or NaN.
+    gap = x.copy()
+    gap[100] = np.nan
+    for call in (lambda: tirstrain.tf(gap, x, sample_rate_Hz=100.0, segment=256),
+                 lambda: tirstrain.psd(gap, sample_rate_Hz=100.0, segment=256),
+                 lambda: tirstrain.rqa(gap[:500], dim=3, delay=2, threshold=0.5)):
+        with pytest.raises(tirstrain.Error, match=r"sample 100 \(0-based\) is not a finite number"):
+            call()
 
 
 def test_rqa_of_a_periodic_signal():

@@ -56,6 +56,14 @@ def test_track_errors_name_the_frame():
         tirstrain.track([good, good.astype(np.float64)], grid_px=8)
     with pytest.raises(tirstrain.Error, match="does not fit in the 64x64 frame"):
         tirstrain.track([good], grid_px=8, roi=(50, 50, 30, 30))
+    # A NaN pixel would spread through the filters and retire every track: named instead.
+    bad = good.copy()
+    bad[3, 5] = np.nan
+    with pytest.raises(tirstrain.Error, match=r"frames\[1\].*pixel \(x 5, y 3\) is not a finite number"):
+        tirstrain.track([good, bad], grid_px=8)
+    bad[3, 5] = np.inf
+    with pytest.raises(tirstrain.Error, match="not a finite number"):
+        tirstrain.segment(bad, px_per_mm=52.0)
 
 
 def test_segment_finds_a_drawn_contact():
