@@ -115,6 +115,8 @@ void check_rqa_arguments(long dim, long delay, long min_line, std::optional<doub
                          std::optional<double> rate) {
   if (threshold.has_value() == rate.has_value())
     throw Error("give exactly one of threshold=EPS or recurrence_rate=R", {.key = "threshold"});
+  if (threshold && !(*threshold >= 0.0)) throw Error("must be at least 0", {.key = "threshold"});
+  if (rate && !(*rate > 0.0 && *rate <= 1.0)) throw Error("must be in (0, 1]", {.key = "recurrence_rate"});
   if (dim < 1) throw Error("must be at least 1", {.key = "dim"});
   if (delay < 1) throw Error("must be at least 1 sample", {.key = "delay"});
   if (min_line < 1) throw Error("must be at least 1", {.key = "min_line"});

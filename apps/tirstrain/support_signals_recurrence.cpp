@@ -16,6 +16,7 @@
 #include "signals/rqa.hpp"
 #include "tirstrain/signals_common.hpp"
 #include "tirstrain/signals_verbs.hpp"
+#include "tirstrain/value_checks.hpp"
 
 namespace tirstrain::cli {
 namespace {
@@ -72,8 +73,10 @@ void add_request_options(CLI::App* sub, RecurrenceRequest& o) {
   sub->add_option("--column", o.column, "channel")->required();
   sub->add_option("--dim", o.dim, "embedding dimension D")->required();
   sub->add_option("--delay", o.delay, "embedding delay tau, samples")->required();
-  sub->add_option("--threshold", o.threshold, "fixed recurrence threshold epsilon, in the channel's units");
-  sub->add_option("--recurrence-rate", o.rate, "fixed recurrence rate R in (0, 1] of each series");
+  sub->add_option("--threshold", o.threshold, "fixed recurrence threshold epsilon, in the channel's units")
+      ->check(kAtLeastZero);
+  sub->add_option("--recurrence-rate", o.rate, "fixed recurrence rate R in (0, 1] of each series")
+      ->check(kPositive);
   sub->add_option("--joint-recurrence-rate", o.joint_rate,
                   "fixed recurrence rate R in (0, 1] of the joint plot (needs --joint-column)");
   sub->add_option("--norm", o.norm, "euclidean or supremum")->capture_default_str();

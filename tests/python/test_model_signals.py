@@ -113,6 +113,8 @@ def test_rqa_of_a_periodic_signal():
     assert noise["determinism"] < 0.2
     with pytest.raises(tirstrain.Error, match="exactly one of threshold"):
         tirstrain.rqa(x, dim=2, delay=10)
+    with pytest.raises(tirstrain.Error, match="threshold.*must be at least 0"):
+        tirstrain.rqa(x, dim=2, delay=10, threshold=-1.0)
 
 
 def test_the_sample_script_runs(capsys):

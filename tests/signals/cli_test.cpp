@@ -353,6 +353,11 @@ TEST(SignalsCli, BadInputIsLocated) {
           dir() + "/x.csv");
   EXPECT_EQ(r.code, 2);  // the command line is wrong
   EXPECT_FALSE(std::filesystem::exists(dir() + "/x.csv"));
+  r = run("signals rqa " + write_trial() + " --column force_N --dim 3 --delay 2 --threshold -1 --out " +
+          dir() + "/x.json");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("--threshold"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("must be a number of 0 or more"), std::string::npos) << r.output;
 }
 
 TEST(SignalsCli, FrictionAndPowerLaw) {
