@@ -338,18 +338,28 @@ class ImageSequenceSource final : public FrameSource {
     time_source_ = "t_s from " + csv;
   }
 
-  // The images no row names, under whichever origin of the numbers leaves fewest: a row lost from frames.csv
-  // (or an image added) is named; only when most images match no row is the whole numbering said to differ.
+  // The images no row names, under whichever origin of the numbers leaves fewest: rows lost from frames.csv
+  // (or images added) are named when most images match a row, or when every row matches an image (a
+  // frames.csv cut short); otherwise the whole numbering is said to differ.
   [[noreturn]] void refuse_unmatched(const std::string& csv, const std::map<std::int64_t, std::size_t>& rows,
                                      std::int64_t origin) const {
     std::vector<std::string> best;
+    bool every_row_matched = false;
     for (const std::int64_t offset : {std::int64_t{0}, origin}) {
       std::vector<std::string> unmatched;
-      for (const SequenceFile& f : files_)
-        if (!rows.count(f.number - offset)) unmatched.push_back(fs::path(f.path).filename().string());
-      if (best.empty() || unmatched.size() < best.size()) best = std::move(unmatched);
+      std::size_t matched = 0;
+      for (const SequenceFile& f : files_) {
+        if (rows.count(f.number - offset))
+          ++matched;
+        else
+          unmatched.push_back(fs::path(f.path).filename().string());
+      }
+      if (best.empty() || unmatched.size() < best.size()) {
+        best = std::move(unmatched);
+        every_row_matched = matched == rows.size();
+      }
     }
-    if (2 * best.size() < files_.size()) {
+    if (2 * best.size() < files_.size() || (every_row_matched && best.size() < files_.size())) {
       std::string names;
       for (std::size_t i = 0; i < best.size() && i < 5; ++i) names += (i ? ", " : "") + best[i];
       if (best.size() > 5) names += " and " + std::to_string(best.size() - 5) + " more";

@@ -160,6 +160,11 @@ TEST(ImageFolder, AnImageWithoutARowIsNamed) {
   write_text(dir / "frames.csv", "index,t_s\n0,0\n1,0.01\n2,0.02\n4,0.04\n5,0.05\n6,0.06\n7,0.07\n");
   const std::string why = error_of([&] { open_source(dir.string()); });
   EXPECT_NE(why.find("has no row for 1 of the 8 images: frame_3.png"), std::string::npos) << why;
+  // Rows for the first 3 images only: the other 5 are named, not the numbering called unmatched.
+  write_text(dir / "frames.csv", "index,t_s\n0,0\n1,0.01\n2,0.02\n");
+  const std::string short_csv = error_of([&] { open_source(dir.string()); });
+  EXPECT_NE(short_csv.find("has no row for 5 of the 8 images: frame_3.png, frame_4.png"), std::string::npos)
+      << short_csv;
 }
 
 // A recording `tirstrain record` made from a source without a clock keeps the frame number in t_s and says
