@@ -200,7 +200,34 @@ class TrackRun {
     } catch (const Error& e) {
       throw Error(e.message(), {.file = o_.input, .frame = first->index});
     }
+    if (!o_.points_csv.empty()) say_points_not_started(size);
     write_rows(first->index);
+  }
+
+  // Given points that could not start are retired in frame 0; the run says why, which the status code
+  // alone does not: a subset needs a margin inside the frame (or --roi).
+  void say_points_not_started(cv::Size size) const {
+    const cv::Rect region =
+        o_.roi.empty() ? cv::Rect(0, 0, size.width, size.height) : parse_roi(o_.roi, size);
+    const double margin =
+        settings_.refine ? settings_.main_match.subset_radius_px + 2.0 : settings_.prediction.window_px / 2.0;
+    int near_edge = 0, other = 0;
+    for (const flow::Track& t : tracker_->tracks()) {
+      if (flow::is_alive(t.status)) continue;
+      const Vec2& p = t.reference_px;
+      const double inside = std::min({p.x - region.x, p.y - region.y, region.x + region.width - 1 - p.x,
+                                      region.y + region.height - 1 - p.y});
+      ++(inside < margin ? near_edge : other);
+    }
+    if (near_edge > 0)
+      std::cerr << "tirstrain track: warning: " << near_edge << " of the given points lie within "
+                << static_cast<int>(margin) << " px of the " << (o_.roi.empty() ? "frame's" : "--roi's")
+                << " edge, where a subset does not fit: not tracked (status "
+                << static_cast<int>(flow::TrackStatus::kPoorMatch) << " in frame 0)\n";
+    if (other > 0)
+      std::cerr << "tirstrain track: warning: " << other
+                << " of the given points found no converged match in frame 0 (too little texture around "
+                   "them): not tracked\n";
   }
 
   void track_frames() {

@@ -202,4 +202,31 @@ TEST(TrackCli, APointsFileErrorNamesThePointsFile) {
   EXPECT_EQ(output.find("frames:"), std::string::npos) << output;
 }
 
+// Points too near the frame's edge for a subset are not tracked, and the run says so (their status alone,
+// "poor match", does not say why); a point inside is tracked.
+TEST(TrackCli, PointsTooNearTheEdgeAreSaidNotTracked) {
+  const std::filesystem::path dir = std::filesystem::path(TIRSTRAIN_TEST_TMP) / "flow" / "points_edge";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir / "frames");
+  for (int k = 0; k < 2; ++k)
+    cv::imwrite((dir / "frames" / ("00000" + std::to_string(k) + ".png")).string(),
+                speckle(96, 0.3 * k, 0.0));
+  std::ofstream(dir / "points.csv") << "x_px,y_px\n48,48\n2,2\n";
+  const std::string log = (dir / "log.txt").string(), out = (dir / "t.csv").string();
+  ASSERT_EQ(run("track " + (dir / "frames").string() + " --points " + (dir / "points.csv").string() +
+                " --out " + out + " --quiet 2>" + log),
+            0);
+  std::ifstream in(log);
+  const std::string output((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(output.find("warning: 1 of the given points lie within"), std::string::npos) << output;
+  const tirstrain::CsvTable t = tirstrain::read_numeric_csv(out);
+  int alive_at_1 = 0;
+  for (std::size_t i = 0; i < t.rows(); ++i)
+    if (t.column("frame")[i] == 1 && t.column("status")[i] < 10) {
+      ++alive_at_1;
+      EXPECT_NEAR(t.column("x_px")[i] - t.column("X_px")[i], 0.3, 0.02);
+    }
+  EXPECT_EQ(alive_at_1, 1);
+}
+
 }  // namespace
