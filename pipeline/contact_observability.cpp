@@ -130,8 +130,14 @@ std::optional<contact::Ellipse> truth_contact_ellipse(const cv::Mat& mask) {
   std::vector<std::vector<cv::Point>> contours;
   cv::findContours(mask.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
   std::vector<cv::Point2d> outline;
+  // Where the contact runs off the frame, the mask's outline follows the frame's edge: those pixels are the
+  // frame's, not the contact's, and would pull the fit towards the frame's centre.
+  const auto on_frame_edge = [&](const cv::Point& p) {
+    return p.x == 0 || p.y == 0 || p.x == mask.cols - 1 || p.y == mask.rows - 1;
+  };
   for (const auto& contour : contours)
-    for (const auto& p : contour) outline.emplace_back(p.x, p.y);
+    for (const auto& p : contour)
+      if (!on_frame_edge(p)) outline.emplace_back(p.x, p.y);
   std::optional<contact::Ellipse> ellipse = contact::fit_ellipse_direct(outline);
   if (ellipse) {
     ellipse->semi_major_px += 0.5;

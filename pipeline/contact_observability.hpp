@@ -43,8 +43,8 @@ struct CentreBound {
 };
 
 // The truth's contact ellipse as `tirstrain validate` and the tests take it: the direct fit of the truth
-// mask's outline (pixel centres), semi-axes + 0.5 px to the pixels' outer edges. `mask`: CV_8UC1, non-zero
-// in.
+// mask's outline (pixel centres; not those on the frame's edge, where a contact cut by the frame has no
+// outline of its own), semi-axes + 0.5 px to the pixels' outer edges. `mask`: CV_8UC1, non-zero in.
 std::optional<contact::Ellipse> truth_contact_ellipse(const cv::Mat& mask);
 
 // Throws Error when the trial has no contact or the programme is infeasible at the truth (a bug).

@@ -66,5 +66,18 @@ TEST(ContactObservability, TruthEllipseOfARasterisedEllipse) {
   EXPECT_FALSE(truth_contact_ellipse(cv::Mat::zeros(50, 50, CV_8UC1)).has_value());
 }
 
+// A contact cut by the frame's bottom edge (a third of it outside): the truth is the contact's own outline,
+// so the ellipse is the drawn one, not one pulled up into the frame by the frame's edge.
+TEST(ContactObservability, TruthEllipseOfAContactCutByTheFrame) {
+  cv::Mat mask = cv::Mat::zeros(256, 320, CV_8UC1);
+  cv::circle(mask, {160, 225}, 96, cv::Scalar(1), cv::FILLED);
+  const auto ellipse = truth_contact_ellipse(mask);
+  ASSERT_TRUE(ellipse.has_value());
+  EXPECT_NEAR(ellipse->cx_px, 160.0, 0.3);
+  EXPECT_NEAR(ellipse->cy_px, 225.0, 0.5);
+  EXPECT_NEAR(ellipse->semi_minor_px, 96.5, 1.0);
+  EXPECT_NEAR(ellipse->semi_major_px, 96.5, 1.0);
+}
+
 }  // namespace
 }  // namespace tirstrain::pipeline
