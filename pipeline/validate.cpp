@@ -439,8 +439,19 @@ ValidationReport run_validate(const ValidateOptions& options) {
   const ValidatedResult result = read_validated_result(result_path, trial);
   report.frames = static_cast<int>(result.frames);
 
+  if (const auto differences = calibration_differences(result, trial.config().scene); !differences.empty()) {
+    std::string list;
+    for (const std::string& d : differences) list += (list.empty() ? "" : ", ") + d;
+    report.warnings.push_back(
+        "the result was processed with " + list +
+        ": validate takes its areas and stick radii back to pixels through its own px_per_mm, and recomputes "
+        "the other energies from its tracks with the trial's values, but U in the result's strain mode, "
+        "U_triangle_truth and U_whole_contact are result.h5's own /energy/total_J");
+  }
   const ContactTruth true_contact = contact_truth(trial);
-  const ContactValidation contact = validate_contact(result, true_contact, trial.config().scene.px_per_mm);
+  const ContactValidation contact =
+      validate_contact(result, true_contact,
+                       std::isfinite(result.px_per_mm) ? result.px_per_mm : trial.config().scene.px_per_mm);
   if (!true_contact.ellipse)
     throw Error("the trial's contact mask does not fit an ellipse", {.file = trial_dir});
   RingValidation rings(true_contact.mask, *true_contact.ellipse);

@@ -64,6 +64,8 @@ struct ValidationReport {
   std::vector<std::string> outputs;
   double process_wall_s = 0.0;
   int frames = 0;
+  // What the reader must know to read the rows (a result processed with another calibration).
+  std::vector<std::string> warnings;
   const ErrorStats* find(const std::string& quantity, const std::string& reference,
                          const std::string& mode = "") const;
 };

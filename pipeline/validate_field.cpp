@@ -64,6 +64,22 @@ void read_frames(const H5Reader& h5, const samples::Trial& trial, ValidatedResul
                   {.file = r.path, .frame = static_cast<std::int64_t>(i)});
 }
 
+// The calibration and tissue the result was processed with. Its stick radii (mm) are taken to the trial's
+// mm through the pixels they were measured in, so that a result processed with another px_per_mm (no scene)
+// is judged on its measurement, not on its calibration.
+void read_calibration(const H5Reader& h5, const samples::Trial& trial, ValidatedResult& r) {
+  const auto attribute = [&](const char* object, const char* name) {
+    return h5.has(object) && h5.has_attribute(object, name) ? h5.attribute_number(object, name) : kNaN;
+  };
+  r.px_per_mm = attribute("/contact", "px_per_mm");
+  r.young_Pa = attribute("/energy", "young_Pa");
+  r.poisson = attribute("/energy", "poisson");
+  r.depth_m = attribute("/energy", "depth_m");
+  const double to_trial_mm = std::isfinite(r.px_per_mm) ? r.px_per_mm / trial.config().scene.px_per_mm : 1.0;
+  for (std::vector<double>* mm : {&r.c_fit, &r.c_reach})
+    for (double& v : *mm) v *= to_trial_mm;
+}
+
 void read_tracks_and_strain(const H5Reader& h5, ValidatedResult& r) {
   H5Shape shape;
   r.reference = read(h5, "/tracks/reference_px", &shape);
@@ -124,7 +140,25 @@ ValidatedResult read_validated_result(const std::string& result_path, const samp
   read_frames(*r.h5, trial, r);
   read_tracks_and_strain(*r.h5, r);
   read_contact(*r.h5, r);
+  read_calibration(*r.h5, trial, r);
   return r;
+}
+
+std::vector<std::string> calibration_differences(const ValidatedResult& result, const Scene& trial_scene) {
+  std::vector<std::string> out;
+  const auto differs = [](double used, double truth) {
+    return std::isfinite(used) && std::abs(used - truth) > 1e-9 * std::abs(truth);
+  };
+  const auto say = [&](const char* what, double used, double truth) {
+    if (differs(used, truth))
+      out.push_back(std::string(what) + " " + format_double(used) + " where the trial's is " +
+                    format_double(truth));
+  };
+  say("px_per_mm", result.px_per_mm, trial_scene.px_per_mm);
+  say("E_Pa", result.young_Pa, trial_scene.tissue.young_Pa);
+  say("nu", result.poisson, trial_scene.tissue.poisson);
+  say("depth_m", result.depth_m, trial_scene.tissue.depth_m);
+  return out;
 }
 
 FrameRows frame_rows(const ValidatedResult& result, std::size_t i) {

@@ -4,6 +4,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -47,10 +48,18 @@ struct ValidatedResult {
   std::size_t hull_values = 0;                       // H × 2
   // [N, 2]: each frame's own ellipse centre before the smoothing in time (empty in results without it).
   std::vector<double> measured_centres;
+  // What the result was processed with (its /contact and /energy attributes; NaN where absent). Lengths
+  // and areas in mm, and U, are in these: validate takes measured lengths back to pixels through
+  // px_per_mm, and says when any of them differs from the trial's.
+  static constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
+  double px_per_mm = kUnknown, young_Pa = kUnknown, poisson = kUnknown, depth_m = kUnknown;
 };
 
 // Reads and checks RESULT_DIR/result.h5 against the trial (frame count and times).
 ValidatedResult read_validated_result(const std::string& result_path, const samples::Trial& trial);
+// What the result was processed with that differs from the trial's scene ("px_per_mm 52 where the trial's
+// is 100"), one entry per value; empty when they agree.
+std::vector<std::string> calibration_differences(const ValidatedResult& result, const Scene& trial_scene);
 // Frame i's rows of the per-frame track and strain datasets (NaN where a dataset is absent).
 FrameRows frame_rows(const ValidatedResult& result, std::size_t i);
 

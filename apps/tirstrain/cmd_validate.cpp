@@ -86,6 +86,7 @@ pipeline::ValidateOptions validate_options(const ValidateArgs& args) {
 void run_validate_command(const ValidateArgs& args) {
   const pipeline::ValidationReport report = pipeline::run_validate(validate_options(args));
   print_table(report);
+  for (const std::string& w : report.warnings) std::cerr << "validate: warning: " << w << "\n";
   if (args.quiet) return;
   std::cerr << "validated " << report.frames << " frames";
   if (report.process_wall_s > 0.0) std::cerr << " (processing took " << report.process_wall_s << " s)";

@@ -279,6 +279,38 @@ std::map<std::string, double> validate_shortened(const std::string& dir_name, co
   return rms;
 }
 
+// A trial at 100 px/mm validated as a recording without a scene is processed (52 px/mm by default): the
+// contact's area is judged in the pixels it was measured in (within 2 %, not the (100/52)^2 of the
+// calibration), and the run says which rows still carry the result's own calibration.
+TEST(ValidateCli, ProcessDefaultsJudgeTheMeasurementAndNameTheCalibration) {
+  const std::string out = fresh_dir("validate_defaults");
+  fs::create_directories(out);
+  std::ofstream(out + "/scene.yaml")
+      << "calibration: {px_per_mm: 100, ridge_period_mm: 0.45, ridge_polarity: dark}\n"
+         "synthesis:\n"
+         "  seed: 9\n"
+         "  image: {width_px: 320, height_px: 256, bit_depth: 8}\n"
+         "  timing: {frames: 4, frame_rate_hz: 100}\n"
+         "  contact: {shape: hertz, normal_N: 0.1, radius_m: 0.02}\n"
+         "  loading: {field: affine, gradient: [0.04, 0.02, 0.0, -0.03]}\n"
+         "  sensor: {read_noise: 0.005}\n";
+  const auto run =
+      run_cli("validate --scene " + out + "/scene.yaml --process-defaults --out " + out + "/v --no-maps");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("warning: the result was processed with px_per_mm 52 where the trial's is 100"),
+            std::string::npos)
+      << run.output;
+  std::ifstream csv(out + "/v/validation.csv");
+  std::string line;
+  double area_rms_pct = -1.0;
+  while (std::getline(csv, line)) {
+    const std::vector<std::string> cells = split(line);
+    if (cells.size() > 4 && cells[0] == "contact_area") area_rms_pct = std::strtod(cells[4].c_str(), nullptr);
+  }
+  EXPECT_GE(area_rms_pct, 0.0);
+  EXPECT_LT(area_rms_pct, 2.0);
+}
+
 TEST(ValidateCli, SmoothingInTimeOnNoisyTextureLowersTheErrors) {
   // The shipped heavy-noise scene (ridge SNR 1.9), its first 30 frames (rest, load, part of the
   // hold): the tracks smoothed in time, as the automatic preset does on noisy texture, against the same run
