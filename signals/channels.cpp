@@ -348,7 +348,7 @@ std::string why_not_a_channel(const H5::DataSet& ds, std::uintmax_t file_bytes, 
     length *= static_cast<std::size_t>(d);
     non_singleton += d != 1;
   }
-  if (rank > 2 || non_singleton > 1) {
+  if (non_singleton > 1) {
     std::string shape;
     for (hsize_t d : dims) shape += (shape.empty() ? "" : "x") + std::to_string(d);
     return "has shape " + shape + "; a channel must be a vector (one non-singleton dimension)";
@@ -360,10 +360,34 @@ std::string why_not_a_channel(const H5::DataSet& ds, std::uintmax_t file_bytes, 
   return damaged_storage(ds, length, element_bytes, file_bytes);
 }
 
+// The compression filters a dataset needs that this HDF5 lacks ("needs filter 32000 (LZF), not in this
+// HDF5; "), or "".
+std::string unavailable_filters(const H5::DataSet& ds) {
+  std::string out;
+  const H5::DSetCreatPropList plist = ds.getCreatePlist();
+  for (int k = 0; k < plist.getNfilters(); ++k) {
+    unsigned flags = 0;
+    size_t values = 0;
+    unsigned config = 0;
+    char filter_name[64] = {};
+    const H5Z_filter_t id =
+        plist.getFilter(k, flags, values, nullptr, sizeof filter_name, filter_name, config);
+    if (H5Zfilter_avail(id) <= 0)
+      out += "needs filter " + std::to_string(id) +
+             (filter_name[0] ? " (" + std::string(filter_name) + ")" : "") + ", not in this HDF5; ";
+  }
+  return out;
+}
+
 std::vector<double> read_finite_samples(const H5::DataSet& ds, std::size_t length, const std::string& path,
                                         const std::string& name) {
   std::vector<double> values(length);
-  ds.read(values.data(), H5::PredType::NATIVE_DOUBLE);
+  try {
+    ds.read(values.data(), H5::PredType::NATIVE_DOUBLE);
+  } catch (const H5::Exception& e) {
+    throw Error("cannot be read (" + unavailable_filters(ds) + "HDF5: " + e.getDetailMsg() + ")",
+                {.file = path, .column = name});
+  }
   for (std::size_t k = 0; k < values.size(); ++k)
     if (!std::isfinite(values[k]))
       throw Error("sample " + std::to_string(k) + " (0-based) is not a finite number",
@@ -384,6 +408,8 @@ bool read_group_channels(const H5::Group& group, const std::string& path, std::u
     const bool requested = std::find(wanted.begin(), wanted.end(), name) != wanted.end();
     // MATLAB keeps cell/struct payloads in "#refs#" and "#subsystem#"; they are not channels.
     if (!name.empty() && name[0] == '#') continue;
+    // Columns asked for by name: the others are not read (one this HDF5 cannot decode stays harmless).
+    if (!requested && !options.required.empty() && options.expected.empty()) continue;
     if (group.childObjType(name) != H5O_TYPE_DATASET) {
       if (requested)
         throw Error("is a group, not a numeric dataset (a MATLAB struct?)", {.file = path, .column = name});

@@ -174,6 +174,22 @@ TEST(ChannelsHdf5, MatlabV73Layout) {
   EXPECT_NE(e.message().find("char"), std::string::npos);
 }
 
+// Any shape with one non-singleton dimension is a vector (h5py's 1 x N x 1 as much as N); with columns
+// named, the other datasets are not read (a matrix there is not an error).
+TEST(ChannelsHdf5, VectorsOfAnyRankAndOnlyTheNamedColumnsRead) {
+  const auto path = tmp_path("ranks.h5");
+  {
+    H5::H5File file(path, H5F_ACC_TRUNC);
+    write_vector(file, "t_s", {0.0, 0.001, 0.002}, {1, 3});
+    write_vector(file, "normal_N", {1.0, 2.0, 3.0}, {1, 3, 1});
+    write_vector(file, "matrix", {1, 2, 3, 4, 5, 6}, {3, 2});
+  }
+  const auto table = ts::read_channels(path, {.required = {"normal_N"}});
+  EXPECT_EQ(table.names, (std::vector<std::string>{"normal_N"}));
+  EXPECT_EQ(table.column("normal_N")[2], 3.0);
+  EXPECT_EQ(table.time_s[2], 0.002);
+}
+
 TEST(ChannelsHdf5, MismatchedLengthsNanAndBadTimeAreNamed) {
   const auto path = tmp_path("bad.h5");
   {
