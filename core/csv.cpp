@@ -11,13 +11,21 @@
 #include "core/error.hpp"
 
 namespace tirstrain {
-namespace {
 
-std::vector<std::string> split_line(const std::string& line) {
+std::vector<std::string> split_csv_line(const std::string& line) {
   std::vector<std::string> cells;
   std::string cell;
-  for (char ch : line) {
-    if (ch == ',') {
+  bool quoted = false;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    const char ch = line[i];
+    if (ch == '"') {
+      if (quoted && i + 1 < line.size() && line[i + 1] == '"') {
+        cell += '"';
+        ++i;
+      } else {
+        quoted = !quoted;
+      }
+    } else if (ch == ',' && !quoted) {
       cells.push_back(cell);
       cell.clear();
     } else if (ch != '\r') {
@@ -26,14 +34,19 @@ std::vector<std::string> split_line(const std::string& line) {
   }
   cells.push_back(cell);
   for (auto& c : cells) {
-    const auto first = c.find_first_not_of(" \t\"");
-    const auto last = c.find_last_not_of(" \t\"");
+    const auto first = c.find_first_not_of(" \t");
+    const auto last = c.find_last_not_of(" \t");
     c = first == std::string::npos ? std::string() : c.substr(first, last - first + 1);
   }
   return cells;
 }
 
-}  // namespace
+std::string csv_cell(const std::string& text) {
+  if (text.find_first_of(",\"\n\r") == std::string::npos) return text;
+  std::string out = "\"";
+  for (const char ch : text) out += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+  return out + "\"";
+}
 
 bool CsvTable::has(const std::string& name) const {
   for (const auto& n : names)
@@ -92,7 +105,7 @@ CsvTable read_numeric_csv(const std::string& path, NaNCells nan_cells) {
   if (row == 0 || line.find_first_not_of(" \t\r") == std::string::npos)
     throw Error("file is empty: expected a header row of column names", {.file = path});
   check_header_line(line, path, row);
-  table.names = split_line(line);
+  table.names = split_csv_line(line);
   for (std::size_t j = 0; j < table.names.size(); ++j) {
     if (table.names[j].empty())
       throw Error("empty column name in header (column " + std::to_string(j + 1) + ")",
@@ -105,7 +118,7 @@ CsvTable read_numeric_csv(const std::string& path, NaNCells nan_cells) {
   while (std::getline(in, line)) {
     ++row;
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    const auto cells = split_line(line);
+    const auto cells = split_csv_line(line);
     if (cells.size() != table.names.size())
       throw Error(
           "expected " + std::to_string(table.names.size()) + " cells, found " + std::to_string(cells.size()),
@@ -139,7 +152,7 @@ std::string format_double(double value) {
 
 CsvWriter::CsvWriter(const std::string& path, const std::vector<std::string>& names)
     : path_(path), width_(names.size()), out_(path) {
-  for (std::size_t j = 0; j < names.size(); ++j) line_ += (j ? "," : "") + names[j];
+  for (std::size_t j = 0; j < names.size(); ++j) line_ += (j ? "," : "") + csv_cell(names[j]);
   line_ += '\n';
   out_.append(line_);
 }
@@ -160,7 +173,7 @@ void CsvWriter::row_text(const std::vector<std::string>& cells) {
   line_.clear();
   for (std::size_t j = 0; j < cells.size(); ++j) {
     if (j) line_ += ',';
-    line_ += cells[j];
+    line_ += csv_cell(cells[j]);
   }
   line_ += '\n';
   out_.append(line_);

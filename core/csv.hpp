@@ -54,4 +54,10 @@ class CsvWriter {
 // Shortest text that reads back to the same double ("%.17g" trimmed).
 std::string format_double(double value);
 
+// One CSV line's cells: split at commas outside double quotes ("a,b" is one cell, "" inside quotes is a
+// quote), each cell trimmed of surrounding blanks and quotes, a trailing CR dropped.
+std::vector<std::string> split_csv_line(const std::string& line);
+// `text` as a CSV cell: quoted (inner quotes doubled) when it holds a comma, a quote or a line break.
+std::string csv_cell(const std::string& text);
+
 }  // namespace tirstrain

@@ -4,21 +4,12 @@
 #include <charconv>
 #include <fstream>
 #include <limits>
-#include <sstream>
 
+#include "core/csv.hpp"
 #include "core/error.hpp"
 
 namespace tirstrain::report {
 namespace {
-
-std::vector<std::string> split_cells(const std::string& line) {
-  std::vector<std::string> cells;
-  std::stringstream in(line);
-  std::string cell;
-  while (std::getline(in, cell, ',')) cells.push_back(cell);
-  if (!line.empty() && line.back() == ',') cells.emplace_back();
-  return cells;
-}
 
 std::size_t column_of(const TextTable& t, const std::string& name) {
   const auto it = std::find(t.names.begin(), t.names.end(), name);
@@ -60,9 +51,9 @@ TextTable read_text_csv(const std::string& path) {
   t.path = path;
   std::string line;
   if (!std::getline(in, line)) throw Error("the table is empty: a header row is expected", {.file = path});
-  t.names = split_cells(line);
+  t.names = split_csv_line(line);
   while (std::getline(in, line))
-    if (!line.empty()) t.rows.push_back(split_cells(line));
+    if (!line.empty()) t.rows.push_back(split_csv_line(line));
   return t;
 }
 

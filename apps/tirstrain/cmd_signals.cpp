@@ -621,8 +621,10 @@ void add_resample(CLI::App& signals) {
       "--out at_frames.csv");
   sub->add_option("--times", o->times, "CSV holding the target times")->required();
   sub->add_option("--times-column", o->times_column, "column of --times, s")->capture_default_str();
-  sub->add_option("--columns", o->columns, "channels to resample (default: all)")->delimiter(',');
+  sub->add_option("--columns", o->columns,
+                  "channels to resample, NAME,NAME (default: all; a .mat matrix column as dataQ[:,2])");
   sub->callback([o] {
+    o->columns = split_channel_names(o->columns);
     const auto table = load(o->c, o->c.input, o->columns);
     const auto times = read_numeric_csv(o->times);
     std::vector<double> query = times.column(o->times_column);

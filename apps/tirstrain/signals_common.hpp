@@ -54,8 +54,12 @@ std::optional<double> si_per_unit(const std::string& column, const std::string& 
                                   signals::Quantity quantity, const std::string& option);
 // `values` times `scale`.
 std::vector<double> scaled(std::vector<double> values, double scale);
-// A force column in N: mN when its name says so (a name without a unit is read as N).
+// A force column in N: mN when its name says so (a name without a unit is read as N; one naming another
+// unit is an error).
 std::vector<double> force_in_N(const signals::ChannelTable& table, const std::string& column);
+// Channel names given as NAME,NAME,... (or as several arguments), split at the commas that are not inside
+// a selector's brackets or a unit's: "dataQ[:,2],Fz [mN]" is two names.
+std::vector<std::string> split_channel_names(const std::vector<std::string>& arguments);
 
 // One-line description for `tirstrain signals --help`; the full contract goes into the verb's own --help.
 CLI::App* add_verb(CLI::App& signals, const std::string& name, const std::string& summary,

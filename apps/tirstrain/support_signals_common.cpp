@@ -56,6 +56,26 @@ std::vector<double> scaled(std::vector<double> values, double scale) {
   return values;
 }
 
+std::vector<std::string> split_channel_names(const std::vector<std::string>& arguments) {
+  std::vector<std::string> names;
+  for (const std::string& argument : arguments) {
+    int depth = 0;
+    std::string name;
+    for (const char c : argument) {
+      if (c == '[' || c == '(') ++depth;
+      if ((c == ']' || c == ')') && depth > 0) --depth;
+      if (c == ',' && depth == 0) {
+        if (!name.empty()) names.push_back(name);
+        name.clear();
+      } else {
+        name += c;
+      }
+    }
+    if (!name.empty()) names.push_back(name);
+  }
+  return names;
+}
+
 // A force column without a unit in its name is in N (as documented); one that names a unit not known here
 // ("Fz [kN]") is refused rather than read as N.
 std::vector<double> force_in_N(const signals::ChannelTable& table, const std::string& column) {

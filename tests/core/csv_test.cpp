@@ -88,6 +88,21 @@ TEST(Csv, SpreadsheetExportsAreReadOrNamed) {
             std::string::npos);
 }
 
+// A name or text cell holding a comma or a quote is written quoted and read back whole.
+TEST(Csv, QuotedCellsRoundTrip) {
+  const std::string path = std::string(TIRSTRAIN_TEST_TMP) + "/quoted.csv";
+  {
+    CsvWriter out(path, {"t_s", "dataQ[:,2]", "say \"hi\""});
+    out.row({0.5, 1.0, 2.0});
+    out.commit();
+  }
+  const CsvTable t = read_numeric_csv(path);
+  ASSERT_EQ(t.names, (std::vector<std::string>{"t_s", "dataQ[:,2]", "say \"hi\""}));
+  EXPECT_EQ(t.column("dataQ[:,2]")[0], 1.0);
+  EXPECT_EQ(split_csv_line("a, \"b,c\" ,\"d\"\"e\"\r"), (std::vector<std::string>{"a", "b,c", "d\"e"}));
+  EXPECT_EQ(csv_cell("plain"), "plain");
+}
+
 TEST(Csv, WriterRoundTripsFullPrecisionAndIsAtomic) {
   const std::string path = std::string(TIRSTRAIN_TEST_TMP) + "/written.csv";
   std::filesystem::remove(path);

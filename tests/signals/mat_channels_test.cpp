@@ -13,8 +13,10 @@
 #include <string>
 #include <vector>
 
+#include "core/csv.hpp"
 #include "core/error.hpp"
 #include "signals/channels.hpp"
+#include "tests/signals/cli_run.hpp"
 #include "tests/support/expect_error.hpp"
 
 namespace ts = tirstrain::signals;
@@ -210,6 +212,20 @@ TEST(MatChannels, UnnamedChannelsAreEveryVectorWhoseSamplesMustBeFinite) {
   e = expect_error([&] { ts::read_channels(matrix_path, {.time_column = "t"}); });
   EXPECT_NE(e.message().find("holds no numeric vector besides the time axis (dataQ)"), std::string::npos)
       << e.what();
+}
+
+// `signals resample --columns` takes a matrix column's selector whole: its comma is not a separator.
+TEST(MatChannels, ResampleColumnsKeepsASelectorsComma) {
+  const std::string path = tmp("rec.mat"), times = tmp("times.csv"), out = tmp("out.csv");
+  write_recording(path, MAT_FT_MAT5, MAT_COMPRESSION_NONE, true);
+  std::ofstream(times) << "t_s\n" << tirstrain::format_double(2.0 / 1024.0) << "\n";
+  const auto r = tirstrain::testing::run_cli("signals resample " + path + " --time-column t --times " +
+                                             times + " --columns 'dataQ[:,2],force' --out " + out);
+  ASSERT_EQ(r.code, 0) << r.output;
+  const auto table = tirstrain::read_numeric_csv(out);
+  EXPECT_EQ(table.names, (std::vector<std::string>{"t", "dataQ[:,2]", "force"}));
+  EXPECT_EQ(table.column("dataQ[:,2]")[0], column_value(2, 1));
+  EXPECT_EQ(table.column("force")[0], force(2));
 }
 
 TEST(ChannelsCsv, RateInsteadOfATimeColumn) {
