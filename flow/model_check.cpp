@@ -1,6 +1,7 @@
 #include "flow/model_check.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
 #include <algorithm>
@@ -12,6 +13,12 @@ namespace {
 
 // A floor on a match's predicted noise (px): the correlation of noise-free frames says nothing finer.
 constexpr double kNoiseFloorPx = 1e-3;
+// The variance of a direction no match measured, px² (a position anywhere within a thousand pixels).
+constexpr double kUndetermined_px2 = 1e6;
+// A translation direction whose information is below this share of the other's is taken as undetermined:
+// the subset match leaves such directions at their start (flow/subset.cpp's eigenvalue floor, 2e-3 of the
+// strongest on the scaled Hessian).
+constexpr double kUndeterminedInformationRatio = 2e-3;
 
 // Whitened residuals w = L⁻¹ r with C = L Lᵀ: independent, unit variance under the model.
 std::vector<Eigen::Vector2d> whitened_residuals(const std::vector<OwnMatch>& matches, const RestTest& fit) {
@@ -104,10 +111,26 @@ Eigen::Matrix2d predicted_match_covariance(double zncc, std::size_t pixel_count,
                                            const Eigen::Matrix2d& information, double correlated) {
   const double floor2 = kNoiseFloorPx * kNoiseFloorPx;
   const Eigen::Matrix2d floor = floor2 * Eigen::Matrix2d::Identity();
-  if (pixel_count == 0 || !(information.determinant() > 0.0)) return 1e6 * Eigen::Matrix2d::Identity();
+  if (pixel_count == 0 || !(information.determinant() > 0.0))
+    return kUndetermined_px2 * Eigen::Matrix2d::Identity();
   const double difference = 2.0 * std::max(1.0 - zncc, 0.0);  // Σ (f − g)² / Σ f²
   const double per_pixel = difference / static_cast<double>(pixel_count) * std::max(1.0, correlated);
+  // A direction the texture barely determines (straight ridges: along them) is one the match does not solve
+  // for (Subset's eigenvalue floor) and keeps from its start: its noise formula would promise a precision
+  // the match never had there, so the direction counts as not measured.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(information);
+  const Eigen::Vector2d lambda = eig.eigenvalues();
+  if (!(lambda(0) >= kUndeterminedInformationRatio * lambda(1))) {
+    const Eigen::Vector2d weak = eig.eigenvectors().col(0), strong = eig.eigenvectors().col(1);
+    return per_pixel / lambda(1) * strong * strong.transpose() +
+           kUnmeasuredVariance_px2 * weak * weak.transpose() + floor;
+  }
   return per_pixel * information.inverse() + floor;
+}
+
+bool has_unmeasured_direction(const Eigen::Matrix2d& covariance_px2) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(covariance_px2);
+  return eig.eigenvalues()(1) >= 0.5 * kUnmeasuredVariance_px2;
 }
 
 double mahalanobis2(Vec2 shift_px, const Eigen::Matrix2d& covariance_px2) {

@@ -34,13 +34,22 @@ struct OwnMatch {
   Eigen::Matrix2d covariance_px2;  // of position_px, predicted (predicted_match_covariance)
 };
 
-// The covariance of a translation match's position, px²: σ_d² H⁻¹, where H = Σ ∇f ∇fᵀ over the subset
+// The covariance of a translation match's position, px²: σ_d² H⁻¹ (a direction whose information is below
+// 2e-3 of the other's, which the match leaves at its start, kUnmeasuredVariance_px2 instead), where H = Σ ∇f
+// ∇fᵀ over the subset
 // (`information` is H over the subset's energy Σ f², as Subset reports it) and σ_d² the variance of the
 // matched pixels' difference, from the match's correlation: Σ (f − g)² ≈ 2 (1 − ZNCC) Σ f². Smoothing
 // both frames by a Gaussian of σ_p correlates the residual over about 4π σ_p² pixels (`correlated_pixels`,
 // counted on the subset's own lattice), which the sum over pixels would otherwise count as independent.
 Eigen::Matrix2d predicted_match_covariance(double zncc, std::size_t pixel_count,
                                            const Eigen::Matrix2d& information, double correlated_pixels);
+
+// The variance predicted_match_covariance gives a direction the texture does not determine (straight
+// ridges along them, a frame without texture), px²: the match keeps its start there, which may be off by the
+// tracker's reach; a position with such a direction is not measured along it.
+inline constexpr double kUnmeasuredVariance_px2 = 100.0;
+// Whether a predicted covariance has such a direction.
+bool has_unmeasured_direction(const Eigen::Matrix2d& covariance_px2);
 
 // How many matched pixels share one noise sample after a Gaussian prefilter of σ_p on a lattice of stride s.
 double correlated_pixels(double prefilter_sigma_px, int stride);

@@ -119,6 +119,9 @@ struct FrameStats {
   int fusion_declined = 0;  // tracks whose fused position lay outside their own match's noise: own match
   int local_fit = 0;        // tracks reporting a local fit of their neighbours' matches (flow/local_fit.hpp)
   int local_fit_by_component = 0;  // of those, tracks whose two components come from different windows
+  // Alive tracks whose own match has a direction the texture does not determine (straight ridges, no
+  // texture): their position is not measured along it (covariance kUnmeasuredVariance_px2 there).
+  int unmeasured_direction = 0;
 };
 
 // Frame 0's sizing of the main subsets for the moving frame's affine test (docs/flow.md, "Frame 0"): the

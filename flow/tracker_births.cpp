@@ -337,6 +337,7 @@ void FeatureTracker::Impl::finish_frame() {
     const Eigen::Matrix2d& c = st.own.covariance_px2;
     t.covariance_px2 = st.own_valid ? std::array<double, 3>{c(0, 0), c(0, 1), c(1, 1)}
                                     : std::array<double, 3>{nan, nan, nan};
+    if (st.own_valid && has_unmeasured_direction(c)) ++stats.unmeasured_direction;
     t.own_position_px = st.own_valid ? st.own.position_px : Vec2{nan, nan};
     if (settings.refine) {
       t.zncc = st.match.zncc;

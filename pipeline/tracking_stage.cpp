@@ -7,6 +7,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "core/csv.hpp"
@@ -128,7 +129,21 @@ class TrackingStage final : public Stage {
     a(reference_normalization_, reference_has_ellipse_, reference_row_, reference_frame_index_, frames_,
       tracker_rows_, track_s_, tracked_frames_, plate_frames_not_matched_, rest_frames_averaged_,
       rest_frames_on_fit_, affine_fit_frames_, model_track_frames_, local_fit_by_component_, fusion_declined_,
-      smoothing_declined_);
+      smoothing_declined_, unmeasured_direction_);
+  }
+
+  // Positions with a direction no match measured are said, with how many and where to see them.
+  std::vector<std::string> warnings() const override {
+    std::int64_t track_frames = 0;
+    for (const std::int64_t n : model_track_frames_) track_frames += n;
+    if (unmeasured_direction_ == 0 || track_frames == 0) return {};
+    char share[32];
+    std::snprintf(share, sizeof share, "%.1f",
+                  100.0 * static_cast<double>(unmeasured_direction_) / static_cast<double>(track_frames));
+    return {std::to_string(unmeasured_direction_) + " track-frames (" + share +
+            " %) have a direction the texture does not determine (straight ridges, or no texture): their "
+            "position is not measured along it (variance 100 px2 there in /tracks/covariance_px2, and the "
+            "strain's /strain/total_sd)"};
   }
 
   // Smoothing in time (flow/temporal_smoothing.hpp) once the trial is complete, where the settings in effect
@@ -258,6 +273,8 @@ class TrackingStage final : public Stage {
     // Of the local-fit track-frames, those whose x and y come from different windows (flow/local_fit.hpp).
     s["local_fit_by_component_track_frames"] = local_fit_by_component_;
     s["fusion_declined_track_frames"] = fusion_declined_;
+    // Alive track-frames whose own match has a direction the texture does not determine (docs/flow.md).
+    s["unmeasured_direction_track_frames"] = unmeasured_direction_;
     s["smoothing_declined_track_frames"] = smoothing_declined_;
     s["tracks_total"] = tracker_ ? tracker_->tracks().size() : 0;
     double alive_sum = 0.0;
@@ -347,6 +364,7 @@ class TrackingStage final : public Stage {
     record.affine_correlation_z = stats.affine_correlation_z;
     record.affine_hidden_px = stats.affine_hidden_px;
     fusion_declined_ += stats.fusion_declined;
+    unmeasured_direction_ += stats.unmeasured_direction;
   }
 
   // The tracks as they are after this frame: alive ones with position and what it is, retired ones with
@@ -591,6 +609,7 @@ class TrackingStage final : public Stage {
   std::array<std::int64_t, 6> model_track_frames_{};
   std::int64_t local_fit_by_component_ = 0;  // local-fit track-frames whose components' windows differ
   std::int64_t fusion_declined_ = 0, smoothing_declined_ = 0;
+  std::int64_t unmeasured_direction_ = 0;  // alive track-frames with a direction no match measured
   bool smoothed_ = false;
   std::int64_t smoothed_track_frames_ = 0;
   double smoothing_noise_px_median_ = 0.0;

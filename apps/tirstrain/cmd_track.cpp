@@ -125,7 +125,8 @@ nlohmann::json frame_json(const flow::FrameStats& s) {
                       {"local_fit", s.local_fit},
                       {"local_fit_by_component", s.local_fit_by_component},
                       {"affine_fit", s.affine_fit},
-                      {"on_affine_fit", s.on_affine_fit}};
+                      {"on_affine_fit", s.on_affine_fit},
+                      {"unmeasured_direction", s.unmeasured_direction}};
   if (s.rest_tested) {
     f["rest_chi2_per_dof"] =
         std::isfinite(s.rest_chi2_per_dof) ? nlohmann::json(s.rest_chi2_per_dof) : nullptr;
@@ -200,12 +201,12 @@ class TrackRun {
     } catch (const Error& e) {
       throw Error(e.message(), {.file = o_.input, .frame = first->index});
     }
-    if (!o_.points_csv.empty()) say_points_not_started(size);
+    say_points_not_started(size);
     write_rows(first->index);
   }
 
-  // Given points that could not start are retired in frame 0; the run says why, which the status code
-  // alone does not: a subset needs a margin inside the frame (or --roi).
+  // Points that could not start are retired in frame 0; the run says why, which the status code alone does
+  // not: a subset needs a margin inside the frame (or --roi), and texture to match.
   void say_points_not_started(cv::Size size) const {
     const cv::Rect region =
         o_.roi.empty() ? cv::Rect(0, 0, size.width, size.height) : parse_roi(o_.roi, size);
@@ -225,9 +226,10 @@ class TrackRun {
                 << " edge, where a subset does not fit: not tracked (status "
                 << static_cast<int>(flow::TrackStatus::kPoorMatch) << " in frame 0)\n";
     if (other > 0)
-      std::cerr << "tirstrain track: warning: " << other
-                << " of the given points found no converged match in frame 0 (too little texture around "
-                   "them): not tracked\n";
+      std::cerr << "tirstrain track: warning: " << other << " of the " << tracker_->tracks().size()
+                << (o_.points_csv.empty() ? " grid" : " given")
+                << " points found no converged match in frame 0 (too little texture around them): not "
+                   "tracked\n";
   }
 
   void track_frames() {
@@ -260,6 +262,7 @@ class TrackRun {
       if (flow::is_alive(t.status)) ++by_model_[static_cast<std::size_t>(t.model)];
     }
     frames_json_.push_back(frame_json(tracker_->stats()));
+    unmeasured_direction_ += tracker_->stats().unmeasured_direction;
     ++frames_;
   }
 
@@ -278,6 +281,7 @@ class TrackRun {
                                      {"smoothed_in_time", by_model_[3]},
                                      {"local_fit", by_model_[4]},
                                      {"affine_fit", by_model_[5]}}},
+                                   {"unmeasured_direction_track_frames", unmeasured_direction_},
                                    {"per_frame", frames_json_}};
     AtomicFile json(settings_path(o_.out));
     json.append(report.dump(2) + "\n");
@@ -287,6 +291,12 @@ class TrackRun {
   }
 
   void print_summary() const {
+    if (unmeasured_direction_ > 0)
+      std::cerr << "tirstrain track: warning: " << unmeasured_direction_
+                << " track-frames have a direction the texture does not determine (straight ridges, or no "
+                   "texture): their position along it is where the search started, not a measurement "
+                   "(per frame: unmeasured_direction in "
+                << settings_path(o_.out) << ")\n";
     if (o_.quiet) return;
     long alive = 0;
     for (const flow::Track& t : tracker_->tracks()) alive += flow::is_alive(t.status) ? 1 : 0;
@@ -312,6 +322,7 @@ class TrackRun {
   CsvWriter out_;
   nlohmann::json frames_json_ = nlohmann::json::array();
   std::array<long, 6> by_model_{};
+  long unmeasured_direction_ = 0;  // alive track-frames with a direction no match measured
   int frames_ = 0;
   std::vector<std::int64_t> skipped_;  // input frame indices that could not be decoded
 };

@@ -117,6 +117,22 @@ TEST(ModelCheck, PredictedCovarianceFollowsTheResidualAndTheTexture) {
   EXPECT_NEAR(correlated_pixels(1.0, 1), 4 * kPi, 1e-12);
   EXPECT_EQ(correlated_pixels(0.0, 1), 1.0);
   EXPECT_NEAR(mahalanobis2({0.1, 0.0}, 0.01 * Eigen::Matrix2d::Identity()), 1.0, 1e-12);
+  EXPECT_FALSE(has_unmeasured_direction(c));
+}
+
+// Straight ridges at 30°: the information along them is 1e-4 of that across (noise only), below what the
+// match solves for. Across, the noise formula holds; along, the position is not measured (variance
+// kUnmeasuredVariance_px2), however small the noise formula would make it.
+TEST(ModelCheck, ADirectionTheTextureDoesNotDetermineIsNotMeasured) {
+  const Eigen::Vector2d across(std::cos(kPi / 6), std::sin(kPi / 6)), along(-across.y(), across.x());
+  const Eigen::Matrix2d information = 0.04 * across * across.transpose() + 4e-6 * along * along.transpose();
+  const Eigen::Matrix2d c = predicted_match_covariance(0.99, 400, information, 1.0);
+  EXPECT_NEAR(across.dot(c * across), 5e-5 / 0.04 + 1e-6, 1e-9);
+  EXPECT_NEAR(along.dot(c * along), kUnmeasuredVariance_px2 + 1e-6, 1e-9);
+  EXPECT_TRUE(has_unmeasured_direction(c));
+  // At 1 % of the other direction's information the texture determines it: the formula holds.
+  const Eigen::Matrix2d weak = 0.04 * across * across.transpose() + 4e-4 * along * along.transpose();
+  EXPECT_NEAR(along.dot(predicted_match_covariance(0.99, 400, weak, 1.0) * along), 5e-5 / 4e-4 + 1e-6, 1e-9);
 }
 
 // A speckle of Gaussian dots (radius ~2 px) evaluated analytically: frame k shows it at X = x − u(X),

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <iterator>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <string>
@@ -93,6 +94,7 @@ TEST(TrackCli, SubPixelShiftOfSpeckle) {
   EXPECT_FALSE(j["texture"]["ridges"].get<bool>());
   EXPECT_LT(j["texture"]["coherence"].get<double>(), 0.35);
   EXPECT_EQ(j["settings"]["subset_stride"].get<int>(), 1);
+  EXPECT_EQ(j["unmeasured_direction_track_frames"].get<int>(), 0);  // a speckle determines both directions
   EXPECT_EQ(j["settings"]["preset"].get<std::string>(), "auto");
   EXPECT_EQ(j["per_frame"].size(), 2u);
   EXPECT_FALSE(j["per_frame"][1]["at_rest"].get<bool>());
@@ -227,6 +229,35 @@ TEST(TrackCli, PointsTooNearTheEdgeAreSaidNotTracked) {
       EXPECT_NEAR(t.column("x_px")[i] - t.column("X_px")[i], 0.3, 0.02);
     }
   EXPECT_EQ(alive_at_1, 1);
+}
+
+// Straight parallel ridges carry no information along them: the track positions there are not measured,
+// and the run says so (the count in the JSON), where a speckle's are all measured.
+TEST(TrackCli, StraightRidgesSayTheDirectionAlongThemIsNotMeasured) {
+  const std::filesystem::path dir = std::filesystem::path(TIRSTRAIN_TEST_TMP) / "flow" / "straight_ridges";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir / "frames");
+  const double c = std::cos(std::numbers::pi / 6), s = std::sin(std::numbers::pi / 6);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 300.0);  // 0.5 % of full scale
+  for (int k = 0; k < 3; ++k) {
+    cv::Mat img(96, 96, CV_16U);
+    for (int y = 0; y < img.rows; ++y)
+      for (int x = 0; x < img.cols; ++x) {
+        const double across = (x - 0.6 * k) * c + (y - 0.3 * k) * s;
+        img.at<std::uint16_t>(y, x) = static_cast<std::uint16_t>(
+            20000 + 15000 * std::cos(2 * std::numbers::pi * across / 16.0) + noise(rng));
+      }
+    cv::imwrite((dir / "frames" / ("00000" + std::to_string(k) + ".png")).string(), img);
+  }
+  const std::string log = (dir / "log.txt").string(), out = (dir / "t.csv").string();
+  ASSERT_EQ(run("track " + (dir / "frames").string() + " --grid 16 --out " + out + " --quiet 2>" + log), 0);
+  std::ifstream in(log);
+  const std::string output((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(output.find("have a direction the texture does not determine"), std::string::npos) << output;
+  std::ifstream json_file((dir / "t.json").string());
+  const nlohmann::json report = nlohmann::json::parse(json_file);
+  EXPECT_GT(report["unmeasured_direction_track_frames"].get<int>(), 0);
 }
 
 }  // namespace
