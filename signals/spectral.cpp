@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <numbers>
 #include <string>
 
@@ -123,7 +125,27 @@ std::vector<std::complex<double>> rfft(const std::vector<double>& x) {
   return out;
 }
 
+namespace {
+
+// A spectrum sums squared samples: one beyond the square root of a double's range would give infinities
+// that look like measured power. Said instead, with the largest sample.
+void check_power_range(const std::vector<double>& x, const char* which) {
+  const double limit = std::sqrt(std::numeric_limits<double>::max()) * 1e-3;
+  const auto largest =
+      std::max_element(x.begin(), x.end(), [](double a, double b) { return std::abs(a) < std::abs(b); });
+  if (largest != x.end() && !(std::abs(*largest) < limit)) {
+    char value[32];
+    std::snprintf(value, sizeof value, "%g", *largest);
+    throw Error(std::string("the ") + which + " reaches " + value +
+                    ": its power would overflow a double; rescale it (e.g. to SI units)",
+                {});
+  }
+}
+
+}  // namespace
+
 PowerSpectrum welch(const std::vector<double>& x, double sample_rate_Hz, const WelchOptions& options) {
+  check_power_range(x, "signal");
   const Segmentation s = plan(x.size(), sample_rate_Hz, options);
   SegmentTransformer tr(s.segment, options.detrend);
   PowerSpectrum out;
@@ -145,6 +167,8 @@ TransferEstimate transfer_estimate(const std::vector<double>& x, const std::vect
     throw Error("input and output have different lengths (" + std::to_string(x.size()) + " and " +
                     std::to_string(y.size()) + " samples)",
                 {});
+  check_power_range(x, "input");
+  check_power_range(y, "output");
   const Segmentation s = plan(x.size(), sample_rate_Hz, options);
   SegmentTransformer tx(s.segment, options.detrend), ty(s.segment, options.detrend);
   TransferEstimate out;

@@ -145,6 +145,20 @@ TEST(TransferEstimate, RecoversFirSystemAndCoherence) {
   EXPECT_NEAR(std::abs(c.csd[10] - clean.pxy[10]), 0.0, 1e-15);
 }
 
+// A sample whose square overflows a double would give an infinite spectrum that looks like power: refused.
+TEST(Welch, SamplesTooLargeForTheirPowerAreRefused) {
+  std::vector<double> x(256, 0.0);
+  x[10] = 1e308;
+  try {
+    ts::welch(x, 1000.0, {.segment = 64});
+    FAIL() << "no error";
+  } catch (const tirstrain::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("reaches 1e+308"), std::string::npos) << e.what();
+  }
+  x[10] = 1e100;  // large, but its power is finite
+  for (const double p : ts::welch(x, 1000.0, {.segment = 64}).psd) EXPECT_TRUE(std::isfinite(p));
+}
+
 TEST(Welch, SegmentErrorsNameTheParameter) {
   try {
     ts::welch(std::vector<double>(100, 1.0), 1.0, {.segment = 200});
