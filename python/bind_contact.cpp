@@ -70,17 +70,24 @@ SegmenterOptions parse_options(const py::kwargs& kwargs) {
   for (const auto& [key_handle, value] : kwargs) {
     const std::string key = py::cast<std::string>(key_handle);
     if (key == "preset") continue;
-    if (key == "ridge_period_px") {
-      options.ridge_period_px = value.is_none() ? std::nullopt : std::optional(py::cast<double>(value));
-      continue;
+    // A value of the wrong type names its keyword, as a range error does.
+    try {
+      if (key == "ridge_period_px") {
+        options.ridge_period_px = value.is_none() ? std::nullopt : std::optional(py::cast<double>(value));
+        continue;
+      }
+      const auto field = option_fields().find(key);
+      if (field == option_fields().end()) throw Error("unknown segmentation option", {.key = key});
+      std::visit(
+          [&](auto member) {
+            options.*member = py::cast<std::remove_reference_t<decltype(options.*member)>>(value);
+          },
+          field->second);
+    } catch (const py::cast_error&) {
+      throw Error(
+          "expected a number or a flag, got " + std::string(py::str(py::type::of(value).attr("__name__"))),
+          {.key = key});
     }
-    const auto field = option_fields().find(key);
-    if (field == option_fields().end()) throw Error("unknown segmentation option", {.key = key});
-    std::visit(
-        [&](auto member) {
-          options.*member = py::cast<std::remove_reference_t<decltype(options.*member)>>(value);
-        },
-        field->second);
   }
   options.check();
   return options;

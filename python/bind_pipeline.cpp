@@ -114,6 +114,7 @@ void read_group(const H5::Group& group, const std::string& prefix, const std::st
 
 py::dict read_result(const py::object& path_object) {
   const std::string path = path_text(path_object);
+  if (!std::ifstream(path)) throw Error("no such file, or it cannot be read", {.file = path});
   py::dict out;
   try {
     H5::Exception::dontPrint();

@@ -74,8 +74,15 @@ def test_errors_name_the_input(tmp_path):
         tirstrain.process(missing, tmp_path / "out", quiet=True)
     assert str(e.value) == f"{missing}: no such file or folder"
     assert not (tmp_path / "out").exists()
-    with pytest.raises(tirstrain.Error, match="cannot read HDF5 file"):
+    with pytest.raises(tirstrain.Error, match="none.h5: no such file"):
         tirstrain.read_result(tmp_path / "none.h5")
+    (tmp_path / "text.h5").write_text("not HDF5\n")
+    with pytest.raises(tirstrain.Error, match="cannot read HDF5 file"):
+        tirstrain.read_result(tmp_path / "text.h5")
+    # Where the command line names its option, the module names the keyword argument.
+    with pytest.raises(tirstrain.Error) as e:
+        tirstrain.process(missing, tmp_path / "out", preset="fastest", quiet=True)
+    assert "--" not in str(e.value) and "preset" in str(e.value)
 
 
 def test_track_reads_a_frames_folder(trial, tmp_path, cli):

@@ -64,6 +64,8 @@ def test_track_errors_name_the_frame():
     bad[3, 5] = np.inf
     with pytest.raises(tirstrain.Error, match="not a finite number"):
         tirstrain.segment(bad, px_per_mm=52.0)
+    with pytest.raises(tirstrain.Error, match="px_per_mm.*expected a number"):
+        tirstrain.segment(good, px_per_mm="x")
 
 
 def test_segment_finds_a_drawn_contact():
