@@ -34,13 +34,13 @@ struct OwnMatch {
   Eigen::Matrix2d covariance_px2;  // of position_px, predicted (predicted_match_covariance)
 };
 
-// The covariance of a translation match's position, px²: σ_d² H⁻¹ (a direction whose information is below
-// 2e-3 of the other's, which the match leaves at its start, kUnmeasuredVariance_px2 instead), where H = Σ ∇f
-// ∇fᵀ over the subset
+// The covariance of a translation match's position, px²: σ_d² H⁻¹, where H = Σ ∇f ∇fᵀ over the subset
 // (`information` is H over the subset's energy Σ f², as Subset reports it) and σ_d² the variance of the
 // matched pixels' difference, from the match's correlation: Σ (f − g)² ≈ 2 (1 − ZNCC) Σ f². Smoothing
 // both frames by a Gaussian of σ_p correlates the residual over about 4π σ_p² pixels (`correlated_pixels`,
 // counted on the subset's own lattice), which the sum over pixels would otherwise count as independent.
+// A direction whose information is below 2e-3 of the other's, which the match leaves at its start, has
+// kUnmeasuredVariance_px2 instead.
 Eigen::Matrix2d predicted_match_covariance(double zncc, std::size_t pixel_count,
                                            const Eigen::Matrix2d& information, double correlated_pixels);
 

@@ -93,6 +93,10 @@ std::string column_unit_list(Quantity quantity) {
   return out;
 }
 
+bool names_a_bracketed_unit(const std::string& column) {
+  return bracketed_unit(column).has_value();
+}
+
 std::optional<ColumnUnit> unit_of_column_name(const std::string& column, Quantity quantity) {
   if (const auto b = bracketed_unit(column)) {
     for (const ColumnUnit& u : column_units(quantity))

@@ -52,6 +52,8 @@ std::string column_unit_list(Quantity quantity);
 // read as "_m"), or in brackets as spreadsheets write it ("Fz [mN]", "x (mm)", "a [m/s^2]", "[µm]");
 // nullopt when the name carries none of them.
 std::optional<ColumnUnit> unit_of_column_name(const std::string& column, Quantity quantity);
+// Whether `column` ends with a unit in brackets ("Fz [kN]"), known or not.
+bool names_a_bracketed_unit(const std::string& column);
 
 struct ChannelTable {
   std::string path;

@@ -80,8 +80,7 @@ std::vector<std::string> split_channel_names(const std::vector<std::string>& arg
 // ("Fz [kN]") is refused rather than read as N.
 std::vector<double> force_in_N(const signals::ChannelTable& table, const std::string& column) {
   const std::optional<double> N_per_unit = si_per_unit(column, "", signals::Quantity::kForce, "");
-  const auto last = column.find_last_not_of(' ');
-  if (!N_per_unit && last != std::string::npos && (column[last] == ']' || column[last] == ')'))
+  if (!N_per_unit && signals::names_a_bracketed_unit(column))
     throw Error("cannot tell the unit of column '" + column + "' (forces are read in " +
                     signals::column_unit_list(signals::Quantity::kForce) + ")",
                 {.file = table.path, .key = column});
