@@ -92,6 +92,29 @@ class ContactStage final : public Stage {
     context.contact = std::move(result);
   }
 
+  // What process() gave the later stages for row `row` (the model fit reads the frame's ellipse): the
+  // frame's own measurement, before any smoothing of the centres in time, as when the frames were read.
+  void replay(FrameContext& context, std::size_t row) override {
+    if (!keep_history_ || row >= records_.size() || !context.usable) return;
+    const ContactRecord& r = records_[row];
+    contact::ContactResult result;
+    result.status = r.status;
+    result.area_mm2 = r.area_mm2;
+    result.hull_px = r.hull_px;
+    result.texture_snr = r.texture_snr;
+    result.border_averaged = r.border_averaged;
+    result.border_band_used = r.border_band_used;
+    result.ridge_label_shift_px = r.ridge_label_shift_px;
+    result.ridge_label_shape_px = r.ridge_label_shape_px;
+    result.orientation_rad = r.orientation_rad;
+    result.coherence = r.coherence;
+    if (r.ellipse[2] > 0.0) {
+      const cv::Point2d centre = r.measured_centre_px.value_or(cv::Point2d(r.ellipse[0], r.ellipse[1]));
+      result.ellipse = contact::Ellipse{centre.x, centre.y, r.ellipse[2], r.ellipse[3], r.ellipse[4]};
+    }
+    context.contact = std::move(result);
+  }
+
   // Smooths the centres in time. The stages after this one read the contact only while the frames are
   // processed (the tracker's mask and reference ellipse), so nothing they derive changes: false.
   bool finish() override {
