@@ -551,6 +551,16 @@ double tracked_radius(const Samples& s, const Normaliser& n, const Solved& fit) 
   return r[at];
 }
 
+// The largest displacement the reported field gives a used track (measured − residual), px.
+double largest_field_px(const FrameFit& out, const Samples& s) {
+  double largest = 0.0;
+  for (std::size_t i = 0; i < s.q.size(); ++i) {
+    const Vec2& r = out.residual_px[s.index[i]];
+    largest = std::max(largest, std::hypot(s.u[i].x - r.x, s.u[i].y - r.y));
+  }
+  return largest;
+}
+
 // The partial-slip slot's fit: free, or at the trial's limit (`known_limit` > 0).
 struct PartialChoice {
   const TrialLimit* limit = nullptr;
@@ -654,6 +664,11 @@ FrameFit fit_frame(const FrameObservations& obs, const FitOptions& options, cons
   }
   out.model = choose_model(out, shared.bic, !has_limit);
   report_chosen(out, f, s, n, nu, u, options, partial);
+  if (out.model != FieldModel::rest && largest_field_px(out, s) < options.rest_tolerance_px) {
+    out.model = FieldModel::rest;
+    out.status = FitStatus::ok;
+    report_chosen(out, f, s, n, nu, u, options, partial);
+  }
   return out;
 }
 

@@ -22,8 +22,12 @@ struct FitOptions {
   double radius_prior_sd =
       0.01;  // SD of the segmented centre and radius over a, a prior on them; 0: none (0.01)
   double prior_noise_px = 0.05;  // tracking noise that prior is weighed against, px (default 0.05)
-  int max_iterations = 30;       // Ceres iterations per field (default 30)
-  int threads = 1;               // Ceres threads per solve (default 1)
+  // A loaded field that moves no used track by more than this is reported as rest, px: below the tracker's
+  // own rest tolerance a fit's load is not a measured one, however significant its criteria find it
+  // (default 0.01)
+  double rest_tolerance_px = 0.01;
+  int max_iterations = 30;  // Ceres iterations per field (default 30)
+  int threads = 1;          // Ceres threads per solve (default 1)
 };
 
 // The segmented contact ellipse, as /contact/ellipse stores it.

@@ -249,6 +249,7 @@ void write_h5(const std::string& path, const ResultForFit& r, const FitRun& run,
   h5.attribute("/fit", "young_Pa", r.young_Pa);
   h5.attribute("/fit", "poisson", r.poisson);
   h5.attribute("/fit", "loss_scale_px", options.loss_scale_px);
+  h5.attribute("/fit", "rest_tolerance_px", options.rest_tolerance_px);
   h5.attribute("/fit", "min_tracks", static_cast<double>(options.min_tracks));
   h5.attribute("/fit", "contact_margin", options.contact_margin);
   h5.attribute("/fit", "trial_limit_N", run.trial_limit ? run.trial_limit->limit_N : kNaN);

@@ -104,6 +104,7 @@ class FitStage final : public Stage {
     out.attribute("/fit", "young_Pa", young_Pa_);
     out.attribute("/fit", "poisson", poisson_);
     out.attribute("/fit", "loss_scale_px", options_.fit.loss_scale_px);
+    out.attribute("/fit", "rest_tolerance_px", options_.fit.rest_tolerance_px);
     out.attribute("/fit", "min_tracks", static_cast<double>(options_.fit.min_tracks));
     out.attribute("/fit", "contact_margin", options_.fit.contact_margin);
     out.attribute("/fit", "trial_limit_N", trial_limit_ ? trial_limit_->limit_N : kNaN);

@@ -207,6 +207,25 @@ TEST(CmFit, RestFrameIsNoLoad) {
   EXPECT_LT(f.bic[0], f.bic[1]);
 }
 
+// A load of 1e-4 μP on nearly noise-free tracks: the criteria find it significant, but its field moves no
+// track by the tracker's rest tolerance (0.01 px), so the frame is rest, not a load the tracks could measure.
+TEST(CmFit, ALoadBelowTheRestToleranceIsRest) {
+  Scenario sc;
+  sc.q_over_limit = 1e-4;
+  sc.noise_px = 0.0005;
+  const Synthetic t = synthesise(sc);
+  double largest_px = 0.0;
+  for (const Vec2& u : t.obs.displacement_px) largest_px = std::max(largest_px, std::hypot(u.x, u.y));
+  ASSERT_LT(largest_px, 0.01);
+  FitOptions sensitive;
+  sensitive.rest_tolerance_px = 0.0;  // the criteria alone
+  EXPECT_NE(fit_frame(t.obs, sensitive).model, FieldModel::rest);
+  const FrameFit f = fit_frame(t.obs, FitOptions{});
+  ASSERT_EQ(f.status, FitStatus::ok);
+  EXPECT_EQ(f.model, FieldModel::rest);
+  EXPECT_EQ(f.tangential_N.value, 0.0);
+}
+
 // Tracks out to 0.8 a only, as tracking stops short of a contact's fading border. At Q/μP = 0.3 the slip
 // annulus (c = 0.89 a) lies beyond every track: the frame alone cannot tell its c. Frames at 0.9–0.97 of the
 // limit resolve their annulus and stick zone; the trial's μP measured on them gives the first frame's c from
