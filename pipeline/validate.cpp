@@ -1,5 +1,6 @@
 #include "pipeline/validate.hpp"
 
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -8,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <map>
 #include <numbers>
@@ -214,6 +216,7 @@ const std::vector<std::string>& validate_output_names() {
                                                  "validation_rings.csv",
                                                  "validation_frames.csv",
                                                  "validation_tracks.csv",
+                                                 "validation.json",
                                                  "maps_E_xx.png",
                                                  "maps_E_yy.png",
                                                  "maps_E_xy.png"};
@@ -246,6 +249,43 @@ ValidationReport with_final_paths(ValidationReport report, const StagingDirector
   rebase(report.result_dir);
   for (std::string& path : report.outputs) rebase(path);
   return report;
+}
+
+// What a result's summary.json says about the run that made it: its input and wall time (together they
+// tell one run from another, wherever its folder is now); empty without a summary.
+nlohmann::json result_identity(const std::string& result_dir) {
+  const fs::path summary = fs::path(result_dir) / "summary.json";
+  if (!fs::exists(summary)) return {};
+  std::ifstream in(summary);
+  const nlohmann::json s = nlohmann::json::parse(in, nullptr, false);
+  if (s.is_discarded() || !s.is_object()) return {};
+  return {{"input", s.value("input", "")}, {"wall_time_s", s.value("wall_time_s", 0.0)}};
+}
+
+// A --result processed from another trial folder that still exists would be compared with this trial's
+// truth: refused, naming both. (A result whose input folder is gone or is no trial cannot be told apart.)
+void check_result_of_trial(const ValidateOptions& options, const std::string& trial_dir) {
+  if (!options.result_dir) return;
+  const nlohmann::json identity = result_identity(*options.result_dir);
+  const std::string input = identity.is_object() ? identity.value("input", "") : "";
+  if (input.empty() || !fs::exists(fs::path(input) / "truth.h5")) return;
+  std::error_code failed;
+  if (fs::equivalent(input, trial_dir, failed) || failed) return;
+  throw Error("is a result of the trial " + input + ", not of " + trial_dir +
+                  ": its errors would be taken against another trial's truth",
+              {.file = *options.result_dir, .key = "--result"});
+}
+
+// OUT/validation.json: which trial and which result run the tables describe, so that `tirstrain report`
+// can refuse a validation given beside another result.
+void write_provenance(const fs::path& out, const std::string& trial_dir, const std::string& result_dir,
+                      const std::string& final_result_dir, std::size_t frames) {
+  const nlohmann::json j = {{"format", "tirstrain validation"},
+                            {"trial", fs::absolute(trial_dir).lexically_normal().string()},
+                            {"result", fs::absolute(final_result_dir).lexically_normal().string()},
+                            {"result_run", result_identity(result_dir)},
+                            {"frames", frames}};
+  write_text_file((out / "validation.json").string(), j.dump(2) + "\n");
 }
 
 // The trial folder: synthesised into OUT/trial from --scene, or the --trial given.
@@ -432,6 +472,7 @@ ValidationReport run_validate(const ValidateOptions& options) {
     throw Error("frame " + std::to_string(options.map_frame) + " is past the trial's last frame (" +
                     std::to_string(trial.frames() - 1) + ")",
                 {.key = "--map-frame"});
+  check_result_of_trial(options, trial_dir);
   process_trial(options, trial_dir, staging, report);
   const std::string result_path = (fs::path(report.result_dir) / "result.h5").string();
   if (!fs::exists(result_path))
@@ -477,6 +518,9 @@ ValidationReport run_validate(const ValidateOptions& options) {
   for (std::string& path :
        write_side_by_side_maps(options, h5, result_path, trial, result.mode, out, result.frames, map_frame))
     report.outputs.push_back(std::move(path));
+  const ValidationReport final_paths = with_final_paths(report, staging);
+  write_provenance(out, trial_dir, report.result_dir, final_paths.result_dir, result.frames);
+  report.outputs.push_back((out / "validation.json").string());
   staging.commit();
   return with_final_paths(std::move(report), staging);
 }

@@ -146,6 +146,8 @@ ReportSummary write_report(const ReportOptions& o) {
   make_labels_distinct(results);
   std::vector<ValidationData> validations;
   for (const std::string& dir : o.validations) validations.push_back(read_validation(dir));
+  for (std::size_t i = 0; i < validations.size(); ++i)
+    check_validation_of(validations[i], results[i].summary, results[i].dir);
   const Page page = build_page(o, results, validations);
   const std::string html = render_page(page);
   AtomicFile out(o.out_path);

@@ -1,6 +1,7 @@
 #include "report/validation_data.hpp"
 
 #include <filesystem>
+#include <fstream>
 
 #include "core/error.hpp"
 
@@ -19,6 +20,10 @@ ValidationData read_validation(const std::string& dir) {
     if (!v.summary.has(column))
       throw Error(std::string("not a validation table of `tirstrain validate`: no column '") + column + "'",
                   {.file = summary.string(), .key = "--validation"});
+  if (std::ifstream provenance(fs::path(dir) / "validation.json"); provenance) {
+    const nlohmann::json j = nlohmann::json::parse(provenance, nullptr, false);
+    if (j.is_object() && j.contains("result_run")) v.result_run = j["result_run"];
+  }
   const fs::path frames = fs::path(dir) / "validation_frames.csv";
   if (!fs::exists(frames)) return v;
   const TextTable t = read_text_csv(frames.string());
@@ -28,6 +33,20 @@ ValidationData read_validation(const std::string& dir) {
   v.U_J = t.numbers("U_J");
   v.U_truth_J = t.numbers("U_truth_J");
   return v;
+}
+
+void check_validation_of(const ValidationData& validation, const nlohmann::json& result_summary,
+                         const std::string& result_dir) {
+  if (!validation.result_run.is_object() || !validation.result_run.contains("input")) return;
+  const std::string input = result_summary.value("input", "");
+  const double wall_time_s = result_summary.value("wall_time_s", -1.0);
+  if (input == validation.result_run.value("input", "") &&
+      wall_time_s == validation.result_run.value("wall_time_s", -2.0))
+    return;
+  throw Error("describes another result run (of " + validation.result_run.value("input", std::string("?")) +
+                  ") than " + result_dir + " (of " + input +
+                  "): give each result its own validation, in the results' order",
+              {.file = validation.dir, .key = "--validation"});
 }
 
 }  // namespace tirstrain::report

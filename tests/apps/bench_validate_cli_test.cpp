@@ -311,6 +311,40 @@ TEST(ValidateCli, ProcessDefaultsJudgeTheMeasurementAndNameTheCalibration) {
   EXPECT_LT(area_rms_pct, 2.0);
 }
 
+// A result is validated against its own trial only, and a validation shown beside its own result only:
+// validate refuses a --result of another trial that is still there, and report a --validation that
+// describes another result run (validation.json records which).
+TEST(ValidateCli, AResultAndAValidationOfAnotherTrialAreRefused) {
+  const std::string out = fresh_dir("validate_provenance");
+  std::string trials[2];
+  const char* shipped[2] = {"default", "direction_radial"};
+  for (int i = 0; i < 2; ++i) {
+    const fs::path scene = shortened_scene(fs::path(out) / shipped[i], shipped[i], 4);
+    trials[i] = out + "/" + shipped[i] + "/trial";
+    ASSERT_EQ(run_cli("synth --scene " + scene.string() + " --out " + trials[i] + " --quiet").exit_code, 0);
+    ASSERT_EQ(
+        run_cli("process " + trials[i] + " --out " + trials[i] + "_result --overlay none --quiet").exit_code,
+        0);
+  }
+  const auto other = run_cli("validate --trial " + trials[0] + " --result " + trials[1] + "_result --out " +
+                             out + "/v_other --quiet --no-maps");
+  EXPECT_EQ(other.exit_code, 1) << other.output;
+  EXPECT_NE(other.output.find("is a result of the trial"), std::string::npos) << other.output;
+  EXPECT_FALSE(fs::exists(out + "/v_other"));
+  const auto own = run_cli("validate --trial " + trials[0] + " --result " + trials[0] + "_result --out " +
+                           out + "/v0 --quiet --no-maps");
+  ASSERT_EQ(own.exit_code, 0) << own.output;
+  EXPECT_NE(read_text(out + "/v0/validation.json").find("\"result_run\""), std::string::npos);
+  const auto mixed =
+      run_cli("report " + trials[1] + "_result --validation " + out + "/v0 --out " + out + "/mixed.html");
+  EXPECT_EQ(mixed.exit_code, 1) << mixed.output;
+  EXPECT_NE(mixed.output.find("describes another result run"), std::string::npos) << mixed.output;
+  EXPECT_FALSE(fs::exists(out + "/mixed.html"));
+  const auto right =
+      run_cli("report " + trials[0] + "_result --validation " + out + "/v0 --out " + out + "/right.html");
+  EXPECT_EQ(right.exit_code, 0) << right.output;
+}
+
 TEST(ValidateCli, SmoothingInTimeOnNoisyTextureLowersTheErrors) {
   // The shipped heavy-noise scene (ridge SNR 1.9), its first 30 frames (rest, load, part of the
   // hold): the tracks smoothed in time, as the automatic preset does on noisy texture, against the same run
