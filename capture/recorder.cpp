@@ -282,6 +282,11 @@ class Recording {
     std::string dir = fs::path(options.out_dir).lexically_normal().string();
     while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
     final_dir_ = dir;
+    for (const std::string& input : options.input_paths)
+      if (path_is_within(input, dir))
+        throw Error("the output folder " + std::string(path_is_within(dir, input) ? "is" : "contains") +
+                        " the input " + input + "; record into a folder of its own",
+                    {.file = options.out_dir, .key = options.out_option});
     const fs::path final_root(dir);
     const bool existing = fs::exists(final_root / "frames") || fs::exists(final_root / "frames.csv") ||
                           fs::exists(final_root / "recording.json");
@@ -289,6 +294,9 @@ class Recording {
       throw Error(
           "already holds a recording (frames/, frames.csv); choose another folder or pass --overwrite",
           {.file = options.out_dir, .key = options.out_option});
+    // The earlier recording's folder is replaced as a whole: anything else in it would go with it.
+    if (existing)
+      check_replaceable_output(dir, {"frames", "frames.csv", "recording.json"}, "record", options.out_option);
     staged_ = existing;
     root_ = staged_ ? fs::path(dir + ".partial") : final_root;
     if (staged_ && fs::exists(root_))

@@ -20,6 +20,7 @@
 #include <functional>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "capture/frame_source.hpp"
 
@@ -52,6 +53,8 @@ struct RecordOptions {
   std::size_t queue_bytes = 512u * 1024u * 1024u;  // frames waiting for the writers
   int writer_threads = 2;
   bool overwrite = false;  // replace an existing recording in out_dir
+  // The source's files or folders on disk (none for a camera): out_dir must not be or hold one.
+  std::vector<std::string> input_paths;
   // What was asked of the camera and where each value came from (capture/camera_settings.hpp
   // describe_requested); written to recording.json next to the values read back from the device.
   std::map<std::string, std::string> requested_settings;

@@ -193,7 +193,7 @@ void StagingDirectory::commit() {
 }
 
 void check_replaceable_output(const std::string& dir, const std::vector<std::string>& own_names,
-                              const std::string& command) {
+                              const std::string& command, const std::string& option) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) return;
   for (const auto& entry : fs::directory_iterator(dir, ec)) {
@@ -203,7 +203,7 @@ void check_replaceable_output(const std::string& dir, const std::vector<std::str
         "the output folder holds '" + name + "', which tirstrain " + command +
             " does not write; the folder is replaced as a whole when the run completes, so give a new "
             "or empty folder",
-        {.file = dir, .key = "--out"});
+        {.file = dir, .key = option});
   }
 }
 

@@ -60,11 +60,11 @@ class StagingDirectory {
   bool keep_on_failure_ = false;
 };
 
-// Throws Error (key --out) when the folder `dir` exists and holds anything but `own_names` (or leftovers of
-// an interrupted writer, "*.partial"): `command` replaces the folder as a whole when it completes, which
+// Throws Error (key `option`) when the folder `dir` exists and holds anything but `own_names` (or leftovers
+// of an interrupted writer, "*.partial"): `command` replaces the folder as a whole when it completes, which
 // would delete the rest.
 void check_replaceable_output(const std::string& dir, const std::vector<std::string>& own_names,
-                              const std::string& command);
+                              const std::string& command, const std::string& option = "--out");
 
 // Puts the complete directory `staging` in place of `final_path`: an existing <final_path> is exchanged
 // atomically (renameat2 RENAME_EXCHANGE) and only then removed, so at every instant <final_path> is either

@@ -13,6 +13,7 @@
 #include "core/error.hpp"
 #include "core/overlay_text.hpp"
 #include "core/scene.hpp"
+#include "pipeline/output_folder.hpp"
 #include "pipeline/process_defaults.hpp"
 #include "pipeline/stage.hpp"
 #include "tirstrain/camera_options.hpp"
@@ -93,6 +94,7 @@ capture::LiveOptions live_options(const LiveArgs& args, const std::shared_ptr<Li
   options.record_dir = args.record;
   options.record.format = capture::parse_image_format(args.format, "--format");
   options.record.overwrite = args.overwrite;
+  options.record.input_paths = pipeline::input_locations(args.uri);
   options.max_frames = args.frames;
   options.max_seconds = args.seconds;
   options.play_at_recorded_rate = args.recorded_rate;

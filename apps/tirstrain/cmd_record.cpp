@@ -9,6 +9,7 @@
 #include "capture/recorder.hpp"
 #include "core/error.hpp"
 #include "core/scene.hpp"
+#include "pipeline/output_folder.hpp"
 #include "tirstrain/camera_options.hpp"
 #include "tirstrain/commands.hpp"
 #include "tirstrain/value_checks.hpp"
@@ -46,6 +47,7 @@ capture::RecordOptions record_options(const RecordArgs& args) {
   options.writer_threads = args.writers;
   options.queue_bytes = args.queue_MiB * 1024u * 1024u;
   options.overwrite = args.overwrite;
+  options.input_paths = pipeline::input_locations(args.uri);
   install_interrupt_handler();
   options.stop = &interrupt_flag();
   if (!args.quiet) options.on_progress = print_progress;

@@ -212,5 +212,29 @@ TEST(CameraSettingsCliTest, AFileShorterThanFramesAskedIsRecordedWholeAndSaysSo)
       << result.output;
 }
 
+// --overwrite replaces a recording folder as a whole: a folder that holds the input, is the input, or holds
+// other files is refused before anything is recorded, and all of it stays.
+TEST(CameraSettingsCliTest, OverwriteNeverTakesTheInputOrOtherFilesWithIt) {
+  const fs::path dir = scratch("cli_overwrite_guard");
+  const std::string input = write_frames(dir, 3);
+  const std::string rec = (dir / "rec").string();
+  ASSERT_EQ(tirstrain::testing::run_cli("record " + input + " --out " + rec + " --quiet").exit_code, 0);
+  // The recording itself as the source, into a folder holding it or into itself.
+  const auto nested = tirstrain::testing::run_cli("record " + rec + " --out " + dir.string() + " --overwrite");
+  EXPECT_EQ(nested.exit_code, 1) << nested.output;
+  EXPECT_NE(nested.output.find("contains the input"), std::string::npos) << nested.output;
+  const auto itself = tirstrain::testing::run_cli("record " + rec + " --out " + rec + " --overwrite");
+  EXPECT_EQ(itself.exit_code, 1) << itself.output;
+  EXPECT_NE(itself.output.find("is the input"), std::string::npos) << itself.output;
+  EXPECT_TRUE(fs::exists(fs::path(rec) / "recording.json"));
+  // Notes and force channels beside an earlier recording.
+  std::ofstream(fs::path(rec) / "channels.csv") << "t_s,normal_N\n0,1\n";
+  const auto foreign = tirstrain::testing::run_cli("record " + input + " --out " + rec + " --overwrite");
+  EXPECT_EQ(foreign.exit_code, 1) << foreign.output;
+  EXPECT_NE(foreign.output.find("holds 'channels.csv'"), std::string::npos) << foreign.output;
+  EXPECT_TRUE(fs::exists(fs::path(rec) / "channels.csv"));
+  EXPECT_TRUE(fs::exists(fs::path(rec) / "frames.csv"));
+}
+
 }  // namespace
 }  // namespace tirstrain::capture
