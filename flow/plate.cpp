@@ -22,11 +22,12 @@ namespace tirstrain::flow {
 void PlateTracker::archive(Archive& a) {
   a(settings_, roi_, smoothed_, band_mask_, band_, subsets_, hann_, band_correlation_, mosaic_sum_,
     mosaic_count_, mosaic_mean_, mosaic_mask_, mean_origin_, origin_x_, origin_y_, displacement_px_,
-    velocity_px_per_s_, time_s_, interval_s_, status_, base_px_, base_time_s_, ok_, used_);
+    velocity_px_per_s_, time_s_, interval_s_, status_, base_px_, base_time_s_, ok_, used_, base_u8_);
 }
 
-void PlateTracker::rebuild_previous_pyramid(const cv::Mat& previous_image_u8) {
-  cv::buildOpticalFlowPyramid(previous_image_u8(roi_), previous_pyramid_,
+void PlateTracker::rebuild_previous_pyramid() {
+  if (base_u8_.empty()) return;
+  cv::buildOpticalFlowPyramid(base_u8_(roi_), previous_pyramid_,
                               cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels);
 }
 namespace {
@@ -81,8 +82,8 @@ void PlateTracker::start(const cv::Mat& image_in, const cv::Mat& image_u8, const
   origin_x_ = roi_.x;
   origin_y_ = roi_.y;
   add_to_mosaic(image, {}, false);
-  cv::buildOpticalFlowPyramid(image_u8(roi_), previous_pyramid_,
-                              cv::Size(settings_.window_px, settings_.window_px), settings_.pyramid_levels);
+  image_u8.copyTo(base_u8_);
+  rebuild_previous_pyramid();
   cv::createHanningWindow(hann_, roi_.size(), CV_32F);
   band_correlation_.set_reference(image(roi_), hann_);
   ok_ = true;
@@ -346,6 +347,7 @@ Vec2 PlateTracker::track(const cv::Mat& image_in, const cv::Mat& image_u8, doubl
   }
   velocity_px_per_s_ = {(displacement_px_.x - before.x) / dt, (displacement_px_.y - before.y) / dt};
   std::swap(previous_pyramid_, current_pyramid_);
+  image_u8.copyTo(base_u8_);
   // The band correlated above becomes the next frame's reference, its spectrum kept.
   if (!band_correlation_.adopt_last_as_reference()) band_correlation_.set_reference(image(roi_), hann_);
   base_px_ = displacement_px_;

@@ -80,10 +80,11 @@ class PlateTracker {
   bool ok() const { return ok_; }
   PlateStatus status() const { return status_; }
   int subsets_used() const { return used_; }
-  // Its state in a checkpoint (core/archive.hpp). The previous frame's LK pyramid is not in it: LK reads
-  // past a pyramid level's edge into the frame it was cut from, so it is built again from that frame.
+  // Its state in a checkpoint (core/archive.hpp). The LK pyramid of the frame LK runs from is not in it:
+  // LK reads past a pyramid level's edge into the frame it was cut from, so it is built again from that
+  // frame, which the plate keeps (the last frame not bridged over: not always the previous one).
   void archive(Archive& a);
-  void rebuild_previous_pyramid(const cv::Mat& previous_image_u8);
+  void rebuild_previous_pyramid();
 
  private:
   // Subsets on the grid over the band of `image` (band coordinates).
@@ -112,6 +113,7 @@ class PlateTracker {
   std::vector<Subset> subsets_;
   std::vector<double> scratch_x_, scratch_y_;
   std::vector<cv::Mat> previous_pyramid_, current_pyramid_;
+  cv::Mat base_u8_;  // the 8-bit frame previous_pyramid_ was built from
   std::vector<cv::Point2f> lk_from_, lk_to_;
   std::vector<unsigned char> lk_status_;
   std::vector<float> lk_error_;

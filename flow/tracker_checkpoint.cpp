@@ -54,7 +54,7 @@ void FeatureTracker::archive(Archive& a) {
   // The previous frame's pyramids are built again from the frame they were cut from (LK reads past a
   // level's edge into it).
   if (!m.previous_u8.empty()) m.build_pyramid(m.previous_u8, m.previous_pyramid);
-  if (m.plate && !m.previous_u8.empty()) m.plate->rebuild_previous_pyramid(m.previous_u8);
+  if (m.plate) m.plate->rebuild_previous_pyramid();
 }
 
 std::vector<char> FeatureTracker::checkpoint() const {

@@ -87,6 +87,37 @@ TEST(TrackerCheckpoint, ARestoredTrackerContinuesBitForBit) {
   }
 }
 
+// A checkpoint taken just after a frame whose band the plate could not match (here hidden: it bridges the
+// frame on its last motion): the plate's LK runs from the last frame it matched, not the previous frame,
+// and the restored tracker must run from the same one.
+TEST(TrackerCheckpoint, ARestoredPlateRunsFromTheLastFrameItMatched) {
+  const CheckpointTrial run = make_checkpoint_trial();
+  const TrackerOptions settings = preset_options("auto", SceneHints{});
+  std::vector<cv::Mat> f;
+  for (const cv::Mat& frame : run.frames.frames) f.push_back(frame.clone());
+  constexpr int kHidden = 5;
+  const cv::Rect band(run.band.x, run.band.y, run.band.width, run.band.height);
+  f[kHidden](band).setTo(cv::mean(f[kHidden](band)));
+  const cv::Mat& mask = run.frames.mask;
+  FeatureTracker uninterrupted(settings, run.band), first(settings, run.band);
+  uninterrupted.start(f[0], mask, run.t_s[0]);
+  first.start(f[0], mask, run.t_s[0]);
+  for (int i = 1; i <= kHidden; ++i) {
+    uninterrupted.track(f[i], mask, run.t_s[i]);
+    first.track(f[i], mask, run.t_s[i]);
+  }
+  ASSERT_TRUE(first.plate_status().has_value());
+  ASSERT_NE(*first.plate_status(), static_cast<std::int8_t>(PlateStatus::kMatched))
+      << "the hidden band must not match";
+  FeatureTracker resumed(settings, run.band);
+  resumed.restore(first.checkpoint());
+  for (int i = kHidden + 1; i < static_cast<int>(f.size()); ++i) {
+    uninterrupted.track(f[i], mask, run.t_s[i]);
+    resumed.track(f[i], mask, run.t_s[i]);
+    expect_identical_trackers(uninterrupted, resumed, i);
+  }
+}
+
 TEST(TrackerCheckpoint, ACheckpointCutShortOrFromAnotherBuildIsRefused) {
   const CheckpointTrial run = make_checkpoint_trial();
   const TrackerOptions settings = preset_options("auto", SceneHints{});
