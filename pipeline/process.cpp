@@ -328,6 +328,13 @@ void update_time_source(const capture::FrameSource& source, std::string& time_so
   warn("time: " + time_source);
 }
 
+// The interrupted run's flushed rows cannot be read back: a kill while HDF5 rewrote a chunk leaves it
+// damaged (the file format is not written crash-safe). The run starts again instead.
+class InterruptedRunUnreadable : public Error {
+ public:
+  using Error::Error;
+};
+
 // One run of `process`: the steps of run_process(), sharing what they build.
 class ProcessRun {
  public:
@@ -553,7 +560,11 @@ class ProcessRun {
     for (auto& stage : plan_.stages) stage->start(*trial_);
     for (auto& stage : plan_.stages) stage->archive(a);
     a.expect_end();
-    h5_->copy_rows_from((out() / kInterruptedResult).string(), rows_.size());
+    try {
+      h5_->copy_rows_from((out() / kInterruptedResult).string(), rows_.size());
+    } catch (const Error& e) {
+      throw InterruptedRunUnreadable(e.message(), e.context());
+    }
     h5_->mark_flushed(rows_.size());  // the checkpoint and the fresh file now agree without the old one
     checkpoint_.reset();
     std::error_code ec;
@@ -778,7 +789,19 @@ ProcessReport run_process(const ProcessOptions& options) {
   if (options.flush_every_frames < 1)
     throw Error("must be at least 1 (frames between flushes of the partial result)",
                 {.key = "--flush-every-frames"});
-  return ProcessRun(options).run();
+  try {
+    return ProcessRun(options).run();
+  } catch (const InterruptedRunUnreadable& e) {
+    if (!options.quiet)
+      std::fprintf(
+          options.log,
+          "tirstrain: the interrupted run's result cannot be read back (%s): starting again from the "
+          "first frame\n",
+          e.what());
+    ProcessOptions again = options;
+    again.resume = false;
+    return ProcessRun(again).run();
+  }
 }
 
 }  // namespace tirstrain::pipeline

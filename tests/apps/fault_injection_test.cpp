@@ -478,6 +478,30 @@ TEST(Faults, ProcessKilledThenResumedGivesTheUninterruptedResult) {
   EXPECT_EQ(read_bytes(out / "frames.csv"), read_bytes(reference / "frames.csv"));
 }
 
+// A kill while HDF5 rewrites a chunk can leave the interrupted run's flushed rows unreadable (the format is
+// not written crash-safe): here its file is cut in half. The resumed run says so and starts again from the
+// first frame, and gives the uninterrupted result.
+TEST(Faults, ResumeOfADamagedInterruptedResultStartsAgain) {
+  const fs::path dir = testing::scratch_dir("faults", "resume_damaged");
+  const fs::path reference = dir / "reference", out = dir / "out", staged = dir / "out.partial";
+  std::vector<std::string> args = process_args(reference);
+  args.erase(std::find(args.begin(), args.end(), "--quiet"));  // the restart is said on the console
+  args.insert(args.end(), {"--overlay", "none", "--flush-every-frames", "3", "--checkpoint-every-s", "0"});
+  ASSERT_EQ(run_cli(args).exit_code, 0);
+  args[3] = out.string();
+  const CliRun killed = run_cli(args, {.kill_once_exists = staged / "summary.json"});
+  ASSERT_TRUE(killed.killed) << killed.output;
+  const fs::path partial = staged / "result.h5.partial";
+  ASSERT_TRUE(fs::exists(partial));
+  fs::resize_file(partial, fs::file_size(partial) / 2);
+  args.push_back("--resume");
+  const CliRun resumed = run_cli(args);
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.output;
+  EXPECT_TRUE(mentions(resumed.output, "starting again from the first frame")) << resumed.output;
+  EXPECT_FALSE(fs::exists(staged));
+  EXPECT_EQ(read_bytes(out / "frames.csv"), read_bytes(reference / "frames.csv"));
+}
+
 TEST(Faults, ResumeRefusesAnInterruptedRunOfOtherOptionsAndKeepsIt) {
   const fs::path dir = testing::scratch_dir("faults", "resume_other");
   const fs::path out = dir / "out", staged = dir / "out.partial";
