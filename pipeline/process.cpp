@@ -328,6 +328,40 @@ void update_time_source(const capture::FrameSource& source, std::string& time_so
   warn("time: " + time_source);
 }
 
+// Every regular file an input names (a folder's, recursively, in order) with its size and modification
+// time: a frame replaced or added since an interrupted run makes its checkpoint another input's.
+nlohmann::json input_fingerprint(const std::string& input, const std::string& out_dir) {
+  nlohmann::json files = nlohmann::json::array();
+  const std::string staged = out_dir + ".partial";
+  const auto add = [&](const fs::path& file) {
+    std::error_code ec;
+    const auto size = fs::file_size(file, ec);
+    const auto time = fs::last_write_time(file, ec);
+    files.push_back({file.string(), ec ? -1 : static_cast<std::int64_t>(size),
+                     static_cast<std::int64_t>(time.time_since_epoch().count())});
+  };
+  for (const std::string& location : input_locations(input)) {
+    std::error_code ec;
+    if (!fs::is_directory(location, ec)) {
+      if (fs::is_regular_file(location, ec)) add(location);
+      continue;
+    }
+    std::vector<fs::path> inside;
+    // The output, when it lies inside the input's folder, is not the input.
+    for (auto entry = fs::recursive_directory_iterator(location, ec); !ec && entry != fs::end(entry);
+         entry.increment(ec)) {
+      if (path_is_within(entry->path().string(), out_dir) || path_is_within(entry->path().string(), staged)) {
+        entry.disable_recursion_pending();
+        continue;
+      }
+      if (entry->is_regular_file(ec)) inside.push_back(entry->path());
+    }
+    std::sort(inside.begin(), inside.end());
+    for (const fs::path& file : inside) add(file);
+  }
+  return files;
+}
+
 // The interrupted run's flushed rows cannot be read back: a kill while HDF5 rewrote a chunk leaves it
 // damaged (the file format is not written crash-safe). The run starts again instead.
 class InterruptedRunUnreadable : public Error {
@@ -402,9 +436,11 @@ class ProcessRun {
     identity_ = run_identity();
   }
 
-  // What a checkpoint must have been written by to be continued: the same input, scene and options.
+  // What a checkpoint must have been written by to be continued: the same input (its files as they were:
+  // names, sizes and modification times), scene and options.
   std::string run_identity() const {
     const nlohmann::json j = {{"input", options_.input},
+                              {"input_files", input_fingerprint(options_.input, options_.out_dir)},
                               {"scene", scene_to_yaml(scene_)},
                               {"frame_rate_Hz", options_.frame_rate_Hz ? *options_.frame_rate_Hz : -1.0},
                               {"strict", options_.strict},

@@ -502,6 +502,28 @@ TEST(Faults, ResumeOfADamagedInterruptedResultStartsAgain) {
   EXPECT_EQ(read_bytes(out / "frames.csv"), read_bytes(reference / "frames.csv"));
 }
 
+// A frame of the input replaced after the run was killed: the checkpoint is another input's, so --resume is
+// refused (a resumed run would mix the two inputs' frames).
+TEST(Faults, ResumeRefusesAnInputWhoseFilesChanged) {
+  const fs::path dir = testing::scratch_dir("faults", "resume_changed");
+  const fs::path input = dir / "input", out = dir / "out", staged = dir / "out.partial";
+  fs::copy(small_trial(), input, fs::copy_options::recursive);
+  std::vector<std::string> args = {
+      "process", input.string(),         "--out", out.string(),           "--quiet", "--overlay",
+      "none",    "--flush-every-frames", "3",     "--checkpoint-every-s", "0"};
+  const CliRun killed = run_cli(args, {.kill_once_exists = staged / "summary.json"});
+  ASSERT_TRUE(killed.killed) << killed.output;
+  std::vector<fs::path> frames;
+  for (const auto& entry : fs::directory_iterator(input / "frames")) frames.push_back(entry.path());
+  std::sort(frames.begin(), frames.end());
+  ASSERT_GE(frames.size(), 3u);
+  fs::copy_file(frames[2], frames[1], fs::copy_options::overwrite_existing);
+  args.push_back("--resume");
+  const CliRun refused = run_cli(args);
+  EXPECT_EQ(refused.exit_code, 1) << refused.output;
+  EXPECT_TRUE(mentions(refused.output, "another input, scene or options")) << refused.output;
+}
+
 TEST(Faults, ResumeRefusesAnInterruptedRunOfOtherOptionsAndKeepsIt) {
   const fs::path dir = testing::scratch_dir("faults", "resume_other");
   const fs::path out = dir / "out", staged = dir / "out.partial";
