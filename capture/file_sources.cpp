@@ -327,8 +327,10 @@ class ImageSequenceSource final : public FrameSource {
     for (std::size_t i = 0; i < files_.size(); ++i) {
       times_s_[i] = t_s[row_of[i]];
       if (i > 0 && !(times_s_[i] > times_s_[i - 1]))
-        throw Error("timestamps go backwards: t_s = " + format_double(times_s_[i]) + " after " +
-                        format_double(times_s_[i - 1]) + " (image " + files_[i].path + ")",
+        throw Error(std::string(times_s_[i] == times_s_[i - 1] ? "two frames have the same timestamp"
+                                                               : "timestamps go backwards") +
+                        ": t_s = " + format_double(times_s_[i]) + " after " + format_double(times_s_[i - 1]) +
+                        " (image " + files_[i].path + ")",
                     {.file = csv,
                      .frame = static_cast<long>(i),
                      .row = static_cast<long>(row_of[i]) + 2,

@@ -252,8 +252,9 @@ std::vector<double> frame_times_from_csv(const std::string& csv, std::int64_t co
   for (std::size_t i = 0; i < times.size(); ++i) {
     times[i] = t_s[static_cast<std::size_t>(row_of[i])];
     if (i > 0 && !(times[i] > times[i - 1]))
-      throw Error("timestamps go backwards: t_s = " + format_double(times[i]) + " after " +
-                      format_double(times[i - 1]),
+      throw Error(std::string(times[i] == times[i - 1] ? "two frames have the same timestamp"
+                                                       : "timestamps go backwards") +
+                      ": t_s = " + format_double(times[i]) + " after " + format_double(times[i - 1]),
                   {.file = csv, .frame = static_cast<long>(i), .row = row_of[i] + 2, .column = "t_s"});
   }
   return times;

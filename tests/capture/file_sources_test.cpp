@@ -261,6 +261,9 @@ TEST(ImageFolder, BackwardTimestampsNameFileAndFrame) {
   EXPECT_NE(message.find("frame 2"), std::string::npos) << message;
   EXPECT_NE(message.find("backwards"), std::string::npos) << message;
   EXPECT_NE(message.find("f2.png"), std::string::npos) << message;
+  write_text(dir / "frames.csv", "index,t_s\n0,0.0\n1,0.01\n2,0.01\n");
+  const std::string equal = error_of([&] { open_source(dir.string()); });
+  EXPECT_NE(equal.find("two frames have the same timestamp"), std::string::npos) << equal;
 }
 
 TEST(OpenSource, MissingInputAndCameraSchemes) {
