@@ -508,6 +508,42 @@ class ProcessRun {
     }
     progress.finish();
     warn_if_fewer_frames_than_announced();
+    warn_if_recording_incomplete();
+    warn_if_frames_lost();
+  }
+
+  // A folder `tirstrain record` wrote (frames.csv with the camera's frame ids) ends with its recording.json,
+  // which also says why it stopped: without it the recording was cut short; with a source or write error it
+  // may end early.
+  void warn_if_recording_incomplete() {
+    const fs::path folder(options_.input);
+    std::error_code ec;
+    if (!fs::is_directory(folder, ec) || !fs::exists(folder / "frames.csv", ec)) return;
+    std::ifstream csv(folder / "frames.csv");
+    std::string header;
+    std::getline(csv, header);
+    if (header.find("device_frame_id") == std::string::npos) return;
+    std::ifstream json(folder / "recording.json");
+    if (!json) {
+      warn()(
+          "the recording has no recording.json, which `tirstrain record` writes when it stops: it was cut "
+          "short (killed, power lost), and its last frames may be missing");
+      return;
+    }
+    const nlohmann::json j = nlohmann::json::parse(json, nullptr, false);
+    const std::string reason = j.is_object() ? j.value("stop_reason", std::string()) : std::string();
+    if (reason == "source error" || reason == "write error")
+      warn()("the recording stopped on a " + reason + " (recording.json): it may end before the trial did");
+  }
+
+  // Frames the camera or the recorder lost are gaps in the result; counted in summary.json, and said.
+  void warn_if_frames_lost() {
+    std::int64_t lost = 0;
+    for (const std::int64_t n : rows_.lost_before) lost += n;
+    if (lost > 0)
+      warn()(std::to_string(lost) +
+             " frames of the recording are missing (lost by the camera or the recorder, or their files are "
+             "gone): the result has gaps there (frames.csv and /frames/frames_lost_before say where)");
   }
 
   // A container whose header announces more frames than could be read is most likely cut short (a copy

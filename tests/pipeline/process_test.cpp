@@ -481,6 +481,25 @@ fs::path write_recording(const std::string& name, int frames, const std::functio
   return dir;
 }
 
+// A recording `tirstrain record` did not finish (no recording.json) and one with a frame file gone:
+// processed, and each said to be incomplete on the console and in summary.json.
+TEST(Process, ARecordingCutShortOrWithLostFramesIsSaidToBe) {
+  const fs::path rec = write_recording("cut_recording", 4, [](int) { return true; });
+  {
+    std::ofstream times(rec / "frames.csv");
+    times << "index,t_s,device_frame_id\n";
+    for (int i = 0; i < 4; ++i) times << i << ',' << format_double(frame_time_s(i)) << ',' << i << '\n';
+  }
+  fs::remove(rec / "frames" / "000002.png");
+  const fs::path out = scratch("cut_recording_out");
+  const CliRun run =
+      run_cli("process " + rec.string() + " --out " + out.string() + " --overlay none --compute contact");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("the recording has no recording.json"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("1 frames of the recording are missing"), std::string::npos) << run.output;
+  EXPECT_EQ(read_summary(out)["warnings"].size(), 2u) << read_summary(out)["warnings"].dump();
+}
+
 // No scene: every stage the images feed runs (contact, tracking, strain), no channel file so no channels;
 // the defaults used are said once each on the console and in summary.json; no band is found on frames that
 // have none.
