@@ -201,7 +201,8 @@ void write_trial(const Trial& trial, const std::string& out_dir, bool quiet) {
     const cv::Mat image = trial.apply_sensor(trial.render_clean(k), k);
     const std::string file = (root / "frames" / frame_name(k)).string();
     if (!cv::imwrite(file, image)) {
-      check_writable(root.string());  // names the cause when it is the disk
+      check_writable(root.string());        // names the cause when it is the disk
+      check_complete_write(root.string());  // a disk nearly full still takes check_writable's small probe
       throw Error("cannot write image", {.file = file, .frame = k});
     }
     frames_csv.row_text(

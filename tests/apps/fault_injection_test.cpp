@@ -274,6 +274,16 @@ TEST(Faults, FullTmpfsIsNamedAndKeepsTheEarlierResult) {
     EXPECT_FALSE(fs::exists(disk / "out.partial")) << free_bytes << " bytes free";
     fs::remove(disk / "filler");
   }
+  // synth's images are written by a codec that reports no cause: the disk is named all the same.
+  for (const std::size_t free_bytes : {std::size_t{16} << 10, std::size_t{300} << 10}) {
+    fill_leaving(disk, free_bytes);
+    const CliRun synth = run_cli({"synth", "--scene", (small_trial() / "scene.yaml").string(), "--out",
+                                  (disk / "trial").string(), "--quiet"});
+    EXPECT_EQ(synth.exit_code, 1) << free_bytes << " bytes free: " << synth.output;
+    EXPECT_TRUE(mentions(synth.output, "No space left on device"))
+        << free_bytes << " bytes free: " << synth.output;
+    fs::remove(disk / "filler");
+  }
 }
 
 TEST(Faults, ReadOnlyOutputFolderIsNamedAndLeftAlone) {
