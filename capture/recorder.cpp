@@ -478,6 +478,7 @@ class Recording {
           done.bytes = static_cast<std::int64_t>(file_bytes);
         } else {
           std::lock_guard lock(mutex_);
+          ++report_.frames_not_saved;  // the frame whose write failed is one of them
           if (failure_.empty())
             failure_ = format_error("cannot write frame " + std::to_string(done.job.position) + ": " + reason,
                                     {.file = done.image_path});

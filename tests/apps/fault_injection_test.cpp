@@ -227,6 +227,21 @@ TEST(Faults, DiskFullAtSeveralSizesKeepsTheEarlierResult) {
     EXPECT_FALSE(fs::exists(dir / "trial.partial")) << "limit " << limit;
   }
 
+  // A recording that hits the limit: every frame received is accounted for (saved, not saved, incomplete
+  // or dropped), the one whose write failed included.
+  for (const rlim_t limit : {rlim_t{20000}, rlim_t{50000}}) {
+    const fs::path rec = dir / ("rec_" + std::to_string(limit));
+    const CliRun run = run_cli({"record", small_trial().string(), "--out", rec.string(), "--quiet"},
+                               {.file_size_limit_bytes = limit});
+    EXPECT_EQ(run.exit_code, 1) << "limit " << limit << ": " << run.output;
+    const nlohmann::json r = nlohmann::json::parse(read_bytes(rec / "recording.json"), nullptr, false);
+    ASSERT_TRUE(r.is_object()) << "limit " << limit;
+    EXPECT_EQ(r.value("frames_received", -1), r.value("frames_saved", 0) + r.value("frames_not_saved", 0) +
+                                                  r.value("frames_incomplete", 0) +
+                                                  r.value("frames_dropped_host", 0))
+        << r.dump();
+  }
+
   const CliRun model = run_cli({"model", "cattaneo-mindlin", "--normal-N", "2", "--tangential-N", "1.2",
                                 "--radius-m", "0.01", "--young-Pa", "1e6", "--poisson", "0.4", "--friction",
                                 "1.0", "--grid", "64", "--out", (dir / "model").string()},
