@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -284,6 +285,24 @@ std::string run_command(const std::string& command) {
   return out;
 }
 
+// The study run was asked to stop: its running trials end with it rather than run on unwatched (a later
+// run would find them still writing), and each is recorded as interrupted.
+[[noreturn]] void stop_running_trials(const std::string& dir, const StudySpec& spec,
+                                      const std::map<pid_t, std::size_t>& running) {
+  for (const auto& [pid, index] : running) ::kill(pid, SIGTERM);
+  for (const auto& [pid, index] : running) {
+    int status = 0;
+    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    const TrialStatus s = read_status(dir, spec.trials[index].name);
+    if (s.status != "done" && s.status != "failed")
+      record_failure(dir, spec.trials[index], "interrupted: the study run was stopped while this trial ran");
+  }
+  throw Error("interrupted: " + std::to_string(running.size()) +
+                  " running trial(s) stopped; run the study again to finish them",
+              {.file = dir});
+}
+
 int run_local(const std::string& dir, const StudySpec& spec, const std::vector<std::size_t>& indices,
               const LocalExecutorOptions& options) {
   fs::create_directories(fs::path(dir) / "logs");
@@ -301,6 +320,7 @@ int run_local(const std::string& dir, const StudySpec& spec, const std::vector<s
     int status = 0;
     const pid_t pid = waitpid(-1, &status, 0);
     if (pid < 0) {
+      if (errno == EINTR && options.stop && options.stop->load()) stop_running_trials(dir, spec, running);
       if (errno == EINTR) continue;
       throw Error(std::string("waiting for the trials: ") + std::strerror(errno));
     }
@@ -311,6 +331,7 @@ int run_local(const std::string& dir, const StudySpec& spec, const std::vector<s
     failed += code != 0;
     running.erase(it);
     progress.draw(++finished, failed, running.size());
+    if (options.stop && options.stop->load()) stop_running_trials(dir, spec, running);
   }
   return static_cast<int>(failed);
 }

@@ -3,6 +3,7 @@
 // `CLI study run-trial DIR INDEX` (CLI: this binary), either run here, `jobs` at a time, or submitted as one
 // task of a Slurm job array (sbatch), waited for (squeue) and asked how it ended (sacct). No scheduling of
 // our own beyond that.
+#include <atomic>
 #include <string>
 #include <vector>
 
@@ -14,6 +15,9 @@ struct LocalExecutorOptions {
   std::string cli;     // path of the tirstrain binary that runs each trial
   int jobs = 1;        // trials processed at the same time
   bool quiet = false;  // no progress bar on stderr
+  // Set by a SIGINT/SIGTERM handler: the running trials are stopped (SIGTERM), waited for and recorded as
+  // interrupted, and run_local throws; nullptr: not watched.
+  const std::atomic<bool>* stop = nullptr;
 };
 
 // Runs the trials `indices` of the plan in DIR; returns how many failed. Each child's output goes to

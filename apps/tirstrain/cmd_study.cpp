@@ -11,6 +11,7 @@
 #include "core/error.hpp"
 #include "pipeline/study.hpp"
 #include "pipeline/study_executor.hpp"
+#include "tirstrain/camera_options.hpp"
 #include "tirstrain/commands.hpp"
 #include "tirstrain/value_checks.hpp"
 
@@ -82,7 +83,8 @@ void add_run(CLI::App& study) {
       pl::run_slurm(dir, spec, work, o);
       if (a->no_wait) return;
     } else if (!work.empty()) {
-      pl::run_local(dir, spec, work, {self_path(), a->jobs, a->quiet});
+      install_interrupt_handler();
+      pl::run_local(dir, spec, work, {self_path(), a->jobs, a->quiet, &interrupt_flag()});
     }
     summarise(dir, spec, a->quiet);
     if (const int failed = failed_trials(dir, spec); failed > 0)

@@ -108,4 +108,20 @@ fi
 grep -q "holds 'summary.json', which a study does not write" "$work/refused.log" || fail "refusal: $(cat "$work/refused.log")"
 [ "$(ls "$work/not_a_study")" = "summary.json" ] || fail "the refused folder was changed: $(ls "$work/not_a_study")"
 
+# SIGTERM to the study alone (not to its process group): the running trial stops with it and is recorded
+# as interrupted, no trial process outlives it, and the next run finishes every trial.
+"$tirstrain" study run "$work/study.yaml" --out "$work/out_term" --jobs 1 2> "$work/term.log" &
+study=$!
+for _ in $(seq 1 200); do
+  grep -qs '"running"' "$work/out_term/status/"*.json && break
+  sleep 0.05
+done
+kill -TERM "$study"
+if wait "$study"; then fail "a study stopped by SIGTERM exited 0"; fi
+grep -q "interrupted" "$work/term.log" || fail "the stop is not said: $(cat "$work/term.log")"
+if pgrep -f "run-trial $work/out_term" > /dev/null; then fail "a trial process outlived the study"; fi
+"$tirstrain" study run "$work/study.yaml" --out "$work/out_term" --jobs 2 2> "$work/term2.log" || true
+"$tirstrain" study status "$work/out_term" > "$work/status_term.txt"
+grep -q "3 done 1 failed" "$work/status_term.txt" || fail "after the stopped run: $(cat "$work/status_term.txt")"
+
 echo "study local: ok"
