@@ -2,9 +2,13 @@
 // by frame, with model selection and uncertainties (fit/fit_result.hpp). Only flags are parsed here.
 #include <array>
 #include <chrono>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <memory>
 #include <string>
+
+#include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
 #include "fit/fit_result.hpp"
@@ -12,6 +16,29 @@
 #include "tirstrain/value_checks.hpp"
 
 namespace tirstrain::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The loads come out in the calibration and tissue the result was processed with: where those were
+// process's defaults (no scene), the fitted forces are only as right as they are, and the run says so.
+void warn_if_default_calibration(const std::string& result) {
+  const fs::path folder = fs::is_directory(result) ? fs::path(result) : fs::path(result).parent_path();
+  std::ifstream in(folder / "summary.json");
+  if (!in) return;
+  const nlohmann::json s = nlohmann::json::parse(in, nullptr, false);
+  if (!s.is_object()) return;
+  std::string defaults;
+  if (s.value("px_per_mm_source", std::string()) == "default") defaults = "px_per_mm";
+  if (s.contains("tissue") && s["tissue"].is_object() &&
+      s["tissue"].value("source", std::string()) == "default")
+    defaults += std::string(defaults.empty() ? "" : ", ") + "E and nu";
+  if (!defaults.empty())
+    std::cerr << "fit: warning: the result was processed without a scene: its " << defaults
+              << " are process's defaults, and the fitted loads (N) and radii (mm) scale with them\n";
+}
+
+}  // namespace
 
 void add_fit_command(CLI::App& app) {
   struct Options {
@@ -83,6 +110,7 @@ void add_fit_command(CLI::App& app) {
                       " usable tracks (--min-tracks); nothing written",
                   {.file = options->result});
     fit::write_fit_outputs(options->out, result, run, options->run.fit);
+    warn_if_default_calibration(options->result);
     if (options->quiet) return;
     std::cout << "fitted " << fits.size() - unfitted << " of " << fits.size() << " frames in " << fit_s
               << " s: rest " << by_model[0] << ", full stick " << by_model[1] << ", partial slip "

@@ -486,6 +486,21 @@ TEST(ProcessCli, FitStageRecoversTheLoadAndMatchesTheFitCommand) {
   EXPECT_NE(read_text(dir + "/result/frames.csv").find("fit_tangential_N"), std::string::npos);
 }
 
+// A result processed without a scene has process's default calibration and tissue: fit says its loads and
+// radii scale with them; with the trial's scene it says nothing of the kind.
+TEST(ProcessCli, FitOfAResultWithDefaultCalibrationSaysSo) {
+  const std::string dir = fresh_dir("fit_defaults");
+  ASSERT_NO_FATAL_FAILURE(synth_default_cut(dir, 8));
+  for (const char* how : {" --no-scene", ""}) {
+    const std::string result = dir + (*how ? "/defaults" : "/scene");
+    ASSERT_EQ(
+        run_cli("process " + dir + "/trial --out " + result + " --overlay none --quiet" + how).exit_code, 0);
+    const auto fit = run_cli("fit " + result + " --out " + result + "_fit --quiet");
+    ASSERT_EQ(fit.exit_code, 0) << fit.output;
+    EXPECT_EQ(fit.output.find("processed without a scene") != std::string::npos, *how != '\0') << fit.output;
+  }
+}
+
 // On noisy texture the tracking stage smooths its tracks in time after the trial and the later stages run
 // again over the revised tracks: the fit stage still sees each frame's contact (it fitted none before) and
 // gives the numbers `tirstrain fit` gives.
