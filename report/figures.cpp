@@ -134,8 +134,9 @@ std::vector<TimeFigure> time_figures(const std::vector<ResultData>& results) {
       {"energy",
        "Strain energy against time",
        "Top: strain energy U of the measured strain field (plane-strain St Venant–Kirchhoff, scene's E, ν "
-       "and "
-       "depth), J. Bottom: U over the external work U_ext = ∫F_t dx accumulated since the onset "
+       "and depth), J, over the meshed area only: the mesh stops short of the contact's rim, where "
+       "Cattaneo–Mindlin concentrates its energy, so U is a lower bound of the whole contact's. Bottom: U "
+       "over the external work U_ext = ∫F_t dx accumulated since the onset "
        "(dimensionless), where U_ext is at least 1 % of its largest value." +
            ratio_at_t90_text(results),
        {{{{"U", &R::energy_J}}, "U (J)"}, {{{"U/U_ext", &R::energy_ratio}}, "U/U_ext (dimensionless)"}}},
