@@ -220,7 +220,8 @@ TEST(CameraSettingsCliTest, OverwriteNeverTakesTheInputOrOtherFilesWithIt) {
   const std::string rec = (dir / "rec").string();
   ASSERT_EQ(tirstrain::testing::run_cli("record " + input + " --out " + rec + " --quiet").exit_code, 0);
   // The recording itself as the source, into a folder holding it or into itself.
-  const auto nested = tirstrain::testing::run_cli("record " + rec + " --out " + dir.string() + " --overwrite");
+  const auto nested =
+      tirstrain::testing::run_cli("record " + rec + " --out " + dir.string() + " --overwrite");
   EXPECT_EQ(nested.exit_code, 1) << nested.output;
   EXPECT_NE(nested.output.find("contains the input"), std::string::npos) << nested.output;
   const auto itself = tirstrain::testing::run_cli("record " + rec + " --out " + rec + " --overwrite");
