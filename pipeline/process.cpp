@@ -350,8 +350,9 @@ nlohmann::json input_fingerprint(const std::string& input, const std::string& ou
     // The output, when it lies inside the input's folder, is not the input.
     for (auto entry = fs::recursive_directory_iterator(location, ec); !ec && entry != fs::end(entry);
          entry.increment(ec)) {
-      if (path_is_within(entry->path().string(), out_dir) || path_is_within(entry->path().string(), staged)) {
-        entry.disable_recursion_pending();
+      if (entry->is_directory(ec)) {
+        if (path_is_within(entry->path().string(), out_dir) || path_is_within(entry->path().string(), staged))
+          entry.disable_recursion_pending();
         continue;
       }
       if (entry->is_regular_file(ec)) inside.push_back(entry->path());
