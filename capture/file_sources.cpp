@@ -269,7 +269,8 @@ class ImageSequenceSource final : public FrameSource {
             {"first_file", files_.front().path},
             {"frames", std::to_string(files_.size())},
             {"time_source", time_source_},
-            {"time_measured", times_csv_.empty() && !rate_timed_ ? "false" : "true"}};
+            {"time_measured", times_csv_.empty() && !rate_timed_ ? "false" : "true"},
+            {"rows_after_last_image", std::to_string(rows_after_last_image_)}};
   }
 
  private:
@@ -300,6 +301,9 @@ class ImageSequenceSource final : public FrameSource {
                                [&](const SequenceFile& f) { return rows.count(f.number - offset); });
           if (!mapped) continue;
           for (std::size_t i = 0; i < files_.size(); ++i) row_of[i] = rows.at(files_[i].number - offset);
+          // Rows past the last image: frames recorded whose files are gone (no later frame counts them).
+          rows_after_last_image_ = static_cast<std::int64_t>(
+              std::distance(rows.upper_bound(files_.back().number - offset), rows.end()));
           break;
         }
         if (!mapped && rows.size() != files_.size()) refuse_unmatched(csv, rows, origin);
@@ -400,7 +404,8 @@ class ImageSequenceSource final : public FrameSource {
   std::string description_;
   std::vector<double> times_s_;
   std::string times_csv_;
-  bool rate_timed_ = false;  // timed by --frame-rate-Hz
+  bool rate_timed_ = false;                 // timed by --frame-rate-Hz
+  std::int64_t rows_after_last_image_ = 0;  // frames.csv rows past the last image file
   std::string time_source_;
   bool numbered_ = false;
   std::size_t next_ = 0;

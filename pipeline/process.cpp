@@ -539,12 +539,18 @@ class ProcessRun {
 
   // Frames the camera or the recorder lost are gaps in the result; counted in summary.json, and said.
   void warn_if_frames_lost() {
-    std::int64_t lost = 0;
+    std::int64_t lost = 0, at_end = 0;
     for (const std::int64_t n : rows_.lost_before) lost += n;
-    if (lost > 0)
-      warn()(std::to_string(lost) +
+    const auto settings = source_->settings();
+    if (const auto after = settings.find("rows_after_last_image"); after != settings.end())
+      at_end = std::stoll(after->second);
+    if (lost + at_end > 0)
+      warn()(std::to_string(lost + at_end) +
              " frames of the recording are missing (lost by the camera or the recorder, or their files are "
-             "gone): the result has gaps there (frames.csv and /frames/frames_lost_before say where)");
+             "gone): the result has gaps there (frames.csv and /frames/frames_lost_before say where" +
+             (at_end > 0 ? "; " + std::to_string(at_end) + " after the last image, which frames.csv lists"
+                         : "") +
+             ")");
   }
 
   // A container whose header announces more frames than could be read is most likely cut short (a copy

@@ -498,6 +498,14 @@ TEST(Process, ARecordingCutShortOrWithLostFramesIsSaidToBe) {
   EXPECT_NE(run.output.find("the recording has no recording.json"), std::string::npos) << run.output;
   EXPECT_NE(run.output.find("1 frames of the recording are missing"), std::string::npos) << run.output;
   EXPECT_EQ(read_summary(out)["warnings"].size(), 2u) << read_summary(out)["warnings"].dump();
+  // The last frame's file gone too: frames 2 and 3 now lie after the last image, which frames.csv lists.
+  fs::remove(rec / "frames" / "000003.png");
+  const fs::path out_end = scratch("cut_recording_end_out");
+  const CliRun end =
+      run_cli("process " + rec.string() + " --out " + out_end.string() + " --overlay none --compute contact");
+  ASSERT_EQ(end.exit_code, 0) << end.output;
+  EXPECT_NE(end.output.find("2 frames of the recording are missing"), std::string::npos) << end.output;
+  EXPECT_NE(end.output.find("2 after the last image"), std::string::npos) << end.output;
 }
 
 // No scene: every stage the images feed runs (contact, tracking, strain), no channel file so no channels;
