@@ -51,6 +51,22 @@ std::string write_trial() {
   return path;
 }
 
+// The friction tests' slide, sample i of 2001 at 1 kHz: W = 2 N; the plate still until 0.5 s, then at
+// 10 mm/s; F_t follows the Cattaneo–Mindlin curve 1.6 (1 − (1 − u)^1.5) N to μW = 1.6 N over 2 mm.
+struct SlideSample {
+  double t_s, slide_m, tangential_N;
+};
+SlideSample slide_at(int i) {
+  const double t = i / 1000.0, d = std::max(0.0, 0.01 * (t - 0.5)), u = std::min(1.0, d / 0.002);
+  return {t, d, 1.6 * (1 - std::pow(1 - u, 1.5))};
+}
+
+// U_ext = ∫F dx from onset to t90 of that slide in closed form: 3.2 mJ · (u90 + ((1 − u90)^2.5 − 1) / 2.5).
+double slide_external_work_J() {
+  const double u90 = 1 - std::pow(0.1, 2.0 / 3.0);
+  return 3.2e-3 * (u90 + (std::pow(1 - u90, 2.5) - 1) / 2.5);
+}
+
 }  // namespace
 
 TEST(SignalsCli, FilterWritesZeroPhaseOutputMatchingTheLibrary) {
@@ -367,10 +383,9 @@ TEST(SignalsCli, FrictionAndPowerLaw) {
     std::ofstream out(in);
     out << "t_s,normal_N,tangential_N,position_m\n";
     for (int i = 0; i <= 2000; ++i) {
-      const double t = i / 1000.0, d = std::max(0.0, 0.01 * (t - 0.5)), u = std::min(1.0, d / 0.002);
-      out << tirstrain::format_double(t) << ",2,"
-          << tirstrain::format_double(1.6 * (1 - std::pow(1 - u, 1.5))) << ',' << tirstrain::format_double(d)
-          << '\n';
+      const SlideSample x = slide_at(i);
+      out << tirstrain::format_double(x.t_s) << ",2," << tirstrain::format_double(x.tangential_N) << ','
+          << tirstrain::format_double(x.slide_m) << '\n';
     }
   }
   const std::string mu = dir() + "/mu.csv", summary = dir() + "/friction.json";
@@ -407,23 +422,21 @@ TEST(SignalsCli, FrictionAndPowerLaw) {
 }
 
 // The friction recording above with its columns in other units: position in mm (or with no unit in the name),
-// the forces in mN, and the position counted the other way. U_ext = ∫F dx from onset to t90 in closed form:
-// F = 1.6 (1 − (1 − u)^1.5) N over x = 2 mm · u gives 3.2 mJ · (u90 + ((1 − u90)^2.5 − 1) / 2.5).
+// the forces in mN, and the position counted the other way; U_ext in closed form (slide_external_work_J).
 TEST(SignalsCli, FrictionReadsTheUnitsInTheColumnNames) {
   const std::string in = dir() + "/friction_units.csv";
   {
     std::ofstream out(in);
     out << "t_s,normal_mN,tangential_mN,x_mm,x_back_mm,x\n";
     for (int i = 0; i <= 2000; ++i) {
-      const double t = i / 1000.0, d = std::max(0.0, 0.01 * (t - 0.5)), u = std::min(1.0, d / 0.002);
-      const double f_mN = 1600 * (1 - std::pow(1 - u, 1.5));
-      out << tirstrain::format_double(t) << ",2000," << tirstrain::format_double(f_mN) << ','
-          << tirstrain::format_double(1e3 * d) << ',' << tirstrain::format_double(-1e3 * d) << ','
-          << tirstrain::format_double(1e3 * d) << '\n';
+      const SlideSample x = slide_at(i);
+      out << tirstrain::format_double(x.t_s) << ",2000," << tirstrain::format_double(1e3 * x.tangential_N)
+          << ',' << tirstrain::format_double(1e3 * x.slide_m) << ','
+          << tirstrain::format_double(-1e3 * x.slide_m) << ',' << tirstrain::format_double(1e3 * x.slide_m)
+          << '\n';
     }
   }
-  const double u90 = 1 - std::pow(0.1, 2.0 / 3.0);
-  const double work_J = 3.2e-3 * (u90 + (std::pow(1 - u90, 2.5) - 1) / 2.5);
+  const double work_J = slide_external_work_J();
   const auto summary_of = [&](const std::string& position) {
     const std::string summary = dir() + "/friction_units.json";
     const auto r = run("signals friction " + in + " --tangential tangential_mN --normal normal_mN " +
@@ -467,13 +480,12 @@ TEST(SignalsCli, FrictionReadsBracketedUnits) {
     std::ofstream out(in);
     out << "t [ms],Fz [mN],Fx (mN),x [mm],Fy [kN]\n";
     for (int i = 0; i <= 2000; ++i) {
-      const double t = i / 1000.0, d = std::max(0.0, 0.01 * (t - 0.5)), u = std::min(1.0, d / 0.002);
-      out << i << ",2000," << tirstrain::format_double(1600 * (1 - std::pow(1 - u, 1.5))) << ','
-          << tirstrain::format_double(1e3 * d) << ",0.001\n";
+      const SlideSample x = slide_at(i);
+      out << i << ",2000," << tirstrain::format_double(1e3 * x.tangential_N) << ','
+          << tirstrain::format_double(1e3 * x.slide_m) << ",0.001\n";
     }
   }
-  const double u90 = 1 - std::pow(0.1, 2.0 / 3.0);
-  const double work_J = 3.2e-3 * (u90 + (std::pow(1 - u90, 2.5) - 1) / 2.5);
+  const double work_J = slide_external_work_J();
   const std::string summary = dir() + "/friction_brackets.json", mu = dir() + "/mu_brackets.csv";
   auto r =
       run("signals friction " + in + " --time-column 't [ms]' --tangential 'Fx (mN)' --normal 'Fz [mN]' " +
