@@ -177,7 +177,8 @@ void ShapeField::prepare(const std::vector<Vec2>& anchor_px, cv::Rect region, do
 }
 
 // Only the nodes within a fit radius of a position that came or went gather their samples again (every
-// node when no renumbering exists).
+// node when no renumbering exists). A position that went may lie beyond this frame's region (the region
+// follows the contact): it reaches no node, or only those at the region's edge.
 std::vector<std::uint8_t> ShapeField::nodes_near(const Renumbering& renumbering) const {
   std::vector<std::uint8_t> gather(node_operator_.size(), renumbering.all_changed ? 1 : 0);
   for (const Vec2 p : renumbering.changed) {
@@ -185,6 +186,7 @@ std::vector<std::uint8_t> ShapeField::nodes_near(const Renumbering& renumbering)
     const int c1 = std::min(cols_ - 1, static_cast<int>(std::ceil((p.x + scale_ - region_.x) / spacing_)));
     const int r0 = std::max(0, static_cast<int>(std::floor((p.y - scale_ - region_.y) / spacing_)));
     const int r1 = std::min(rows_ - 1, static_cast<int>(std::ceil((p.y + scale_ - region_.y) / spacing_)));
+    if (c0 > c1 || r0 > r1) continue;
     for (int r = r0; r <= r1; ++r)
       std::fill(gather.begin() + r * cols_ + c0, gather.begin() + r * cols_ + c1 + 1, std::uint8_t{1});
   }

@@ -180,6 +180,31 @@ TEST(ShapeField, ANodeWhoseSamplesDidNotChangeKeepsItsOperator) {
     }
 }
 
+// The region follows the contact: tracks that retired beyond this frame's region are among the changes, and
+// must neither reach outside the node grid (a negative fill once crashed `process`) nor change the field.
+TEST(ShapeField, ChangesBeyondTheNewRegionAreHarmless) {
+  std::vector<Vec2> points = scattered_points(0.0, 200.0, 3);
+  ShapeField reused, fresh;
+  reused.fit(points, displacements(points, quadratic_field), cv::Rect(0, 0, 201, 201), 8.0, 12.0);
+  // Keep the upper-left quarter; the region shrinks to it, so the retired positions lie far beyond it.
+  std::erase_if(points, [](Vec2 p) { return p.x > 90.0 || p.y > 90.0; });
+  const cv::Rect shrunk(0, 0, 91, 91);
+  const auto other = [](Vec2 X) { return Vec2{std::sin(X.x / 30.0), std::cos(X.y / 25.0) + 0.01 * X.x}; };
+  reused.fit(points, displacements(points, other), shrunk, 8.0, 12.0);
+  fresh.fit(points, displacements(points, other), shrunk, 8.0, 12.0);
+  ASSERT_EQ(reused.fitted_nodes(), fresh.fitted_nodes());
+  EXPECT_GT(fresh.fitted_nodes(), 50);
+  for (double y = 2.0; y < 90.0; y += 3.0)
+    for (double x = 2.0; x < 90.0; x += 3.0) {
+      Vec2 a, b;
+      const bool defined = reused.displacement(x, y, a);
+      ASSERT_EQ(defined, fresh.displacement(x, y, b));
+      if (!defined) continue;
+      EXPECT_EQ(a.x, b.x);
+      EXPECT_EQ(a.y, b.y);
+    }
+}
+
 TEST(ShapeField, RowEvaluationEqualsPointEvaluation) {
   // A field with holes (no samples in a disc) and a ragged edge, on a spacing that is not a whole number
   // of pixels: the row evaluation the resampling uses must give displacement()'s values and definedness.
