@@ -6,6 +6,7 @@
 #include <opencv2/core/matx.hpp>
 #include <opencv2/core/types.hpp>
 
+#include <cmath>
 #include <optional>
 #include <span>
 #include <vector>
@@ -51,6 +52,8 @@ class EllipseNormalization {
 
   double scale_per_px() const { return scale_; }  // 1 / semi_major_px
   double aspect() const { return aspect_; }
+  // The map's +x in the image, radians from +x towards +y: the major axis's direction, or 0.
+  double angle_rad() const { return std::atan2(sin_, cos_); }
 
  private:
   double cx_ = 0.0, cy_ = 0.0, cos_ = 1.0, sin_ = 0.0, scale_ = 1.0, aspect_ = 1.0;

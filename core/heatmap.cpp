@@ -151,8 +151,8 @@ void draw_axes(cv::Mat& canvas, const Layout& l, const HeatmapOptions& options) 
   put(canvas, tick_text(options.x_min) + unit, cv::Point(l.margin_left, below));
   const std::string right = tick_text(options.x_max) + unit;
   put(canvas, right, cv::Point(l.margin_left + l.map_w - text_width(right), below));
-  put(canvas, "x right, y down",
-      cv::Point(l.margin_left + l.map_w / 2 - text_width("x right, y down") / 2, below + 22));
+  put(canvas, options.axes,
+      cv::Point(l.margin_left + l.map_w / 2 - text_width(options.axes) / 2, below + 22));
   put(canvas, tick_text(options.y_min), cv::Point(5, l.margin_top + 12));
   put(canvas, tick_text(options.y_max), cv::Point(5, l.margin_top + l.map_h));
 }

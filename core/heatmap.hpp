@@ -27,7 +27,8 @@ struct HeatmapOptions {
   double range_percentile = 100.0;
   // Data extent of the grid: column 0 is at x_min, the last column at x_max; row 0 at y_min (drawn at top).
   double x_min = 0.0, x_max = 1.0, y_min = 0.0, y_max = 1.0;
-  std::string axis_unit;  // e.g. "mm"
+  std::string axis_unit;                 // e.g. "mm"
+  std::string axes = "x right, y down";  // which way the axes lie, written under the map
   std::vector<HeatmapCircle> circles;
   int pixels_per_cell = 0;  // 0: chosen so the map is about 480 px wide
 };

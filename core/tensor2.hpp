@@ -31,6 +31,14 @@ inline Strain2 green_lagrange(const Gradient2& h) {
           0.5 * (h.xy + h.yx) + 0.5 * (h.xx * h.xy + h.yx * h.yy)};
 }
 
+// The components of a symmetric tensor (a strain, or a position covariance) in axes turned by `angle_rad`
+// from the image's (x' along (cos, sin)): Rᵀ E R.
+inline Strain2 in_axes(const Strain2& e, double angle_rad) {
+  const double c = std::cos(angle_rad), s = std::sin(angle_rad);
+  return {c * c * e.xx + 2.0 * c * s * e.xy + s * s * e.yy, s * s * e.xx - 2.0 * c * s * e.xy + c * c * e.yy,
+          c * s * (e.yy - e.xx) + (c * c - s * s) * e.xy};
+}
+
 // Small-strain (infinitesimal) tensor ½(H + Hᵀ).
 inline Strain2 infinitesimal_strain(const Gradient2& h) {
   return {h.xx, h.yy, 0.5 * (h.xy + h.yx)};

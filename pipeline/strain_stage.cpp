@@ -560,14 +560,26 @@ class StrainStage final : public Stage {
       }
       const std::vector<std::int32_t> owner =
           strain::rasterise_triangles(map_grid(), triangles, reference_px_, usable);
+      // The components in the map's axes, so that maps of contacts turned differently average as they lie
+      // on the finger; the standard deviations from the vertices' covariances turned the same way.
+      const double angle_rad = reference_normalization_.angle_rad();
+      std::vector<Strain2> sd_in_axes(triangles.size());
+      if (angle_rad != 0.0)
+        for (std::size_t a = 0; a < triangles.size(); ++a)
+          if (usable[a]) sd_in_axes[a] = total_standard_deviation(triangles[a], angle_rad);
       for (std::size_t cell = 0; cell < owner.size(); ++cell) {
         if (owner[cell] < 0) continue;
-        const double* v = &f.values[static_cast<std::size_t>(owner[cell]) * kValueCount];
-        total[cell * 3] = v[kExx];
-        total[cell * 3 + 1] = v[kEyy];
-        total[cell * 3 + 2] = v[kExy];
-        for (std::size_t c = 0; c < 3; ++c) total_sd[cell * 3 + c] = v[kSdXx + static_cast<int>(c)];
-        const Principal2 p = principal_strains({v[kExx], v[kEyy], v[kExy]});
+        const auto a = static_cast<std::size_t>(owner[cell]);
+        const double* v = &f.values[a * kValueCount];
+        const Strain2 e = in_axes({v[kExx], v[kEyy], v[kExy]}, angle_rad);
+        const Strain2 sd = angle_rad != 0.0 ? sd_in_axes[a] : Strain2{v[kSdXx], v[kSdYy], v[kSdXy]};
+        total[cell * 3] = e.xx;
+        total[cell * 3 + 1] = e.yy;
+        total[cell * 3 + 2] = e.xy;
+        total_sd[cell * 3] = sd.xx;
+        total_sd[cell * 3 + 1] = sd.yy;
+        total_sd[cell * 3 + 2] = sd.xy;
+        const Principal2 p = principal_strains(e);
         principal[cell * 2] = p.e1;
         principal[cell * 2 + 1] = p.e2;
         density[cell] = v[kEnergy];
@@ -589,10 +601,19 @@ class StrainStage final : public Stage {
 
   void write_map_attributes(H5Stream& out) const {
     const auto g = static_cast<std::size_t>(settings_.map_cells);
-    out.attribute("/maps", "grid",
-                  "cells on [-1,1]x[-1,1] of the standard ellipse (x along the major axis, semi-major 1, y "
-                  "down), centres at -1 + 2i/(cells-1); each cell the value of the reference triangle "
-                  "containing it; NaN outside the mesh");
+    out.attribute(
+        "/maps", "grid",
+        reference_normalization_.angle_rad() != 0.0
+            ? "cells on [-1,1]x[-1,1] of the standard ellipse (x along the major axis towards the "
+              "image's bottom, semi-major 1; y 90 degrees clockwise from x on screen), centres at -1 + "
+              "2i/(cells-1), stored [frame, y index, x index]; each cell the value of the reference "
+              "triangle containing it, its components in the map's axes (axes_angle_rad); NaN outside "
+              "the mesh"
+            : "cells on [-1,1]x[-1,1] of the reference contact scaled to semi-major 1 in the image's "
+              "axes (a contact within 5 % of a circle keeps them: x right, y down), centres at -1 + "
+              "2i/(cells-1), stored [frame, y index, x index]; each cell the value of the reference "
+              "triangle containing it, its components in image axes; NaN outside the mesh");
+    out.attribute("/maps", "axes_angle_rad", reference_normalization_.angle_rad());
     out.attribute("/maps", "cells", static_cast<double>(g));
     out.attribute("/maps", "aspect", reference_normalization_.aspect());
     out.attribute("/maps", "reference_has_ellipse", reference_has_ellipse_ ? 1.0 : 0.0);
@@ -607,14 +628,19 @@ class StrainStage final : public Stage {
                                      (t.model != flow::TrackModel::kOwnMatch ? kSourceVertexModel : 0));
   }
 
-  Strain2 total_standard_deviation(const Triangle& tri) const {
+  // In the image's axes, or in axes turned by `angle_rad` (the positions and covariances turned with them).
+  Strain2 total_standard_deviation(const Triangle& tri, double angle_rad = 0.0) const {
+    const double cs = std::cos(angle_rad), sn = std::sin(angle_rad);
+    const auto turned = [&](Vec2 p) { return Vec2{cs * p.x + sn * p.y, -sn * p.x + cs * p.y}; };
     std::array<Vec2, 3> X, x;
     std::array<strain::PositionCovariance, 3> c;
     for (std::size_t v = 0; v < 3; ++v) {
       const auto k = static_cast<std::size_t>(tri[v]);
-      X[v] = reference_px_[k];
-      x[v] = current_px_[k];
-      c[v] = covariance_px2_[k];
+      X[v] = turned(reference_px_[k]);
+      x[v] = turned(current_px_[k]);
+      const strain::PositionCovariance& image = covariance_px2_[k];
+      const Strain2 axes = in_axes({image[0], image[2], image[1]}, angle_rad);  // stored (xx, xy, yy)
+      c[v] = {axes.xx, axes.xy, axes.yy};
     }
     return strain::strain_standard_deviation(X, x, c);
   }

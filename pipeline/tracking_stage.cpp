@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <numbers>
 
 #include "core/csv.hpp"
 #include "core/median.hpp"
@@ -337,9 +338,15 @@ class TrackingStage final : public Stage {
     if (reference_has_ellipse_) {
       // A nearly circular contact has no meaningful major axis: its fitted angle is noise, and maps rotated
       // by it could not be compared or averaged across trials. Below this aspect the maps keep the image
-      // axes (translation and scale only).
+      // axes (translation and scale only). Otherwise the map's +x runs along the major axis towards the
+      // image's bottom (angle in [0, pi)): a fingertip's contact is elongated along the finger, which the rig
+      // images along y, so the sign of the axis never flips between trials of nearly the same contact (with
+      // angles in (-pi/2, pi/2] it would, at exactly that orientation).
       contact::Ellipse e = *context.contact->ellipse;
-      if (e.semi_minor_px > kCircularAspect * e.semi_major_px) e.angle_rad = 0.0;
+      if (e.semi_minor_px > kCircularAspect * e.semi_major_px)
+        e.angle_rad = 0.0;
+      else if (e.angle_rad < 0.0)
+        e.angle_rad += std::numbers::pi;
       reference_normalization_ = contact::EllipseNormalization(e);
     } else {
       reference_normalization_ = {};

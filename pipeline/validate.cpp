@@ -150,8 +150,10 @@ std::vector<std::string> write_side_by_side_maps(const ValidateOptions& options,
   // Only the pictured frame's map is read: the maps of a long trial do not fit in memory.
   const std::vector<double> maps = h5.read_row_doubles("/maps/strain_total", frame, &shape);
   const std::size_t g = shape[0];
-  const cv::Matx23d to_reference =
-      invert_similarity(parse_matrix(h5.attribute_text("/maps", "to_normalised"), result_path));
+  const cv::Matx23d to_normalised = parse_matrix(h5.attribute_text("/maps", "to_normalised"), result_path);
+  const cv::Matx23d to_reference = invert_similarity(to_normalised);
+  // The map's components are in its own axes (the forward similarity's rotation).
+  const double axes_angle_rad = std::atan2(to_normalised(0, 1), to_normalised(0, 0));
   const samples::FrameField field = trial.field(static_cast<int>(frame));
   cv::Mat measured[3], truth[3];
   for (int c = 0; c < 3; ++c) {
@@ -166,7 +168,8 @@ std::vector<std::string> write_side_by_side_maps(const ValidateOptions& options,
                    to_reference(1, 0) * qx + to_reference(1, 1) * qy + to_reference(1, 2)};
       const std::size_t base = (r * g + col) * 3;
       const bool inside = trial.contact_signed_distance_px(X) < 0.0;
-      const Strain2 e = inside ? green_lagrange(field.evaluate(X).gradient) : Strain2{kNaN, kNaN, kNaN};
+      const Strain2 e = inside ? in_axes(green_lagrange(field.evaluate(X).gradient), axes_angle_rad)
+                               : Strain2{kNaN, kNaN, kNaN};
       const double truth_values[3] = {e.xx, e.yy, e.xy};
       for (int c = 0; c < 3; ++c) {
         measured[c].at<double>(static_cast<int>(r), static_cast<int>(col)) =
@@ -185,6 +188,10 @@ std::vector<std::string> write_side_by_side_maps(const ValidateOptions& options,
     o.x_min = o.y_min = -1.0;
     o.x_max = o.y_max = 1.0;
     o.axis_unit = "normalised";
+    if (axes_angle_rad != 0.0)
+      o.axes = "x along the major axis (" +
+               std::to_string(std::lround(axes_angle_rad * 180.0 / std::numbers::pi)) +
+               " deg in the image), y 90 deg clockwise";
     o.unit = "strain (dimensionless)";
     o.min = -range;
     o.max = range;

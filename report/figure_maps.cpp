@@ -105,15 +105,23 @@ std::string number(const char* format, double value) {
   return buffer;
 }
 
+// Which way the map's axes lie in the image.
+std::string map_axes(const StrainMaps& m) {
+  if (m.axes_angle_rad == 0.0) return "x right and y down, as in the image (a contact this round keeps them)";
+  return "x along the reference contact's major axis towards the image's bottom, at " +
+         number("%.0f", m.axes_angle_rad * 180.0 / std::numbers::pi) +
+         "° from the image's x, y 90° clockwise from it on screen";
+}
+
 std::string map_caption(const ResultData& r, const StrainMaps& m, const std::vector<double>& ranges,
                         double percentile) {
   std::string caption =
       "Green–Lagrange strain of " + r.label + " at " + m.instant.name + " (frame " +
       std::to_string(m.instant.frame) + ", t = " + number("%.4g", m.instant.t_s) + " s; instant from " +
-      m.instant.source +
-      ") on the standard ellipse: x along the reference contact's major axis, lengths in units "
-      "of its semi-major axis, y down the image; the black line is the contact ellipse. "
-      "Components E_xx, E_yy, E_xy (tensor shear) and the principal strains e1 ≥ e2, all "
+      m.instant.source + ") on the standard ellipse, lengths in units of its semi-major axis; " +
+      map_axes(m) +
+      "; the black line is the contact ellipse. "
+      "Components E_xx, E_yy, E_xy (tensor shear, in the map's axes) and the principal strains e1 ≥ e2, all "
       "dimensionless; each cell holds the constant strain of the mesh triangle over it (no "
       "smoothing), blank outside the mesh: " +
       number("%.0f", 100.0 * m.covered_fraction) + " % of the ellipse is covered. Colour scales span ± the " +

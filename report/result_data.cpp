@@ -251,6 +251,8 @@ StrainMaps maps_at(const H5Reader& h5, const Instant& instant) {
   } catch (const Error&) {
     m.aspect = 1.0;
   }
+  if (h5.has_attribute("/maps", "axes_angle_rad"))
+    m.axes_angle_rad = h5.attribute_number("/maps", "axes_angle_rad");
   const std::size_t n = shape[0] * shape[1];
   m.component.assign(5, std::vector<double>(n));
   for (std::size_t c = 0; c < n; ++c) {

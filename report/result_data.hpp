@@ -23,6 +23,7 @@ struct StrainMaps {
   Instant instant;
   int cells = 0;
   double aspect = 1.0;                         // semi-minor / semi-major of the reference ellipse
+  double axes_angle_rad = 0.0;                 // the map's +x in the image (0: the image's axes)
   std::vector<std::vector<double>> component;  // E_xx, E_yy, E_xy, e1, e2 (kMapComponents order)
   double covered_fraction = 0.0;               // finite cells among those inside the ellipse
 };

@@ -2,10 +2,13 @@
 // the seed paper averages repetitions and subjects.
 #include <opencv2/core.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <limits>
+#include <numbers>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -98,7 +101,8 @@ std::vector<cv::Mat> frame_maps(const H5Reader& h5, const std::string& name, std
 struct TrialMaps {
   std::size_t cells = 0;
   std::vector<cv::Mat> exx, eyy, exy, e1, e2, energy;
-  std::string used;  // "file@frame;..."
+  std::string used;     // "file@frame;..."
+  bool turned = false;  // some trial's map axes are its contact's, not the image's
 };
 
 // The result.h5 of each input (a result file or a process output folder), each once.
@@ -126,8 +130,35 @@ void check_out_beside(const std::string& out, const std::vector<std::string>& re
   }
 }
 
+// The map's +x in its trial's image (radians): written by process, else read off the forward similarity.
+double map_axes_angle_rad(const H5Reader& h5) {
+  if (h5.has_attribute("/maps", "axes_angle_rad")) return h5.attribute_number("/maps", "axes_angle_rad");
+  if (!h5.has_attribute("/maps", "to_normalised")) return 0.0;
+  double a = 1.0, b = 0.0;
+  char comma = 0;
+  std::istringstream in(h5.attribute_text("/maps", "to_normalised"));
+  return (in >> a >> comma >> b) ? std::atan2(b, a) : 0.0;
+}
+
+// Maps average cell by cell in their own axes: trials whose axes lie differently on the finger (a round
+// contact keeps the image's, an elongated one takes its major axis) mix directions, which is said.
+void warn_if_axes_differ(const std::vector<std::string>& inputs, const std::vector<double>& angles_rad) {
+  constexpr double kDegree = std::numbers::pi / 180.0;
+  for (std::size_t i = 1; i < angles_rad.size(); ++i) {
+    double d = std::fmod(std::abs(angles_rad[i] - angles_rad[0]), std::numbers::pi);
+    d = std::min(d, std::numbers::pi - d);
+    if (d > 30.0 * kDegree)
+      std::cerr << "warning: the maps' axes differ by " << std::lround(d / kDegree) << " degrees between "
+                << inputs[0] << " (x at " << std::lround(angles_rad[0] / kDegree)
+                << " degrees in its image) and " << inputs[i] << " (" << std::lround(angles_rad[i] / kDegree)
+                << " degrees): E_xx, E_yy and E_xy of the two mean different directions on the finger "
+                   "(a contact within 5 % of a circle keeps the image's axes)\n";
+  }
+}
+
 TrialMaps read_trial_maps(const std::vector<std::string>& inputs, const Selection& selection) {
   TrialMaps t;
+  std::vector<double> angles_rad;
   for (const std::string& input : inputs) {
     const H5Reader h5(input);
     if (h5.has("/maps") && h5.attribute_number("/maps", "reference_has_ellipse") <= 0.0)
@@ -144,7 +175,10 @@ TrialMaps read_trial_maps(const std::vector<std::string>& inputs, const Selectio
     t.e2.push_back(principal[1]);
     t.energy.push_back(density[0]);
     t.used += (t.used.empty() ? "" : ";") + input + "@" + std::to_string(frame);
+    angles_rad.push_back(map_axes_angle_rad(h5));
+    t.turned = t.turned || angles_rad.back() != 0.0;
   }
+  warn_if_axes_differ(inputs, angles_rad);
   return t;
 }
 
@@ -191,7 +225,7 @@ void write_average_h5(const fs::path& path, const MeanMaps& m, std::size_t g, co
 }
 
 // Strain maps on a scale robust to the few border cells that a single trial covers (98th percentile).
-void write_average_pictures(const fs::path& out, const MeanMaps& m, std::size_t trials) {
+void write_average_pictures(const fs::path& out, const MeanMaps& m, std::size_t trials, bool turned) {
   const auto png = [&](const std::string& name, const cv::Mat& values, const std::string& title,
                        bool diverging) {
     HeatmapOptions o;
@@ -202,6 +236,7 @@ void write_average_pictures(const fs::path& out, const MeanMaps& m, std::size_t 
     o.x_min = o.y_min = -1.0;
     o.x_max = o.y_max = 1.0;
     o.axis_unit = "normalised";
+    if (turned) o.axes = "x along each contact's major axis, y 90 deg clockwise";
     write_heatmap_png((out / name).string(), values, o);
   };
   const std::string n = std::to_string(trials);
@@ -268,7 +303,7 @@ void add_average_command(CLI::App& app) {
     const MeanMaps means = mean_maps(trials);
     write_average_h5(fs::path(staging.path()) / "average.h5", means, trials.cells, trials.used,
                      selection.how);
-    write_average_pictures(staging.path(), means, args->inputs.size());
+    write_average_pictures(staging.path(), means, args->inputs.size(), trials.turned);
     staging.commit();
     std::cerr << "averaged " << args->inputs.size() << " trials (" << trials.cells << "x" << trials.cells
               << " cells) -> " << (fs::path(args->out) / "average.h5").string() << "\n";

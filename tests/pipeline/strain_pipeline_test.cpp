@@ -527,6 +527,56 @@ std::vector<double> last_frame_maps(const std::string& result_h5, std::size_t* c
   return {all.end() - static_cast<std::ptrdiff_t>(per_frame), all.end()};
 }
 
+// The maps of an elongated contact lie along its major axis, pointing down the image, and hold the strain in
+// those axes: two contacts turned 20 degrees apart about the image's y (major axes at 80 and 100 degrees)
+// get axes 20 degrees apart, not 160, and each map holds the exact uniform strain turned into its axes.
+TEST(StrainPipeline, MapsOfAnElongatedContactHoldTheStrainInTheirOwnAxes) {
+  const Gradient2 h{0.08, 0.03, -0.02, -0.04};
+  const Strain2 exact = green_lagrange(h);
+  double angles_rad[2] = {0.0, 0.0};
+  int k = 0;
+  for (const char* angle : {"80", "-80"}) {
+    const std::string yaml =
+        "calibration: {px_per_mm: 52, ridge_period_mm: 0.45, ridge_polarity: dark}\n"
+        "compute: [contact, tracking, strain]\n"
+        "synthesis:\n"
+        "  seed: 4\n"
+        "  image: {width_px: 288, height_px: 256, bit_depth: 8}\n"
+        "  timing: {frames: 4, frame_rate_hz: 100, jitter_s: 0}\n"
+        "  contact: {shape: ellipse, semi_axes_mm: [1.8, 1.3], angle_deg: " +
+        std::string(angle) +
+        ", normal_N: 2.0}\n"
+        "  loading: {field: affine, gradient: [0.08, 0.03, -0.02, -0.04]}\n"
+        "  sensor: {full_well_electrons: 0, read_noise: 0, blur_sigma_px: 0, drift: 0}\n";
+    const pipeline::ValidationReport report = synthesise_and_validate(std::string("map_axes_") + angle, yaml);
+    const std::string result = (fs::path(report.result_dir) / "result.h5").string();
+    const H5Reader h5(result);
+    const double axes_rad = h5.attribute_number("/maps", "axes_angle_rad");
+    angles_rad[k++] = axes_rad;
+    EXPECT_GE(axes_rad, 0.0);
+    EXPECT_LT(axes_rad, std::numbers::pi);
+    const Strain2 e = in_axes(exact, axes_rad);
+    std::size_t g = 0;
+    const std::vector<double> map = last_frame_maps(result, &g);
+    double sum2[3] = {0, 0, 0};
+    int cells = 0;
+    for (std::size_t c = 0; c < g * g; ++c) {
+      if (!std::isfinite(map[c * 3])) continue;
+      ++cells;
+      const double want[3] = {e.xx, e.yy, e.xy};
+      for (std::size_t q = 0; q < 3; ++q) sum2[q] += std::pow(map[c * 3 + q] - want[q], 2);
+    }
+    ASSERT_GT(cells, 500);
+    for (double s2 : sum2) EXPECT_LT(std::sqrt(s2 / cells), 0.004) << angle;
+    // The image's own components differ from the turned ones by far more than that.
+    EXPECT_GT(std::abs(e.xx - exact.xx), 0.05);
+  }
+  const double degree = std::numbers::pi / 180.0;
+  // The ellipse fitted to the reference frame's segmented contact: measured 80.0 and 105.3 degrees.
+  EXPECT_NEAR(angles_rad[0], 80.0 * degree, 7.0 * degree);
+  EXPECT_NEAR(angles_rad[1], 100.0 * degree, 7.0 * degree);
+}
+
 TEST(StrainPipeline, AverageIsTheCellwiseMeanOverCoveringTrials) {
   const pipeline::ValidationReport a = synthesise_and_validate(
       "average_a", scene_yaml("{field: affine, gradient: [0.10, 0.0, 0.0, -0.04]}", 4));
