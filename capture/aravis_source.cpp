@@ -23,30 +23,36 @@
 
 namespace tirstrain::capture {
 
-std::int64_t FrameIdUnwrapper::unwrap(std::uint64_t raw_id) {
+std::int64_t FrameIdUnwrapper::delta(std::uint64_t raw_id) const {
   constexpr std::uint64_t kGevPeriod = 65535;  // ids 1..65535; 0 is reserved
-  if (raw_id > 65535) wide_ = true;
+  if (wide_ || raw_id > 65535) return static_cast<std::int64_t>(raw_id - last_raw_);
+  // Work in 0-based ids so the skipped 0 does not count as a lost frame.
+  const std::uint64_t now = raw_id == 0 ? 0 : raw_id - 1;
+  const std::uint64_t before = last_raw_ == 0 ? 0 : last_raw_ - 1;
+  auto d = static_cast<std::int64_t>((now + kGevPeriod - before) % kGevPeriod);
+  // More than half a period ahead is a frame from the past delivered late (Aravis can hand a frame over
+  // after newer ones, e.g. when its buffer pool ran dry), not a wrap.
+  if (d > static_cast<std::int64_t>(kGevPeriod / 2)) d -= static_cast<std::int64_t>(kGevPeriod);
+  return d;
+}
+
+std::int64_t FrameIdUnwrapper::peek(std::uint64_t raw_id) const {
+  return have_last_ ? last_unwrapped_ + delta(raw_id) : static_cast<std::int64_t>(raw_id);
+}
+
+std::int64_t FrameIdUnwrapper::unwrap(std::uint64_t raw_id) {
   if (!have_last_) {
     have_last_ = true;
+    wide_ = raw_id > 65535;
     last_raw_ = raw_id;
     last_unwrapped_ = static_cast<std::int64_t>(raw_id);
     return last_unwrapped_;
   }
-  std::int64_t delta = 0;
-  if (wide_) {
-    delta = static_cast<std::int64_t>(raw_id - last_raw_);
-  } else {
-    // Work in 0-based ids so the skipped 0 does not count as a lost frame.
-    const std::uint64_t now = raw_id == 0 ? 0 : raw_id - 1;
-    const std::uint64_t before = last_raw_ == 0 ? 0 : last_raw_ - 1;
-    delta = static_cast<std::int64_t>((now + kGevPeriod - before) % kGevPeriod);
-    // More than half a period ahead is a frame from the past delivered late (Aravis can hand a frame over
-    // after newer ones, e.g. when its buffer pool ran dry), not a wrap.
-    if (delta > static_cast<std::int64_t>(kGevPeriod / 2)) delta -= static_cast<std::int64_t>(kGevPeriod);
-  }
-  if (delta < 0) return last_unwrapped_ + delta;  // late: the newest id stays the reference
+  const std::int64_t d = delta(raw_id);
+  if (raw_id > 65535) wide_ = true;
+  if (d < 0) return last_unwrapped_ + d;  // late: the newest id stays the reference
   last_raw_ = raw_id;
-  last_unwrapped_ += delta;
+  last_unwrapped_ += d;
   return last_unwrapped_;
 }
 
@@ -602,8 +608,13 @@ class AravisSource final : public FrameSource {
     // GigE Vision block id 0 means "no id": Aravis hands over a frame whose leader packet never came with id
     // 0 (and no timestamp). Such a frame is incomplete and cannot be placed in the sequence; it was received,
     // so the gap it sits in counts one frame fewer as lost.
+    // An incomplete buffer whose leader never came may also keep the id and timestamp of its previous
+    // use (Aravis reuses buffers): an incomplete frame's id that does not advance is not trusted either,
+    // or it would repeat an earlier frame's index and add a false gap after it.
     const guint64 raw_id = arv_buffer_get_frame_id(buffer);
-    if (raw_id == 0 && is_gv_) {
+    const bool stale_id =
+        !complete && is_gv_ && have_last_id_ && raw_id != 0 && frame_ids_.peek(raw_id) <= last_id_;
+    if ((raw_id == 0 && is_gv_) || stale_id) {
       frame.device_frame_id = -1;
       ++unidentified_since_last_;
     } else {
@@ -631,7 +642,8 @@ class AravisSource final : public FrameSource {
     const double steady_s = steady_now_s();
     frame.host_time_s =
         system_ns > 0 ? steady_s - (realtime_now_s() - static_cast<double>(system_ns) * 1e-9) : steady_s;
-    frame.device_time_s = device_ns > 0 ? static_cast<double>(device_ns) * 1e-9 : frame.host_time_s;
+    frame.device_time_s = device_ns > 0 && frame.device_frame_id >= 0 ? static_cast<double>(device_ns) * 1e-9
+                                                                      : frame.host_time_s;
 
     cv::Mat raw(height_px_, width_px_, CV_MAKETYPE(layout_.cv_depth, 1));
     std::size_t size = 0;

@@ -22,9 +22,12 @@ namespace tirstrain::capture {
 class FrameIdUnwrapper {
  public:
   std::int64_t unwrap(std::uint64_t raw_id);
+  // What unwrap would return, without taking the id as the newest.
+  std::int64_t peek(std::uint64_t raw_id) const;
   void reset() { have_last_ = false; }
 
  private:
+  std::int64_t delta(std::uint64_t raw_id) const;
   bool have_last_ = false;
   bool wide_ = false;
   std::uint64_t last_raw_ = 0;

@@ -344,6 +344,10 @@ class Recording {
       first_device_time_s_ = frame.device_time_s;
       first_host_time_s_ = frame.host_time_s;
     }
+    // A frame without an id carries no device time either: its row gives the host's arrival time, put on
+    // the device's clock by the two clocks' offset at the first frame (docs/capture.md).
+    if (have_first_ && frame.device_frame_id < 0 && frame.status == FrameStatus::kIncomplete)
+      frame.device_time_s = first_device_time_s_ + (frame.host_time_s - first_host_time_s_);
     // Positions follow the device counter so that lost frames leave holes in the file numbers.
     const bool unidentified =
         frame.device_frame_id < 0 && frame.status == FrameStatus::kIncomplete && have_ids_;

@@ -453,13 +453,15 @@ class AravisProcessTest : public ::testing::Test {
 
 // -r drops packets (per thousand) and the fake camera never resends: such frames must come out
 // incomplete, be counted, and never be stored as good frames.
-TEST_F(AravisProcessTest, PacketLossMarksFramesIncompleteAndNeverPassesThemOn) {
-  FakeCameraProcess camera("packet_loss", 5);
+// Records `frames` frames over a lossy link and checks every row, the counts and the frames read back.
+void check_packet_loss_recording(const std::string& name, int frames, const std::string& buffers) {
+  FakeCameraProcess camera(name, 5);
   ASSERT_TRUE(camera.ready());
-  const std::string dir = test_dir("packet_loss");
-  Child cli({TIRSTRAIN_CLI, "record", "aravis:127.0.0.1", "--out", dir, "--frames", "60", "--fps", "100",
-             "--roi", "0,0,256,128", "--packet-size", "1400", "--format", "pgm"},
-            dir + ".log");
+  const std::string dir = test_dir(name);
+  Child cli(
+      {TIRSTRAIN_CLI, "record", "aravis:127.0.0.1", "--out", dir, "--frames", std::to_string(frames), "--fps",
+       "100", "--roi", "0,0,256,128", "--packet-size", "1400", "--format", "pgm", "--buffers", buffers},
+      dir + ".log");
   const int code = cli.wait(90);
   const std::string log = cli.log();
   ASSERT_EQ(code, 0) << log;
@@ -482,7 +484,7 @@ TEST_F(AravisProcessTest, PacketLossMarksFramesIncompleteAndNeverPassesThemOn) {
       EXPECT_TRUE(fs::exists(dir + name));
     }
   }
-  EXPECT_EQ(table.rows(), 60u);
+  EXPECT_EQ(table.rows(), static_cast<std::size_t>(frames));
   EXPECT_GT(incomplete, 0u) << "0.5 % packet loss on ~25 packets per frame should spoil some frames";
   EXPECT_GT(good, 0u);
   EXPECT_NE(read_text(dir + "/recording.json").find("\"frames_incomplete\": " + std::to_string(incomplete)),
@@ -495,6 +497,7 @@ TEST_F(AravisProcessTest, PacketLossMarksFramesIncompleteAndNeverPassesThemOn) {
   // frame without its leader).
   const auto& lost_before = table.column("frames_lost_before");
   const auto& device_ids = table.column("device_frame_id");
+  const auto& t_s = table.column("t_s");
   double lost_sum = 0, first_id = 1e18, last_id = -1;
   std::size_t identified = 0, first_identified_row = table.rows(), last_identified_row = 0;
   std::set<double> places;
@@ -504,6 +507,9 @@ TEST_F(AravisProcessTest, PacketLossMarksFramesIncompleteAndNeverPassesThemOn) {
     if (device_ids[i] < 0) {
       EXPECT_EQ(status[i], 1);
       EXPECT_LT(index[i], 0);
+      // No time of its own: the host's arrival time, within the run (not a number from another clock).
+      EXPECT_GT(t_s[i], -1.0) << "row " << i;
+      EXPECT_LT(t_s[i], 0.01 * frames + 30.0) << "row " << i;
       continue;
     }
     ++identified;
@@ -541,6 +547,17 @@ TEST_F(AravisProcessTest, PacketLossMarksFramesIncompleteAndNeverPassesThemOn) {
     ++n;
   }
   EXPECT_EQ(n, good);
+}
+
+TEST_F(AravisProcessTest, PacketLossMarksFramesIncompleteAndNeverPassesThemOn) {
+  check_packet_loss_recording("packet_loss", 60, "256");
+}
+
+// With few buffers Aravis reuses each one many times: a buffer whose leader packet is lost keeps the id and
+// timestamp of its previous use, which once repeated an earlier frame's index (process then refused the
+// recording) and added a false gap after it.
+TEST_F(AravisProcessTest, PacketLossWithReusedBuffersKeepsEveryIndexDistinct) {
+  check_packet_loss_recording("packet_loss_reused", 300, "8");
 }
 
 TEST_F(AravisProcessTest, CameraKilledMidStreamEndsRecordingCleanly) {
