@@ -711,6 +711,7 @@ class ProcessRun {
   void start_stages(const capture::Frame& frame) {
     band_ = resolve_pattern_band(scene_, frame.image);
     note(band_.describe());
+    if (!band_.warning.empty()) warn()(band_.warning);
     plan_ = plan_stages(scene_);
     trial_ = TrialInfo{frame.image.size(), frame.image.depth(), source_->frame_count(), &scene_};
     trial_->out = h5_.get();

@@ -157,6 +157,29 @@ void check_pattern_band(const Scene& scene, cv::Size image_size) {
               {.file = scene.file, .key = "reference_pattern.roi_px"});
 }
 
+// A band the scene gives is used as given, but a dot band the images show elsewhere (another camera's scene,
+// frames turned upside down) would have the plate measured on skin or background, hundreds of px off with
+// nothing to tell: that is said. A scene band away from the edges, where detection does not look, or
+// images with no band found, are not judged.
+std::string scene_band_elsewhere(const RoiPx& r, const cv::Mat& first_frame) {
+  const contact::PatternBand band = contact::detect_pattern_band(first_frame);
+  if (band.edge == contact::ImageEdge::kNone) return {};
+  const cv::Rect scene_band(r.x, r.y, r.width, r.height);
+  const double shared = (scene_band & band.roi_px).area();
+  const double either = scene_band.area() + band.roi_px.area() - shared;
+  if (either > 0.0 && shared / either >= 0.3) return {};
+  char text[512];
+  std::snprintf(
+      text, sizeof text,
+      "the scene's reference_pattern.roi_px [%d, %d, %d, %d] is not where the images show the printed "
+      "dot band: the first frame has one along the %s edge, roi_px [%d, %d, %d, %d] (confidence "
+      "%.2f); the plate displacement is measured on what the scene's band holds, so check roi_px "
+      "(or remove it to use the band found)",
+      r.x, r.y, r.width, r.height, contact::to_string(band.edge).c_str(), band.roi_px.x, band.roi_px.y,
+      band.roi_px.width, band.roi_px.height, band.confidence);
+  return text;
+}
+
 PatternBandChoice resolve_pattern_band(Scene& scene, const cv::Mat& first_frame) {
   check_pattern_band(scene, first_frame.size());
   PatternBandChoice choice;
@@ -164,6 +187,7 @@ PatternBandChoice resolve_pattern_band(Scene& scene, const cv::Mat& first_frame)
     choice.source = "scene";
     choice.roi_px = scene.reference_pattern_roi;
     choice.edge = edge_of(*scene.reference_pattern_roi, first_frame.size());
+    choice.warning = scene_band_elsewhere(*scene.reference_pattern_roi, first_frame);
     return choice;
   }
   if (!scene.reference_pattern_detect) {

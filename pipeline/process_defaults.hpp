@@ -34,6 +34,7 @@ struct PatternBandChoice {
   std::string edge;  // top, bottom, left, right, none; "inside" for a scene band off the edges
   std::optional<double> confidence;  // detection only
   int margin_px = 0;                 // contact segmentation leaves out roi_px grown by this (detection only)
+  std::string warning;               // a scene band away from where the images show the dot band
   nlohmann::json to_json() const;
   std::string describe() const;  // one line for the console
 };

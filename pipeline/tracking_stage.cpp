@@ -135,16 +135,36 @@ class TrackingStage final : public Stage {
 
   // Positions with a direction no match measured are said, with how many and where to see them.
   std::vector<std::string> warnings() const override {
+    std::vector<std::string> out;
     std::int64_t track_frames = 0;
     for (const std::int64_t n : model_track_frames_) track_frames += n;
-    if (unmeasured_direction_ == 0 || track_frames == 0) return {};
-    char share[32];
-    std::snprintf(share, sizeof share, "%.1f",
-                  100.0 * static_cast<double>(unmeasured_direction_) / static_cast<double>(track_frames));
-    return {std::to_string(unmeasured_direction_) + " track-frames (" + share +
-            " %) have a direction the texture does not determine (straight ridges, or no texture): their "
-            "position is not measured along it (variance 100 px2 there in /tracks/covariance_px2, and the "
-            "strain's /strain/total_sd)"};
+    if (unmeasured_direction_ > 0 && track_frames > 0) {
+      char share[32];
+      std::snprintf(share, sizeof share, "%.1f",
+                    100.0 * static_cast<double>(unmeasured_direction_) / static_cast<double>(track_frames));
+      out.push_back(
+          std::to_string(unmeasured_direction_) + " track-frames (" + share +
+          " %) have a direction the texture does not determine (straight ridges, or no texture): "
+          "their position is not measured along it (variance 100 px2 there in /tracks/covariance_px2, "
+          "and the strain's /strain/total_sd)");
+    }
+    if (const std::string plate = plate_warning(); !plate.empty()) out.push_back(plate);
+    return out;
+  }
+
+  // A band whose frames are mostly predicted or followed by LK alone was not matched into its own pattern:
+  // the plate's motion (and the stick ratio measured against it) is then a guess, which is said.
+  std::string plate_warning() const {
+    if (!scene_.reference_pattern_roi || tracked_frames_ < 4) return {};
+    const std::int64_t not_matched = plate_frames_not_matched_[0] + plate_frames_not_matched_[1];
+    if (2 * not_matched <= tracked_frames_) return {};
+    return "the plate was matched into its dot pattern in only " +
+           std::to_string(tracked_frames_ - not_matched) + " of " + std::to_string(tracked_frames_) +
+           " frames (" + std::to_string(plate_frames_not_matched_[0]) + " predicted from its last motion, " +
+           std::to_string(plate_frames_not_matched_[1]) +
+           " followed by LK alone; /plate/status): its displacement, and the stick ratio measured against "
+           "it, "
+           "are unreliable; check that reference_pattern.roi_px holds the printed dots";
   }
 
   // Smoothing in time (flow/temporal_smoothing.hpp) once the trial is complete, where the settings in effect
@@ -293,7 +313,7 @@ class TrackingStage final : public Stage {
       s["smoothed_track_frames"] = smoothed_track_frames_;
       s["smoothing_noise_px_median"] = smoothing_noise_px_median_;
     }
-    s["plate_measured"] = scene_.reference_pattern_roi.has_value();
+    s["plate_measured"] = scene_.reference_pattern_roi.has_value() && plate_warning().empty();
     s["plate_frames_predicted"] = plate_frames_not_matched_[0];
     s["plate_frames_flow_only"] = plate_frames_not_matched_[1];
     if (!frames_.empty() && frames_.back().plate_px)

@@ -629,6 +629,32 @@ TEST(Process, FindsTheBandExcludesItAndMeasuresThePlate) {
   }
 }
 
+// The same recording with a scene whose band lies at the top, where there is no dot pattern (another rig's
+// scene, or frames turned upside down): the band is used as given, but both where the images show the band
+// and that the plate was hardly ever matched are said, and the plate is not reported as measured.
+TEST(Process, ASceneBandAwayFromTheDotsIsSaid) {
+  constexpr int kFrames = 6;
+  const fs::path trial = write_recording(
+      "band_elsewhere_trial", kFrames, [](int) { return true; }, cv::Rect(0, 456, 640, 56), 1.5);
+  const fs::path scene = scratch("band_elsewhere_scene") / "scene.yaml";
+  std::ofstream(scene) << "reference_pattern: {roi_px: [0, 0, 640, 56]}\n";
+  const fs::path out = scratch("band_elsewhere_out");
+  const CliRun run = run_cli("process " + trial.string() + " --scene " + scene.string() + " --out " +
+                             out.string() + " --overlay none");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("is not where the images show the printed dot band: the first frame has one "
+                            "along the bottom edge"),
+            std::string::npos)
+      << run.output;
+  const nlohmann::json summary = read_summary(out);
+  std::string warnings;
+  for (const auto& w : summary["warnings"]) warnings += w.get<std::string>() + "\n";
+  EXPECT_NE(warnings.find("not where the images show"), std::string::npos) << warnings;
+  EXPECT_NE(warnings.find("the plate was matched into its dot pattern in only"), std::string::npos)
+      << warnings;
+  EXPECT_EQ(summary["tracking"]["plate_measured"], false);
+}
+
 // A fingertip whose contact fills the right edge of the frame, with no band there: its ridges are not
 // taken for the plate's dots, so the contact is tracked (and strained) and no plate motion is reported.
 TEST(Process, AContactAlongAnEdgeIsNotTakenForTheDotBand) {
