@@ -185,6 +185,12 @@ class CineSource final : public IndexedFileSource {
               trigger_s_;
         clock.source = "the camera's per-frame timestamps (cine time block), seconds after its trigger";
         clock.measured = true;
+        if (options.frame_rate_Hz)
+          throw Error(
+              "--frame-rate-Hz was given but the file's per-frame timestamps (cine time block) already give "
+              "the "
+              "frames their times; a recording has one clock: drop one of them",
+              {.file = path_, .key = "--frame-rate-Hz"});
         return clock;
       }
       at += block_bytes;

@@ -381,6 +381,8 @@ class ImageSequenceSource final : public FrameSource {
                 {.file = csv, .column = "index"});
   }
 
+  // Public: the video source checks its rate the same way.
+ public:
   static double checked_rate_Hz(double rate_Hz) {
     if (!(rate_Hz > 0.0) || !std::isfinite(rate_Hz))
       throw Error("the frame rate must be a positive number of Hz, not " + format_double(rate_Hz),
@@ -388,6 +390,7 @@ class ImageSequenceSource final : public FrameSource {
     return rate_Hz;
   }
 
+ private:
   // A multi-page TIFF among the images would give only its first page: the user is told to open it alone.
   static void refuse_multi_page(const std::string& path, std::int64_t index) {
     const std::string ext = lower(fs::path(path).extension().string());
@@ -413,14 +416,40 @@ class ImageSequenceSource final : public FrameSource {
   int depth_ = -1;
 };
 
+// A file that is a video but cannot be read faithfully here: said as it is, not as "not a recording".
+class VideoRefused : public Error {
+ public:
+  using Error::Error;
+};
+
+// FFmpeg's tag for a pixel format of more than 8 bits per sample carries the bit count in its last byte
+// (gray16le 'Y1',0,16; yuv420p10le 'Y3',11,10).
+int bits_of_pixel_format_tag(double tag) {
+  if (!(tag > 0.0)) return 8;
+  const auto t = static_cast<std::uint32_t>(tag);
+  const unsigned third = (t >> 16) & 0xffu, fourth = (t >> 24) & 0xffu;
+  return third < 32u && fourth > 8u && fourth <= 16u ? static_cast<int>(fourth) : 8;
+}
+
 class VideoFileSource final : public FrameSource {
  public:
-  explicit VideoFileSource(std::string path) : path_(std::move(path)) {
+  VideoFileSource(std::string path, const FileSourceOptions& options) : path_(std::move(path)) {
     if (!capture_.open(path_, cv::CAP_FFMPEG))
       throw Error("cannot open as a video: FFmpeg could not read it (not a video, or an unsupported codec)",
                   {.file = path_});
+    // OpenCV's FFmpeg reader converts every frame to 8 bits: a 10-16-bit camera's data would lose its low
+    // bits (a 10-bit camera's codes in 16-bit samples become 0-3), so such a video is refused.
+    const int bits = bits_of_pixel_format_tag(capture_.get(cv::CAP_PROP_CODEC_PIXEL_FORMAT));
+    if (bits > 8)
+      throw VideoRefused(
+          "the video stores " + std::to_string(bits) +
+              "-bit samples, which the video reader here decodes to 8 bits, losing the camera's low bits: "
+              "export the frames as 16-bit images and process the folder, e.g. ffmpeg -i " +
+              path_ + " -pix_fmt gray16le frames/%06d.png",
+          {.file = path_});
     count_ = static_cast<std::int64_t>(capture_.get(cv::CAP_PROP_FRAME_COUNT));
     fps_ = capture_.get(cv::CAP_PROP_FPS);
+    if (options.frame_rate_Hz) given_rate_Hz_ = ImageSequenceSource::checked_rate_Hz(*options.frame_rate_Hz);
     // Decoding the first frame now turns an undecodable stream into an error before any work starts.
     std::optional<Frame> first = read_one();
     if (!first) throw Error("the video contains no decodable frame", {.file = path_, .frame = 0});
@@ -447,7 +476,9 @@ class VideoFileSource final : public FrameSource {
 
   std::string describe() const override {
     return "video file " + path_ + " (" + std::to_string(count_) + " frames by its header; time: " +
-           std::string(fallback_from_ ? "container timestamps, then frame rate" : "container timestamps") +
+           std::string(given_rate_Hz_ > 0.0 ? "frame index / --frame-rate-Hz"
+                       : fallback_from_     ? "container timestamps, then frame rate"
+                                            : "container timestamps") +
            ")";
   }
 
@@ -479,6 +510,8 @@ class VideoFileSource final : public FrameSource {
   // the decoder at the end of a stream with B-frames, so from the first time that does not increase on,
   // time runs on at the nominal frame rate from the last good timestamp (and settings() says so).
   double frame_time_s(std::int64_t index, double container_s) {
+    // A high-speed camera's export plays back at another rate than it recorded: the rate given wins.
+    if (given_rate_Hz_ > 0.0) return static_cast<double>(index) / given_rate_Hz_;
     if (index == 0 || (!fallback_from_ && container_s > last_time_s_)) return container_s;
     if (!(fps_ > 0.0))
       throw Error("timestamps do not increase (t_s = " + format_double(container_s) + " after " +
@@ -492,6 +525,10 @@ class VideoFileSource final : public FrameSource {
   }
 
   std::string time_source() const {
+    if (given_rate_Hz_ > 0.0)
+      return "frame index / " + format_double(given_rate_Hz_) +
+             " Hz (--frame-rate-Hz, in place of the container's timestamps at a nominal " +
+             format_double(fps_) + " fps)";
     const std::string pts = "container presentation timestamps (CAP_PROP_POS_MSEC)";
     if (!fallback_from_) return pts;
     return pts + " to frame " + std::to_string(*fallback_from_ - 1) + ", then frame index / nominal " +
@@ -503,6 +540,7 @@ class VideoFileSource final : public FrameSource {
   cv::VideoCapture capture_;
   std::int64_t count_ = -1;
   double fps_ = 0.0;
+  double given_rate_Hz_ = 0.0;  // --frame-rate-Hz, which replaces the container's times
   std::int64_t index_ = 0;
   double last_time_s_ = 0.0;
   std::optional<std::int64_t> fallback_from_;  // first frame timed by the frame rate
@@ -564,7 +602,9 @@ std::unique_ptr<FrameSource> open_regular_file(const std::string& path, const Fi
   }
   if (is_image_file_name(path)) return open_single_image(path, options);
   try {
-    return open_video_file(path);
+    return open_video_file(path, options);
+  } catch (const VideoRefused&) {
+    throw;
   } catch (const Error& e) {
     throw Error("is not a recording read here (it starts with " + first_bytes(path) + "; " + e.message() +
                     "). Frames are read from " + frame_formats_read(),
@@ -657,9 +697,9 @@ std::unique_ptr<FrameSource> open_image_pattern(const std::string& pattern,
                                                csv, options);
 }
 
-std::unique_ptr<FrameSource> open_video_file(const std::string& path) {
+std::unique_ptr<FrameSource> open_video_file(const std::string& path, const FileSourceOptions& options) {
   if (!fs::is_regular_file(path)) throw Error("no such video file", {.file = path});
-  return std::make_unique<VideoFileSource>(path);
+  return std::make_unique<VideoFileSource>(path, options);
 }
 
 std::unique_ptr<FrameSource> open_file_source(const std::string& path, const FileSourceOptions& options) {

@@ -24,7 +24,10 @@ std::unique_ptr<FrameSource> open_image_folder(const std::string& dir, const Fil
 // "a/b_%06d.png" (printf) or "a/*.png" (glob, wildcards only in the file name); times as for a folder.
 std::unique_ptr<FrameSource> open_image_pattern(const std::string& pattern,
                                                 const FileSourceOptions& options = {});
-std::unique_ptr<FrameSource> open_video_file(const std::string& path);
+// A video through FFmpeg; `options.frame_rate_Hz` replaces the container's timestamps (an export that plays
+// back at another rate than the camera recorded). A video of more than 8 bits per sample is refused: the
+// reader decodes to 8 bits.
+std::unique_ptr<FrameSource> open_video_file(const std::string& path, const FileSourceOptions& options = {});
 // Chooses by what `path` is: a folder, a pattern, or a file judged by its first bytes (multi-page TIFF,
 // BigTIFF, .cine, .mraw/.cih: capture/file_formats.hpp), then by its name (an image, else a video). Throws
 // Error naming the path, what it holds and the formats read if nothing fits.

@@ -263,14 +263,21 @@ std::vector<double> frame_times_from_csv(const std::string& csv, std::int64_t co
 FrameClock resolve_frame_clock(const std::string& path, std::int64_t count, std::vector<double> camera_t_s,
                                double camera_rate_Hz, const FileSourceOptions& options) {
   FrameClock clock;
+  const fs::path file(path);
+  const fs::path csv = (file.has_parent_path() ? file.parent_path() : fs::path(".")) / "frames.csv";
+  // A recording has one clock: a rate given beside timestamps the file or a frames.csv already holds would
+  // be ignored or would contradict them, so it is refused (as for a folder of images).
+  if (options.frame_rate_Hz && (!camera_t_s.empty() || fs::is_regular_file(csv)))
+    throw Error("--frame-rate-Hz was given but " +
+                    (camera_t_s.empty() ? csv.string() : std::string("the file's per-frame timestamps")) +
+                    " already gives the frames their times; a recording has one clock: drop one of them",
+                {.file = path, .key = "--frame-rate-Hz"});
   if (!camera_t_s.empty()) {
     clock.t_s = std::move(camera_t_s);
     clock.source = "the camera's per-frame timestamps in the file, relative to its trigger";
     clock.measured = true;
     return clock;
   }
-  const fs::path file(path);
-  const fs::path csv = (file.has_parent_path() ? file.parent_path() : fs::path(".")) / "frames.csv";
   if (fs::is_regular_file(csv)) {
     clock.t_s = frame_times_from_csv(csv.string(), count, path);
     clock.source = "t_s from " + csv.string();

@@ -322,6 +322,48 @@ TEST(VideoFile, BFramesH264KeepsTimeIncreasing) {
   EXPECT_NE(time_source.find("then frame index / nominal 20 fps"), std::string::npos) << time_source;
 }
 
+// A high-speed camera's export plays back at another rate than it recorded: the rate given replaces the
+// container's times, and the source says so.
+TEST(VideoFile, AGivenFrameRateReplacesTheContainersTimes) {
+  const fs::path dir = scratch("video_rate");
+  const std::string path = (dir / "clip.mp4").string();
+  {
+    cv::VideoWriter writer(path, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), 25.0, {64, 48}, false);
+    ASSERT_TRUE(writer.isOpened());
+    for (int i = 0; i < 6; ++i) writer.write(frame_image(i * 2));
+  }
+  auto source = open_file_source(path, FileSourceOptions{.frame_rate_Hz = 1000.0});
+  const auto frames = read_all(*source);
+  ASSERT_EQ(frames.size(), 6u);
+  for (std::size_t i = 0; i < frames.size(); ++i)
+    EXPECT_NEAR(frames[i].device_time_s, static_cast<double>(i) / 1000.0, 1e-12) << "frame " << i;
+  const std::string time_source = source->settings().at("time_source");
+  EXPECT_NE(time_source.find("frame index / 1000 Hz (--frame-rate-Hz, in place of the container's timestamps "
+                             "at a nominal 25 fps)"),
+            std::string::npos)
+      << time_source;
+}
+
+// The video reader decodes to 8 bits: a 16-bit video (a 10-bit camera's codes in gray16le) would lose the
+// camera's low bits, so it is refused with the way round it.
+TEST(VideoFile, SixteenBitVideoIsRefusedWithTheWayRoundIt) {
+  if (std::system("ffmpeg -version > /dev/null 2>&1") != 0) GTEST_SKIP() << "ffmpeg is not installed";
+  const fs::path dir = scratch("video16");
+  const std::string path = (dir / "gray16.mkv").string();
+  const std::string make =
+      "ffmpeg -hide_banner -loglevel error -y -f lavfi -i testsrc=size=64x48:rate=20 -t 0.2 -c:v ffv1 "
+      "-pix_fmt gray16le " +
+      path;
+  ASSERT_EQ(std::system(make.c_str()), 0) << make;
+  const std::string message = error_of([&] { open_source(path); });
+  EXPECT_NE(
+      message.find("gray16.mkv: the video stores 16-bit samples, which the video reader here decodes to 8 "
+                   "bits"),
+      std::string::npos)
+      << message;
+  EXPECT_NE(message.find("-pix_fmt gray16le frames/%06d.png"), std::string::npos) << message;
+}
+
 TEST(VideoFile, UndecodableVideoIsAnError) {
   const fs::path dir = scratch("badvideo");
   write_text(dir / "broken.mp4", std::string(4096, 'x'));

@@ -94,6 +94,21 @@ TEST(MultiPageTiff, EightBitFileOfNPagesGivesNFramesTimedByFramesCsv) {
   EXPECT_EQ(source->settings().at("time_measured"), "true");
 }
 
+// A rate given beside a frames.csv would be ignored or contradict it: one clock, as for a folder of images.
+TEST(MultiPageTiff, ARateBesideFramesCsvIsRefused) {
+  const fs::path dir = testing::scratch_dir("recordings", "tiff8_rate");
+  write_tiff(dir / "video.tif", 3, 8, false);
+  std::ofstream(dir / "frames.csv") << "index,t_s\n0,0.010\n1,0.011\n2,0.0125\n";
+  try {
+    open_file_source((dir / "video.tif").string(), FileSourceOptions{.frame_rate_Hz = 100.0});
+    ADD_FAILURE() << "a rate beside frames.csv was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("frames.csv already gives the frames their times"), std::string::npos)
+        << e.what();
+    EXPECT_EQ(e.context().key, "--frame-rate-Hz");
+  }
+}
+
 TEST(MultiPageTiff, SixteenBitBigTiffTimedByTheGivenFrameRate) {
   const fs::path dir = testing::scratch_dir("recordings", "bigtiff16");
   // Named .dat: the file is recognised by its bytes, not its name.
