@@ -548,11 +548,18 @@ class VideoFileSource final : public FrameSource {
   std::deque<Frame> pending_;  // frames decoded by the constructor, not yet delivered
 };
 
+// Hidden files are not frames: macOS leaves "._NAME.png" metadata beside every file it copies to a foreign
+// disk, which would otherwise be read as corrupt frames carrying the same numbers as the real ones.
+bool hidden(const std::string& file_name) {
+  return !file_name.empty() && file_name.front() == '.';
+}
+
 std::vector<std::string> list_images(const fs::path& dir) {
   std::vector<std::string> paths;
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(dir, ec)) {
-    if (entry.is_regular_file() && is_image_file_name(entry.path().filename().string()))
+    const std::string name = entry.path().filename().string();
+    if (entry.is_regular_file() && !hidden(name) && is_image_file_name(name))
       paths.push_back(entry.path().string());
   }
   if (ec) throw Error("cannot list folder: " + ec.message(), {.file = dir.string()});
@@ -684,6 +691,7 @@ std::unique_ptr<FrameSource> open_image_pattern(const std::string& pattern,
   for (const auto& entry : fs::directory_iterator(dir, ec)) {
     if (!entry.is_regular_file()) continue;
     const std::string file = entry.path().filename().string();
+    if (hidden(file)) continue;
     const bool match = spec ? matches_printf(*spec, file) : fnmatch(name.c_str(), file.c_str(), 0) == 0;
     if (match) paths.push_back(entry.path().string());
   }

@@ -70,6 +70,27 @@ TEST(ImageFolder, ReadsFramesAndTimestampsInOrder) {
   EXPECT_DOUBLE_EQ(by_pattern[3].device_time_s, 0.0125);
 }
 
+// A folder copied by macOS to a foreign disk holds "._NAME.png" metadata beside each image: not frames (they
+// once became corrupt frames with the real ones' numbers, and "timestamps go backwards").
+TEST(ImageFolder, HiddenFilesAreNotFrames) {
+  const fs::path dir = scratch("hidden");
+  fs::create_directories(dir);
+  for (int i = 0; i < 3; ++i) {
+    cv::imwrite((dir / (std::to_string(i) + ".png")).string(), frame_image(i));
+    write_text(dir / ("._" + std::to_string(i) + ".png"), std::string("\x00\x05\x16\x07", 4) + "Mac OS X");
+  }
+  write_text(dir / "frames.csv", "index,t_s\n0,0.0\n1,0.01\n2,0.02\n");
+  for (const std::string& input : {dir.string(), (dir / "*.png").string()}) {
+    auto source = open_source(input);
+    const auto frames = read_all(*source);
+    ASSERT_EQ(frames.size(), 3u) << input;
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_EQ(frames[i].status, FrameStatus::kOk) << input;
+      EXPECT_DOUBLE_EQ(frames[i].device_time_s, 0.01 * i) << input;
+    }
+  }
+}
+
 TEST(ImageFolder, SixteenBitTiffWithoutTimestampsSaysSo) {
   const fs::path dir = scratch("tiff16");
   for (int i = 0; i < 3; ++i)
