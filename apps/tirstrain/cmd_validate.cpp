@@ -87,6 +87,18 @@ void run_validate_command(const ValidateArgs& args) {
   const pipeline::ValidationReport report = pipeline::run_validate(validate_options(args));
   print_table(report);
   for (const std::string& w : report.warnings) std::cerr << "validate: warning: " << w << "\n";
+  // A result with nothing to compare (no contact, no tracks, no strain in any frame) validates nothing: a
+  // table of empty rows must not pass for a validation.
+  // (The coverage deficit measures what is missing, so it has samples whatever was measured.)
+  const bool nothing =
+      std::all_of(report.rows.begin(), report.rows.end(), [](const pipeline::ErrorStats& row) {
+        return row.samples == 0 || row.quantity.starts_with("coverage_deficit");
+      });
+  if (nothing)
+    throw Error(
+        "nothing could be validated: no row of the comparison has a sample (no contact, tracks or "
+        "strain was measured in any frame; the result's summary.json says why)",
+        {.file = report.result_dir});
   if (args.quiet) return;
   std::cerr << "validated " << report.frames << " frames";
   if (report.process_wall_s > 0.0) std::cerr << " (processing took " << report.process_wall_s << " s)";

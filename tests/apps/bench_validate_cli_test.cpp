@@ -2,6 +2,7 @@
 // with numbers that are finite and in range (the figures themselves are in BENCHMARKS.md).
 #include <H5Cpp.h>
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -314,6 +315,26 @@ TEST(ValidateCli, ProcessDefaultsJudgeTheMeasurementAndNameTheCalibration) {
 // A result is validated against its own trial only, and a validation shown beside its own result only:
 // validate refuses a --result of another trial that is still there, and report a --validation that
 // describes another result run (validation.json records which).
+// Frames in which nothing was measured (here the trial's frames replaced by a flat grey, as a 16-bit video
+// cut to 8 bits once gave): every row has 0 samples, which is a failure, not a validation.
+TEST(ValidateCli, AResultWithNothingMeasuredIsAFailure) {
+  const std::string out = fresh_dir("validate_nothing");
+  const fs::path scene = shortened_scene(fs::path(out), "default", 3);
+  const std::string trial = out + "/trial";
+  ASSERT_EQ(run_cli("synth --scene " + scene.string() + " --out " + trial + " --quiet").exit_code, 0);
+  const std::string flat = out + "/flat";
+  fs::copy(trial, flat, fs::copy_options::recursive);
+  for (const auto& entry : fs::directory_iterator(flat + "/frames")) {
+    const cv::Mat image = cv::imread(entry.path().string(), cv::IMREAD_UNCHANGED);
+    cv::imwrite(entry.path().string(), cv::Mat(image.size(), image.type(), cv::Scalar(100)));
+  }
+  ASSERT_EQ(run_cli("process " + flat + " --out " + out + "/r --overlay none --quiet").exit_code, 0);
+  const auto v =
+      run_cli("validate --trial " + flat + " --result " + out + "/r --out " + out + "/v --no-maps");
+  EXPECT_EQ(v.exit_code, 1) << v.output;
+  EXPECT_NE(v.output.find("nothing could be validated"), std::string::npos) << v.output;
+}
+
 TEST(ValidateCli, AResultAndAValidationOfAnotherTrialAreRefused) {
   const std::string out = fresh_dir("validate_provenance");
   std::string trials[2];
