@@ -37,10 +37,13 @@ function(tirstrain_add_library name)
     target_include_directories(${name} PUBLIC $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}>
                                               $<INSTALL_INTERFACE:include/tirstrain>)
     target_link_libraries(${name} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS} tirstrain_flags)
+    # The headers use C++20 (std::span, concepts): a consumer of the installed package gets it too.
+    target_compile_features(${name} PUBLIC cxx_std_20)
   else()
     add_library(${name} INTERFACE)
     target_include_directories(${name} INTERFACE $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}>
                                                  $<INSTALL_INTERFACE:include/tirstrain>)
     target_link_libraries(${name} INTERFACE ${ARG_PUBLIC_DEPS})
+    target_compile_features(${name} INTERFACE cxx_std_20)
   endif()
 endfunction()

@@ -20,6 +20,14 @@ cmake -S "$here/consumer" -B "$work/consumer" -G "$generator" -DCMAKE_CXX_COMPIL
 cmake --build "$work/consumer" > "$work/build.log" || { cat "$work/build.log"; exit 1; }
 "$work/consumer/consumer"
 "$work/consumer/consumer_pipeline"
+# A component that is not one of the libraries is refused by its name.
+mkdir -p "$work/unknown"
+printf 'cmake_minimum_required(VERSION 3.22)\nproject(u LANGUAGES CXX)\nfind_package(tirstrain 0.1 REQUIRED CONFIG COMPONENTS flow nosuchlib)\n' \
+  > "$work/unknown/CMakeLists.txt"
+if cmake -S "$work/unknown" -B "$work/unknown/build" -DCMAKE_PREFIX_PATH="$prefix" > "$work/unknown.log" 2>&1; then
+  echo "find_package accepted an unknown component"; exit 1
+fi
+grep -q "nosuchlib" "$work/unknown.log" || { cat "$work/unknown.log"; exit 1; }
 if [ -n "$python" ]; then
   # A sanitizer build's module needs the ASan runtime loaded into the (uninstrumented) interpreter first.
   PYTHONPATH=$(echo "$prefix"/lib/python3*/dist-packages) LD_PRELOAD="${TIRSTRAIN_PYTHON_PRELOAD:-}" \

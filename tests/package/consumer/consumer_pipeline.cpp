@@ -5,6 +5,7 @@
 
 #include "core/error.hpp"
 #include "pipeline/process.hpp"
+#include "strain/mesh.hpp"  // std::span in its interface: the package must carry C++20
 
 int main() {
   tirstrain::pipeline::ProcessOptions options;
