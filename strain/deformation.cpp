@@ -1,7 +1,10 @@
 #include "strain/deformation.hpp"
 
+#include "core/error.hpp"
+
 #include <cmath>
 #include <limits>
+#include <string>
 
 namespace tirstrain::strain {
 namespace {
@@ -124,7 +127,27 @@ bool moves_with_plate(const FrameInput& input, const std::array<Vec2, 3>& ref, c
 
 }  // namespace
 
+// The arrays describe the same tracks and every triangle names three of them: a mismatch would read past
+// an array's end or pair one track's reference with another's position.
+void check_frame_input(const FrameInput& input) {
+  const std::size_t tracks = input.reference_px.size();
+  if (input.current_px.size() != tracks)
+    throw Error("current_px has " + std::to_string(input.current_px.size()) +
+                " positions but reference_px has " + std::to_string(tracks) + ": one per track in both");
+  if (!input.previous_px.empty() && input.previous_px.size() != tracks)
+    throw Error("previous_px has " + std::to_string(input.previous_px.size()) +
+                " positions but reference_px has " + std::to_string(tracks) +
+                ": one per track, or none for the first frame");
+  for (std::size_t t = 0; t < input.triangles.size(); ++t)
+    for (const auto v : input.triangles[t])
+      if (v < 0 || static_cast<std::size_t>(v) >= tracks)
+        throw Error("triangle " + std::to_string(t) + " names track " + std::to_string(v) +
+                    ", but there are " + std::to_string(tracks) + " tracks");
+}
+
 FrameStrain compute_frame_strain(const FrameInput& input, const StrainOptions& settings) {
+  settings.check();
+  check_frame_input(input);
   const std::size_t count = input.triangles.size();
   FrameStrain out = empty_frame_strain(count);
   const double m_per_px = 1.0e-3 / settings.px_per_mm;

@@ -78,6 +78,9 @@ struct FrameStrain {
   double stick_ratio = 0.0;     // stuck area / valid area (NaN when unknown)
 };
 
+// Throws Error when `settings` has a value out of range (StrainOptions::check), when current_px (or a
+// non-empty previous_px) does not have one position per reference_px, or a triangle names a track beyond
+// them.
 FrameStrain compute_frame_strain(const FrameInput& input, const StrainOptions& settings);
 
 // The paper's total strain: a running sum of per-frame increments, kept per triangle. Triangles not valid

@@ -3,7 +3,11 @@
 #include <cmath>
 #include <numbers>
 #include <random>
+#include <string>
+#include <utility>
+#include <vector>
 
+#include "core/error.hpp"
 #include "strain/deformation.hpp"
 
 namespace tirstrain::strain {
@@ -49,6 +53,41 @@ TEST(Deformation, LinearFieldsGiveExactGradientOnEveryTriangle) {
     EXPECT_NEAR(f.total[t].xx, expected.xx, 1e-12);
     EXPECT_NEAR(f.total[t].xy, expected.xy, 1e-12);
   }
+}
+
+// A library caller's mistakes are refused by name, never read past an array or turned into infinite energy.
+TEST(Deformation, InputsAndSettingsOutOfRangeAreRefused) {
+  const std::vector<Vec2> ref = {{0, 0}, {10, 0}, {0, 10}};
+  const std::vector<Vec2> cur = {{0, 0}, {11, 0}, {0, 10}};
+  const std::vector<Vec2> short_cur = {{0, 0}, {11, 0}};
+  const std::vector<Triangle> good = {{0, 1, 2}}, beyond = {{0, 1, 99}};
+  const auto message = [](const FrameInput& input, const StrainOptions& settings) -> std::string {
+    try {
+      compute_frame_strain(input, settings);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  EXPECT_EQ(
+      compute_frame_strain({.triangles = good, .reference_px = ref, .current_px = cur}, {}).counts.valid, 1);
+  EXPECT_NE(message({.triangles = beyond, .reference_px = ref, .current_px = cur}, {})
+                .find("triangle 0 names track 99, but there are 3 tracks"),
+            std::string::npos);
+  EXPECT_NE(message({.triangles = good, .reference_px = ref, .current_px = short_cur}, {})
+                .find("current_px has 2 positions but reference_px has 3"),
+            std::string::npos);
+  EXPECT_NE(message({.triangles = good, .reference_px = ref, .current_px = cur, .previous_px = short_cur}, {})
+                .find("previous_px has 2 positions"),
+            std::string::npos);
+  for (const auto& [setting, key] : std::vector<std::pair<StrainOptions, std::string>>{
+           {StrainOptions{.poisson = 0.5}, "tissue.nu"},
+           {StrainOptions{.young_Pa = -1.0}, "tissue.E_Pa"},
+           {StrainOptions{.px_per_mm = 0.0}, "px_per_mm"},
+           {StrainOptions{.depth_m = std::nan("")}, "tissue.depth_m"}})
+    EXPECT_NE(message({.triangles = good, .reference_px = ref, .current_px = cur}, setting).find(key),
+              std::string::npos)
+        << key;
 }
 
 TEST(Deformation, RigidRotationOf30DegreesGivesZeroStrain) {
