@@ -1,4 +1,5 @@
 #include "core/archive.hpp"
+#include <algorithm>
 
 #include "core/error.hpp"
 #include "core/version.hpp"
@@ -52,6 +53,15 @@ void Archive::raw(void* data, std::size_t count) {
   cursor_ += count;
 }
 
+void Archive::expect_items(std::uint64_t count, std::size_t bytes_each) const {
+  if (!reading_) return;
+  const std::size_t left = bytes_.size() - cursor_;
+  if (count > left / std::max<std::size_t>(1, bytes_each))
+    throw Error("the checkpoint is damaged: it counts " + std::to_string(count) + " items of at least " +
+                std::to_string(std::max<std::size_t>(1, bytes_each)) + " bytes where " +
+                std::to_string(left) + " bytes are left");
+}
+
 void Archive::layout(std::uint64_t size, const char* what) {
   std::uint64_t written = size;
   raw(&written, sizeof written);
@@ -63,7 +73,10 @@ void Archive::layout(std::uint64_t size, const char* what) {
 void archive(Archive& a, std::string& value) {
   std::uint64_t n = value.size();
   a.raw(&n, sizeof n);
-  if (a.reading()) value.resize(n);
+  if (a.reading()) {
+    a.expect_items(n, 1);
+    value.resize(n);
+  }
   if (n) a.raw(value.data(), n);
 }
 
@@ -73,7 +86,13 @@ void archive(Archive& a, cv::Mat& value) {
   a.raw(header, sizeof header);
   if (a.reading()) {
     value.release();
-    if (header[1] > 0 && header[2] > 0) value.create(header[1], header[2], header[0]);
+    if (header[1] > 0 && header[2] > 0) {
+      if (header[0] < 0 || CV_MAT_DEPTH(header[0]) > CV_16F)
+        throw Error("the checkpoint is damaged: an image of unknown type " + std::to_string(header[0]));
+      a.expect_items(static_cast<std::uint64_t>(header[1]) * static_cast<std::uint64_t>(header[2]),
+                     CV_ELEM_SIZE(header[0]));
+      value.create(header[1], header[2], header[0]);
+    }
   }
   if (value.empty()) return;
   const std::size_t row_bytes = value.cols * value.elemSize();

@@ -37,6 +37,9 @@ class Archive {
   // Writes a type's size, or checks it against the one written (throws Error naming `what`): before state
   // copied as raw bytes, so that a snapshot of another layout is refused rather than misread.
   void layout(std::uint64_t size, const char* what);
+  // Reading: throws Error when `count` items of at least `bytes_each` bytes cannot fit in what is left, so
+  // that a damaged count is refused before anything is allocated for it.
+  void expect_items(std::uint64_t count, std::size_t bytes_each) const;
 
   template <typename... T>
   void operator()(T&... values);
@@ -80,7 +83,10 @@ template <typename T>
 void archive(Archive& a, std::vector<T>& values) {
   std::uint64_t n = values.size();
   a.raw(&n, sizeof n);
-  if (a.reading()) values.resize(n);
+  if (a.reading()) {
+    a.expect_items(n, std::is_trivially_copyable_v<T> && !ArchivedByMember<T> ? sizeof(T) : 1);
+    values.resize(n);
+  }
   if constexpr (std::is_trivially_copyable_v<T> && !ArchivedByMember<T>) {
     if (n) a.raw(values.data(), n * sizeof(T));
   } else {
@@ -92,7 +98,10 @@ template <typename T>
 void archive(Archive& a, std::deque<T>& values) {
   std::uint64_t n = values.size();
   a.raw(&n, sizeof n);
-  if (a.reading()) values.resize(n);
+  if (a.reading()) {
+    a.expect_items(n, 1);
+    values.resize(n);
+  }
   for (T& v : values) archive(a, v);
 }
 

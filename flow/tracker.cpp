@@ -100,6 +100,15 @@ void FeatureTracker::Impl::check_input(const cv::Mat& image, const cv::Mat& cont
                 {.frame = frame});
   if (!contact_mask.empty() && (contact_mask.size() != image.size() || contact_mask.type() != CV_8U))
     throw Error("the contact mask must be 8-bit and the size of the frame", {.frame = frame < 0 ? 0 : frame});
+  if (plate_roi) {
+    const cv::Rect band(plate_roi->x, plate_roi->y, plate_roi->width, plate_roi->height);
+    if (band.width <= 0 || band.height <= 0 || (band & cv::Rect({0, 0}, image.size())) != band)
+      throw Error("the pattern band [" + std::to_string(band.x) + ", " + std::to_string(band.y) + ", " +
+                      std::to_string(band.width) + ", " + std::to_string(band.height) +
+                      "] (x, y, width, height) does not lie inside the " + std::to_string(image.cols) +
+                      " x " + std::to_string(image.rows) + " px frame",
+                  {.frame = frame < 0 ? 0 : frame, .key = "reference_pattern.roi_px"});
+  }
 }
 
 void FeatureTracker::Impl::prepare(const cv::Mat& image, const cv::Mat& contact_mask) {

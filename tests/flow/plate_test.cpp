@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "core/error.hpp"
@@ -61,6 +62,22 @@ void render(const DotPattern& pattern, Vec2 d, double noise, std::mt19937& rng, 
       f.at<float>(y, x) = static_cast<float>(value + n(rng));
     }
   f.convertTo(u8, CV_8U, 255.0);
+}
+
+// A band outside the frames (another camera's scene) is refused by name, not left to an OpenCV assertion.
+TEST(PlateOptions, ABandOutsideTheFrameIsRefusedByName) {
+  const cv::Mat image(64, 96, CV_8U, cv::Scalar(100));
+  for (const RoiPx band : {RoiPx{1000, 1000, 50, 50}, RoiPx{0, 0, -5, 10}, RoiPx{80, 0, 20, 10}}) {
+    FeatureTracker tracker(TrackerOptions{}, band);
+    try {
+      tracker.start(image, cv::Mat(), 0.0);
+      ADD_FAILURE() << "accepted a band at " << band.x << "," << band.y;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("does not lie inside the 96 x 64 px frame"), std::string::npos)
+          << e.what();
+      EXPECT_EQ(e.context().key, "reference_pattern.roi_px");
+    }
+  }
 }
 
 TEST(PlateOptions, CheckRefusesValuesOutOfRange) {
