@@ -66,7 +66,9 @@ void record(const flow::FeatureTracker& tracker, TrackRun& run) {
     const double nan = std::numeric_limits<double>::quiet_NaN();
     run.position_px.push_back(alive ? t.position_px.x : nan);
     run.position_px.push_back(alive ? t.position_px.y : nan);
-    run.status.push_back(static_cast<std::int8_t>(t.status));
+    // As /tracks/status: the reason in the frame of retirement only, −1 after (docs/formats.md).
+    const bool retired_before = !alive && t.retired_frame >= 0 && t.retired_frame < run.frames;
+    run.status.push_back(retired_before ? std::int8_t{-1} : static_cast<std::int8_t>(t.status));
   }
   ++run.frames;
 }
@@ -175,8 +177,9 @@ void bind_flow(py::module_& m) {
       "full scale 1, one size), or a path (image folder, printf/glob pattern or video file). roi: (x, y, w,\n"
       "h) px, the region the grid fills and the tracker works in. preset: auto or delhaye2016. scene: a\n"
       "scene file (its tracking: section). Returns (reference_px [K, 2], position_px [N, K, 2] with NaN\n"
-      "where a track is not alive, status [N, K] int8: < 10 alive, >= 10 the reason it was retired;\n"
-      "docs/formats.md /tracks/status). Frames of a file source that cannot be decoded are skipped with\n"
+      "where a track is not alive, status [N, K] int8: 0-9 alive, >= 10 the reason it was retired in the\n"
+      "frame it was retired, -1 in the frames after; docs/formats.md /tracks/status). Frames of a file "
+      "source that cannot be decoded are skipped with\n"
       "a warning and have no row.");
 }
 

@@ -4,6 +4,7 @@
 
 #include <H5Cpp.h>
 
+#include <algorithm>
 #include <fstream>
 #include <map>
 #include <optional>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "flow/settings.hpp"
 #include "pipeline/process.hpp"
 #include "python/arrays.hpp"
 #include "python/bindings.hpp"
@@ -45,6 +47,16 @@ pipeline::OverlayMode parse_overlay(const std::string& name) {
 py::object process(const py::object& input, const py::object& out, const std::optional<py::object>& scene,
                    const std::vector<std::string>& compute, const std::string& overlay,
                    const std::string& preset, const std::string& segmentation, bool quiet, bool strict) {
+  // Checked here so that the error names the keyword, not the scene file the value is merged into.
+  const std::vector<std::string>& presets = flow::preset_names();
+  if (!preset.empty() && std::find(presets.begin(), presets.end(), preset) == presets.end()) {
+    std::string known;
+    for (const std::string& p : presets) known += (known.empty() ? "" : ", ") + p;
+    throw Error("'" + preset + "' is not one of: " + known, {.key = "preset"});
+  }
+  if (!segmentation.empty() && segmentation != "accurate" && segmentation != "balanced" &&
+      segmentation != "fast")
+    throw Error("'" + segmentation + "' is not one of: accurate, balanced, fast", {.key = "segmentation"});
   pipeline::ProcessOptions options;
   options.input = path_text(input);
   options.out_dir = path_text(out);

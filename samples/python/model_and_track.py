@@ -32,7 +32,7 @@ def frame(dx, dy):
 
 frames = [frame(0.7 * i, -0.3 * i) for i in range(4)]
 reference, position, status = tirstrain.track(frames, grid_px=16)
-alive = status[-1] < 10
+alive = (status[-1] >= 0) & (status[-1] < 10)  # -1: retired in an earlier frame
 shift = np.median(position[-1][alive] - reference[alive], axis=0)
 print(f"track: {len(reference)} points, {alive.sum()} alive; last frame's median shift "
       f"({shift[0]:.3f}, {shift[1]:.3f}) px, true (2.100, -0.900) px")

@@ -28,10 +28,10 @@ def test_track_recovers_a_rigid_shift():
     k = reference.shape[0]
     assert reference.shape == (k, 2) and k >= 4
     assert position.shape == (3, k, 2) and status.shape == (3, k)
-    # Grid points without a full subset of texture (here the corners) are retired at once (status >= 10).
+    # Grid points without a full subset of texture would be retired at once (status >= 10).
     started = status[0] < 10
     np.testing.assert_allclose(position[0][started], reference[started], atol=1e-9)
-    alive = status[-1] < 10
+    alive = (status[-1] >= 0) & (status[-1] < 10)
     assert (alive == started).all()
     for (dx, dy), p in zip(SHIFTS, position):
         d = p[alive] - reference[alive]
@@ -39,11 +39,25 @@ def test_track_recovers_a_rigid_shift():
     assert np.isnan(position[-1][~alive]).all()
 
 
+def test_a_retired_track_carries_its_reason_once_then_minus_one():
+    # The left half of the texture goes flat from frame 2 on: the tracks there are retired in frame 2 with
+    # their reason (>= 10) and are -1 in frame 3, as /tracks/status in result.h5.
+    frames = [texture((96, 112), 0.4 * i, 0.0) for i in range(4)]
+    for f in frames[2:]:
+        f[:, :56] = 0.5
+    reference, position, status = tirstrain.track(frames, grid_px=12)
+    retired_at_2 = (status[1] >= 0) & (status[1] < 10) & (status[2] >= 10)
+    assert retired_at_2.sum() >= 3, status
+    assert (status[3, retired_at_2] == -1).all()
+    assert np.isnan(position[3][retired_at_2]).all()
+    assert not (status[3] >= 10).any() or (status[2, status[3] >= 10] < 10).all()
+
+
 def test_track_accepts_uint8_and_roi():
     frames = [np.round(255 * texture((96, 112), dx, dy)).astype(np.uint8) for dx, dy in SHIFTS[:2]]
     reference, position, status = tirstrain.track(frames, grid_px=12, roi=(40, 20, 60, 60))
     assert ((reference >= [40, 20]) & (reference <= [99, 79])).all()
-    alive = status[-1] < 10
+    alive = (status[-1] >= 0) & (status[-1] < 10)
     np.testing.assert_allclose(np.median(position[1][alive] - reference[alive], axis=0), SHIFTS[1], atol=0.05)
     # A 3-D array [N, H, W] is its N frames.
     stacked = tirstrain.track(np.stack(frames), grid_px=12, roi=(40, 20, 60, 60))
