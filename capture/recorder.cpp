@@ -598,8 +598,13 @@ class Recording {
     try {
       write_text_file((root_ / "recording.json").string(), json);
     } catch (const Error& e) {
-      // The frames and frames.csv are what matter; a full disk may refuse this last small file.
-      if (report_.error.empty()) report_.error = e.what();
+      // The frames and frames.csv are what matter; a full disk may refuse this last small file, which is
+      // said (process then calls the recording unfinished, and says so too).
+      const std::string missing =
+          std::string(e.what()) +
+          " (no recording.json: the frames and frames.csv are complete up to the last "
+          "row, but process will call the recording unfinished)";
+      report_.error = report_.error.empty() ? missing : report_.error + "; " + missing;
     }
   }
 

@@ -414,6 +414,10 @@ TEST_F(AravisTest, DiskFullStopsCleanlyWithEarlierFramesReadable) {
   EXPECT_EQ(n, report.counts.frames_saved);
   for (const auto& entry : fs::directory_iterator(options.out_dir + "/frames"))
     EXPECT_EQ(entry.path().extension(), ".pgm") << "leftover partial file " << entry.path();
+  // The full disk may also refuse recording.json: never silently.
+  EXPECT_TRUE(fs::exists(options.out_dir + "/recording.json") ||
+              report.error.find("no recording.json") != std::string::npos)
+      << report.error;
 }
 
 // An unwritable folder (a read-only mount: root ignores permission bits) is refused before recording.
