@@ -43,12 +43,12 @@ json series_rows(const std::vector<ResultData>& results,
 json line_panel(json rows, const std::string& y_title, bool several_results, const FigureOptions& options,
                 const std::string& zoom_name) {
   json encoding = {
-      {"x", {{"field", "t_s"}, {"type", "quantitative"}, {"title", "time (s)"}}},
+      {"x", {{"field", "t_s"}, {"type", "quantitative"}, {"title", options.time_title}}},
       {"y", {{"field", "value"}, {"type", "quantitative"}, {"title", y_title}, {"scale", {{"zero", false}}}}},
       {"color", {{"field", "quantity"}, {"type", "nominal"}, {"title", nullptr}}},
       {"tooltip", json::array({{{"field", "result"}},
                                {{"field", "quantity"}},
-                               {{"field", "t_s"}, {"title", "t (s)"}},
+                               {{"field", "t_s"}, {"title", options.time_title}},
                                {{"field", "value"}, {"title", y_title}}})}};
   if (several_results)
     encoding["strokeDash"] = {{"field", "result"}, {"type", "nominal"}, {"title", "result"}};
@@ -253,7 +253,23 @@ std::string html_escape(const std::string& text) {
   return out;
 }
 
-std::vector<Figure> result_figures(const std::vector<ResultData>& results, const FigureOptions& options) {
+// A result whose input had no clock has the frame number as t_s: its axis must not say seconds.
+std::string time_axis_title(const std::vector<ResultData>& results) {
+  std::string untimed;
+  std::size_t count = 0;
+  for (const ResultData& r : results)
+    if (!r.time_measured) {
+      untimed += (untimed.empty() ? "" : ", ") + r.label;
+      ++count;
+    }
+  if (count == 0) return "time (s)";
+  if (count == results.size()) return "frame number (the input has no timestamps: not a time)";
+  return "time (s); frame number for " + untimed + " (no timestamps)";
+}
+
+std::vector<Figure> result_figures(const std::vector<ResultData>& results, const FigureOptions& given) {
+  FigureOptions options = given;
+  options.time_title = time_axis_title(results);
   std::vector<Figure> figures;
   for (const TimeFigure& t : time_figures(results)) {
     if (t.id == "energy" && options.maps)  // the key instants' maps between the forces and the energy

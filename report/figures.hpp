@@ -26,6 +26,7 @@ struct FigureOptions {
   int polar_bins = 18;           // bins over 0–180° for the axial polar histograms (10° each)
   int width_px = 640;            // width of a time-series plot
   bool maps = true;              // the strain maps at the key instants (false: left out, said in the page)
+  std::string time_title = "time (s)";  // the time axis (result_figures: the frame number where untimed)
 };
 
 // Figures of the process results, in reading order: contact, tracks, forces, strain maps, energy, stick,

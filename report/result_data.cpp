@@ -43,6 +43,8 @@ std::vector<double> optional_series(const H5Reader& h5, const std::string& name)
 
 void read_identity(const H5Reader& h5, ResultData& r) {
   r.software_version = text_attribute(h5, "software_version");
+  if (h5.has_attribute("/frames", "time_measured"))
+    r.time_measured = h5.attribute_number("/frames", "time_measured") > 0.0;
   r.stages = text_attribute(h5, "stages");
   r.input = text_attribute(h5, "input");
   r.scene_yaml = text_attribute(h5, "scene_yaml");
@@ -59,6 +61,9 @@ double px_per_mm_of(const H5Reader& h5) {
 
 void read_contact(const H5Reader& h5, ResultData& r) {
   r.area_mm2 = optional_series(h5, "/contact/area_mm2");
+  // 0 mm² is how result.h5 marks a frame without contact: a gap in the plot, not a contact of no area.
+  for (double& a : r.area_mm2)
+    if (a == 0.0) a = kNaN;
   if (!h5.has("/contact/ellipse")) return;
   const double px_per_mm = px_per_mm_of(h5);
   const auto ellipse = h5.read_doubles("/contact/ellipse");

@@ -41,6 +41,7 @@ struct ResultData {
   std::string label;             // how figures name this result (its folder's name)
   std::string dir;               // the folder as given
   std::string software_version;  // result.h5 root attribute
+  bool time_measured = true;     // false: t_s is the frame number (the input had no clock)
   std::string stages;            // comma-separated stages run
   std::string input;             // what was processed
   std::string scene_yaml;        // the scene in effect

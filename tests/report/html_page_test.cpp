@@ -65,6 +65,22 @@ TEST(ReportPage, PolarHistogramBinsAxialAnglesAndMirrorsThem) {
   EXPECT_NEAR(rows[1]["theta0"].get<double>() - rows[0]["theta0"].get<double>(), std::numbers::pi / 18, 1e-4);
 }
 
+// A result whose input had no timestamps has the frame number as t_s: its time axes say so, not seconds.
+TEST(ReportPage, AnUntimedResultsAxisSaysFrameNumber) {
+  ResultData r;
+  r.label = "r";
+  r.t_s = {0.0, 1.0, 2.0};
+  r.area_mm2 = {30.0, 31.0, 32.0};
+  for (const bool timed : {true, false}) {
+    r.time_measured = timed;
+    const std::vector<Figure> figures = result_figures({r});
+    ASSERT_FALSE(figures.empty());
+    const std::string spec = figures[0].spec.dump();
+    EXPECT_EQ(spec.find("time (s)") != std::string::npos, timed) << spec;
+    EXPECT_EQ(spec.find("frame number (the input has no timestamps") != std::string::npos, !timed) << spec;
+  }
+}
+
 TEST(ReportPage, WriteReportRefusesToOverwriteAnInputOrAFolder) {
   const fs::path dir = fs::path(TIRSTRAIN_TEST_TMP) / "report_refusals";
   fs::remove_all(dir);

@@ -27,7 +27,7 @@ fs::path fresh_dir(const std::string& name) {
 
 void write_frames_and_contact(H5Writer& h5) {
   h5.write("/frames/t_s", std::vector<double>{0.0, 0.1, 0.2, 0.3, 0.4}, {kFrames});
-  h5.write("/contact/area_mm2", std::vector<double>{30, 31, 32, 33, 34}, {kFrames});
+  h5.write("/contact/area_mm2", std::vector<double>{30, 0, 32, 33, 34}, {kFrames});  // frame 1: no contact
   std::vector<double> ellipse(kFrames * 5, 0.0);
   for (std::size_t i = 0; i < kFrames; ++i)
     if (i != 1) {  // frame 1 has no ellipse: zeros
@@ -124,6 +124,9 @@ TEST(ReportResultData, SeriesAreTheFileContentsInSIUnits) {
   EXPECT_DOUBLE_EQ(r.semi_major_mm[0], 3.0);  // 150 px at 50 px/mm
   EXPECT_DOUBLE_EQ(r.semi_minor_mm[0], 2.0);
   EXPECT_TRUE(std::isnan(r.semi_major_mm[1])) << "no ellipse: no value, not 0";
+  EXPECT_DOUBLE_EQ(r.area_mm2[0], 30.0);
+  EXPECT_TRUE(std::isnan(r.area_mm2[1])) << "no contact: a gap, not a contact of 0 mm²";
+  EXPECT_TRUE(r.time_measured);
   EXPECT_EQ(r.tracks_alive, (std::vector<double>{2, 2, 3, 3, 3}));
   EXPECT_EQ(r.tracks_born, (std::vector<double>{2, 0, 1, 1, 0}));
   EXPECT_EQ(r.tracks_retired, (std::vector<double>{0, 0, 0, 1, 0}));
