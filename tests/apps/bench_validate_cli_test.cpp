@@ -175,6 +175,9 @@ TEST(BenchCli, GeneralisationSequencesAsRecordingsThatProcessReads) {
   // No triangle, so no strain energy: null, not a measured 0 J.
   EXPECT_NE(read_text(speckle + "/summary.json").find("\"strain_energy_max_J\": null"), std::string::npos)
       << read_text(speckle + "/summary.json");
+  // U is the meshed area's only, which summary.json says beside it.
+  EXPECT_NE(read_text(speckle + "/summary.json").find("the meshed triangles only: a lower bound"),
+            std::string::npos);
   const std::string speckle_scene = fresh_dir("bench_recordings_speckle_scene.yaml");
   const auto speckle_init =
       run_cli("scene init " + (recordings / "stretch_speckle_0.5").string() + " --out " + speckle_scene);
