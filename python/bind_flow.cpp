@@ -67,7 +67,8 @@ void record(const flow::FeatureTracker& tracker, TrackRun& run) {
     run.position_px.push_back(alive ? t.position_px.x : nan);
     run.position_px.push_back(alive ? t.position_px.y : nan);
     // As /tracks/status: the reason in the frame of retirement only, −1 after (docs/formats.md).
-    const bool retired_before = !alive && t.retired_frame >= 0 && t.retired_frame < run.frames;
+    const bool retired_before =
+        !alive && t.retired_frame >= 0 && static_cast<std::size_t>(t.retired_frame) < run.frames;
     run.status.push_back(retired_before ? std::int8_t{-1} : static_cast<std::int8_t>(t.status));
   }
   ++run.frames;
