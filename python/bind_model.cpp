@@ -1,6 +1,9 @@
 // tirstrain.cattaneo_mindlin: the Hertz + Cattaneo–Mindlin surface field (model/) on arrays of points.
 #include <pybind11/stl.h>
 
+#include <cmath>
+#include <string>
+
 #include "core/error.hpp"
 #include "model/cattaneo_mindlin.hpp"
 #include "python/arrays.hpp"
@@ -25,6 +28,17 @@ py::dict cattaneo_mindlin(const DoubleArray& x_m, const DoubleArray& y_m, double
   const std::vector<py::ssize_t> shape(x_m.shape(), x_m.shape() + x_m.ndim());
   if (std::vector<py::ssize_t>(y_m.shape(), y_m.shape() + y_m.ndim()) != shape)
     throw Error("x_m and y_m must have the same shape", {.key = "y_m"});
+  // A point must be a number: NumPy turns None into NaN on the way in, which would come back as NaN
+  // fields without a word.
+  for (const auto* array : {&x_m, &y_m}) {
+    const double* v = array->data();
+    for (py::ssize_t i = 0; i < array->size(); ++i)
+      if (!std::isfinite(v[i]))
+        throw Error("point " + std::to_string(i) + " is " +
+                        (std::isnan(v[i]) ? "NaN (or None)" : "infinite") +
+                        ": every point needs a finite position, m",
+                    {.key = array == &x_m ? "x_m" : "y_m"});
+  }
   const model::CattaneoMindlin cm = make_model({.normal_N = normal_N,
                                                 .tangential_N = tangential_N,
                                                 .radius_m = radius_m,

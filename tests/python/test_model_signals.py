@@ -59,6 +59,11 @@ def test_cattaneo_mindlin_errors_name_the_argument():
         tirstrain.cattaneo_mindlin(np.zeros(1), np.zeros(1), **{**CM, "tangential_N": 2.0})
     with pytest.raises(tirstrain.Error, match="same shape"):
         tirstrain.cattaneo_mindlin(np.zeros(2), np.zeros(3), **CM)
+    # None (NumPy makes it NaN) or a NaN point: named, not NaN fields back.
+    with pytest.raises(tirstrain.Error, match=r"'x_m'.*point 0 is NaN \(or None\)"):
+        tirstrain.cattaneo_mindlin(None, None, **CM)
+    with pytest.raises(tirstrain.Error, match=r"'y_m'.*point 1 is NaN"):
+        tirstrain.cattaneo_mindlin(np.zeros(2), np.array([0.0, None], dtype=float), **CM)
 
 
 def test_psd_peak_and_power_of_a_sinusoid():
