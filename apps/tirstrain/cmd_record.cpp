@@ -122,8 +122,9 @@ void add_record_command(CLI::App& app) {
   auto* frames = sub->add_option("--frames", args->frames, "Stop after N frames received")->check(kPositive);
   auto* seconds = sub->add_option("--seconds", args->seconds, "Stop after S seconds")->check(kPositive);
   frames->excludes(seconds);
-  sub->add_option("--format", args->format,
-                  "Image format: tiff (default, uncompressed), pgm (raw), png (smaller, ~10x slower to write)")
+  sub->add_option(
+         "--format", args->format,
+         "Image format: tiff (default, uncompressed), pgm (raw), png (smaller, ~10x slower to write)")
       ->check(CLI::IsMember({"png", "tiff", "pgm"}));
   sub->add_option("--png-level", args->png_level, "PNG zlib level 0..9 (default 1: fast, lossless)")
       ->check(CLI::Range(0, 9));

@@ -103,7 +103,8 @@ TEST(MultiPageTiff, ARateBesideFramesCsvIsRefused) {
     open_file_source((dir / "video.tif").string(), FileSourceOptions{.frame_rate_Hz = 100.0});
     ADD_FAILURE() << "a rate beside frames.csv was accepted";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("frames.csv already gives the frames their times"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("frames.csv already gives the frames their times"),
+              std::string::npos)
         << e.what();
     EXPECT_EQ(e.context().key, "--frame-rate-Hz");
   }
