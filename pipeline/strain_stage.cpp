@@ -484,9 +484,8 @@ class StrainStage final : public Stage {
     // null where no frame had a strain energy (no triangle): 0 J would read as a measured skin at rest.
     s["strain_energy_max_J"] = std::isfinite(energy_max) ? nlohmann::json(energy_max) : nlohmann::json();
     s["energy_scope"] =
-        "the meshed triangles only: a lower bound of the contact's strain energy (the rim beyond the tracks "
-        "is "
-        "left out; docs/formats.md, /energy/total_J)";
+        "the meshed triangles only: a lower bound of the contact's strain energy (the rim beyond the "
+        "tracks is left out; docs/formats.md, /energy/total_J)";
     s["strain_energy_last_J"] =
         last && std::isfinite(last->energy_J) ? nlohmann::json(last->energy_J) : nlohmann::json();
     if (last && std::isfinite(last->stick_ratio)) s["stick_ratio_last"] = last->stick_ratio;
