@@ -184,6 +184,14 @@ bool recording_has_no_clock(const std::string& frames_csv) {
   return j["settings"].value("time_measured", std::string("true")) == "false";
 }
 
+// A frame rate given on the command line: a positive, finite number of Hz.
+double checked_rate_Hz(double rate_Hz) {
+  if (!(rate_Hz > 0.0) || !std::isfinite(rate_Hz))
+    throw Error("the frame rate must be a positive number of Hz, not " + format_double(rate_Hz),
+                {.key = "--frame-rate-Hz"});
+  return rate_Hz;
+}
+
 class ImageSequenceSource final : public FrameSource {
  public:
   ImageSequenceSource(std::vector<SequenceFile> files, std::string description,
@@ -381,16 +389,6 @@ class ImageSequenceSource final : public FrameSource {
                 {.file = csv, .column = "index"});
   }
 
-  // Public: the video source checks its rate the same way.
- public:
-  static double checked_rate_Hz(double rate_Hz) {
-    if (!(rate_Hz > 0.0) || !std::isfinite(rate_Hz))
-      throw Error("the frame rate must be a positive number of Hz, not " + format_double(rate_Hz),
-                  {.key = "--frame-rate-Hz"});
-    return rate_Hz;
-  }
-
- private:
   // A multi-page TIFF among the images would give only its first page: the user is told to open it alone.
   static void refuse_multi_page(const std::string& path, std::int64_t index) {
     const std::string ext = lower(fs::path(path).extension().string());
@@ -449,7 +447,7 @@ class VideoFileSource final : public FrameSource {
           {.file = path_});
     count_ = static_cast<std::int64_t>(capture_.get(cv::CAP_PROP_FRAME_COUNT));
     fps_ = capture_.get(cv::CAP_PROP_FPS);
-    if (options.frame_rate_Hz) given_rate_Hz_ = ImageSequenceSource::checked_rate_Hz(*options.frame_rate_Hz);
+    if (options.frame_rate_Hz) given_rate_Hz_ = checked_rate_Hz(*options.frame_rate_Hz);
     // Decoding the first frame now turns an undecodable stream into an error before any work starts.
     std::optional<Frame> first = read_one();
     if (!first) throw Error("the video contains no decodable frame", {.file = path_, .frame = 0});
