@@ -5,6 +5,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -38,6 +39,22 @@ std::vector<Frame> read_all(FrameSource& source) {
   std::vector<Frame> frames;
   while (auto f = source.next()) frames.push_back(std::move(*f));
   return frames;
+}
+
+bool has_ffmpeg() {
+  return std::system("ffmpeg -version > /dev/null 2>&1") == 0;
+}
+
+// ffmpeg's test pattern (`pattern`: its size and rate) for `seconds`, encoded with `codec` options into
+// scratch(name)/file; the path, or empty when ffmpeg failed (its command printed).
+std::string ffmpeg_test_video(const std::string& name, const std::string& file, const std::string& pattern,
+                              double seconds, const std::string& codec) {
+  const std::string path = (scratch(name) / file).string();
+  const std::string make = "ffmpeg -hide_banner -loglevel error -y -f lavfi -i testsrc=" + pattern + " -t " +
+                           std::to_string(seconds) + " " + codec + " " + path;
+  if (std::system(make.c_str()) == 0) return path;
+  std::printf("failed: %s\n", make.c_str());
+  return {};
 }
 
 TEST(ImageFolder, ReadsFramesAndTimestampsInOrder) {
@@ -326,14 +343,10 @@ TEST(VideoFile, ReadsFramesWithContainerTimestamps) {
 // H.264 with B-frames as ffmpeg writes it by default: OpenCV's position reads 0 for the frames drained
 // from the decoder at the end, so time goes on from the frame rate there, and the source says so.
 TEST(VideoFile, BFramesH264KeepsTimeIncreasing) {
-  if (std::system("ffmpeg -version > /dev/null 2>&1") != 0) GTEST_SKIP() << "ffmpeg is not installed";
-  const fs::path dir = scratch("bframes");
-  const std::string path = (dir / "bframes.mp4").string();
-  const std::string make =
-      "ffmpeg -hide_banner -loglevel error -y -f lavfi -i testsrc=size=160x120:rate=20 "
-      "-t 1 -c:v libx264 -bf 2 -pix_fmt yuv420p " +
-      path;
-  ASSERT_EQ(std::system(make.c_str()), 0) << make;
+  if (!has_ffmpeg()) GTEST_SKIP() << "ffmpeg is not installed";
+  const std::string path = ffmpeg_test_video("bframes", "bframes.mp4", "size=160x120:rate=20", 1.0,
+                                             "-c:v libx264 -bf 2 -pix_fmt yuv420p");
+  ASSERT_FALSE(path.empty());
   auto source = open_source(path);
   const auto frames = read_all(*source);
   ASSERT_EQ(frames.size(), 20u);
@@ -368,14 +381,10 @@ TEST(VideoFile, AGivenFrameRateReplacesTheContainersTimes) {
 // The video reader decodes to 8 bits: a 16-bit video (a 10-bit camera's codes in gray16le) would lose the
 // camera's low bits, so it is refused with the way round it.
 TEST(VideoFile, SixteenBitVideoIsRefusedWithTheWayRoundIt) {
-  if (std::system("ffmpeg -version > /dev/null 2>&1") != 0) GTEST_SKIP() << "ffmpeg is not installed";
-  const fs::path dir = scratch("video16");
-  const std::string path = (dir / "gray16.mkv").string();
-  const std::string make =
-      "ffmpeg -hide_banner -loglevel error -y -f lavfi -i testsrc=size=64x48:rate=20 -t 0.2 -c:v ffv1 "
-      "-pix_fmt gray16le " +
-      path;
-  ASSERT_EQ(std::system(make.c_str()), 0) << make;
+  if (!has_ffmpeg()) GTEST_SKIP() << "ffmpeg is not installed";
+  const std::string path =
+      ffmpeg_test_video("video16", "gray16.mkv", "size=64x48:rate=20", 0.2, "-c:v ffv1 -pix_fmt gray16le");
+  ASSERT_FALSE(path.empty());
   const std::string message = error_of([&] { open_source(path); });
   EXPECT_NE(
       message.find("gray16.mkv: the video stores 16-bit samples, which the video reader here decodes to 8 "
