@@ -41,6 +41,16 @@ std::vector<Frame> read_all(FrameSource& source) {
   return frames;
 }
 
+// An MPEG-4 clip of `frames` grey frames (frame_image(2i)) at 25 fps written by OpenCV into scratch(name);
+// the path, or empty when the writer would not open.
+std::string mp4v_clip(const std::string& name, int frames) {
+  const std::string path = (scratch(name) / "clip.mp4").string();
+  cv::VideoWriter writer(path, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), 25.0, {64, 48}, false);
+  if (!writer.isOpened()) return {};
+  for (int i = 0; i < frames; ++i) writer.write(frame_image(i * 2));
+  return path;
+}
+
 bool has_ffmpeg() {
   return std::system("ffmpeg -version > /dev/null 2>&1") == 0;
 }
@@ -323,13 +333,8 @@ TEST(OpenSource, MissingInputAndCameraSchemes) {
 }
 
 TEST(VideoFile, ReadsFramesWithContainerTimestamps) {
-  const fs::path dir = scratch("video");
-  const std::string path = (dir / "clip.mp4").string();
-  {
-    cv::VideoWriter writer(path, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), 25.0, {64, 48}, false);
-    ASSERT_TRUE(writer.isOpened());
-    for (int i = 0; i < 10; ++i) writer.write(frame_image(i * 2));
-  }
+  const std::string path = mp4v_clip("video", 10);
+  ASSERT_FALSE(path.empty());
   auto source = open_source(path);
   const auto frames = read_all(*source);
   ASSERT_EQ(frames.size(), 10u);
@@ -359,13 +364,8 @@ TEST(VideoFile, BFramesH264KeepsTimeIncreasing) {
 // A high-speed camera's export plays back at another rate than it recorded: the rate given replaces the
 // container's times, and the source says so.
 TEST(VideoFile, AGivenFrameRateReplacesTheContainersTimes) {
-  const fs::path dir = scratch("video_rate");
-  const std::string path = (dir / "clip.mp4").string();
-  {
-    cv::VideoWriter writer(path, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), 25.0, {64, 48}, false);
-    ASSERT_TRUE(writer.isOpened());
-    for (int i = 0; i < 6; ++i) writer.write(frame_image(i * 2));
-  }
+  const std::string path = mp4v_clip("video_rate", 6);
+  ASSERT_FALSE(path.empty());
   auto source = open_file_source(path, FileSourceOptions{.frame_rate_Hz = 1000.0});
   const auto frames = read_all(*source);
   ASSERT_EQ(frames.size(), 6u);
